@@ -1,0 +1,38 @@
+# The two commands: `make run` (the GUI) and `make test` (the whole suite).
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: venv run test lint bench screenshots clean
+
+venv: $(STAMP)
+
+$(STAMP): pyproject.toml
+	@bash scripts/ensure-system-deps.sh
+	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "livox-viz needs Python >= 3.11"'
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV) || { \
+	  echo "error: '$(PYTHON) -m venv' failed: on Debian install python3-venv (apt-get install python3-venv)"; \
+	  rm -rf $(VENV); exit 1; }
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	@touch $(STAMP)
+
+run: venv
+	$(BIN)/livox-viz gui
+
+test: venv
+	$(BIN)/python -m pytest
+
+lint: venv
+	$(BIN)/ruff check livox_viz widgets tests benchmarks
+
+bench: venv
+	@for script in benchmarks/bench_*.py; do echo "== $$script"; $(BIN)/python $$script || exit 1; done
+
+screenshots: venv
+	$(BIN)/livox-viz render --view pattern --seconds 1 --out screenshots/pattern.png
+	$(BIN)/livox-viz render --view scene --seconds 1 --out screenshots/scene.png
+
+clean:
+	rm -rf $(VENV) build *.egg-info .pytest_cache

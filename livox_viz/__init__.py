@@ -1,0 +1,26 @@
+"""livox-viz: the simulated Livox rosette lidar of RflySim (TypeID 6), as a model.
+
+This package never imports VTK or pyvista; the GUI lives in ``widgets``.
+"""
+
+from __future__ import annotations
+
+from .config import PARAM_RANGES, SensorConfig, load_config, save_config
+from .errors import ConfigError, LivoxVizError
+from .pattern import PatternChunk, ScanPattern
+from .presets import DEFAULT_PRESET, list_presets, load_preset
+
+__all__ = [
+    "DEFAULT_PRESET",
+    "PARAM_RANGES",
+    "ConfigError",
+    "LivoxVizError",
+    "PatternChunk",
+    "ScanPattern",
+    "SensorConfig",
+    "list_presets",
+    "load_config",
+    "load_preset",
+    "save_config",
+]
+__version__ = "0.1.0"

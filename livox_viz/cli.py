@@ -1,0 +1,317 @@
+"""The ``livox-viz`` command line.
+
+Every command exits 0 on success and 2 with a one-line ``livox-viz: error:``
+message on bad input. Commands that need the GUI import it lazily.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from .atomic import atomic_path
+from .codec import max_decode_error
+from .config import SensorConfig, load_config
+from .errors import LivoxVizError
+from .metrics import LIVOX_CELL_DEG, pattern_coverage
+from .pattern import ScanPattern
+from .presets import DEFAULT_PRESET, list_presets, load_preset
+from .progress import Progress
+
+PROG = "livox-viz"
+Handler = Callable[[argparse.Namespace], int]
+
+
+class UsageError(LivoxVizError):
+    """A command-line value that does not parse."""
+
+
+# Shared arguments --------------------------------------------------------------------
+def add_config_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--preset NAME | --config FILE [--seq-id N]``."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--preset", help=f"preset name or JSON path (default {DEFAULT_PRESET})")
+    group.add_argument("--config", help="RflySim sensor JSON or Config.json")
+    parser.add_argument("--seq-id", type=int, help="SeqID of the sensor to use in a Config.json")
+
+
+def config_from_args(args: argparse.Namespace) -> SensorConfig:
+    """The configuration the ``--preset``/``--config`` arguments name."""
+    if getattr(args, "config", None):
+        return load_config(args.config, seq_id=args.seq_id)
+    return load_preset(args.preset or DEFAULT_PRESET)
+
+
+def config_label(args: argparse.Namespace) -> str:
+    """A short name for the configuration in use (for titles and sidecars)."""
+    if getattr(args, "config", None):
+        return Path(args.config).stem
+    return Path(args.preset).stem if args.preset else DEFAULT_PRESET
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not np.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: allowed: a finite number > 0")
+    return value
+
+
+def float_list(text: str) -> list[float]:
+    """argparse type: comma-separated numbers > 0, e.g. ``0.1,0.5,1``."""
+    return [positive_float(part) for part in text.split(",") if part.strip()]
+
+
+# info ----------------------------------------------------------------------------------
+def derived_figures(cfg: SensorConfig) -> dict[str, float | int | str]:
+    """The figures ``livox-viz info`` prints, by name."""
+    rate = cfg.point_rate
+    return {
+        "point_rate_pts_per_s": rate,
+        "points_per_arc": cfg.data_width,
+        "points_per_petal": 2 * cfg.data_width,
+        "points_per_figure8": cfg.points_per_figure8,
+        "points_per_flower": cfg.points_per_flower,
+        "points_per_figure": cfg.points_per_figure,
+        "points_per_frame": cfg.points_per_frame,
+        "arc_s": cfg.data_width / rate,
+        "petal_s": 2 * cfg.data_width / rate,
+        "figure8_s": cfg.points_per_figure8 / rate,
+        "flower_s": cfg.points_per_flower / rate,
+        "figure_s": cfg.points_per_figure / rate,
+        "frame_s": 1.0 / cfg.data_check_freq,
+        "petals_per_flower": 2 * cfg.figure8_per_flower,
+        "petal_spacing_deg": cfg.petal_spacing_deg,
+        "flower_step_deg": cfg.flower_step_deg,
+        "jitter_max_deg": cfg.jitter_max_deg,
+        "jitter_scope": cfg.jitter_scope,
+        "fov_deg": cfg.camera_fov,
+        "petal_length_deg": cfg.half_fov_deg,
+        "petal_height_deg": cfg.petal_height,
+        "range_max_m": cfg.range_max,
+        "range_step_m": cfg.range_step,
+        "max_decode_error_m": max_decode_error(cfg.range_max),
+    }
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    cfg = config_from_args(args)
+    figures = derived_figures(cfg)
+    if args.json:
+        print(json.dumps({"config": config_label(args), **figures}, indent=2))
+        return 0
+    f = figures
+    print(f"{config_label(args)}: Livox rosette lidar (RflySim TypeID {cfg.type_id}), SeqID {cfg.seq_id}")
+    print(f"  field of view      {cfg.camera_fov:g} deg (cone of half-angle {cfg.half_fov_deg:g} deg)")
+    print(f"  point rate         {cfg.point_rate:,} pts/s = "
+          f"{cfg.data_width} x {cfg.data_height} x {cfg.data_check_freq} Hz")
+    rows = [
+        ("arc", f["points_per_arc"], f["arc_s"]),
+        ("petal", f["points_per_petal"], f["petal_s"]),
+        ("figure-8", f["points_per_figure8"], f["figure8_s"]),
+        ("flower", f["points_per_flower"], f["flower_s"]),
+        ("figure", f["points_per_figure"], f["figure_s"]),
+        ("frame", f["points_per_frame"], f["frame_s"]),
+    ]
+    for name, points, seconds in rows:
+        print(f"  {name:<18} {points:>10,} pts  {seconds * 1e3:10.3f} ms")
+    print(f"  petals per flower  {f['petals_per_flower']}, {f['petal_spacing_deg']:g} deg apart")
+    print(f"  flower step        {f['flower_step_deg']:g} deg, "
+          f"+ U(0,1) x {cfg.jitter_max_deg:g} deg after each {cfg.jitter_scope}")
+    print(f"  petal              length {cfg.half_fov_deg:g} deg, half-width {cfg.petal_height:g} deg, "
+          f"p = {cfg.spacing_exponent:g}, q = {cfg.tip_exponent:g}")
+    print(f"  range              {cfg.range_max:g} m, int16 step {cfg.range_step * 1e3:.3f} mm, "
+          f"max decode error {max_decode_error(cfg.range_max) * 1e3:.3f} mm")
+    return 0
+
+
+# presets -------------------------------------------------------------------------------
+def cmd_presets(args: argparse.Namespace) -> int:
+    presets = list_presets()
+    if args.json:
+        print(json.dumps([{"name": p.name, "path": str(p.path), "description": p.description,
+                           "shipped": p.shipped} for p in presets], indent=2))
+        return 0
+    width = max((len(p.name) for p in presets), default=10)
+    for info in presets:
+        origin = "" if info.shipped else "  [user]"
+        print(f"{info.name:<{width}}  {info.description}{origin}")
+    return 0
+
+
+# pattern -------------------------------------------------------------------------------
+PATTERN_FIELDS = ("frame", "arc", "petal", "figure8", "flower", "figure")
+
+
+def cmd_pattern(args: argparse.Namespace) -> int:
+    cfg = config_from_args(args)
+    out = Path(args.out)
+    suffix = out.suffix.lower()
+    if suffix not in (".npz", ".csv"):
+        raise UsageError(f"--out {out}: unknown format {suffix or '(none)'}; allowed: .npz or .csv")
+    total = int(np.ceil(args.seconds * cfg.point_rate - 1e-9))
+    if total > 100_000_000:
+        raise UsageError(f"--seconds {args.seconds:g} is {total:,} points; allowed: at most 100 million")
+    pattern = ScanPattern(cfg, seed=args.seed)
+    progress = Progress(f"pattern -> {out.name}", args.seconds, "s")
+    block = max(cfg.points_per_frame, 100_000)
+    with atomic_path(out) as tmp:
+        if suffix == ".npz":
+            arrays = {"xy_deg": np.empty((total, 2)), "t": np.empty(total)}
+            arrays.update({name: np.empty(total, dtype=np.int64) for name in PATTERN_FIELDS})
+            while pattern.position < total:
+                chunk = pattern.take(min(block, total - pattern.position))
+                where = slice(chunk.start, chunk.stop)
+                arrays["xy_deg"][where] = chunk.xy_deg
+                arrays["t"][where] = chunk.t
+                for name, values in chunk.labels().items():
+                    arrays[name][where] = values
+                progress.update(chunk.stop / cfg.point_rate)
+            with open(tmp, "wb") as handle:
+                np.savez(handle, **arrays)
+        else:
+            with open(tmp, "w", newline="", encoding="utf-8") as handle:
+                writer = csv.writer(handle)
+                writer.writerow(["x_deg", "y_deg", "t", *PATTERN_FIELDS])
+                while pattern.position < total:
+                    chunk = pattern.take(min(block, total - pattern.position))
+                    columns = [chunk.xy_deg[:, 0], chunk.xy_deg[:, 1], chunk.t]
+                    columns += [values for values in chunk.labels().values()]
+                    _write_csv_rows(handle, columns, ["%.9g", "%.9g", "%.9g"] + ["%d"] * len(PATTERN_FIELDS))
+                    progress.update(chunk.stop / cfg.point_rate)
+    progress.close()
+    print(f"wrote {total:,} points ({args.seconds:g} s, seed {args.seed}) to {out}")
+    return 0
+
+
+def _write_csv_rows(handle, columns: Sequence[np.ndarray], formats: Sequence[str]) -> None:
+    """Write columns of equal length as CSV rows, vectorised through ``numpy.savetxt``."""
+    np.savetxt(handle, np.column_stack(columns), fmt=list(formats), delimiter=",")
+
+
+# coverage ------------------------------------------------------------------------------
+def cmd_coverage(args: argparse.Namespace) -> int:
+    cfg = config_from_args(args)
+    fractions = pattern_coverage(cfg, args.seconds, cell_deg=args.cell_deg, seed=args.seed)
+    if args.json:
+        print(json.dumps({"config": config_label(args), "cell_deg": args.cell_deg, "seed": args.seed,
+                          "coverage": [{"seconds": s, "fraction": float(f)}
+                                       for s, f in zip(args.seconds, fractions, strict=True)]}, indent=2))
+        return 0
+    print(f"{config_label(args)}: FOV coverage, {args.cell_deg:g} deg cells, seed {args.seed}")
+    print("  integration s   coverage %")
+    for seconds, fraction in zip(args.seconds, fractions, strict=True):
+        print(f"  {seconds:13g}   {100 * fraction:10.2f}")
+    return 0
+
+
+# The parser --------------------------------------------------------------------------
+class _Parser(argparse.ArgumentParser):
+    """argparse that exits 2 with a one-line message (argparse's own usage dump is long)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _command(subparsers, name: str, handler: Handler, help_text: str, example: str) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        name,
+        help=help_text,
+        description=f"{help_text}\n\nexample:\n  {example}",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.set_defaults(handler=handler)
+    return parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The whole command line; each subcommand has ``--help`` with an example."""
+    parser = _Parser(
+        prog=PROG,
+        description="Visualise and tune the simulated Livox rosette lidar of RflySim (TypeID 6).",
+        epilog="Run 'livox-viz COMMAND --help' for a command's options. With no command: gui.",
+    )
+    parser.add_argument("--version", action="version", version=f"{PROG} {_version()}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    p = _command(sub, "info", cmd_info, "print the derived figures of a sensor configuration",
+                 "livox-viz info --preset livox_mid70")
+    add_config_arguments(p)
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+    p = _command(sub, "presets", cmd_presets, "list the sensor presets", "livox-viz presets")
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+    p = _command(sub, "pattern", cmd_pattern, "write the scan pattern (angles, times, labels) to .npz or .csv",
+                 "livox-viz pattern --seconds 0.5 --seed 1 --out pattern.npz")
+    add_config_arguments(p)
+    p.add_argument("--seconds", type=positive_float, default=1.0, help="scan time to write (default 1)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--out", required=True, help="output file, .npz or .csv")
+
+    p = _command(sub, "coverage", cmd_coverage, "FOV coverage against integration time",
+                 "livox-viz coverage --seconds 0.1,0.5,1,2 --json")
+    add_config_arguments(p)
+    p.add_argument("--seconds", type=float_list, default=[0.1, 0.5, 1.0, 2.0],
+                   help="integration times, comma-separated (default 0.1,0.5,1,2)")
+    p.add_argument("--cell-deg", type=positive_float, default=LIVOX_CELL_DEG,
+                   help=f"grid cell size in degrees (default {LIVOX_CELL_DEG:.4f} = 5 mrad)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+    for register in _EXTRA_COMMANDS:
+        register(sub)
+    return parser
+
+
+#: Functions that add further subcommands (scan, gui, ...), registered by their modules.
+_EXTRA_COMMANDS: list[Callable[[argparse._SubParsersAction], None]] = []
+
+
+def _version() -> str:
+    from . import __version__
+
+    return __version__
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        args = parser.parse_args(argv)
+        if args.command is None and "gui" in _commands(parser):
+            args = parser.parse_args(["gui", *argv])
+    except SystemExit as exc:  # argparse: --help, --version, or a usage error (status 2)
+        return int(exc.code or 0)
+    if args.command is None:
+        parser.print_help()
+        return 0
+    try:
+        return int(args.handler(args) or 0)
+    except LivoxVizError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _commands(parser: argparse.ArgumentParser) -> set[str]:
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return set(action.choices)
+    return set()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,212 @@
+"""Measures of a scan pattern: FOV coverage against integration time, radial density.
+
+Coverage (scan-model.md section 7): a square grid of cell size ``cell_deg``
+(edges at multiples of it, so the boresight is a cell corner) is laid over the
+angular plane; of the cells whose centre lies inside the FOV circle, the
+fraction holding at least one point. Livox's own figure uses 5 mrad cells
+(0.2865 degrees), the default here.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from .config import SensorConfig
+from .errors import LivoxVizError
+from .pattern import ScanPattern
+
+LIVOX_CELL_DEG = math.degrees(0.005)
+
+
+@dataclass(frozen=True)
+class CoverageGrid:
+    """The cells of the FOV disk.
+
+    Parameters
+    ----------
+    radius_deg : float
+        FOV half-angle, degrees.
+    cell_deg : float
+        Cell size, degrees.
+    """
+
+    radius_deg: float
+    cell_deg: float
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.cell_deg) and self.cell_deg > 0):
+            raise LivoxVizError(f"cell size = {self.cell_deg!r} deg; allowed: a number > 0")
+        if not (math.isfinite(self.radius_deg) and self.radius_deg > 0):
+            raise LivoxVizError(f"FOV radius = {self.radius_deg!r} deg; allowed: a number > 0")
+        if (2 * self.radius_deg / self.cell_deg) ** 2 > 4e8:
+            raise LivoxVizError(
+                f"cell size {self.cell_deg:g} deg gives too many cells for a {self.radius_deg:g} deg FOV; "
+                f"allowed: >= {2 * self.radius_deg / 2e4:g} deg"
+            )
+
+    @property
+    def cells_per_side(self) -> int:
+        """Cells along each axis on each side of the boresight."""
+        return math.ceil(self.radius_deg / self.cell_deg)
+
+    @cached_property
+    def inside_mask(self) -> np.ndarray:
+        """``(2M, 2M)`` bool: which cells have their centre inside the FOV circle (M = cells per side)."""
+        half = self.cells_per_side
+        centres = (np.arange(-half, half) + 0.5) * self.cell_deg
+        return np.hypot(centres[:, None], centres[None, :]) <= self.radius_deg
+
+    @property
+    def cell_count(self) -> int:
+        """How many cells the FOV holds (the denominator of coverage)."""
+        return int(self.inside_mask.sum())
+
+    def cell_index(self, xy_deg: np.ndarray) -> np.ndarray:
+        """Flat cell number of each point, -1 for points in no FOV cell.
+
+        Parameters
+        ----------
+        xy_deg : (n, 2) float64
+
+        Returns
+        -------
+        cell : (n,) int64
+        """
+        half = self.cells_per_side
+        ij = np.floor(np.asarray(xy_deg, dtype=np.float64) / self.cell_deg) + half
+        valid = np.all((ij >= 0) & (ij < 2 * half), axis=1)
+        flat = np.full(ij.shape[0], -1, dtype=np.int64)
+        rows = ij[valid].astype(np.int64)
+        candidate = rows[:, 0] * (2 * half) + rows[:, 1]
+        flat[valid] = np.where(self.inside_mask.ravel()[candidate], candidate, -1)
+        return flat
+
+
+def coverage(xy_deg: np.ndarray, radius_deg: float, cell_deg: float = LIVOX_CELL_DEG) -> float:
+    """Fraction of the FOV's cells that hold at least one of the points.
+
+    Parameters
+    ----------
+    xy_deg : (n, 2) float64
+        Pattern angles, degrees.
+    radius_deg : float
+        FOV half-angle, degrees.
+    cell_deg : float
+        Cell size, degrees.
+    """
+    return float(coverage_curve(xy_deg, [len(xy_deg)], radius_deg, cell_deg)[0])
+
+
+def coverage_curve(
+    xy_deg: np.ndarray,
+    counts: Sequence[int] | np.ndarray,
+    radius_deg: float,
+    cell_deg: float = LIVOX_CELL_DEG,
+) -> np.ndarray:
+    """Coverage of each prefix of the points (the first ``counts[k]`` of them), in one pass.
+
+    Parameters
+    ----------
+    xy_deg : (n, 2) float64
+        Pattern angles in emission order, degrees.
+    counts : (k,) int
+        Prefix lengths.
+    radius_deg, cell_deg : float
+        FOV half-angle and cell size, degrees.
+
+    Returns
+    -------
+    fraction : (k,) float64
+        In [0, 1].
+    """
+    grid = CoverageGrid(radius_deg, cell_deg)
+    cells = grid.cell_index(xy_deg)
+    hit = cells >= 0
+    _, first = np.unique(cells[hit], return_index=True)
+    first_seen = np.sort(np.flatnonzero(hit)[first])
+    counted = np.searchsorted(first_seen, np.asarray(counts, dtype=np.int64), side="left")
+    return counted / grid.cell_count
+
+
+def pattern_coverage(
+    config: SensorConfig,
+    seconds: Sequence[float],
+    cell_deg: float = LIVOX_CELL_DEG,
+    seed: int = 0,
+) -> np.ndarray:
+    """Coverage of the configuration's pattern at each integration time from the scan start.
+
+    Parameters
+    ----------
+    config : SensorConfig
+    seconds : (k,) float
+        Integration times T, seconds; points emitted in [0, T) count.
+    cell_deg : float
+        Cell size, degrees.
+    seed : int
+
+    Returns
+    -------
+    fraction : (k,) float64
+    """
+    times = np.asarray(seconds, dtype=np.float64)
+    if times.size == 0 or not np.all(np.isfinite(times)) or np.any(times <= 0):
+        raise LivoxVizError(f"integration times {list(seconds)!r}; allowed: numbers > 0 seconds")
+    counts = np.ceil(times * config.point_rate - 1e-9).astype(np.int64)
+    if counts.max() > 200_000_000:
+        raise LivoxVizError(f"{times.max():g} s is {counts.max()} points; allowed: at most 200 million")
+    grid = CoverageGrid(config.half_fov_deg, cell_deg)
+    pattern = ScanPattern(config, seed)
+    seen = np.zeros(grid.inside_mask.size, dtype=bool)
+    covered_at = np.zeros(counts.size, dtype=np.int64)
+    order = np.argsort(counts)
+    total = 0
+    block = max(config.points_per_frame, 200_000)
+    for position in order:
+        target = int(counts[position])
+        while pattern.position < target:
+            chunk = pattern.take(min(block, target - pattern.position))
+            cells = grid.cell_index(chunk.xy_deg)
+            cells = cells[cells >= 0]
+            new = np.unique(cells[~seen[cells]])
+            seen[new] = True
+            total += new.size
+        covered_at[position] = total
+    return covered_at / grid.cell_count
+
+
+def radial_density(
+    xy_deg: np.ndarray,
+    radius_deg: float,
+    bins: int = 35,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Points per steradian against the angle off the boresight.
+
+    Parameters
+    ----------
+    xy_deg : (n, 2) float64
+        Pattern angles, degrees.
+    radius_deg : float
+        FOV half-angle, degrees; the bins span [0, radius].
+    bins : int
+        Number of equal-width rings.
+
+    Returns
+    -------
+    edges_deg : (bins + 1,) float64
+        Ring edges, degrees off the boresight.
+    density : (bins,) float64
+        Points per steradian in each ring.
+    """
+    if bins < 1:
+        raise LivoxVizError(f"bins = {bins}; allowed: an integer >= 1")
+    alpha = np.hypot(xy_deg[:, 0], xy_deg[:, 1])
+    edges = np.linspace(0.0, radius_deg, bins + 1)
+    counts, _ = np.histogram(alpha, bins=edges)
+    solid_angle = 2.0 * np.pi * -np.diff(np.cos(np.radians(edges)))
+    return edges, counts / solid_angle

@@ -1,0 +1,54 @@
+"""Shared fixtures: the default preset and small configurations."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from livox_viz import SensorConfig, load_preset
+
+SEED_JSON = {
+    "SeqID": 0,
+    "TypeID": 6,
+    "TargetCopter": 1,
+    "TargetMountType": 0,
+    "DataWidth": 250,
+    "DataHeight": 40,
+    "DataCheckFreq": 10,
+    "SendProtocol": [0, 127, 0, 0, 1, 9999, 0, 0],
+    "CameraFOV": 70.432,
+    "SensorPosXYZ": [0, 0, -0.3],
+    "SensorAngEular": [0, 0, 0],
+    "otherParams": [600, 2.956, 1.4, 1.18, 10, 5, 1, 0],
+}
+
+
+@pytest.fixture
+def mid70() -> SensorConfig:
+    """The default preset."""
+    return load_preset("livox_mid70")
+
+
+@pytest.fixture
+def seed_json() -> dict:
+    """A fresh copy of the document's seed configuration."""
+    return json.loads(json.dumps(SEED_JSON))
+
+
+@pytest.fixture
+def user_presets(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """An empty user preset folder, so tests never touch the real one."""
+    folder = tmp_path / "user-presets"
+    folder.mkdir()
+    monkeypatch.setenv("LIVOX_VIZ_PRESETS", str(folder))
+    return folder
+
+
+def small_config(**changes: object) -> SensorConfig:
+    """A quick configuration: W=20, H=8, F=10, N8=3, Nf=2, with ``changes`` applied."""
+    values = dict(data_width=20, data_height=8, data_check_freq=10,
+                  other_params=(100.0, 2.0, 1.4, 1.18, 3.0, 2.0, 1.0, 0.0))
+    values.update(changes)
+    return SensorConfig(**values)  # type: ignore[arg-type]

@@ -1,0 +1,100 @@
+"""The core CLI commands: info, presets, pattern, coverage, and their bad input."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from livox_viz import ScanPattern
+from livox_viz.cli import main
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_info_prints_the_derived_figures(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "info", "--json")
+    figures = json.loads(out)
+    assert code == 0
+    assert figures["point_rate_pts_per_s"] == 100_000
+    assert figures["points_per_figure"] == 50_000 and figures["figure_s"] == 0.5
+    assert figures["petal_spacing_deg"] == 18 and figures["flower_step_deg"] == pytest.approx(3.6)
+    assert figures["max_decode_error_m"] == pytest.approx(600 / 65534)
+    code, out, _ = run(capsys, "info")
+    assert "100,000 pts/s" in out and "18 deg apart" in out
+
+
+def test_presets_lists_user_presets(capsys: pytest.CaptureFixture[str], user_presets: Path, seed_json: dict) -> None:
+    (user_presets / "mine.json").write_text(json.dumps(seed_json))
+    code, out, _ = run(capsys, "presets", "--json")
+    names = {p["name"]: p for p in json.loads(out)}
+    assert names["livox_mid70"]["shipped"] and not names["mine"]["shipped"]
+    code, out, _ = run(capsys, "info", "--preset", "mine")
+    assert code == 0
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_pattern_file_matches_the_generator(tmp_path: Path, capsys: pytest.CaptureFixture[str], suffix: str) -> None:
+    out = tmp_path / f"p{suffix}"
+    code, _, _ = run(capsys, "pattern", "--seconds", "0.03", "--seed", "4", "--out", str(out))
+    assert code == 0
+    expected = ScanPattern(__import__("livox_viz").load_preset("livox_mid70"), seed=4).take(3000)
+    if suffix == ".npz":
+        data = np.load(out)
+        assert data["xy_deg"].shape == (3000, 2)
+        assert np.array_equal(data["xy_deg"], expected.xy_deg)
+        assert np.array_equal(data["t"], expected.t)
+        assert np.array_equal(data["figure8"], expected.figure8)
+    else:
+        with open(out) as handle:
+            rows = list(csv.reader(handle))
+        assert rows[0] == ["x_deg", "y_deg", "t", "frame", "arc", "petal", "figure8", "flower", "figure"]
+        values = np.array(rows[1:], dtype=float)
+        np.testing.assert_allclose(values[:, :2], expected.xy_deg, rtol=1e-8, atol=1e-8)
+        assert np.array_equal(values[:, 6], expected.figure8)
+
+
+def test_coverage_json(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "coverage", "--seconds", "0.1,0.5", "--json")
+    table = json.loads(out)["coverage"]
+    assert code == 0 and [row["seconds"] for row in table] == [0.1, 0.5]
+    assert 0.08 < table[0]["fraction"] < table[1]["fraction"] < 1
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["info", "--preset", "nope"], "unknown preset 'nope'"),
+        (["info", "--config", "/nonexistent.json"], "no such file"),
+        (["pattern", "--seconds", "-1", "--out", "x.npz"], "allowed: a finite number > 0"),
+        (["pattern", "--seconds", "nan", "--out", "x.npz"], "allowed: a finite number > 0"),
+        (["pattern", "--out", "x.txt"], "allowed: .npz or .csv"),
+        (["coverage", "--cell-deg", "0"], "allowed: a finite number > 0"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], argv: list[str], message: str
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run(capsys, *argv)
+    assert code == 2
+    assert message in err and err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_invalid_config_file_exits_2_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], seed_json: dict
+) -> None:
+    seed_json["DataWidth"] = 0
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(seed_json))
+    code, _, err = run(capsys, "pattern", "--config", str(bad), "--out", str(tmp_path / "p.npz"))
+    assert code == 2 and "DataWidth" in err and "allowed" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json"]
