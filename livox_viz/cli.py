@@ -214,6 +214,60 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     return 0
 
 
+# scan / scenes -------------------------------------------------------------------------
+def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--scene NAME|FILE [--up z|y] [--pose x,y,z,roll,pitch,yaw]``."""
+    parser.add_argument("--scene", default="urban", help="scene preset name or mesh file (default urban)")
+    parser.add_argument("--up", choices=("z", "y"), default="z", help="up axis of a mesh file (default z)")
+    parser.add_argument("--pose", help="vehicle pose x,y,z,roll,pitch,yaw in metres/radians, NED "
+                                       "(default: the scene's own)")
+
+
+def scene_from_args(args: argparse.Namespace):
+    """The :class:`~livox_viz.scene.Scene` and vehicle :class:`~livox_viz.poses.Pose` the arguments name."""
+    from .poses import Pose
+    from .scene import open_scene
+
+    scene = open_scene(args.scene, up=args.up)
+    pose = Pose.parse(args.pose) if args.pose else scene.vehicle_pose
+    return scene, pose
+
+
+def cmd_scan(args: argparse.Namespace) -> int:
+    from .export import PointCloudWriter
+    from .scan import LidarScanner
+
+    cfg = config_from_args(args)
+    scene, pose = scene_from_args(args)
+    writer = PointCloudWriter(args.out, coordinates=args.frame, ascii=args.ascii)
+    frames = 0
+    try:
+        scanner = LidarScanner(cfg, scene.mesh, pose, seed=args.seed)
+        progress = Progress(f"scan -> {Path(args.out).name}", args.seconds, "s")
+        for frame in scanner.frames(args.seconds):
+            writer.write(frame)
+            frames += 1
+            progress.update(scanner.time)
+        progress.close()
+    except BaseException:
+        writer.abort()
+        raise
+    writer.close()
+    if writer.count == 0:
+        print(f"{PROG}: warning: no ray hit anything within {cfg.range_max:g} m; wrote an empty point cloud",
+              file=sys.stderr)
+    print(f"wrote {writer.count:,} points of {frames} frames ({args.seconds:g} s, {args.frame} frame) to {args.out}")
+    return 0
+
+
+def cmd_scenes(args: argparse.Namespace) -> int:
+    from .scene import list_scenes
+
+    for name, description in list_scenes():
+        print(f"{name:<14}  {description}")
+    return 0
+
+
 # The parser --------------------------------------------------------------------------
 class _Parser(argparse.ArgumentParser):
     """argparse that exits 2 with a one-line message (argparse's own usage dump is long)."""
@@ -267,6 +321,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"grid cell size in degrees (default {LIVOX_CELL_DEG:.4f} = 5 mrad)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--json", action="store_true", help="print JSON")
+
+    p = _command(sub, "scan", cmd_scan, "cast the scan into a scene and write the point cloud a client receives",
+                 "livox-viz scan --scene urban --seconds 1 --out cloud.ply")
+    add_config_arguments(p)
+    add_scene_arguments(p)
+    p.add_argument("--seconds", type=positive_float, default=1.0, help="scan time (default 1)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--frame", choices=("sensor", "world"), default="sensor",
+                   help="coordinates in PLY/PCD/LAS/CSV: decoded sensor FRD (default) or world NED; NPZ has both")
+    p.add_argument("--ascii", action="store_true", help="ASCII PLY/PCD instead of binary")
+    p.add_argument("--out", required=True, help="output: .ply .pcd .las .npz or .csv")
+
+    p = _command(sub, "scenes", cmd_scenes, "list the built-in scenes", "livox-viz scenes")
 
     for register in _EXTRA_COMMANDS:
         register(sub)
