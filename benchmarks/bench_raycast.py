@@ -19,14 +19,14 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import best_of  # noqa: E402
+from _common import best_of
 
-from livox_viz import ScanPattern, load_preset  # noqa: E402
-from livox_viz.directions import directions_from_xy  # noqa: E402
-from livox_viz.poses import sensor_world_pose  # noqa: E402
-from livox_viz.raycast import EmbreeCaster  # noqa: E402
-from livox_viz.scan import LidarScanner  # noqa: E402
-from livox_viz.scene import open_scene  # noqa: E402
+from livox_viz import ScanPattern, load_preset
+from livox_viz.directions import directions_from_xy
+from livox_viz.poses import sensor_world_pose
+from livox_viz.raycast import EmbreeCaster
+from livox_viz.scan import LidarScanner
+from livox_viz.scene import open_scene
 
 RAYS = 1_000_000
 
