@@ -340,8 +340,43 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-#: Functions that add further subcommands (scan, gui, ...), registered by their modules.
-_EXTRA_COMMANDS: list[Callable[[argparse._SubParsersAction], None]] = []
+def cmd_gui(args: argparse.Namespace) -> int:
+    """``gui``: the GUI package (VTK) is imported only now."""
+    from widgets.cli import cmd_gui as run_gui
+
+    return run_gui(args)
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    """``render``: the GUI package (VTK) is imported only now."""
+    from widgets.cli import cmd_render as run_render
+
+    return run_render(args)
+
+
+def _register_gui(sub: argparse._SubParsersAction) -> None:
+    p = _command(sub, "gui", cmd_gui, "open the interactive window (the default command)",
+                 "livox-viz gui --preset livox_mid70 --scene urban")
+    add_config_arguments(p)
+    add_scene_arguments(p)
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--size", default="1600x900", help="window size WIDTHxHEIGHT (default 1600x900)")
+    p.add_argument("--seconds", type=positive_float, default=1.0,
+                   help="scan time of the off-screen pictures when there is no display (default 1)")
+
+    p = _command(sub, "render", cmd_render, "render what the GUI shows after S seconds into a PNG, off-screen",
+                 "livox-viz render --view both --seconds 1 --out screenshots/both.png")
+    add_config_arguments(p)
+    add_scene_arguments(p)
+    p.add_argument("--seconds", type=positive_float, default=1.0, help="scan time (default 1)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--view", choices=("pattern", "scene", "both"), default="both", help="which view (default both)")
+    p.add_argument("--size", default="1600x900", help="image size WIDTHxHEIGHT (default 1600x900)")
+    p.add_argument("--out", required=True, help="output PNG")
+
+
+#: Functions that add further subcommands, registered by their modules.
+_EXTRA_COMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [_register_gui]
 
 
 def _version() -> str:

@@ -331,6 +331,10 @@ class SensorConfig:
         """
         if name not in PARAM_RANGES:
             raise ConfigError(f"unknown parameter {name!r}; allowed: {', '.join(PARAM_RANGES)}")
+        spec = PARAM_RANGES[name]
+        value = spec.check(value)
+        if spec.integer:
+            value = int(value)
         if name in _OTHER_PARAM_FIELDS:
             params = list(self.other_params)
             params[_OTHER_PARAM_FIELDS.index(name)] = value

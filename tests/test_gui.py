@@ -1,0 +1,253 @@
+"""The GUI, off-screen with small windows: sliders, playback, window, files, images."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pv = pytest.importorskip("pyvista")
+
+from livox_viz import PARAM_RANGES, SensorConfig, load_preset  # noqa: E402
+from livox_viz.scene import open_scene  # noqa: E402
+from widgets.app import PATTERN_SLIDERS, SENSOR_SLIDERS, LivoxVizApp, render_offscreen, slider_range  # noqa: E402
+from widgets.session import WINDOWS, Session  # noqa: E402
+
+BASELINES = Path(__file__).parent / "baselines"
+SIZE = (640, 360)
+
+
+@pytest.fixture(scope="module")
+def urban():
+    return open_scene("urban")
+
+
+@pytest.fixture
+def app(urban, tmp_path: Path):
+    session = Session(load_preset("livox_mid70"), urban, seed=0, preset_name="livox_mid70")
+    application = LivoxVizApp(session, off_screen=True, window_size=SIZE, screenshot_dir=tmp_path / "shots")
+    yield application
+    application.close()
+
+
+NEW_VALUES = {
+    "camera_fov": 40.0, "petal_height": 4.0, "spacing_exponent": 2.0, "tip_exponent": 0.8,
+    "figure8_per_flower": 7.0, "flowers_per_figure": 3.0, "jitter_max_deg": 5.0, "range_max": 100.0,
+    "data_width": 100.0, "data_height": 20.0, "data_check_freq": 25.0,
+}
+
+
+@pytest.mark.parametrize("name", [n for n, _ in PATTERN_SLIDERS + SENSOR_SLIDERS])
+def test_each_slider_changes_config_and_points(app: LivoxVizApp, name: str) -> None:
+    session = app.session
+    session.advance_to(0.2)
+    before = session.pattern_ring.ordered(session.pattern_ring.positions).copy()
+    app.on_param(name, NEW_VALUES[name])
+    assert session.config.param_value(name) == pytest.approx(NEW_VALUES[name])
+    # The restart empties both views at once: no mix of old and new parameters.
+    assert session.pattern_ring.count == 0 and session.scene_ring.count == 0 and session.scan_time == 0
+    assert app.pattern_view.poly.n_cells == 0
+    session.advance_to(0.2)
+    app.refresh()
+    after = session.pattern_ring.ordered(session.pattern_ring.positions)
+    assert app.pattern_view.poly.n_cells == session.pattern_ring.count == round(0.2 * session.config.point_rate)
+    if name != "range_max":
+        assert after.shape != before.shape or not np.allclose(after, before)
+    radius = np.hypot(after[:, 0], after[:, 1]).max()
+    assert radius <= session.config.half_fov_deg + 1e-4
+    assert app.sliders[name].GetRepresentation().GetValue() == pytest.approx(NEW_VALUES[name])
+
+
+def test_fov_slider_moves_the_drawn_points(app: LivoxVizApp) -> None:
+    app.on_param("camera_fov", 30.0)
+    app.session.advance_to(0.5)
+    app.refresh()
+    bounds = app.pattern_view.poly.bounds
+    assert max(abs(bounds[0]), abs(bounds[1]), abs(bounds[2]), abs(bounds[3])) == pytest.approx(15.0, abs=0.05)
+
+
+def test_integer_sliders_snap(app: LivoxVizApp) -> None:
+    app.on_param("figure8_per_flower", 6.4)
+    assert app.session.config.figure8_per_flower == 6
+    assert app.sliders["figure8_per_flower"].GetRepresentation().GetValue() == 6
+
+
+@pytest.mark.parametrize(("name", "value"), [("camera_fov", 500.0), ("data_width", -3.0), ("petal_height", np.nan)])
+def test_slider_past_its_end_shows_a_message(app: LivoxVizApp, name: str, value: float) -> None:
+    config = app.session.config
+    app.on_param(name, value)
+    assert app.session.config == config
+    assert PARAM_RANGES[name].name in app.session.message and "allowed" in app.session.message
+    assert app.sliders[name].GetRepresentation().GetValue() == pytest.approx(config.param_value(name))
+
+
+def test_slider_ranges_are_the_validated_ranges() -> None:
+    for name, _ in PATTERN_SLIDERS + SENSOR_SLIDERS:
+        low, high = slider_range(name)
+        assert PARAM_RANGES[name].contains(low) and PARAM_RANGES[name].contains(high)
+
+
+@pytest.mark.parametrize(("unit", "points"), [("arc", 250), ("petal", 500), ("figure-8", 1000),
+                                              ("flower", 10_000), ("frame", 10_000)])
+def test_steps_advance_scan_time(app: LivoxVizApp, unit: str, points: int) -> None:
+    session = app.session
+    session.advance_to(0.0123)
+    start = session.pattern.position
+    session.step(unit)
+    assert session.pattern.position == (start // points + 1) * points
+    assert session.scan_time == pytest.approx(session.pattern.position / 100_000)
+
+
+def test_playback_follows_the_clock(app: LivoxVizApp) -> None:
+    session = app.session
+    session.playback.set_speed(2.0)
+    session.tick(now=100.0)
+    session.tick(now=100.25)
+    assert session.scan_time == pytest.approx(0.5)
+    session.playback.paused = True
+    session.tick(now=101.0)
+    assert session.scan_time == pytest.approx(0.5)
+    assert session.playback.set_speed(50) == 10.0 and session.playback.set_speed(0.0001) == 0.01
+
+
+@pytest.mark.parametrize("index", range(len(WINDOWS)))
+def test_integration_window_drops_old_points(app: LivoxVizApp, index: int) -> None:
+    session = app.session
+    app.on_window_slider(index)
+    session.advance_to(2.5)
+    app.refresh()
+    ring = session.pattern_ring
+    window = WINDOWS[index]
+    times = ring.ordered(ring.times)
+    expected = 250_000 if window is None else round(window * 100_000)
+    assert ring.count == expected == app.pattern_view.poly.n_cells
+    assert times.min() >= 2.5 - (window or 2.5) - 1e-9
+    scene_times = session.scene_ring.ordered(session.scene_ring.times)
+    assert scene_times.min() >= 2.5 - (window or 2.5) - 1e-9
+    assert np.all(np.diff(times) > 0)
+
+
+def test_colour_modes_set_scalars(app: LivoxVizApp) -> None:
+    session = app.session
+    session.advance_to(0.3)
+    for _ in range(4):
+        app.cycle_pattern_colour()
+        app.refresh()
+        live = session.pattern_ring.live_slots()
+        values = session.pattern_ring.scalars[live]
+        low, high = session.pattern_scalar_range()
+        assert values.min() >= low and values.max() <= high
+    assert session.pattern_colour == "arc" and set(np.unique(values)) == {0, 1, 2, 3}
+    app.cycle_scene_colour()
+    app.refresh()
+    assert session.scene_colour == "height"
+
+
+def test_screenshot_and_sidecar_round_trip(app: LivoxVizApp, tmp_path: Path) -> None:
+    from PIL import Image
+
+    app.on_param("petal_height", 3.5)
+    app.session.advance_to(0.4)
+    first = app.save_screenshot()
+    second = app.save_screenshot()
+    assert first != second and first.parent == tmp_path / "shots"
+    with Image.open(first) as image:
+        assert image.size == SIZE
+    sidecar = json.loads(first.with_suffix(".json").read_text())
+    assert SensorConfig.from_json_dict(sidecar["config"]) == app.session.config
+    assert sidecar["seed"] == 0 and sidecar["scan_time_s"] == pytest.approx(0.4)
+    assert set(sidecar["cameras"]) == {"pattern", "scene"}
+
+
+def test_read_only_screenshot_folder_keeps_running(app: LivoxVizApp, tmp_path: Path) -> None:
+    if os.geteuid() == 0:
+        target = tmp_path / "not-a-folder"
+        target.write_text("a file where the folder should be")
+    else:
+        target = tmp_path / "ro"
+        target.mkdir()
+        target.chmod(0o500)
+    app.screenshot_dir = target
+    app._guarded(app.save_screenshot)()
+    assert app.session.message
+    assert target.exists()
+
+
+def test_preset_save_and_cycle(app: LivoxVizApp, user_presets: Path) -> None:
+    app.on_param("petal_height", 3.3)
+    saved = app.save_preset()
+    assert saved.parent == user_presets
+    assert json.loads(saved.read_text())["otherParams"][1] == 3.3
+    (user_presets / "zz_broken.json").write_text("{ not json")
+    app.session.preset_name = "livox_mid70"
+    for _ in range(4):
+        app._guarded(lambda: app.cycle_preset(1))()
+    assert "zz_broken" in app.session.message or app.session.config.petal_height in (2.956, 3.3)
+
+
+def _difference(a: Path, b: Path) -> float:
+    from PIL import Image
+
+    with Image.open(a) as left, Image.open(b) as right:
+        assert left.size == right.size
+        return float(np.abs(np.asarray(left, dtype=float) - np.asarray(right, dtype=float)).mean())
+
+
+@pytest.mark.parametrize("view", ["pattern", "scene"])
+def test_image_regression(urban, tmp_path: Path, view: str) -> None:
+    session = Session(load_preset("livox_mid70"), urban, seed=0, preset_name="livox_mid70")
+    out = tmp_path / f"{view}.png"
+    render_offscreen(session, 0.5, out, views=view, size=(480, 360))
+    baseline = BASELINES / f"{view}.png"
+    if os.environ.get("LIVOX_VIZ_UPDATE_BASELINES"):
+        shutil.copy(out, baseline)
+    difference = _difference(out, baseline)
+    assert difference < 2.0, f"{view} differs from {baseline} by {difference:.2f} grey levels on average"
+    # The comparison can fail: a different scan time must not match.
+    other = tmp_path / f"{view}-other.png"
+    render_offscreen(Session(load_preset("livox_mid70"), urban, seed=0, preset_name="livox_mid70"),
+                     0.1, other, views=view, size=(480, 360))
+    assert _difference(other, baseline) > difference
+
+
+def test_real_window_under_xvfb(tmp_path: Path) -> None:
+    xvfb = shutil.which("Xvfb")
+    xdotool = shutil.which("xdotool")
+    if not (xvfb and xdotool):
+        if os.environ.get("CI"):
+            pytest.fail("CI must install xvfb and xdotool (see .ci/run)")
+        pytest.skip("Xvfb and xdotool are not installed")
+    display = f":{90 + os.getpid() % 100}"
+    server = subprocess.Popen([xvfb, display, "-screen", "0", "1600x900x24", "-nolisten", "tcp"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    env = {**os.environ, "DISPLAY": display, "LIVOX_VIZ_PRESETS": str(tmp_path / "presets")}
+    env.pop("WAYLAND_DISPLAY", None)
+    try:
+        time.sleep(1.0)
+        gui = subprocess.Popen([sys.executable, "-m", "livox_viz", "gui", "--size", "1200x700"], cwd=tmp_path,
+                               env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        window = subprocess.run([xdotool, "search", "--sync", "--onlyvisible", "--name", "livox-viz"], env=env,
+                                capture_output=True, text=True, timeout=60).stdout.split()
+        assert window, "the livox-viz window did not appear"
+        time.sleep(2.0)
+        for key in ("space", "space", "Right", "c", "s", "p"):
+            subprocess.run([xdotool, "key", "--window", window[0], key], env=env, check=True, timeout=10)
+            time.sleep(0.5)
+        subprocess.run([xdotool, "key", "--window", window[0], "q"], env=env, check=True, timeout=10)
+        out, err = gui.communicate(timeout=60)
+        assert gui.returncode == 0, err
+        shots = list((tmp_path / "screenshots").glob("livox-viz-*.png"))
+        assert len(shots) == 1 and shots[0].with_suffix(".json").exists()
+        assert len(list((tmp_path / "presets").glob("*.json"))) == 1
+    finally:
+        for process in (locals().get("gui"), server):
+            if process is not None and process.poll() is None:
+                process.kill()
+                process.wait()

@@ -1,0 +1,267 @@
+"""The two linked views: the pattern in the angular plane, and the scan cast into the 3D scene.
+
+Each view adds its actors once and afterwards only marks the ring's arrays
+modified and re-points its vertex cells at the live slots (see
+:class:`~widgets.ring.PointRing`): no actor is re-created on a tick.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pyvista as pv
+
+from livox_viz.poses import sensor_world_pose
+
+from .ring import PointRing
+from .session import Session
+
+#: NED (z down) to the display's z-up frame: x north stays, y east -> -y, z down -> up.
+NED_TO_DISPLAY = np.diag([1.0, -1.0, -1.0, 1.0])
+PATTERN_UNITS = {"time": "time, s", "figure-8": "figure-8 in flower", "petal": "petal in flower",
+                 "flower": "flower in figure", "arc": "arc in figure-8"}
+SCENE_UNITS = {"range": "range, m", "height": "height, m", "time": "time, s"}
+
+
+def ring_polydata(ring: PointRing) -> pv.PolyData:
+    """A PolyData sharing the ring's point and scalar arrays (zero copy), one vertex per live point."""
+    poly = pv.PolyData()
+    poly.points = ring.positions
+    poly.point_data.set_array(ring.scalars, "scalars")
+    poly.point_data.active_scalars_name = "scalars"
+    update_ring_polydata(poly, ring)
+    return poly
+
+
+def update_ring_polydata(poly: pv.PolyData, ring: PointRing) -> None:
+    """Tell VTK the ring changed: re-point the vertex cells if the live slots moved, mark the arrays modified.
+
+    A full ring draws every slot, in any order, so its cells stay the same
+    from tick to tick and VTK does not rebuild its index buffer.
+    """
+    if poly.GetPoints().GetData().GetVoidPointer(0) != _address(ring.positions):
+        poly.points = ring.positions
+        poly.point_data.set_array(ring.scalars, "scalars")
+        poly.point_data.active_scalars_name = "scalars"
+    full = ring.count == ring.capacity
+    cells_key = (id(ring), "full") if full else (id(ring), ring.tail, ring.count)
+    if getattr(poly, "_livox_cells_key", None) != cells_key:
+        slots = ring.all_slots() if full else ring.live_slots()
+        poly.SetVerts(pv.CellArray.from_arrays(ring.cell_offsets(), slots))
+        poly._livox_cells_key = cells_key
+    poly.GetPoints().GetData().Modified()
+    poly.GetPoints().Modified()
+    poly.GetPointData().GetArray("scalars").Modified()
+    poly.Modified()
+
+
+def _address(array: np.ndarray) -> int:
+    return int(array.__array_interface__["data"][0])
+
+
+class PatternView:
+    """The angular plane in degrees: FOV circle, degree rings, the live pattern.
+
+    Parameters
+    ----------
+    plotter : pyvista.Plotter
+    session : Session
+    subplot : tuple of int
+        Where the view lives in the plotter.
+    """
+
+    def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
+        self.plotter = plotter
+        self.session = session
+        self.subplot = subplot
+        plotter.subplot(*subplot)
+        self.renderer = plotter.renderer
+        plotter.set_background("#10141c")
+        self._guides: list = []
+        self._ring = session.pattern_ring
+        self.poly = ring_polydata(self._ring)
+        self.actor = plotter.add_mesh(
+            self.poly, scalars="scalars", cmap="turbo", point_size=2.0, render_points_as_spheres=False,
+            show_scalar_bar=False, name="pattern", reset_camera=False, lighting=False,
+        )
+        self.scalar_bar = plotter.add_scalar_bar(
+            PATTERN_UNITS[session.pattern_colour], mapper=self.actor.mapper, vertical=True,
+            position_x=0.9, position_y=0.2, width=0.05, height=0.6, title_font_size=12,
+            label_font_size=11, color="#dde3ea", n_labels=5, fmt="%.3g",
+        )
+        self.draw_guides()
+        self.reset_camera()
+
+    def draw_guides(self) -> None:
+        """FOV circle, 10-degree rings with labels, cross hairs, and the axis names."""
+        plotter = self.plotter
+        plotter.subplot(*self.subplot)
+        for name in self._guides:
+            plotter.remove_actor(name, render=False)
+        self._guides = []
+        radius = self.session.config.half_fov_deg
+        step = _ring_step(radius)
+        rings = [*np.arange(step, radius, step), radius]
+        for k, ring_radius in enumerate(rings):
+            circle = pv.Circle(radius=ring_radius, resolution=180).extract_feature_edges(
+                boundary_edges=True, feature_edges=False, manifold_edges=False)
+            is_fov = k == len(rings) - 1
+            name = f"ring-{k}"
+            plotter.add_mesh(circle, color="#f2c14e" if is_fov else "#3a4454", line_width=2 if is_fov else 1,
+                             name=name, reset_camera=False, lighting=False, pickable=False)
+            self._guides.append(name)
+        for k, (a, b) in enumerate((((-radius, 0, 0), (radius, 0, 0)), ((0, -radius, 0), (0, radius, 0)))):
+            name = f"axis-{k}"
+            plotter.add_mesh(pv.Line(a, b), color="#3a4454", name=name, reset_camera=False, lighting=False)
+            self._guides.append(name)
+        labels = [f"{r:g}°" for r in rings]
+        positions = [(r * math.cos(math.radians(60)), r * math.sin(math.radians(60)), 0) for r in rings]
+        plotter.add_point_labels(
+            positions, labels, font_size=11, text_color="#8a96a8", shape=None, show_points=False,
+            name="ring-labels", always_visible=True, reset_camera=False,
+        )
+        self._guides.append("ring-labels")
+        plotter.add_point_labels(
+            [(radius * 1.02, -radius * 0.08, 0), (radius * 0.02, radius * 1.04, 0)], ["x right", "y up"],
+            font_size=11, text_color="#8a96a8", shape=None, show_points=False, name="axis-labels",
+            always_visible=True, reset_camera=False,
+        )
+        self._guides.append("axis-labels")
+
+    def reset_camera(self) -> None:
+        """Look straight at the angular plane, orthographic, FOV filling the view."""
+        radius = self.session.config.half_fov_deg
+        camera = self.renderer.camera
+        camera.enable_parallel_projection()
+        camera.focal_point = (radius * 0.08, 0, 0)
+        camera.position = (radius * 0.08, 0, radius * 10)
+        camera.up = (0, 1, 0)
+        camera.parallel_scale = radius * 1.18
+        self.renderer.ResetCameraClippingRange()
+
+    def update(self) -> None:
+        """Show the ring's current points and colours."""
+        if self._ring is not self.session.pattern_ring:
+            self._ring = self.session.pattern_ring
+        update_ring_polydata(self.poly, self._ring)
+        low, high = self.session.pattern_scalar_range()
+        self.actor.mapper.scalar_range = (low, high if high > low else low + 1e-6)
+        self.scalar_bar.SetTitle(PATTERN_UNITS[self.session.pattern_colour])
+
+
+def _ring_step(radius: float) -> float:
+    """Spacing of the degree rings: about five rings across the FOV, at 1-2-5 steps."""
+    raw = radius / 4.0
+    magnitude = 10 ** math.floor(math.log10(raw))
+    for factor in (1, 2, 5, 10):
+        if raw <= factor * magnitude:
+            return factor * magnitude
+    return 10 * magnitude
+
+
+def quadrotor_mesh(size: float = 0.5) -> pv.PolyData:
+    """A small quadrotor in its body FRD frame (metres): body, four arms, four rotor discs."""
+    parts = [pv.Box(bounds=(-0.12 * size, 0.12 * size, -0.08 * size, 0.08 * size, -0.05 * size, 0.05 * size))]
+    for angle in (45, 135, 225, 315):
+        direction = np.array([math.cos(math.radians(angle)), math.sin(math.radians(angle)), 0.0])
+        tip = direction * 0.35 * size
+        parts.append(pv.Cylinder(center=tip / 2, direction=direction, radius=0.015 * size, height=0.35 * size))
+        rotor = tip + np.array([0.0, 0.0, -0.04 * size])
+        parts.append(pv.Disc(center=rotor, inner=0.0, outer=0.14 * size, normal=(0, 0, 1)))
+    merged = parts[0]
+    for part in parts[1:]:
+        merged = merged.merge(part)
+    return merged
+
+
+class SceneView:
+    """The 3D scene (z up on screen), the vehicle, the sensor with its FOV cone, and the decoded cloud.
+
+    Parameters
+    ----------
+    plotter : pyvista.Plotter
+    session : Session
+    subplot : tuple of int
+    """
+
+    def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
+        self.plotter = plotter
+        self.session = session
+        self.subplot = subplot
+        plotter.subplot(*subplot)
+        self.renderer = plotter.renderer
+        plotter.set_background("#1a1f29", top="#3b4a63")
+        mesh = pv.wrap(session.scene.mesh)
+        self.scene_actor = plotter.add_mesh(mesh, color="#717d90", opacity=1.0, smooth_shading=False,
+                                            name="scene", reset_camera=False, show_edges=False)
+        self.scene_actor.user_matrix = NED_TO_DISPLAY
+        self._ring = session.scene_ring
+        self.poly = ring_polydata(self._ring)
+        self.actor = plotter.add_mesh(
+            self.poly, scalars="scalars", cmap="viridis", point_size=2.5, render_points_as_spheres=False,
+            show_scalar_bar=False, name="cloud", reset_camera=False, lighting=False,
+        )
+        self.actor.user_matrix = NED_TO_DISPLAY
+        self.scalar_bar = plotter.add_scalar_bar(
+            SCENE_UNITS[session.scene_colour], mapper=self.actor.mapper, vertical=True,
+            position_x=0.9, position_y=0.2, width=0.05, height=0.6, title_font_size=12,
+            label_font_size=11, color="#dde3ea", n_labels=5, fmt="%.3g",
+        )
+        self.draw_vehicle()
+        self.reset_camera()
+
+    def draw_vehicle(self) -> None:
+        """The vehicle at its pose, the sensor and a cone of the FOV along its boresight."""
+        session = self.session
+        plotter = self.plotter
+        plotter.subplot(*self.subplot)
+        vehicle = session.vehicle_pose
+        body = quadrotor_mesh()
+        transform = np.eye(4)
+        transform[:3, :3] = vehicle.rotation
+        transform[:3, 3] = vehicle.origin
+        actor = plotter.add_mesh(body.transform(transform, inplace=False), color="#e8eef5", name="vehicle",
+                                 reset_camera=False)
+        actor.user_matrix = NED_TO_DISPLAY
+        sensor = sensor_world_pose(session.config, vehicle)
+        boresight = sensor.rotation @ np.array([1.0, 0.0, 0.0])
+        half = math.radians(min(session.config.half_fov_deg, 80.0))
+        length = 1.6
+        cone = pv.Cone(center=sensor.origin + boresight * length / 2, direction=-boresight, height=length,
+                       radius=length * math.tan(half), resolution=48, capping=False)
+        actor = plotter.add_mesh(cone, color="#f2c14e", opacity=0.12, name="fov-cone", reset_camera=False,
+                                 lighting=False)
+        actor.user_matrix = NED_TO_DISPLAY
+        edges = cone.extract_feature_edges(boundary_edges=True, feature_edges=False, manifold_edges=False)
+        actor = plotter.add_mesh(edges, color="#f2c14e", line_width=2, name="fov-rim", reset_camera=False)
+        actor.user_matrix = NED_TO_DISPLAY
+        actor = plotter.add_mesh(pv.Sphere(radius=0.06, center=sensor.origin), color="#f2c14e", name="sensor",
+                                 reset_camera=False)
+        actor.user_matrix = NED_TO_DISPLAY
+
+    def reset_camera(self) -> None:
+        """Behind and above the vehicle, looking along the sensor's boresight."""
+        sensor = sensor_world_pose(self.session.config, self.session.vehicle_pose)
+        boresight = sensor.rotation @ np.array([1.0, 0.0, 0.0])
+        flat = np.array([boresight[0], boresight[1], 0.0])
+        flat = flat / np.linalg.norm(flat) if np.linalg.norm(flat) > 1e-6 else np.array([1.0, 0, 0])
+        eye_ned = sensor.origin - flat * 9.0 + np.array([0, 0, -4.5])
+        target_ned = sensor.origin + flat * 25.0 + np.array([0, 0, 1.0])
+        to_display = NED_TO_DISPLAY[:3, :3]
+        camera = self.renderer.camera
+        camera.disable_parallel_projection()
+        camera.position = tuple(to_display @ eye_ned)
+        camera.focal_point = tuple(to_display @ target_ned)
+        camera.up = (0, 0, 1)
+        camera.view_angle = 50
+        self.renderer.ResetCameraClippingRange()
+
+    def update(self) -> None:
+        """Show the ring's current points and colours."""
+        if self._ring is not self.session.scene_ring:
+            self._ring = self.session.scene_ring
+        update_ring_polydata(self.poly, self._ring)
+        low, high = self.session.scene_scalar_range()
+        self.actor.mapper.scalar_range = (low, high if high > low else low + 1e-6)
+        self.scalar_bar.SetTitle(SCENE_UNITS[self.session.scene_colour])
