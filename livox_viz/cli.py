@@ -10,6 +10,7 @@ import argparse
 import csv
 import json
 import sys
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -268,6 +269,128 @@ def cmd_scenes(args: argparse.Namespace) -> int:
     return 0
 
 
+# publish / listen / request -------------------------------------------------------------
+def _seconds_or_forever(text: str) -> float | None:
+    if text.strip().lower() == "forever":
+        return None
+    return positive_float(text)
+
+
+def cmd_publish(args: argparse.Namespace) -> int:
+    from .rflysim import parse_host_port, send_protocol_destination
+    from .scan import LidarScanner
+    from .transport import ShmSender, UdpSender, publish
+
+    cfg = config_from_args(args)
+    scene, pose = scene_from_args(args)
+    if args.to:
+        host, port = parse_host_port(args.to)
+        sender = UdpSender(host, port)
+        where = f"udp {host}:{port}"
+    else:
+        destination = send_protocol_destination(cfg)
+        if destination.transport == "udp":
+            sender = UdpSender(destination.host, destination.port)
+            where = f"udp {destination.host}:{destination.port} (SendProtocol)"
+        else:
+            sender = ShmSender(cfg, args.shm_dir)
+            where = f"shared memory {sender.link.path} (SendProtocol[0] = 0)"
+    scanner = LidarScanner(cfg, scene.mesh, pose, seed=args.seed)
+    seconds = args.seconds
+    frames = scanner.frames(seconds if seconds is not None else float("inf"))
+    speed = None if args.unpaced else args.speed
+    print(f"publishing {cfg.points_per_frame:,}-ray frames at {cfg.data_check_freq} Hz "
+          f"({'unpaced' if speed is None else f'{speed:g}x real time'}) to {where}", file=sys.stderr)
+    last = [time.monotonic()]
+
+    def progress(report) -> None:
+        now = time.monotonic()
+        if now - last[0] >= 1.0:
+            last[0] = now
+            error = f", send errors {sender.errors} ({sender.last_error})" if sender.errors else ""
+            print(f"  {report.frames} frames, {report.points:,} points, scan t = {report.scan_seconds:.1f} s"
+                  f"{error}", file=sys.stderr)
+
+    try:
+        report = publish(frames, sender, speed, cfg.point_rate, progress)
+    finally:
+        sender.close()
+    error = f", {report.send_errors} send errors (last: {sender.last_error})" if report.send_errors else ""
+    print(f"sent {report.frames} frames, {report.points:,} points in {report.wall_seconds:.2f} s: "
+          f"{report.frames / max(report.wall_seconds, 1e-9):.1f} frames/s = "
+          f"{(report.frames / cfg.data_check_freq) / max(report.wall_seconds, 1e-9):.1f} x real time{error}")
+    return 0
+
+
+def cmd_listen(args: argparse.Namespace) -> int:
+    from .export import PointCloudWriter
+    from .transport import ShmReceiver, UdpReceiver, livox_to_scan_frame, print_status, status_line
+
+    cfg = load_config(args.config, seq_id=args.seq_id) if args.config else load_preset(DEFAULT_PRESET)
+    receiver = ShmReceiver(cfg, args.shm_dir) if args.shm else UdpReceiver(args.host, args.port)
+    writer = PointCloudWriter(args.record) if args.record else None
+    start = time.monotonic()
+    last_data = [start]
+    last_status = [start]
+
+    def stop() -> bool:
+        now = time.monotonic()
+        if now - last_status[0] >= 1.0:
+            last_status[0] = now
+            print_status(status_line(receiver.report, receiver.assembler, now - start))
+        if args.frames is not None and receiver.report.frames >= args.frames:
+            return True
+        if args.seconds is not None and now - start >= args.seconds:
+            return True
+        return args.timeout is not None and now - last_data[0] >= args.timeout
+
+    where = f"shared memory {receiver.link.path}" if args.shm else f"udp {args.host}:{args.port}"
+    print(f"listening on {where} (range {cfg.range_max:g} m); Ctrl-C to stop", file=sys.stderr)
+    try:
+        for frame in receiver.frames(stop):
+            last_data[0] = time.monotonic()
+            if writer is not None:
+                writer.write(livox_to_scan_frame(frame, cfg))
+    except KeyboardInterrupt:
+        pass
+    except BaseException:
+        if writer is not None:
+            writer.abort()
+        raise
+    finally:
+        receiver.close()
+    if writer is not None:
+        writer.close()
+    report = receiver.report
+    elapsed = time.monotonic() - start
+    print_status(status_line(report, receiver.assembler, elapsed))
+    cpu = report.cpu_seconds / report.frames * 1e3 if report.frames else 0.0
+    print(f"received {report.frames} frames, {report.points:,} points; receiver CPU {cpu:.2f} ms per frame"
+          + (f"; recorded to {args.record}" if writer is not None else ""))
+    return 0
+
+
+def cmd_request(args: argparse.Namespace) -> int:
+    import socket
+
+    from .rflysim import REQUEST_PORT_BASE, parse_host_port, sensor_request
+
+    cfg = config_from_args(args)
+    data = sensor_request(cfg)
+    host, port = parse_host_port(args.to, REQUEST_PORT_BASE + args.window)
+    if args.dry_run:
+        print(f"sensor request for {config_label(args)} ({len(data)} bytes) to {host}:{port}:")
+        print(data.hex())
+        return 0
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        try:
+            sock.sendto(data, (host, port))
+        except OSError as exc:
+            raise UsageError(f"cannot send to {host}:{port} ({exc.strerror or exc})") from None
+    print(f"sent the {len(data)}-byte sensor request of {config_label(args)} to {host}:{port}")
+    return 0
+
+
 # The parser --------------------------------------------------------------------------
 class _Parser(argparse.ArgumentParser):
     """argparse that exits 2 with a one-line message (argparse's own usage dump is long)."""
@@ -334,6 +457,37 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output: .ply .pcd .las .npz or .csv")
 
     p = _command(sub, "scenes", cmd_scenes, "list the built-in scenes", "livox-viz scenes")
+
+    p = _command(sub, "publish", cmd_publish, "stand in for RflySim's Livox sensor: send scan frames live",
+                 "livox-viz publish --to 127.0.0.1:9999 --seconds 10 --speed 1")
+    add_config_arguments(p)
+    add_scene_arguments(p)
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--to", help="HOST:PORT for UDP (default: the config's SendProtocol)")
+    p.add_argument("--seconds", type=_seconds_or_forever, default=10.0, help="scan time, or 'forever' (default 10)")
+    p.add_argument("--speed", type=positive_float, default=1.0, help="times real time (default 1)")
+    p.add_argument("--unpaced", action="store_true", help="send as fast as possible")
+    p.add_argument("--shm-dir", default="/dev/shm", help="folder of the shared memory block (default /dev/shm)")
+
+    p = _command(sub, "listen", cmd_listen, "receive RflySim Livox frames, report them, record them",
+                 "livox-viz listen --port 9999 --record received.npz")
+    p.add_argument("--host", default="0.0.0.0", help="address to bind (default 0.0.0.0)")
+    p.add_argument("--port", type=int, default=9999, help="UDP port (default 9999)")
+    p.add_argument("--config", help="sensor JSON giving the range (int16 scale); default the default preset")
+    p.add_argument("--seq-id", type=int, help="SeqID in a Config.json")
+    p.add_argument("--record", help="write the frames to .ply .pcd .las .npz or .csv")
+    p.add_argument("--shm", action="store_true", help="read /dev/shm/RflySim3DImg_<SeqID> instead of UDP")
+    p.add_argument("--shm-dir", default="/dev/shm", help="folder of the shared memory block")
+    p.add_argument("--frames", type=int, help="stop after this many frames")
+    p.add_argument("--seconds", type=positive_float, help="stop after this many wall seconds")
+    p.add_argument("--timeout", type=positive_float, help="stop after this many seconds without a frame")
+
+    p = _command(sub, "request", cmd_request, "ask a running RflySim for this sensor (the <16H15f request)",
+                 "livox-viz request --to 127.0.0.1 --dry-run")
+    add_config_arguments(p)
+    p.add_argument("--to", required=True, help="HOST[:PORT]; the port defaults to 20010 + --window")
+    p.add_argument("--window", type=int, default=0, help="RflySim window index (default 0)")
+    p.add_argument("--dry-run", action="store_true", help="print the 92 bytes in hex instead of sending")
 
     for register in _EXTRA_COMMANDS:
         register(sub)

@@ -1,0 +1,211 @@
+"""RflySim's wire formats: payloads, datagrams, reassembly, request, shared memory, loopback UDP."""
+
+from __future__ import annotations
+
+import itertools
+import socket
+import struct
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from livox_viz import LivoxVizError, SensorConfig
+from livox_viz.cli import main
+from livox_viz.rflysim import (
+    DATAGRAM_HEADER,
+    FRAME_CHECKSUM,
+    Reassembler,
+    SharedMemoryLink,
+    pack_payload,
+    parse_host_port,
+    send_protocol_destination,
+    sensor_request,
+    shm_size,
+    split_datagrams,
+    unpack_payload,
+)
+
+RNG = np.random.default_rng(0)
+
+
+def random_points(count: int) -> np.ndarray:
+    return RNG.integers(-32767, 32768, size=(count, 3)).astype(np.int16)
+
+
+def spec_decoder(payload: bytes, range_max: float) -> np.ndarray:
+    """Written from the spec alone: PointNum at byte 24, int16 points from byte 28."""
+    (count,) = struct.unpack_from("<i", payload, 24)
+    return np.frombuffer(payload, dtype="<i2", offset=28).reshape(count, 3) / 32767 * range_max
+
+
+def test_payload_round_trip_and_spec_decoder() -> None:
+    points = random_points(12_345)
+    pose = np.array([1.5, -2.0, -30.25, 0.1, -0.2, 3.0])
+    payload = pack_payload(pose, points)
+    assert len(payload) == 28 + 12_345 * 6
+    frame = unpack_payload(payload, timestamp=0.7)
+    assert np.array_equal(frame.xyz_int16, points)
+    np.testing.assert_allclose(frame.pos_ang, pose, rtol=1e-6)
+    np.testing.assert_array_equal(frame.decoded(600.0), spec_decoder(payload, 600.0))
+
+
+def test_lying_point_count_is_rejected() -> None:
+    payload = bytearray(pack_payload(np.zeros(6), random_points(10)))
+    struct.pack_into("<i", payload, 24, 11)
+    with pytest.raises(LivoxVizError, match="PointNum 11 but the payload holds 10"):
+        unpack_payload(bytes(payload))
+
+
+def test_datagrams_have_the_header_and_size() -> None:
+    payload = pack_payload(np.zeros(6), random_points(25_000))  # 150 028 bytes -> 3 chunks
+    datagrams = split_datagrams(payload, 1.25)
+    assert len(datagrams) == 3
+    for index, datagram in enumerate(datagrams):
+        checksum, length, chunk, count, stamp = DATAGRAM_HEADER.unpack_from(datagram)
+        assert (checksum, length, chunk, count, stamp) == (FRAME_CHECKSUM, len(datagram), index, 3, 1.25)
+        assert len(datagram) - 24 <= 60000
+    assert b"".join(d[24:] for d in datagrams) == payload
+
+
+@pytest.mark.parametrize("order", list(itertools.permutations(range(3))))
+def test_three_chunks_in_any_order(order: tuple[int, ...]) -> None:
+    payload = pack_payload(np.zeros(6), random_points(25_000))
+    datagrams = split_datagrams(payload, 2.0)
+    assembler = Reassembler()
+    results = [assembler.feed(datagrams[i]) for i in order]
+    assert results[:2] == [None, None] and results[2] == (2.0, payload)
+
+
+def test_incomplete_and_stale_frames_are_dropped() -> None:
+    assembler = Reassembler()
+    first = split_datagrams(pack_payload(np.zeros(6), random_points(25_000)), 1.0)
+    second = split_datagrams(pack_payload(np.zeros(6), random_points(25_000)), 2.0)
+    assembler.feed(first[0])
+    for datagram in second:
+        result = assembler.feed(datagram)
+    assert result is not None and result[0] == 2.0
+    assert assembler.drops["incomplete frame"] == 1
+    assert assembler.feed(first[1]) is None and assembler.drops["stale chunk"] == 1
+    assert assembler.pending_bytes == 0
+
+
+@pytest.mark.parametrize(
+    ("mutate", "reason"),
+    [
+        (lambda d: d[:10], "truncated header"),
+        (lambda d: struct.pack("<i", 42) + d[4:], "wrong checksum"),
+        (lambda d: d[:4] + struct.pack("<i", len(d) + 5) + d[8:], "length field"),
+        (lambda d: d[:12] + struct.pack("<i", 0) + d[16:], "chunk count out of range"),
+        (lambda d: d[:12] + struct.pack("<i", 10**9) + d[16:], "chunk count out of range"),
+        (lambda d: d[:8] + struct.pack("<i", 7) + d[12:], "chunk index out of range"),
+    ],
+)
+def test_garbage_datagrams_are_counted(mutate, reason: str) -> None:
+    datagram = split_datagrams(pack_payload(np.zeros(6), random_points(10)), 0.5)[0]
+    assembler = Reassembler()
+    assert assembler.feed(mutate(datagram)) is None
+    assert any(reason in key for key in assembler.drops), assembler.drops
+    assert assembler.feed(datagram) is not None  # and it keeps working
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.one_of(
+    st.binary(max_size=200),
+    st.builds(lambda idx, cnt, ts, body: DATAGRAM_HEADER.pack(FRAME_CHECKSUM, 24 + len(body), idx, cnt, ts) + body,
+              st.integers(-3, 5), st.integers(-2, 10**9), st.floats(allow_nan=True), st.binary(max_size=100)),
+), max_size=60))
+def test_fuzzed_reassembler_never_crashes_or_grows(datagrams: list[bytes]) -> None:
+    assembler = Reassembler(max_pending=4)
+    for datagram in datagrams:
+        result = assembler.feed(datagram)
+        if result is not None:
+            assert isinstance(result[1], bytes)
+        assert len(assembler._pending) <= 4
+        assert assembler.pending_bytes <= 4 * 100 * 60
+
+
+def test_request_bytes_field_by_field(mid70: SensorConfig) -> None:
+    data = sensor_request(mid70)
+    assert len(data) == 92
+    fields = struct.unpack("<16H15f", data)
+    assert fields[:8] == (12345, 0, 6, 1, 0, 250, 40, 10)
+    assert fields[8:16] == (0, 127, 0, 0, 1, 9999, 0, 0)
+    assert fields[16] == pytest.approx(70.432, rel=1e-6)
+    assert fields[17:20] == pytest.approx((0.0, 0.0, -0.3))
+    assert fields[20:23] == (0.0, 0.0, 0.0)
+    assert fields[23:31] == pytest.approx((600, 2.956, 1.4, 1.18, 10, 5, 1, 0), rel=1e-6)
+
+
+def test_send_protocol_and_addresses(mid70: SensorConfig) -> None:
+    destination = send_protocol_destination(mid70)
+    assert (destination.transport, destination.host, destination.port) == ("shm", "127.0.0.1", 9999)
+    from dataclasses import replace
+
+    udp = replace(mid70, send_protocol=(1, 192, 168, 1, 20, 20100, 0, 0))
+    assert send_protocol_destination(udp).transport == "udp"
+    assert parse_host_port("127.0.0.1:9999") == ("127.0.0.1", 9999)
+    assert parse_host_port("localhost", 20010) == ("localhost", 20010)
+    for bad in ("127.0.0.1:x", "127.0.0.1:0", ":80", "host"):
+        with pytest.raises(LivoxVizError):
+            parse_host_port(bad)
+
+
+def test_shared_memory_round_trip(tmp_path: Path, mid70: SensorConfig) -> None:
+    path = tmp_path / "RflySim3DImg_0"
+    writer = SharedMemoryLink(path, shm_size(mid70), create=True)
+    reader = SharedMemoryLink(path, shm_size(mid70))
+    assert path.stat().st_size == 250 * 40 * 6 + 37
+    assert reader.read() is None
+    points = random_points(9_000)
+    assert writer.write(0.3, np.arange(6.0), points)
+    frame = reader.read()
+    assert frame is not None and np.array_equal(frame.xyz_int16, points) and frame.timestamp == 0.3
+    assert path.read_bytes()[0] == 4  # the reader marked it done
+    assert reader.read() is None
+    path.write_bytes(b"\x03" + path.read_bytes()[1:])  # a reader is busy: the writer waits
+    assert not writer.write(0.4, np.zeros(6), points)
+    writer.close()
+    reader.close()
+
+
+def test_loopback_udp_publish_and_listen(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()
+    received = tmp_path / "received.npz"
+    sent = tmp_path / "sent.npz"
+    listener = threading.Thread(target=main, args=(["listen", "--port", str(port), "--frames", "5",
+                                                    "--timeout", "20", "--record", str(received)],))
+    listener.start()
+    import time
+
+    time.sleep(0.5)
+    assert main(["publish", "--to", f"127.0.0.1:{port}", "--seconds", "0.5", "--speed", "10"]) == 0
+    listener.join(30)
+    assert not listener.is_alive()
+    assert main(["scan", "--seconds", "0.5", "--out", str(sent)]) == 0
+    got, want = np.load(received), np.load(sent)
+    assert np.array_equal(got["xyz_int16"], want["xyz_int16"])
+    assert np.array_equal(got["frame"], want["frame"])
+    np.testing.assert_array_equal(got["xyz_sensor"], want["xyz_sensor"])
+
+
+def test_listen_on_a_port_in_use(capsys: pytest.CaptureFixture[str]) -> None:
+    busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    busy.bind(("127.0.0.1", 0))
+    try:
+        code = main(["listen", "--host", "127.0.0.1", "--port", str(busy.getsockname()[1]), "--frames", "1"])
+    finally:
+        busy.close()
+    assert code == 2 and "in use" in capsys.readouterr().err
+
+
+def test_request_dry_run(capsys: pytest.CaptureFixture[str], mid70: SensorConfig) -> None:
+    assert main(["request", "--to", "127.0.0.1", "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert bytes.fromhex(out.split()[-1]) == sensor_request(mid70)
