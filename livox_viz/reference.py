@@ -1,0 +1,136 @@
+"""Measured scan patterns: the reference ``.npy`` table and Livox's simulation CSV, in our angular plane.
+
+Both forms give, row by row in firing order, a ray as azimuth and elevation
+(``.npy``: ``[theta, phi]`` radians, x forward, y left, z up) or azimuth and
+zenith (CSV: ``Time/s,Azimuth/deg,Zenith/deg``, degrees). They are turned into
+pattern x (right), y (up) in degrees, with the angle off the boresight as the
+polar radius, exactly as :mod:`livox_viz.directions` maps our own pattern.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import LivoxVizError
+
+DEFAULT_RATE = 100_000.0
+
+
+@dataclass(frozen=True)
+class ReferencePattern:
+    """A measured pattern.
+
+    Parameters
+    ----------
+    name : str
+    xy_deg : (n, 2) float64
+        Pattern x (right), y (up), degrees.
+    t : (n,) float64
+        Firing time of each row, seconds (row / rate).
+    rate : float
+        Points per second.
+    """
+
+    name: str
+    xy_deg: np.ndarray
+    t: np.ndarray
+    rate: float
+
+    @property
+    def alpha_deg(self) -> np.ndarray:
+        """``(n,)`` angle off the boresight, degrees."""
+        return np.hypot(self.xy_deg[:, 0], self.xy_deg[:, 1])
+
+    @property
+    def seconds(self) -> float:
+        """Duration of the table."""
+        return len(self.t) / self.rate
+
+
+def xy_from_zup(azimuth: np.ndarray, elevation: np.ndarray) -> np.ndarray:
+    """Pattern angles from azimuth about +z and elevation (radians; x forward, y left, z up).
+
+    Returns
+    -------
+    xy_deg : (n, 2) float64
+    """
+    d = np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)], 1)
+    alpha = np.degrees(np.arccos(np.clip(d[:, 0], -1.0, 1.0)))
+    lateral = np.hypot(d[:, 1], d[:, 2])
+    scale = np.divide(alpha, lateral, out=np.zeros_like(alpha), where=lateral > 0)
+    return np.column_stack([-d[:, 1] * scale, d[:, 2] * scale])
+
+
+def load_reference(path: str | os.PathLike[str], rate: float = DEFAULT_RATE) -> ReferencePattern:
+    """Read a ``.npy`` table (radians) or a Livox CSV (degrees).
+
+    Raises
+    ------
+    LivoxVizError
+        Wrong shape, NaN, degrees where radians are expected, too few rows.
+    """
+    path = Path(path)
+    if not math.isfinite(rate) or rate <= 0:
+        raise LivoxVizError(f"rate {rate!r}; allowed: points per second > 0")
+    if not path.is_file():
+        raise LivoxVizError(f"{path}: no such file")
+    if path.suffix.lower() == ".npy":
+        try:
+            table = np.load(path, allow_pickle=False)
+        except (ValueError, OSError) as exc:
+            raise LivoxVizError(f"{path}: not a NumPy .npy array ({exc})") from None
+        if table.ndim != 2 or table.shape[1] != 2:
+            raise LivoxVizError(f"{path}: shape {table.shape}; allowed: (n, 2) columns [theta, phi] in radians")
+        table = table.astype(np.float64)
+        _check_finite(path, table)
+        if np.abs(table).max() > 2 * math.pi + 1e-6:
+            raise LivoxVizError(
+                f"{path}: angles up to {np.abs(table).max():.4g} look like degrees; the .npy form is radians"
+            )
+        xy = xy_from_zup(table[:, 0], table[:, 1])
+    elif path.suffix.lower() == ".csv":
+        xy = _read_csv(path)
+    else:
+        raise LivoxVizError(f"{path}: unknown format {path.suffix or '(none)'}; allowed: .npy or .csv")
+    if xy.shape[0] < 16:
+        raise LivoxVizError(f"{path}: {xy.shape[0]} rows; allowed: at least a petal's worth")
+    t = np.arange(xy.shape[0], dtype=np.float64) / rate
+    return ReferencePattern(path.stem, xy, t, float(rate))
+
+
+def _check_finite(path: Path, table: np.ndarray) -> None:
+    bad = ~np.isfinite(table).all(axis=1)
+    if bad.any():
+        raise LivoxVizError(f"{path}: {int(bad.sum())} rows hold NaN or infinite values (first at row "
+                            f"{int(np.flatnonzero(bad)[0])}); allowed: finite angles")
+
+
+def _read_csv(path: Path) -> np.ndarray:
+    with open(path, newline="", encoding="utf-8-sig") as handle:
+        reader = csv.reader(handle)
+        header = next(reader, None)
+        if header is None:
+            raise LivoxVizError(f"{path}: empty file")
+        names = [h.strip().lower() for h in header]
+        try:
+            azimuth_col = next(i for i, n in enumerate(names) if n.startswith("azimuth"))
+            zenith_col = next(i for i, n in enumerate(names) if n.startswith("zenith"))
+        except StopIteration:
+            raise LivoxVizError(f"{path}: header {header!r}; allowed: Time/s,Azimuth/deg,Zenith/deg") from None
+    try:
+        table = np.loadtxt(path, delimiter=",", skiprows=1, usecols=(azimuth_col, zenith_col), ndmin=2)
+    except ValueError as exc:
+        raise LivoxVizError(f"{path}: not numeric ({exc})") from None
+    _check_finite(path, table)
+    if np.abs(table).max() <= 2 * math.pi and np.abs(table[:, 1]).max() < 3.2:
+        raise LivoxVizError(f"{path}: angles at most {np.abs(table).max():.3g} look like radians; "
+                            "the CSV form is degrees (Azimuth/deg, Zenith/deg)")
+    azimuth = np.radians(table[:, 0])
+    elevation = np.radians(90.0 - table[:, 1])
+    return xy_from_zup(azimuth, elevation)
