@@ -328,6 +328,13 @@ def cmd_listen(args: argparse.Namespace) -> int:
 
     cfg = load_config(args.config, seq_id=args.seq_id) if args.config else load_preset(DEFAULT_PRESET)
     receiver = ShmReceiver(cfg, args.shm_dir) if args.shm else UdpReceiver(args.host, args.port)
+    if args.gui:
+        from widgets.cli import run_listen_gui
+
+        try:
+            return run_listen_gui(receiver, cfg, args)
+        finally:
+            receiver.close()
     writer = PointCloudWriter(args.record) if args.record else None
     start = time.monotonic()
     last_data = [start]
@@ -556,6 +563,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, help="stop after this many frames")
     p.add_argument("--seconds", type=positive_float, help="stop after this many wall seconds")
     p.add_argument("--timeout", type=positive_float, help="stop after this many seconds without a frame")
+    p.add_argument("--gui", action="store_true", help="show the frames in the window (angles and decoded cloud)")
+    p.add_argument("--scene", default="urban", help="scene drawn behind the received cloud with --gui")
 
     p = _command(sub, "request", cmd_request, "ask a running RflySim for this sensor (the <16H15f request)",
                  "livox-viz request --to 127.0.0.1 --dry-run")
@@ -592,6 +601,7 @@ def _register_gui(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--size", default="1600x900", help="window size WIDTHxHEIGHT (default 1600x900)")
     p.add_argument("--seconds", type=positive_float, default=1.0,
                    help="scan time of the off-screen pictures when there is no display (default 1)")
+    _add_reference_arguments(p)
 
     p = _command(sub, "render", cmd_render, "render what the GUI shows after S seconds into a PNG, off-screen",
                  "livox-viz render --view both --seconds 1 --out screenshots/both.png")
@@ -602,6 +612,14 @@ def _register_gui(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--view", choices=("pattern", "scene", "both"), default="both", help="which view (default both)")
     p.add_argument("--size", default="1600x900", help="image size WIDTHxHEIGHT (default 1600x900)")
     p.add_argument("--out", required=True, help="output PNG")
+    _add_reference_arguments(p)
+
+
+def _add_reference_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--reference", help="overlay a measured pattern (.npy radians or Livox CSV) in the "
+                                            "pattern view")
+    parser.add_argument("--reference-rate", type=positive_float, default=100_000.0,
+                        help="points per second of the reference (default 100000)")
 
 
 #: Functions that add further subcommands, registered by their modules.

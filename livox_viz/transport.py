@@ -197,7 +197,7 @@ class UdpReceiver:
         while not stop():
             try:
                 size = self.socket.recv_into(buffer)
-            except TimeoutError:
+            except (TimeoutError, BlockingIOError):
                 continue
             cpu = time.process_time()
             self.report.datagrams += 1
@@ -216,8 +216,35 @@ class UdpReceiver:
                 self.report.points += frame.xyz_int16.shape[0]
                 yield frame
 
+    def poll(self, max_datagrams: int = 100_000) -> list[LivoxFrame]:
+        """Every complete frame that has arrived, without waiting."""
+        frames: list[LivoxFrame] = []
+        self.socket.setblocking(False)
+        try:
+            for frame in self.frames(_stop_when_empty(self.socket, max_datagrams)):
+                frames.append(frame)
+        finally:
+            self.socket.settimeout(0.2)
+        return frames
+
     def close(self) -> None:
         self.socket.close()
+
+
+def _stop_when_empty(sock: socket.socket, limit: int) -> Callable[[], bool]:
+    """A stop test for :meth:`UdpReceiver.frames` that ends when no datagram is waiting."""
+    import select
+
+    seen = [0]
+
+    def stop() -> bool:
+        seen[0] += 1
+        if seen[0] > limit:
+            return True
+        ready, _, _ = select.select([sock], [], [], 0)
+        return not ready
+
+    return stop
 
 
 class ShmReceiver:
@@ -245,6 +272,15 @@ class ShmReceiver:
             self.report.frames += 1
             self.report.points += frame.xyz_int16.shape[0]
             yield frame
+
+    def poll(self, max_datagrams: int = 1) -> list[LivoxFrame]:
+        """The frame waiting in the block, if any, without waiting."""
+        frame = self.link.read()
+        if frame is None:
+            return []
+        self.report.frames += 1
+        self.report.points += frame.xyz_int16.shape[0]
+        return [frame]
 
     def close(self) -> None:
         self.link.close()

@@ -251,3 +251,64 @@ def test_real_window_under_xvfb(tmp_path: Path) -> None:
             if process is not None and process.poll() is None:
                 process.kill()
                 process.wait()
+
+
+def test_reference_overlay_plays_in_step(app: LivoxVizApp) -> None:
+    from livox_viz import ScanPattern
+    from livox_viz.reference import ReferencePattern
+
+    session = app.session
+    app._guarded(app.toggle_reference)()
+    assert "no reference pattern" in session.message
+    xy = ScanPattern(session.config, seed=0).take(200_000).xy_deg
+    session.set_reference(ReferencePattern("same", xy, np.arange(len(xy)) / 1e5, 1e5))
+    session.advance_to(0.7)
+    app.refresh()
+    ring = session.reference_ring
+    assert ring.count == 50_000 == app.pattern_view.reference_poly.n_cells
+    # The same pattern as reference: identical points, identical coverage.
+    ours = session.pattern_ring
+    np.testing.assert_array_equal(ring.ordered(ring.positions), ours.ordered(ours.positions))
+    assert session.reference_coverage() == pytest.approx(session.visible_coverage())
+    app.cycle_reference_window()
+    session.advance_to(1.9)
+    assert session.reference_ring.count == 100_000  # its own 1 s window; the table loops after 2 s
+    app.toggle_reference()
+    app.refresh()
+    assert not app.pattern_view.reference_actor.GetVisibility()
+
+
+def test_received_frames_feed_the_views(app: LivoxVizApp) -> None:
+    from livox_viz.scan import LidarScanner
+    from livox_viz.transport import frame_pose
+
+    session = app.session
+    scanner = LidarScanner(session.config, session.caster, session.vehicle_pose, seed=0)
+    sent = [scanner.next_frame() for _ in range(3)]
+
+    class Source:
+        def __init__(self) -> None:
+            self.queue = list(sent)
+
+        def poll(self):
+            from livox_viz.rflysim import LivoxFrame
+
+            frames = [LivoxFrame(f.timestamp, frame_pose(f), f.xyz_int16) for f in self.queue]
+            self.queue = []
+            return frames
+
+    session.restart()
+    session.source = Source()
+    added = session.tick()
+    app.refresh()
+    assert added == sum(len(f) for f in sent) == session.scene_ring.count
+    np.testing.assert_allclose(session.scene_ring.ordered(session.scene_ring.positions),
+                               np.concatenate([f.sensor_pose.origin + f.xyz_decoded @ f.sensor_pose.rotation.T
+                                               for f in sent]), atol=1e-3)
+    # Angles come back from the int16 points: off by up to about the 18 mm step over the range.
+    shown = session.pattern_ring.ordered(session.pattern_ring.positions)[:, :2]
+    true = np.concatenate([f.xy_deg for f in sent])
+    ranges = np.concatenate([f.range_m for f in sent])
+    bound = np.degrees(2.0 * 600 / 32767 / ranges) + 1e-3
+    assert np.all(np.abs(shown - true).max(axis=1) <= bound)
+    assert session.frame_index == 2 and session.scan_time == pytest.approx(0.3)

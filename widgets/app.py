@@ -59,6 +59,7 @@ s          screenshot + JSON sidecar
 p          save the sliders as a user preset
 n / b      next / previous preset
 r          reset the cameras
+o / l      reference overlay on/off / its window
 h          this help     q  quit"""
 
 
@@ -112,6 +113,7 @@ class LivoxVizApp:
         self._last_render = None
         self._coverage = 0.0
         self._coverage_at = -1.0
+        self._reference_coverage: float | None = None
         self._help_visible = False
         self._preset_cursor = -1
         self._config_shown = session.config
@@ -192,7 +194,7 @@ class LivoxVizApp:
             "i": self.cycle_window, "c": self.cycle_pattern_colour, "k": self.cycle_scene_colour,
             "j": self.toggle_jitter_scope, "s": self.save_screenshot, "p": self.save_preset,
             "n": lambda: self.cycle_preset(1), "b": lambda: self.cycle_preset(-1), "h": self.toggle_help,
-            "r": self.reset_cameras,
+            "r": self.reset_cameras, "o": self.toggle_reference, "l": self.cycle_reference_window,
         }
         for key, action in bindings.items():
             self.plotter.add_key_event(key, self._guarded(action))
@@ -282,6 +284,18 @@ class LivoxVizApp:
     def toggle_jitter_scope(self) -> None:
         self.session.set_jitter_scope("figure" if self.session.config.jitter_scope == "flower" else "flower")
 
+    def toggle_reference(self) -> None:
+        """Show or hide the measured pattern's overlay."""
+        if self.session.reference is None:
+            raise LivoxVizError("no reference pattern: start with --reference FILE (.npy or Livox CSV)")
+        self.session.reference_visible = not self.session.reference_visible
+
+    def cycle_reference_window(self) -> None:
+        """The overlay's own integration window."""
+        if self.session.reference is None:
+            raise LivoxVizError("no reference pattern: start with --reference FILE (.npy or Livox CSV)")
+        self.session.set_reference_window((self.session.reference_window_index + 1) % len(WINDOWS))
+
     def toggle_help(self) -> None:
         self._help_visible = not self._help_visible
 
@@ -327,11 +341,21 @@ class LivoxVizApp:
             self._coverage = session.visible_coverage()
             self._coverage_at = now
         state = "paused" if session.playback.paused else f"{session.playback.speed:g}x"
+        reference = ""
+        if session.reference is not None:
+            if now - self._coverage_at < 1e-3 or self._reference_coverage is None:
+                self._reference_coverage = session.reference_coverage()
+            shown = "" if session.reference_visible else " (hidden, o)"
+            value = self._reference_coverage
+            reference = (f"reference {session.reference.name}{shown}, window "
+                         f"{window_label(session.reference_window)} (l): coverage "
+                         f"{'-' if value is None else f'{100 * value:.1f} %'}\n")
         hud = (
             f"{session.preset_name or 'custom'}   {cfg.point_rate:,} pts/s   FOV {cfg.camera_fov:g} deg\n"
             f"t = {session.scan_time:8.3f} s   frame {max(session.frame_index, 0)}   {state}\n"
             f"window {window_label(session.window)}: {session.pattern_ring.count:,} pts, "
             f"coverage {100 * self._coverage:.1f} %\n"
+            f"{reference}"
             f"colour: {session.pattern_colour}   step: {session.step_unit}   jitter per {cfg.jitter_scope}   "
             + (f"{self._fps:4.1f} fps" if self._fps else "")
         )

@@ -14,7 +14,12 @@ def _session(args: argparse.Namespace):
 
     config = config_from_args(args)
     scene, pose = scene_from_args(args)
-    return Session(config, scene, seed=args.seed, preset_name=config_label(args), vehicle_pose=pose)
+    session = Session(config, scene, seed=args.seed, preset_name=config_label(args), vehicle_pose=pose)
+    if getattr(args, "reference", None):
+        from livox_viz.reference import load_reference
+
+        session.set_reference(load_reference(args.reference, rate=args.reference_rate))
+    return session
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -58,4 +63,22 @@ def cmd_render(args: argparse.Namespace) -> int:
     session = _session(args)
     render_offscreen(session, args.seconds, out, views=args.view, size=size)
     print(f"rendered {args.view} after {args.seconds:g} s of scan time to {out} ({size[0]}x{size[1]})")
+    return 0
+
+
+def run_listen_gui(receiver, config, args: argparse.Namespace) -> int:
+    """``listen --gui``: show received frames in both views until the window closes."""
+    from livox_viz.scene import open_scene
+
+    from .app import LivoxVizApp, has_display
+    from .session import Session
+
+    if not has_display():
+        raise UsageError("listen --gui needs a display (DISPLAY is not set); record with --record instead")
+    scene = open_scene(args.scene)
+    session = Session(config, scene, preset_name="received", vehicle_pose=scene.vehicle_pose)
+    session.source = receiver
+    session.message = f"listening on {args.host}:{args.port}" if not args.shm else "listening on shared memory"
+    app = LivoxVizApp(session, window_size=(1600, 900))
+    app.show()
     return 0

@@ -17,10 +17,12 @@ import numpy as np
 
 from livox_viz import LivoxVizError, ScanPattern, SensorConfig
 from livox_viz.codec import decode_int16, encode_int16
-from livox_viz.directions import directions_from_xy
+from livox_viz.directions import directions_from_xy, xy_from_directions
 from livox_viz.metrics import coverage
 from livox_viz.pattern import PatternChunk
 from livox_viz.poses import Pose
+from livox_viz.reference import ReferencePattern
+from livox_viz.rflysim import LivoxFrame
 from livox_viz.scan import LidarScanner
 from livox_viz.scene import Scene
 
@@ -109,8 +111,71 @@ class Session:
         self.message = ""
         self.generation = 0
         self.config = config
+        self.reference: ReferencePattern | None = None
+        self.source = None  # a receiver with poll() -> list of LivoxFrame, for listen --gui
+        self._received_points = 0
+        self.reference_window_index = 1
+        self.reference_visible = True
+        self.reference_ring = PointRing(1)
+        self._reference_position = 0
         self._make_rings()
         self.restart(config)
+
+    # Reference overlay ------------------------------------------------------------------
+    @property
+    def reference_window(self) -> float | None:
+        """Integration window of the reference overlay, seconds (None = unlimited)."""
+        return WINDOWS[self.reference_window_index]
+
+    def set_reference(self, reference: ReferencePattern | None) -> None:
+        """Overlay a measured pattern, played in step with the scan (looping over its table)."""
+        self.reference = reference
+        self._make_reference_ring()
+        self._reference_position = math.ceil(self.scan_time * reference.rate - 1e-9) if reference else 0
+
+    def set_reference_window(self, index: int) -> None:
+        """Pick the overlay's own integration window from :data:`WINDOWS`."""
+        if not 0 <= index < len(WINDOWS):
+            raise LivoxVizError(f"window index {index}; allowed: 0 to {len(WINDOWS) - 1}")
+        self.reference_window_index = index
+        self._make_reference_ring()
+
+    def _make_reference_ring(self) -> None:
+        if self.reference is None:
+            self.reference_ring = PointRing(1)
+            return
+        window = self.reference_window
+        capacity = UNLIMITED_POINTS if window is None else max(1, math.ceil(window * self.reference.rate))
+        self.reference_ring = PointRing(capacity)
+        start = 0.0 if window is None else max(0.0, self.scan_time - window)
+        self._reference_position = math.ceil(start * self.reference.rate - 1e-9)
+        self._add_reference(self.scan_time)
+
+    def _add_reference(self, scan_time: float) -> None:
+        reference = self.reference
+        if reference is None:
+            return
+        target = math.ceil(scan_time * reference.rate - 1e-9)
+        count = min(target - self._reference_position, self.reference_ring.capacity)
+        if count <= 0:
+            return
+        first = target - count
+        rows = np.arange(first, target) % reference.xy_deg.shape[0]
+        xyz = np.zeros((count, 3), dtype=np.float32)
+        xyz[:, :2] = reference.xy_deg[rows]
+        times = np.arange(first, target) / reference.rate
+        self.reference_ring.write(xyz, np.zeros(count, dtype=np.float32), times, np.arange(first, target))
+        self._reference_position = target
+        if self.reference_window is not None:
+            self.reference_ring.drop_older_than(scan_time - self.reference_window)
+
+    def reference_coverage(self) -> float | None:
+        """FOV coverage of the overlay's points (its own FOV), or None without a reference."""
+        if self.reference is None or self.reference_ring.count == 0:
+            return None
+        ring = self.reference_ring
+        radius = float(self.reference.alpha_deg.max())
+        return coverage(ring.positions[ring.live_slots(), :2].astype(np.float64), radius)
 
     # Configuration --------------------------------------------------------------------
     @property
@@ -132,6 +197,8 @@ class Session:
         self.frame_index = 0
         self.pattern_ring.clear()
         self.scene_ring.clear()
+        self.reference_ring.clear()
+        self._reference_position = 0
         self.generation += 1
 
     def set_param(self, name: str, value: float) -> bool:
@@ -177,8 +244,36 @@ class Session:
 
     # Playback -------------------------------------------------------------------------
     def tick(self, now: float | None = None) -> int:
-        """Advance by the wall time since the last tick; returns the points added."""
+        """Advance by the wall time since the last tick; returns the points added.
+
+        With a live :attr:`source` (``livox-viz listen --gui``) the frames that
+        arrived are shown instead of the model's pattern.
+        """
+        if self.source is not None:
+            if self.playback.paused:
+                return 0
+            return sum(self.add_received(frame) for frame in self.source.poll())
         return self.advance_to(self.scan_time + self.playback.elapsed(now))
+
+    def add_received(self, frame: LivoxFrame) -> int:
+        """Show a frame received from RflySim: its angles in the pattern view, its points in the scene."""
+        decoded = frame.decoded(self.config.range_max)
+        count = decoded.shape[0]
+        ranges = np.linalg.norm(decoded, axis=1)
+        safe = np.where(ranges > 0, ranges, 1.0)[:, None]
+        xyz = np.zeros((count, 3), dtype=np.float32)
+        xyz[:, :2] = xy_from_directions(decoded / safe)
+        times = np.full(count, frame.timestamp)
+        index = np.arange(self._received_points, self._received_points + count)
+        self._received_points += count
+        self.scan_time = frame.timestamp + 1.0 / self.config.data_check_freq
+        self.frame_index = round(frame.timestamp * self.config.data_check_freq)
+        self.pattern_ring.write(xyz, self.pattern_scalars(index, times), times, index)
+        pose = Pose(tuple(frame.pos_ang[:3]), *frame.pos_ang[3:])
+        world = pose.origin + decoded @ pose.rotation.T
+        self.scene_ring.write(world, self.scene_scalars(world, ranges, times), times, index)
+        self._drop_old()
+        return count
 
     def advance_to(self, scan_time: float) -> int:
         """Emit (and cast) every point before ``scan_time`` seconds; returns how many."""
@@ -195,6 +290,7 @@ class Session:
             return 0
         chunk = self.pattern.take(missing)
         self.scan_time = scan_time
+        self._add_reference(scan_time)
         self._add_pattern(chunk)
         self._add_scan(chunk)
         self._drop_old()

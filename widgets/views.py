@@ -85,6 +85,12 @@ class PatternView:
             self.poly, scalars="scalars", cmap="turbo", point_size=2.0, render_points_as_spheres=False,
             show_scalar_bar=False, name="pattern", reset_camera=False, lighting=False,
         )
+        self._reference_ring = session.reference_ring
+        self.reference_poly = ring_polydata(self._reference_ring)
+        self.reference_actor = plotter.add_mesh(
+            self.reference_poly, color="#f5f7fa", opacity=0.55, point_size=1.5, render_points_as_spheres=False,
+            name="reference", reset_camera=False, lighting=False, scalars=None,
+        )
         self.scalar_bar = plotter.add_scalar_bar(
             PATTERN_UNITS[session.pattern_colour], mapper=self.actor.mapper, vertical=True,
             position_x=0.9, position_y=0.2, width=0.05, height=0.6, title_font_size=12,
@@ -145,6 +151,9 @@ class PatternView:
         if self._ring is not self.session.pattern_ring:
             self._ring = self.session.pattern_ring
         update_ring_polydata(self.poly, self._ring)
+        self._reference_ring = self.session.reference_ring
+        update_ring_polydata(self.reference_poly, self._reference_ring)
+        self.reference_actor.SetVisibility(self.session.reference is not None and self.session.reference_visible)
         low, high = self.session.pattern_scalar_range()
         self.actor.mapper.scalar_range = (low, high if high > low else low + 1e-6)
         self.scalar_bar.SetTitle(PATTERN_UNITS[self.session.pattern_colour])
