@@ -41,9 +41,10 @@ def main() -> None:
     session.set_window(WINDOWS.index(None))
     for second in range(1, 11):
         session.advance_to(float(second))
+    session.pattern_drawing = "points"
     app.refresh()
     app.render()
-    print(f"pattern view, 800x800 off-screen, {session.pattern_ring.count:,} points on screen")
+    print(f"pattern view, 800x800 off-screen, {session.pattern_ring.count:,} points on screen, drawn as points")
 
     bare = median_time(app.plotter.ren_win.Render)
 
@@ -62,6 +63,13 @@ def main() -> None:
         app.refresh()
 
     ours_1m = median_time(bookkeeping)
+    session.pattern_drawing = "auto"
+    app.refresh()
+    app.plotter.ren_win.Render()
+    density_bare = median_time(app.plotter.ren_win.Render)
+    density_add = median_time(add_frame)
+    print(f"  as a density image (auto once points outnumber pixels): re-render {density_bare * 1e3:.1f} ms, "
+          f"add one frame + render {density_add * 1e3:.1f} ms = {density_add / bare:.3f} x the bare points render")
     app.close()
 
     session = Session(load_preset("livox_mid70"), open_scene("urban"), seed=0, preset_name="livox_mid70")

@@ -312,3 +312,27 @@ def test_received_frames_feed_the_views(app: LivoxVizApp) -> None:
     bound = np.degrees(2.0 * 600 / 32767 / ranges) + 1e-3
     assert np.all(np.abs(shown - true).max(axis=1) <= bound)
     assert session.frame_index == 2 and session.scan_time == pytest.approx(0.3)
+
+
+def test_density_image_follows_the_window(app: LivoxVizApp) -> None:
+    from livox_viz.metrics import coverage
+
+    session = app.session
+    app.on_window_slider(0)  # 0.1 s
+    for t in (0.05, 0.1, 0.17, 0.26):
+        session.advance_to(t)
+        ring = session.pattern_ring
+        live = ring.ordered(ring.positions)
+        assert session.density.counts.sum() == ring.count == live.shape[0]
+        expected = np.zeros_like(session.density.counts)
+        np.add.at(expected.reshape(-1), session.density.cells(live), 1.0)
+        np.testing.assert_array_equal(session.density.counts, expected)
+        assert session.visible_coverage() == pytest.approx(coverage(live[:, :2].astype(float), 35.216))
+    session.pattern_drawing = "density"
+    app.refresh()
+    assert app.pattern_view.density_actor.GetVisibility() and not app.pattern_view.actor.GetVisibility()
+    assert app.pattern_view.density_image.point_data["density"].max() == pytest.approx(
+        np.log1p(session.density.counts.max()))
+    session.pattern_drawing = "auto"
+    app.refresh()
+    assert app.pattern_view.actor.GetVisibility()  # 10 000 points < the view's pixels

@@ -60,6 +60,7 @@ p          save the sliders as a user preset
 n / b      next / previous preset
 r          reset the cameras
 o / l      reference overlay on/off / its window
+g          drawing: auto / points / density image
 h          this help     q  quit"""
 
 
@@ -111,7 +112,6 @@ class LivoxVizApp:
         self.sliders: dict[str, Any] = {}
         self._fps = 0.0
         self._last_render = None
-        self._coverage = 0.0
         self._coverage_at = -1.0
         self._reference_coverage: float | None = None
         self._help_visible = False
@@ -195,6 +195,7 @@ class LivoxVizApp:
             "j": self.toggle_jitter_scope, "s": self.save_screenshot, "p": self.save_preset,
             "n": lambda: self.cycle_preset(1), "b": lambda: self.cycle_preset(-1), "h": self.toggle_help,
             "r": self.reset_cameras, "o": self.toggle_reference, "l": self.cycle_reference_window,
+            "g": self.cycle_drawing,
         }
         for key, action in bindings.items():
             self.plotter.add_key_event(key, self._guarded(action))
@@ -284,6 +285,11 @@ class LivoxVizApp:
     def toggle_jitter_scope(self) -> None:
         self.session.set_jitter_scope("figure" if self.session.config.jitter_scope == "flower" else "flower")
 
+    def cycle_drawing(self) -> None:
+        """Pattern view: density image when points outnumber pixels (auto), always points, always density."""
+        modes = ("auto", "points", "density")
+        self.session.pattern_drawing = modes[(modes.index(self.session.pattern_drawing) + 1) % len(modes)]
+
     def toggle_reference(self) -> None:
         """Show or hide the measured pattern's overlay."""
         if self.session.reference is None:
@@ -337,13 +343,15 @@ class LivoxVizApp:
         session = self.session
         cfg = session.config
         now = time.monotonic()
-        if now - self._coverage_at > 0.5 or session.playback.paused:
-            self._coverage = session.visible_coverage()
+        coverage_now = session.visible_coverage()  # kept per point by the session: cheap
+        # The reference's coverage is counted afresh, so only twice a second (or when paused).
+        refresh_reference = now - self._coverage_at > 0.5 or session.playback.paused
+        if refresh_reference:
             self._coverage_at = now
         state = "paused" if session.playback.paused else f"{session.playback.speed:g}x"
         reference = ""
         if session.reference is not None:
-            if now - self._coverage_at < 1e-3 or self._reference_coverage is None:
+            if refresh_reference or self._reference_coverage is None:
                 self._reference_coverage = session.reference_coverage()
             shown = "" if session.reference_visible else " (hidden, o)"
             value = self._reference_coverage
@@ -354,9 +362,10 @@ class LivoxVizApp:
             f"{session.preset_name or 'custom'}   {cfg.point_rate:,} pts/s   FOV {cfg.camera_fov:g} deg\n"
             f"t = {session.scan_time:8.3f} s   frame {max(session.frame_index, 0)}   {state}\n"
             f"window {window_label(session.window)}: {session.pattern_ring.count:,} pts, "
-            f"coverage {100 * self._coverage:.1f} %\n"
+            f"coverage {100 * coverage_now:.1f} %\n"
             f"{reference}"
-            f"colour: {session.pattern_colour}   step: {session.step_unit}   jitter per {cfg.jitter_scope}   "
+            f"colour: {session.pattern_colour}   drawing: {session.pattern_drawing} (g)   "
+            f"step: {session.step_unit}   jitter per {cfg.jitter_scope}   "
             + (f"{self._fps:4.1f} fps" if self._fps else "")
         )
         scene_lines = ""
@@ -381,7 +390,7 @@ class LivoxVizApp:
 
     def render(self) -> None:
         """Render once and update the frames-per-second figure."""
-        self.plotter.render()
+        self.plotter.ren_win.Render()
         now = time.perf_counter()
         if self._last_render is not None:
             instant = 1.0 / max(now - self._last_render, 1e-6)

@@ -26,7 +26,7 @@ from livox_viz.rflysim import LivoxFrame
 from livox_viz.scan import LidarScanner
 from livox_viz.scene import Scene
 
-from .ring import PointRing
+from .ring import CoverageCounts, DensityGrid, PointRing
 
 #: Integration windows a user can pick, seconds (None = unlimited, up to the ring's capacity).
 WINDOWS: tuple[float | None, ...] = (0.1, 0.5, 1.0, 2.0, None)
@@ -107,6 +107,9 @@ class Session:
         self.window_index = 1
         self.step_unit = "flower"
         self.pattern_colour = "time"
+        #: Pattern view drawing: "auto" (a density image once the window holds more points than pixels),
+        #: "points" or "density".
+        self.pattern_drawing = "auto"
         self.scene_colour = "range"
         self.message = ""
         self.generation = 0
@@ -195,7 +198,11 @@ class Session:
         self.scan_time = 0.0
         self.playback.restart()
         self.frame_index = 0
+        if self.density.radius != self.config.half_fov_deg:
+            self._make_counts()
         self.pattern_ring.clear()
+        self.density.clear()
+        self.coverage_counts.clear()
         self.scene_ring.clear()
         self.reference_ring.clear()
         self._reference_position = 0
@@ -224,6 +231,8 @@ class Session:
         self.window_index = index
         self._make_rings()
         self.pattern_ring.clear()
+        self.density.clear()
+        self.coverage_counts.clear()
         self.scene_ring.clear()
         # Refill the new window from the stream so the picture stays continuous.
         self._refill()
@@ -233,6 +242,23 @@ class Session:
         capacity = UNLIMITED_POINTS if window is None else max(1, math.ceil(window * self.config.point_rate))
         self.pattern_ring = PointRing(capacity)
         self.scene_ring = PointRing(capacity)
+        self._make_counts()
+
+    def _make_counts(self) -> None:
+        """Density image and coverage cells of the pattern ring, kept in step with it."""
+        self.density = DensityGrid(self.config.half_fov_deg)
+        self.coverage_counts = CoverageCounts(self.config.half_fov_deg)
+
+        def evicted(positions: np.ndarray) -> None:
+            self.density.remove(positions)
+            self.coverage_counts.remove(positions)
+
+        self.pattern_ring.on_evict = evicted
+
+    def _count_in(self, xyz: np.ndarray) -> None:
+        kept = xyz[-self.pattern_ring.capacity :]
+        self.density.add(kept)
+        self.coverage_counts.add(kept)
 
     def _refill(self) -> None:
         start_time = 0.0 if self.window is None else max(0.0, self.scan_time - self.window)
@@ -269,6 +295,7 @@ class Session:
         self.scan_time = frame.timestamp + 1.0 / self.config.data_check_freq
         self.frame_index = round(frame.timestamp * self.config.data_check_freq)
         self.pattern_ring.write(xyz, self.pattern_scalars(index, times), times, index)
+        self._count_in(xyz)
         pose = Pose(tuple(frame.pos_ang[:3]), *frame.pos_ang[3:])
         world = pose.origin + decoded @ pose.rotation.T
         self.scene_ring.write(world, self.scene_scalars(world, ranges, times), times, index)
@@ -313,6 +340,7 @@ class Session:
         xyz = np.zeros((len(chunk), 3), dtype=np.float32)
         xyz[:, :2] = chunk.xy_deg
         self.pattern_ring.write(xyz, self.pattern_scalars(chunk.index, chunk.t), chunk.t, chunk.index)
+        self._count_in(xyz)
 
     def _add_scan(self, chunk: PatternChunk) -> None:
         """Cast the chunk's rays; the scene ring gets the decoded returns, placed in the world."""
@@ -391,8 +419,5 @@ class Session:
 
     # Measures -------------------------------------------------------------------------
     def visible_coverage(self) -> float:
-        """FOV coverage of the points the pattern view shows (5 mrad cells)."""
-        ring = self.pattern_ring
-        if ring.count == 0:
-            return 0.0
-        return coverage(ring.positions[ring.live_slots(), :2].astype(np.float64), self.config.half_fov_deg)
+        """FOV coverage of the points the pattern view shows (5 mrad cells), kept up to date per point."""
+        return self.coverage_counts.coverage()

@@ -96,8 +96,50 @@ class PatternView:
             position_x=0.9, position_y=0.2, width=0.05, height=0.6, title_font_size=12,
             label_font_size=11, color="#dde3ea", n_labels=5, fmt="%.3g",
         )
+        self._density_grid = None
+        self.density_actor = None
+        self._make_density_image()
         self.draw_guides()
         self.reset_camera()
+
+    def _make_density_image(self) -> None:
+        """The density image of the window's points (shown instead of the points when they outnumber pixels)."""
+        grid = self.session.density
+        if grid is self._density_grid:
+            return
+        self._density_grid = grid
+        # A texture on one quad: software GL draws it far faster than a cell per pixel.
+        image = pv.ImageData(dimensions=(grid.side, grid.side, 1))
+        image.point_data.set_array(grid.display, "density")
+        image.point_data.active_scalars_name = "density"
+        self.density_image = image
+        self.density_lut = pv.LookupTable(cmap="inferno", n_values=256)
+        self.density_lut.scalar_range = (0.0, 1.0)
+        colours = np.array(self.density_lut.values)
+        colours[0] = (16, 20, 28, 255)  # empty cells in the view's background colour
+        self.density_lut.values = colours
+        texture = pv.Texture()
+        texture.SetInputData(image)
+        texture.SetLookupTable(self.density_lut)
+        texture.SetColorModeToMapScalars()
+        # Linear filtering and mipmaps: a one-texel trace must not vanish when the image is shrunk.
+        texture.InterpolateOn()
+        texture.MipmapOn()
+        self.density_texture = texture
+        quad = pv.Plane(center=(0.0, 0.0, -0.01), direction=(0, 0, 1), i_size=2 * grid.radius,
+                        j_size=2 * grid.radius, i_resolution=1, j_resolution=1)
+        self.plotter.subplot(*self.subplot)
+        self.density_actor = self.plotter.add_mesh(quad, texture=texture, name="density", reset_camera=False,
+                                                   lighting=False, show_scalar_bar=False)
+        self.density_actor.SetVisibility(False)
+
+    def density_shown(self) -> bool:
+        """Whether the view draws the density image rather than the points."""
+        mode = self.session.pattern_drawing
+        if mode != "auto":
+            return mode == "density"
+        width, height = self.renderer.GetSize()
+        return self.session.pattern_ring.count > max(width * height, 1)
 
     def draw_guides(self) -> None:
         """FOV circle, 10-degree rings with labels, cross hairs, and the axis names."""
@@ -150,13 +192,30 @@ class PatternView:
         """Show the ring's current points and colours."""
         if self._ring is not self.session.pattern_ring:
             self._ring = self.session.pattern_ring
+        self._make_density_image()
+        density = self.density_shown()
+        self.actor.SetVisibility(not density)
+        self.density_actor.SetVisibility(density)
+        if density:
+            display = self.session.density.refresh_display()
+            self.density_image.GetPointData().GetArray("density").Modified()
+            # Saturate at four times the mean of the occupied cells: the centre's pile-up would
+            # otherwise leave everything else dark.
+            counts = self.session.density.counts
+            occupied = max(int(np.count_nonzero(counts)), 1)
+            top = min(float(display.max()), math.log1p(4.0 * float(counts.sum()) / occupied))
+            self.density_lut.scalar_range = (0.0, max(top, 1e-6))
+            self.density_texture.Modified()
+        bar_table = self.density_lut if density else self.actor.mapper.lookup_table
+        if self.scalar_bar.GetLookupTable() is not bar_table:
+            self.scalar_bar.SetLookupTable(bar_table)
         update_ring_polydata(self.poly, self._ring)
         self._reference_ring = self.session.reference_ring
         update_ring_polydata(self.reference_poly, self._reference_ring)
         self.reference_actor.SetVisibility(self.session.reference is not None and self.session.reference_visible)
         low, high = self.session.pattern_scalar_range()
         self.actor.mapper.scalar_range = (low, high if high > low else low + 1e-6)
-        self.scalar_bar.SetTitle(PATTERN_UNITS[self.session.pattern_colour])
+        self.scalar_bar.SetTitle("points/cell, log" if density else PATTERN_UNITS[self.session.pattern_colour])
 
 
 def _ring_step(radius: float) -> float:
