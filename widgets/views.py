@@ -60,7 +60,29 @@ def _address(array: np.ndarray) -> int:
     return int(array.__array_interface__["data"][0])
 
 
-class PatternView:
+class _View:
+    """What both views share: the plotter, the session, and their own renderer in the window.
+
+    Parameters
+    ----------
+    plotter : pyvista.Plotter
+    session : Session
+    subplot : tuple of int
+        Where the view lives in the plotter.
+    """
+
+    background: tuple[str, str | None] = ("#10141c", None)
+
+    def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
+        self.plotter = plotter
+        self.session = session
+        self.subplot = subplot
+        plotter.subplot(*subplot)
+        self.renderer = plotter.renderer
+        plotter.set_background(self.background[0], top=self.background[1])
+
+
+class PatternView(_View):
     """The angular plane in degrees: FOV circle, degree rings, the live pattern.
 
     Parameters
@@ -72,12 +94,7 @@ class PatternView:
     """
 
     def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
-        self.plotter = plotter
-        self.session = session
-        self.subplot = subplot
-        plotter.subplot(*subplot)
-        self.renderer = plotter.renderer
-        plotter.set_background("#10141c")
+        super().__init__(plotter, session, subplot)
         self._guides: list = []
         self._ring = session.pattern_ring
         self.poly = ring_polydata(self._ring)
@@ -243,7 +260,7 @@ def quadrotor_mesh(size: float = 0.5) -> pv.PolyData:
     return merged
 
 
-class SceneView:
+class SceneView(_View):
     """The 3D scene (z up on screen), the vehicle, the sensor with its FOV cone, and the decoded cloud.
 
     Parameters
@@ -253,13 +270,10 @@ class SceneView:
     subplot : tuple of int
     """
 
+    background = ("#1a1f29", "#3b4a63")
+
     def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
-        self.plotter = plotter
-        self.session = session
-        self.subplot = subplot
-        plotter.subplot(*subplot)
-        self.renderer = plotter.renderer
-        plotter.set_background("#1a1f29", top="#3b4a63")
+        super().__init__(plotter, session, subplot)
         mesh = pv.wrap(session.scene.mesh)
         self.scene_actor = plotter.add_mesh(mesh, color="#717d90", opacity=1.0, smooth_shading=False,
                                             name="scene", reset_camera=False, show_edges=False)
