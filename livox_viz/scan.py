@@ -35,7 +35,7 @@ class ScanFrame:
         Rays fired in the frame (W*H, fewer for a partial last frame).
     t : (M,) float64
         Emission time of each return, seconds since the scan start.
-    xy_deg : (M,) float64
+    xy_deg : (M, 2) float64
         Pattern angles of the returns, degrees.
     range_m : (M,) float64
         True distance to the hit, metres.

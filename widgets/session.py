@@ -112,7 +112,6 @@ class Session:
         self.pattern_drawing = "auto"
         self.scene_colour = "range"
         self.message = ""
-        self.generation = 0
         self.config = config
         self.reference: ReferencePattern | None = None
         self.source = None  # a receiver with poll() -> list of LivoxFrame, for listen --gui
@@ -206,7 +205,6 @@ class Session:
         self.scene_ring.clear()
         self.reference_ring.clear()
         self._reference_position = 0
-        self.generation += 1
 
     def set_param(self, name: str, value: float) -> bool:
         """Change one configuration field and restart; False (and a message) if the value is not allowed."""
