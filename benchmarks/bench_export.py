@@ -13,12 +13,12 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import rss_mib  # noqa: E402
+from _common import rss_mib
 
-from livox_viz import load_preset  # noqa: E402
-from livox_viz.export import PointCloudWriter  # noqa: E402
-from livox_viz.scan import LidarScanner  # noqa: E402
-from livox_viz.scene import open_scene  # noqa: E402
+from livox_viz import load_preset
+from livox_viz.export import PointCloudWriter
+from livox_viz.scan import LidarScanner
+from livox_viz.scene import open_scene
 
 SECONDS = 60.0
 
