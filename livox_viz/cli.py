@@ -329,10 +329,8 @@ def cmd_listen(args: argparse.Namespace) -> int:
     cfg = load_config(args.config, seq_id=args.seq_id) if args.config else load_preset(DEFAULT_PRESET)
     receiver = ShmReceiver(cfg, args.shm_dir) if args.shm else UdpReceiver(args.host, args.port)
     if args.gui:
-        from widgets.cli import run_listen_gui
-
         try:
-            return run_listen_gui(receiver, cfg, args)
+            return _gui_module().run_listen_gui(receiver, cfg, args)
         finally:
             receiver.close()
     writer = PointCloudWriter(args.record) if args.record else None
@@ -578,18 +576,21 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _gui_module():
+    """The GUI's command module, imported only when a GUI command runs (it pulls in VTK)."""
+    import importlib
+
+    return importlib.import_module("widgets.cli")
+
+
 def cmd_gui(args: argparse.Namespace) -> int:
     """``gui``: the GUI package (VTK) is imported only now."""
-    from widgets.cli import cmd_gui as run_gui
-
-    return run_gui(args)
+    return _gui_module().cmd_gui(args)
 
 
 def cmd_render(args: argparse.Namespace) -> int:
     """``render``: the GUI package (VTK) is imported only now."""
-    from widgets.cli import cmd_render as run_render
-
-    return run_render(args)
+    return _gui_module().cmd_render(args)
 
 
 def _register_gui(sub: argparse._SubParsersAction) -> None:

@@ -83,15 +83,7 @@ class _View:
 
 
 class PatternView(_View):
-    """The angular plane in degrees: FOV circle, degree rings, the live pattern.
-
-    Parameters
-    ----------
-    plotter : pyvista.Plotter
-    session : Session
-    subplot : tuple of int
-        Where the view lives in the plotter.
-    """
+    """The angular plane in degrees: FOV circle, degree rings, the live pattern (or its density image)."""
 
     def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
         super().__init__(plotter, session, subplot)
@@ -261,14 +253,7 @@ def quadrotor_mesh(size: float = 0.5) -> pv.PolyData:
 
 
 class SceneView(_View):
-    """The 3D scene (z up on screen), the vehicle, the sensor with its FOV cone, and the decoded cloud.
-
-    Parameters
-    ----------
-    plotter : pyvista.Plotter
-    session : Session
-    subplot : tuple of int
-    """
+    """The 3D scene (z up on screen), the vehicle, the sensor with its FOV cone, and the decoded cloud."""
 
     background = ("#1a1f29", "#3b4a63")
 
