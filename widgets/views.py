@@ -295,14 +295,22 @@ class SceneView(_View):
         boresight = sensor.rotation @ np.array([1.0, 0.0, 0.0])
         half = math.radians(min(session.config.half_fov_deg, 80.0))
         length = 1.6
-        cone = pv.Cone(center=sensor.origin + boresight * length / 2, direction=-boresight, height=length,
-                       radius=length * math.tan(half), resolution=48, capping=False)
-        actor = plotter.add_mesh(cone, color="#f2c14e", opacity=0.12, name="fov-cone", reset_camera=False,
+        # The FOV as a wire cone: a rim and eight rays from the sensor. A translucent surface
+        # would hide the cloud behind it and push VTK into its slower translucent pass.
+        radius = length * math.tan(half)
+        side = np.cross(boresight, [0.0, 0.0, 1.0])
+        side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-6 else np.array([0.0, 1.0, 0.0])
+        up = np.cross(side, boresight)
+        angles = np.linspace(0.0, 2 * math.pi, 97)
+        rim = sensor.origin + boresight * length + radius * (np.outer(np.cos(angles), side)
+                                                            + np.outer(np.sin(angles), up))
+        wire = pv.lines_from_points(rim)
+        for k in range(0, 96, 12):
+            wire = wire.merge(pv.Line(sensor.origin, rim[k]))
+        actor = plotter.add_mesh(wire, color="#f2c14e", line_width=2, name="fov-cone", reset_camera=False,
                                  lighting=False)
         actor.user_matrix = NED_TO_DISPLAY
-        edges = cone.extract_feature_edges(boundary_edges=True, feature_edges=False, manifold_edges=False)
-        actor = plotter.add_mesh(edges, color="#f2c14e", line_width=2, name="fov-rim", reset_camera=False)
-        actor.user_matrix = NED_TO_DISPLAY
+        plotter.remove_actor("fov-rim", render=False)
         actor = plotter.add_mesh(pv.Sphere(radius=0.06, center=sensor.origin), color="#f2c14e", name="sensor",
                                  reset_camera=False)
         actor.user_matrix = NED_TO_DISPLAY
