@@ -72,6 +72,27 @@ def list_scenes() -> list[tuple[str, str]]:
     return found
 
 
+MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off", ".json")
+
+
+def user_scene_dir() -> Path:
+    """The user's own scenes (mesh files or scene JSON): ``$LIVOX_VIZ_SCENES`` or ``~/.config/livox-viz/scenes``."""
+    explicit = os.environ.get("LIVOX_VIZ_SCENES")
+    if explicit:
+        return Path(explicit)
+    config_home = os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")
+    return Path(config_home) / "livox-viz" / "scenes"
+
+
+def scene_choices() -> list[str]:
+    """What the GUI cycles through: shipped scene names, then the user's scene files (paths)."""
+    choices = [name for name, _ in list_scenes()]
+    folder = user_scene_dir()
+    if folder.is_dir():
+        choices += [str(p) for p in sorted(folder.iterdir()) if p.suffix.lower() in MESH_SUFFIXES]
+    return choices
+
+
 def default_scene() -> trimesh.Trimesh:
     """The built-in default scene's mesh (world NED, metres)."""
     return load_scene_preset(DEFAULT_SCENE).mesh

@@ -336,3 +336,25 @@ def test_density_image_follows_the_window(app: LivoxVizApp) -> None:
     session.pattern_drawing = "auto"
     app.refresh()
     assert app.pattern_view.actor.GetVisibility()  # 10 000 points < the view's pixels
+
+
+def test_scene_cycle_survives_a_broken_mesh(app: LivoxVizApp, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import trimesh
+
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    (folder / "a_broken.obj").write_text("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    trimesh.creation.box((4, 4, 4)).export(folder / "b_box.obj")
+    monkeypatch.setenv("LIVOX_VIZ_SCENES", str(folder))
+    session = app.session
+    seen = []
+    for _ in range(6):
+        app._guarded(app.cycle_scene)()
+        seen.append((session.scene.name, session.message))
+    names = [name for name, _ in seen]
+    assert {"dense_terrain", "open_field", "b_box.obj"} <= set(names)
+    assert any("NaN or infinite" in message for _, message in seen)
+    session.advance_to(0.1)
+    app.refresh()
+    assert app.scene_view._scene_shown is session.scene
+    assert app.scene_view.scene_actor.GetMapper().GetInput().n_cells == len(session.scene.mesh.faces)

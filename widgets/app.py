@@ -61,6 +61,7 @@ n / b      next / previous preset
 r          reset the cameras
 o / l      reference overlay on/off / its window
 g          drawing: auto / points / density image
+m          next scene (built-in, then your mesh files)
 h          this help     q  quit"""
 
 
@@ -116,6 +117,7 @@ class LivoxVizApp:
         self._reference_coverage: float | None = None
         self._help_visible = False
         self._preset_cursor = -1
+        self._scene_cursor = -1
         self._config_shown = session.config
         self._ready = False  # pyvista calls each slider's callback once as it is created
         if views == "both":
@@ -195,7 +197,7 @@ class LivoxVizApp:
             "j": self.toggle_jitter_scope, "s": self.save_screenshot, "p": self.save_preset,
             "n": lambda: self.cycle_preset(1), "b": lambda: self.cycle_preset(-1), "h": self.toggle_help,
             "r": self.reset_cameras, "o": self.toggle_reference, "l": self.cycle_reference_window,
-            "g": self.cycle_drawing,
+            "g": self.cycle_drawing, "m": self.cycle_scene,
         }
         for key, action in bindings.items():
             self.plotter.add_key_event(key, self._guarded(action))
@@ -284,6 +286,22 @@ class LivoxVizApp:
 
     def toggle_jitter_scope(self) -> None:
         self.session.set_jitter_scope("figure" if self.session.config.jitter_scope == "flower" else "flower")
+
+    def cycle_scene(self) -> None:
+        """The next scene: the shipped ones, then mesh files in the user's scenes folder.
+
+        A file that does not load leaves the current scene and says why; the next press moves on.
+        """
+        from livox_viz.scene import open_scene, scene_choices
+
+        choices = scene_choices()
+        if self._scene_cursor < 0:
+            names = [Path(c).name if os.sep in c else c for c in choices]
+            self._scene_cursor = names.index(self.session.scene.name) if self.session.scene.name in names else -1
+        self._scene_cursor = (self._scene_cursor + 1) % len(choices)
+        scene = open_scene(choices[self._scene_cursor])
+        self.session.set_scene(scene)
+        self.session.message = f"scene {scene.name}"
 
     def cycle_drawing(self) -> None:
         """Pattern view: density image when points outnumber pixels (auto), always points, always density."""

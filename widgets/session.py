@@ -123,6 +123,16 @@ class Session:
         self._make_rings()
         self.restart(config)
 
+    def set_scene(self, scene: Scene) -> None:
+        """Cast into another scene (its own default vehicle pose) and restart the scan."""
+        from livox_viz.raycast import EmbreeCaster
+
+        caster = EmbreeCaster(scene.mesh)
+        self.scene = scene
+        self.caster = caster
+        self.vehicle_pose = scene.vehicle_pose
+        self.restart()
+
     # Reference overlay ------------------------------------------------------------------
     @property
     def reference_window(self) -> float | None:

@@ -259,10 +259,8 @@ class SceneView(_View):
 
     def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
         super().__init__(plotter, session, subplot)
-        mesh = pv.wrap(session.scene.mesh)
-        self.scene_actor = plotter.add_mesh(mesh, color="#717d90", opacity=1.0, smooth_shading=False,
-                                            name="scene", reset_camera=False, show_edges=False)
-        self.scene_actor.user_matrix = NED_TO_DISPLAY
+        self._scene_shown = None
+        self.draw_scene()
         self._ring = session.scene_ring
         self.poly = ring_polydata(self._ring)
         self.actor = plotter.add_mesh(
@@ -277,6 +275,16 @@ class SceneView(_View):
         )
         self.draw_vehicle()
         self.reset_camera()
+
+    def draw_scene(self) -> None:
+        """The scene's triangles (again, when the session's scene changed)."""
+        if self._scene_shown is self.session.scene:
+            return
+        self._scene_shown = self.session.scene
+        self.plotter.subplot(*self.subplot)
+        self.scene_actor = self.plotter.add_mesh(pv.wrap(self.session.scene.mesh), color="#717d90",
+                                                 smooth_shading=False, name="scene", reset_camera=False)
+        self.scene_actor.user_matrix = NED_TO_DISPLAY
 
     def draw_vehicle(self) -> None:
         """The vehicle at its pose, the sensor and a cone of the FOV along its boresight."""
@@ -334,6 +342,10 @@ class SceneView(_View):
 
     def update(self) -> None:
         """Show the ring's current points and colours."""
+        if self._scene_shown is not self.session.scene:
+            self.draw_scene()
+            self.draw_vehicle()
+            self.reset_camera()
         if self._ring is not self.session.scene_ring:
             self._ring = self.session.scene_ring
         update_ring_polydata(self.poly, self._ring)
