@@ -221,7 +221,7 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", default="urban", help="scene preset name or mesh file (default urban)")
     parser.add_argument("--up", choices=("z", "y"), default="z", help="up axis of a mesh file (default z)")
     parser.add_argument("--pose", help="vehicle pose x,y,z,roll,pitch,yaw in metres/radians, NED "
-                                       "(default: the scene's own)")
+                                       "(default: the scene's own); write --pose=-5,0,... when it starts with -")
 
 
 def scene_from_args(args: argparse.Namespace):
