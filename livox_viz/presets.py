@@ -46,13 +46,24 @@ def shipped_preset_dir() -> Path:
     return Path(str(resources.files("livox_viz.shipped_presets")))
 
 
-def user_preset_dir() -> Path:
-    """The user's own presets: ``$LIVOX_VIZ_PRESETS``, else ``$XDG_CONFIG_HOME/livox-viz/presets``."""
-    explicit = os.environ.get("LIVOX_VIZ_PRESETS")
+def user_config_dir(kind: str) -> Path:
+    """A folder of the user's own files: ``$LIVOX_VIZ_<KIND>``, else ``$XDG_CONFIG_HOME/livox-viz/<kind>``.
+
+    Parameters
+    ----------
+    kind : str
+        ``"presets"`` or ``"scenes"``.
+    """
+    explicit = os.environ.get(f"LIVOX_VIZ_{kind.upper()}")
     if explicit:
         return Path(explicit)
     config_home = os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")
-    return Path(config_home) / "livox-viz" / "presets"
+    return Path(config_home) / "livox-viz" / kind
+
+
+def user_preset_dir() -> Path:
+    """The user's own presets: ``$LIVOX_VIZ_PRESETS``, else ``$XDG_CONFIG_HOME/livox-viz/presets``."""
+    return user_config_dir("presets")
 
 
 def _index_descriptions(folder: Path) -> dict[str, str]:

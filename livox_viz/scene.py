@@ -23,7 +23,7 @@ import trimesh
 
 from .errors import LivoxVizError
 from .poses import Pose
-from .presets import DESCRIPTION_KEY, shipped_preset_dir
+from .presets import DESCRIPTION_KEY, shipped_preset_dir, user_config_dir
 
 DEFAULT_SCENE = "urban"
 UP_AXES = ("z", "y")
@@ -77,11 +77,7 @@ MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off", ".json")
 
 def user_scene_dir() -> Path:
     """The user's own scenes (mesh files or scene JSON): ``$LIVOX_VIZ_SCENES`` or ``~/.config/livox-viz/scenes``."""
-    explicit = os.environ.get("LIVOX_VIZ_SCENES")
-    if explicit:
-        return Path(explicit)
-    config_home = os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")
-    return Path(config_home) / "livox-viz" / "scenes"
+    return user_config_dir("scenes")
 
 
 def scene_choices() -> list[str]:

@@ -35,7 +35,6 @@ class PublishReport:
     points: int = 0
     datagrams: int = 0
     send_errors: int = 0
-    skipped: int = 0
     wall_seconds: float = 0.0
     scan_seconds: float = 0.0
 
@@ -166,7 +165,6 @@ class ListenReport:
     datagrams: int = 0
     bad_payloads: int = 0
     cpu_seconds: float = 0.0
-    wall_seconds: float = 0.0
 
 
 class UdpReceiver:
