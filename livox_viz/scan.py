@@ -118,10 +118,20 @@ class LidarScanner:
             chunk = self.pattern.take(min(frame_end, total) - self.pattern.position)
             yield self._cast(frame_index, chunk.xy_deg, chunk.t)
 
-    def cast_angles(self, xy_deg: np.ndarray) -> np.ndarray:
-        """Ranges of arbitrary pattern angles from the sensor, ``(n, 2)`` deg -> ``(n,)`` m, inf = no return."""
-        directions = directions_from_xy(xy_deg) @ self._rotation.T
-        return self.caster.distances(self._origin, directions, self.config.range_max)
+    def cast_sensor_directions(self, directions_sensor: np.ndarray) -> np.ndarray:
+        """Ranges along rays given in the sensor frame.
+
+        Parameters
+        ----------
+        directions_sensor : (n, 3) float64
+            Unit rays, sensor FRD.
+
+        Returns
+        -------
+        range_m : (n,) float64
+            Metres; ``inf`` where nothing is hit within ``otherParams[0]``.
+        """
+        return self.caster.distances(self._origin, directions_sensor @ self._rotation.T, self.config.range_max)
 
     def _cast(self, frame_index: int, xy_deg: np.ndarray, t: np.ndarray) -> ScanFrame:
         directions_sensor = directions_from_xy(xy_deg)

@@ -352,12 +352,13 @@ class Session:
 
     def _add_scan(self, chunk: PatternChunk) -> None:
         """Cast the chunk's rays; the scene ring gets the decoded returns, placed in the world."""
-        ranges = self.scanner.cast_angles(chunk.xy_deg)
+        directions = directions_from_xy(chunk.xy_deg)
+        ranges = self.scanner.cast_sensor_directions(directions)
         hit = np.isfinite(ranges)
         if not np.any(hit):
             return
         pose = self.scanner.sensor_pose
-        sensor_points = directions_from_xy(chunk.xy_deg[hit]) * ranges[hit, None]
+        sensor_points = directions[hit] * ranges[hit, None]
         decoded = decode_int16(encode_int16(sensor_points, self.config.range_max), self.config.range_max)
         world = pose.origin + decoded @ pose.rotation.T
         t = chunk.t[hit]
