@@ -20,8 +20,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from livox_viz import load_preset
 from livox_viz.scene import open_scene
-from widgets.app import LivoxVizApp
-from widgets.session import WINDOWS, Session
+from livox_viz_gui.app import LivoxVizApp
+from livox_viz_gui.overlay import WINDOWS
+from livox_viz_gui.session import Session
 
 REPEATS = 9
 
@@ -41,7 +42,7 @@ def main() -> None:
     session.set_window(WINDOWS.index(None))
     for second in range(1, 11):
         session.advance_to(float(second))
-    session.pattern_drawing = "points"
+    session.display.drawing = "points"
     app.refresh()
     app.render()
     print(f"pattern view, 800x800 off-screen, {session.pattern_ring.count:,} points on screen, drawn as points")
@@ -63,7 +64,7 @@ def main() -> None:
         app.refresh()
 
     ours_1m = median_time(bookkeeping)
-    session.pattern_drawing = "auto"
+    session.display.drawing = "auto"
     app.refresh()
     app.plotter.ren_win.Render()
     density_bare = median_time(app.plotter.ren_win.Render)

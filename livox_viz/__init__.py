@@ -1,6 +1,7 @@
 """livox-viz: the simulated Livox rosette lidar of RflySim (TypeID 6), as a model.
 
-This package never imports VTK or pyvista; the GUI lives in ``widgets``.
+This package never imports VTK or pyvista and never names the GUI: the GUI adds its
+commands through the ``livox_viz.commands`` entry point.
 """
 
 from __future__ import annotations

@@ -24,6 +24,7 @@ from typing import Any, Literal
 
 from .atomic import write_text_atomic
 from .errors import ConfigError
+from .risley_params import RisleyParams
 
 JitterScope = Literal["flower", "figure"]
 JITTER_SCOPES: tuple[str, ...] = ("flower", "figure")
@@ -31,6 +32,10 @@ LIVOX_TYPE_ID = 6
 EULER_KEY_RFLYSIM = "SensorAngEular"
 EULER_KEY_DOCUMENT = "SensorAngEuler"
 JITTER_SCOPE_KEY = "LivoxVizJitterScope"
+PATTERN_MODEL_KEY = "LivoxVizPatternModel"
+RISLEY_KEY = "LivoxVizRisley"
+#: The pattern models: RflySim's petal rosette (scan-model.md) and the real sensors' Risley track (risley.md).
+PATTERN_MODELS: tuple[str, ...] = ("rflysim", "risley")
 DEFAULT_SEND_PROTOCOL: tuple[int, ...] = (0, 127, 0, 0, 1, 9999, 0, 0)
 MAX_POINTS_PER_FRAME = 10_000_000
 
@@ -110,7 +115,14 @@ PARAM_RANGES: dict[str, ParamRange] = {
     "figure8_per_flower": ParamRange("otherParams[4]", "figure-8s per flower", 1, 360, integer=True),
     "flowers_per_figure": ParamRange("otherParams[5]", "flowers per figure", 1, 360, integer=True),
     "jitter_max_deg": ParamRange("otherParams[6]", "maximum random rotation, deg", 0, 360),
+    "prism_rpm_a": ParamRange("LivoxVizRisley prism A", "prism A speed, rpm", -20000, 20000),
+    "prism_rpm_b": ParamRange("LivoxVizRisley prism B", "prism B speed, rpm", -20000, 20000),
+    "deflection_a": ParamRange("LivoxVizRisley deflection A", "prism A deflection, deg", 0, 45, low_open=True),
+    "deflection_b": ParamRange("LivoxVizRisley deflection B", "prism B deflection, deg", 0, 45, low_open=True),
+    "laser_spacing": ParamRange("LivoxVizRisley laser_spacing", "lasers' spacing, x fitted", 0, 10),
 }
+#: The tunable fields of the Risley model (they need ``LivoxVizRisley`` parameters).
+RISLEY_PARAMS: tuple[str, ...] = ("prism_rpm_a", "prism_rpm_b", "deflection_a", "deflection_b", "laser_spacing")
 
 _INTEGER_KEYS = {
     "SeqID": "SeqID",
@@ -174,6 +186,11 @@ class SensorConfig:
         [1..4] IPv4 bytes, [5] port, [6..7] unused.
     jitter_scope : {"flower", "figure"}
         When the random rotation is added to the running offset.
+    pattern_model : {"rflysim", "risley"}
+        Which pattern the sensor scans: RflySim's rosette from ``otherParams``
+        or the Risley-prism track of :attr:`risley`.
+    risley : RisleyParams, optional
+        The Risley track (``LivoxVizRisley``); needed when ``pattern_model`` is ``"risley"``.
     source : dict
         The JSON object as it was read (key order and unknown keys are kept
         for saving); empty for a configuration made from scratch.
@@ -194,6 +211,8 @@ class SensorConfig:
     target_mount_type: int = 0
     send_protocol: tuple[int, ...] = DEFAULT_SEND_PROTOCOL
     jitter_scope: str = "flower"
+    pattern_model: str = "rflysim"
+    risley: RisleyParams | None = None
     source: Mapping[str, Any] = field(default_factory=dict, compare=False, repr=False)
     euler_key: str = field(default=EULER_KEY_RFLYSIM, compare=False, repr=False)
 
@@ -230,6 +249,12 @@ class SensorConfig:
             raise ConfigError(
                 f"jitter_scope = {self.jitter_scope!r}; allowed: {' or '.join(JITTER_SCOPES)}"
             )
+        if self.pattern_model not in PATTERN_MODELS:
+            raise ConfigError(
+                f"{PATTERN_MODEL_KEY} = {self.pattern_model!r}; allowed: {' or '.join(PATTERN_MODELS)}"
+            )
+        if self.pattern_model == "risley" and self.risley is None:
+            raise ConfigError(f"{PATTERN_MODEL_KEY} is 'risley' but there is no {RISLEY_KEY} object")
         if self.euler_key not in (EULER_KEY_RFLYSIM, EULER_KEY_DOCUMENT):
             raise ConfigError(
                 f"euler_key = {self.euler_key!r}; allowed: {EULER_KEY_RFLYSIM} or {EULER_KEY_DOCUMENT}"
@@ -305,6 +330,23 @@ class SensorConfig:
         return self.points_per_flower * self.flowers_per_figure
 
     @property
+    def unit_points(self) -> dict[str, int]:
+        """Points in each unit of the stream, smallest first: arc, petal, figure8, flower, figure, frame.
+
+        The Risley track has no petal structure: its only unit is the frame.
+        """
+        if self.pattern_model == "risley":
+            return {"frame": self.points_per_frame}
+        return {
+            "arc": self.data_width,
+            "petal": 2 * self.data_width,
+            "figure8": self.points_per_figure8,
+            "flower": self.points_per_flower,
+            "figure": self.points_per_figure,
+            "frame": self.points_per_frame,
+        }
+
+    @property
     def petal_spacing_deg(self) -> float:
         """Angle between neighbouring petals of one flower, 180/N8 degrees."""
         return 180.0 / self.figure8_per_flower
@@ -335,6 +377,8 @@ class SensorConfig:
         value = spec.check(value)
         if spec.integer:
             value = int(value)
+        if name in RISLEY_PARAMS:
+            return replace(self, risley=_risley_with(self._require_risley(), name, value))
         if name in _OTHER_PARAM_FIELDS:
             params = list(self.other_params)
             params[_OTHER_PARAM_FIELDS.index(name)] = value
@@ -343,7 +387,22 @@ class SensorConfig:
 
     def param_value(self, name: str) -> float:
         """The current value of a tunable field named as in :data:`PARAM_RANGES`."""
+        if name in RISLEY_PARAMS:
+            risley = self._require_risley()
+            return {"prism_rpm_a": risley.prism_rpm[0], "prism_rpm_b": risley.prism_rpm[1],
+                    "deflection_a": risley.deflection_deg[0], "deflection_b": risley.deflection_deg[1],
+                    "laser_spacing": risley.laser_spacing}[name]
         return float(getattr(self, name))
+
+    def _require_risley(self) -> RisleyParams:
+        if self.risley is None:
+            raise ConfigError(f"this configuration has no {RISLEY_KEY} parameters; load a Risley preset "
+                              "(e.g. livox_mid70_risley)")
+        return self.risley
+
+    def with_pattern_model(self, model: str) -> SensorConfig:
+        """A copy that scans with ``model`` ("rflysim" or "risley")."""
+        return replace(self, pattern_model=model)
 
     # JSON ---------------------------------------------------------------------------
     def to_json_dict(self) -> dict[str, Any]:
@@ -368,6 +427,12 @@ class SensorConfig:
         out.update(values)
         if self.jitter_scope != "flower" or JITTER_SCOPE_KEY in out:
             out[JITTER_SCOPE_KEY] = self.jitter_scope
+        if self.pattern_model != "rflysim" or PATTERN_MODEL_KEY in out:
+            out[PATTERN_MODEL_KEY] = self.pattern_model
+        if self.risley is not None:
+            out[RISLEY_KEY] = self.risley.to_json()
+        else:
+            out.pop(RISLEY_KEY, None)
         return out
 
     @classmethod
@@ -410,6 +475,7 @@ class SensorConfig:
         camera_fov = data["CameraFOV"]
         _check_finite("CameraFOV", camera_fov)
         scope = data.get(JITTER_SCOPE_KEY, "flower")
+        risley = RisleyParams.from_json(data[RISLEY_KEY]) if RISLEY_KEY in data else None
         return cls(
             data_width=ints["DataWidth"],
             data_height=ints["DataHeight"],
@@ -424,9 +490,24 @@ class SensorConfig:
             target_mount_type=ints["TargetMountType"],
             send_protocol=tuple(data["SendProtocol"]),
             jitter_scope=scope,
+            pattern_model=data.get(PATTERN_MODEL_KEY, "rflysim"),
+            risley=risley,
             source=dict(data),
             euler_key=euler_key,
         )
+
+
+def _risley_with(risley: RisleyParams, name: str, value: float) -> RisleyParams:
+    """The Risley parameters with one slider's value (rpm, degrees or the spacing scale) changed."""
+    if name in ("prism_rpm_a", "prism_rpm_b"):
+        hz = list(risley.prism_hz)
+        hz[name.endswith("_b")] = value / 60.0
+        return risley.with_values(prism_hz=tuple(hz))
+    if name in ("deflection_a", "deflection_b"):
+        deflection = list(risley.deflection_deg)
+        deflection[name.endswith("_b")] = value
+        return risley.with_values(deflection_deg=tuple(deflection))
+    return risley.with_values(laser_spacing=value)
 
 
 def _is_int(value: Any) -> bool:
@@ -457,25 +538,71 @@ def _json_number(value: float) -> int | float:
 
 
 # Files ------------------------------------------------------------------------------
+MAX_JSON_BYTES = 64 << 20
+
+
+class _NonFinite(float):
+    """A NaN or Infinity the JSON held, kept so the error can name its key."""
+
+    word = ""
+
+
 def read_json_file(path: str | os.PathLike[str]) -> Any:
-    """Parse a JSON file, turning every failure into a one-line :class:`ConfigError`."""
+    """Parse a JSON file, turning every failure into a one-line :class:`ConfigError`.
+
+    NaN and Infinity (which Python's parser accepts but JSON does not) are
+    refused with the key that holds them; so are files over 64 MiB and
+    nesting too deep to parse.
+    """
     path = Path(path)
     try:
+        if path.is_dir():
+            raise ConfigError(f"{path}: is a folder, expected a JSON file")
+        if path.is_file() and path.stat().st_size > MAX_JSON_BYTES:
+            raise ConfigError(f"{path}: {path.stat().st_size:,} bytes; allowed: at most {MAX_JSON_BYTES:,}")
         text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise ConfigError(f"{path}: is a folder, expected a JSON file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: cannot read ({exc})") from None
+    if not text.strip():
+        raise ConfigError(f"{path}: is empty, expected a JSON object")
     try:
-        return json.loads(text, parse_constant=_reject_constant)
+        data = json.loads(text, parse_constant=_mark_constant)
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{path}: malformed JSON at line {exc.lineno} column {exc.colno}: {exc.msg}") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: JSON nested too deeply; allowed: a sensor object a few levels deep") from None
+    where = _find_non_finite(data, "")
+    if where is not None:
+        key, word = where
+        raise ConfigError(f"{path}: {key or 'the top level'} = {word}, which JSON does not allow; "
+                          "allowed: finite numbers")
+    return data
 
 
-def _reject_constant(name: str) -> Any:
-    raise ConfigError(f"{name} is not a number JSON allows; allowed: finite numbers")
+def _mark_constant(word: str) -> _NonFinite:
+    value = _NonFinite(word.replace("Infinity", "inf"))
+    value.word = word
+    return value
+
+
+def _find_non_finite(value: Any, where: str, depth: int = 0) -> tuple[str, str] | None:
+    """The key path (``otherParams[1]``) and word of the first NaN/Infinity in parsed JSON, or None."""
+    if isinstance(value, _NonFinite):
+        return where, value.word
+    if depth > 200:
+        return None
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for key, item in items:
+        if isinstance(key, str):
+            name = f"{where}.{key}" if where else key
+        else:
+            name = f"{where}[{key}]"
+        found = _find_non_finite(item, name, depth + 1)
+        if found is not None:
+            return found
+    return None
 
 
 def select_sensor(data: Any, seq_id: int | None = None) -> Mapping[str, Any]:

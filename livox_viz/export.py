@@ -13,17 +13,16 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import tempfile
-import zipfile
 from pathlib import Path
 from types import TracebackType
 from typing import BinaryIO
 
 import numpy as np
 
-from .atomic import atomic_path
+from .atomic import atomic_path, make_work_dir, resolve_destination
 from .errors import LivoxVizError
-from .scan import ScanFrame
+from .frames import PointFrame
+from .npzstream import NpzColumns
 
 FORMATS = (".ply", ".pcd", ".las", ".npz", ".csv")
 FRAMES = ("sensor", "world")
@@ -35,6 +34,8 @@ FRAME_DESCRIPTION = {
 POINT_FIELDS: tuple[tuple[str, str], ...] = (
     ("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("range", "<f4"), ("time", "<f8"), ("frame", "<u4"),
 )
+#: NPZ columns, one row per point; ``frame_pose`` holds one row per frame:
+#: index, then posAng (x, y, z, roll, pitch, yaw).
 _NPZ_ARRAYS: dict[str, tuple[str, tuple[int, ...]]] = {
     "xyz_sensor": ("<f8", (3,)),
     "xyz_world": ("<f8", (3,)),
@@ -45,7 +46,7 @@ _NPZ_ARRAYS: dict[str, tuple[str, tuple[int, ...]]] = {
 }
 
 
-def frame_records(frame: ScanFrame, coordinates: str) -> np.ndarray:
+def frame_records(frame: PointFrame, coordinates: str) -> np.ndarray:
     """The frame's points as a structured array of :data:`POINT_FIELDS`, ``(M,)``."""
     xyz = frame.xyz_decoded if coordinates == "sensor" else frame.xyz_world
     records = np.empty(len(frame), dtype=list(POINT_FIELDS))
@@ -82,16 +83,18 @@ class PointCloudWriter:
             raise LivoxVizError(f"{self.path}: unknown format {self.format or '(none)'}; allowed: {', '.join(FORMATS)}")
         if coordinates not in FRAMES:
             raise LivoxVizError(f"coordinates {coordinates!r}; allowed: {' or '.join(FRAMES)}")
-        if not self.path.parent.is_dir():
-            raise LivoxVizError(f"{self.path}: the folder {self.path.parent} does not exist")
+        resolve_destination(self.path)
         self.coordinates = coordinates
         self.ascii = ascii
         self.count = 0
-        self._work = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", dir=self.path.parent))
+        self._work = make_work_dir(self.path)
         self._body: BinaryIO | None = None
-        self._npz: dict[str, BinaryIO] = {}
+        self._npz: NpzColumns | None = None
+        self._npz_poses: list[np.ndarray] = []
         self._las = None
         self._closed = False
+        #: Why closing the LAS writer failed during an abort, if it did.
+        self.abort_error = ""
         try:
             self._open()
         except Exception:
@@ -100,7 +103,7 @@ class PointCloudWriter:
 
     def _open(self) -> None:
         if self.format == ".npz":
-            self._npz = {name: open(self._work / f"{name}.raw", "wb") for name in _NPZ_ARRAYS}
+            self._npz = NpzColumns(self._work, _NPZ_ARRAYS)
         elif self.format == ".las":
             self._las = _open_las(self._work / "points.las", self.coordinates)
         else:
@@ -109,17 +112,16 @@ class PointCloudWriter:
                 self._body.write(f"# livox-viz scan; coordinates: {FRAME_DESCRIPTION[self.coordinates]}\n".encode())
                 self._body.write(b"x,y,z,range,time,frame\n")
 
-    def write(self, frame: ScanFrame) -> None:
+    def write(self, frame: PointFrame) -> None:
         """Append one frame's returns."""
         if self._closed:
             raise LivoxVizError(f"{self.path}: the writer is closed")
-        if self.format == ".npz":
-            columns = {
+        if self._npz is not None:
+            self._npz.append({
                 "xyz_sensor": frame.xyz_decoded, "xyz_world": frame.xyz_world, "xyz_int16": frame.xyz_int16,
                 "range": frame.range_m, "t": frame.t, "frame": np.full(len(frame), frame.index),
-            }
-            for name, (dtype, _) in _NPZ_ARRAYS.items():
-                self._npz[name].write(np.ascontiguousarray(columns[name], dtype=dtype).tobytes())
+            })
+            self._npz_poses.append(np.concatenate([[frame.index], frame.sensor_pose.as_array()]))
         elif self.format == ".las":
             _write_las(self._las, frame, self.coordinates)
         else:
@@ -138,8 +140,11 @@ class PointCloudWriter:
             return self.path
         try:
             with atomic_path(self.path) as tmp:
-                if self.format == ".npz":
-                    self._finish_npz(tmp)
+                if self._npz is not None:
+                    poses = np.array(self._npz_poses).reshape(-1, 7)
+                    self._npz.finish(tmp, {"frame_pose": poses, "frame_of_reference": np.array(
+                        json.dumps({**FRAME_DESCRIPTION, "frame_pose": "index, sensor x y z (m, world NED), "
+                                    "roll pitch yaw (rad)"}))})
                 elif self.format == ".las":
                     self._las.close()
                     self._las = None
@@ -157,15 +162,16 @@ class PointCloudWriter:
     def abort(self) -> None:
         """Drop everything written so far; the destination is left as it was."""
         self._closed = True
-        for handle in [self._body, *self._npz.values()]:
-            if handle is not None and not handle.closed:
-                handle.close()
+        if self._body is not None and not self._body.closed:
+            self._body.close()
+        if self._npz is not None:
+            self._npz.close()
         if self._las is not None:
+            las, self._las = self._las, None
             try:
-                self._las.close()
-            except Exception:
-                pass
-            self._las = None
+                las.close()
+            except (OSError, ValueError) as exc:  # a half-written LAS is removed below anyway
+                self.abort_error = str(exc)
         shutil.rmtree(self._work, ignore_errors=True)
 
     def __enter__(self) -> PointCloudWriter:
@@ -206,20 +212,6 @@ class PointCloudWriter:
         ]
         return ("\n".join(lines) + "\n").encode()
 
-    def _finish_npz(self, tmp: Path) -> None:
-        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED, allowZip64=True) as archive:
-            for name, (dtype, tail) in _NPZ_ARRAYS.items():
-                self._npz[name].close()
-                raw = self._work / f"{name}.raw"
-                header = {"descr": np.dtype(dtype).str, "fortran_order": False, "shape": (self.count, *tail)}
-                with archive.open(f"{name}.npy", "w", force_zip64=True) as member, open(raw, "rb") as body:
-                    np.lib.format.write_array_header_2_0(member, header)
-                    shutil.copyfileobj(body, member, 1 << 20)
-            for name, text in (("frame_of_reference", json.dumps(FRAME_DESCRIPTION)),):
-                with archive.open(f"{name}.npy", "w") as member:
-                    np.save(member, np.array(text))
-
-
 def _records_as_columns(records: np.ndarray) -> np.ndarray:
     return np.column_stack([records[name].astype(np.float64) for name, _ in POINT_FIELDS])
 
@@ -239,7 +231,7 @@ def _open_las(path: Path, coordinates: str):
     return laspy.open(path, mode="w", header=header)
 
 
-def _write_las(writer, frame: ScanFrame, coordinates: str) -> None:
+def _write_las(writer, frame: PointFrame, coordinates: str) -> None:
     import laspy
 
     if not len(frame):

@@ -20,7 +20,7 @@ import math
 import mmap
 import os
 import struct
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -120,15 +120,23 @@ def split_datagrams(payload: bytes, timestamp: float, max_chunk: int = MAX_CHUNK
 @dataclass
 class _PendingFrame:
     count: int
+    arrival: int
     chunks: dict[int, bytes] = field(default_factory=dict)
     size: int = 0
 
 
 class Reassembler:
-    """Puts datagrams back into frames, in any order; drops what is broken, incomplete or stale.
+    """Puts datagrams back into frames, in any order; drops what is broken, incomplete or a duplicate.
 
-    Memory is bounded: at most ``max_pending`` frames wait at once, and a frame
-    may claim at most ``max_frame_bytes``; garbage never grows it.
+    Memory is bounded: at most ``max_pending`` frames wait at once (the one
+    heard from least recently makes room), and a frame may claim at most
+    ``max_frame_bytes``; garbage never grows it.
+
+    It never goes deaf: timestamps may go back (a restarted publisher or
+    RflySim, a new sender, or one absurd timestamp before them). A frame that
+    goes back in time is delivered and counted in :attr:`restarts`. What is
+    refused is a late chunk of a frame recently given up as incomplete, and a
+    frame identical to the one delivered just before it (a duplicate).
 
     Parameters
     ----------
@@ -136,6 +144,8 @@ class Reassembler:
         Largest payload accepted (default 64 MiB, ample for 10 million points).
     max_pending : int
         Frames (timestamps) waiting for chunks at once.
+    max_chunks : int, optional
+        Largest chunk count accepted; default what ``max_frame_bytes`` needs.
 
     Attributes
     ----------
@@ -143,21 +153,36 @@ class Reassembler:
         Dropped datagrams or frames by reason.
     frames : int
         Complete frames returned.
+    restarts : int
+        Times the timestamps went back (a new sender or a restarted clock).
+    last_error : str
+        The last drop's reason or restart, for the status line.
     """
 
-    def __init__(self, max_frame_bytes: int = 64 << 20, max_pending: int = 4) -> None:
+    _REMEMBERED = 16
+
+    def __init__(self, max_frame_bytes: int = 64 << 20, max_pending: int = 4, max_chunks: int | None = None) -> None:
         self.max_frame_bytes = max_frame_bytes
-        self.max_chunks = math.ceil(max_frame_bytes / MAX_CHUNK)
+        self.max_chunks = max_chunks or math.ceil(max_frame_bytes / MAX_CHUNK)
         self.max_pending = max_pending
         self.drops: Counter[str] = Counter()
         self.frames = 0
+        self.restarts = 0
         self._pending: dict[float, _PendingFrame] = {}
+        self._given_up: deque[float] = deque(maxlen=self._REMEMBERED)
         self._newest_done = -math.inf
+        self._last_delivered: tuple[float, int] | None = None
+        self._arrivals = 0
         self.last_error = ""
 
     def _drop(self, reason: str) -> None:
         self.drops[reason] += 1
         self.last_error = reason
+
+    def _give_up(self, timestamp: float) -> None:
+        del self._pending[timestamp]
+        self._given_up.append(timestamp)
+        self._drop("incomplete frame")
 
     def feed(self, datagram: bytes) -> tuple[float, bytes] | None:
         """Take one datagram; returns ``(timestamp, payload)`` when it completes a frame."""
@@ -180,19 +205,15 @@ class Reassembler:
         if not math.isfinite(timestamp):
             self._drop("timestamp not finite")
             return None
-        if timestamp <= self._newest_done:
+        if timestamp in self._given_up:
             self._drop("stale chunk")
             return None
         frame = self._pending.get(timestamp)
         if frame is None:
             if len(self._pending) >= self.max_pending:
-                oldest = min(self._pending)
-                if timestamp < oldest:
-                    self._drop("stale chunk")
-                    return None
-                del self._pending[oldest]
-                self._drop("incomplete frame")
-            frame = self._pending[timestamp] = _PendingFrame(count)
+                self._give_up(min(self._pending, key=lambda t: self._pending[t].arrival))
+            self._arrivals += 1
+            frame = self._pending[timestamp] = _PendingFrame(count, self._arrivals)
         if frame.count != count:
             self._drop("chunk count differs within a frame")
             return None
@@ -202,6 +223,7 @@ class Reassembler:
             return None
         if frame.size + len(chunk) > self.max_frame_bytes:
             del self._pending[timestamp]
+            self._given_up.append(timestamp)
             self._drop("frame too large")
             return None
         frame.chunks[index] = chunk
@@ -209,12 +231,22 @@ class Reassembler:
         if len(frame.chunks) < count:
             return None
         del self._pending[timestamp]
-        for older in [t for t in self._pending if t < timestamp]:
-            del self._pending[older]
-            self._drop("incomplete frame")
+        # Chunks come in order within a sender, so a frame begun before this one will not complete.
+        for older in [t for t, f in self._pending.items() if f.arrival < frame.arrival]:
+            self._give_up(older)
+        payload = b"".join(frame.chunks[i] for i in range(count))
+        fingerprint = (timestamp, hash(payload))
+        if fingerprint == self._last_delivered:
+            self._drop("duplicate frame")
+            return None
+        self._last_delivered = fingerprint
+        if timestamp < self._newest_done:
+            self.restarts += 1
+            self.last_error = (f"timestamps went back from {self._newest_done:.6g} s to {timestamp:.6g} s: "
+                               "a new sender or a restarted clock")
         self._newest_done = timestamp
         self.frames += 1
-        return timestamp, b"".join(frame.chunks[i] for i in range(count))
+        return timestamp, payload
 
     @property
     def pending_bytes(self) -> int:

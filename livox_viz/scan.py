@@ -1,16 +1,20 @@
 """The scan cast into a scene: frames of the point cloud a RflySim client receives.
 
-For each frame of W*H rays the scanner gives the returns as true sensor-frame
-points, their int16 encoding, the decoded points a client sees, the ranges,
-the per-point times and the frame's world pose. Rays with no return within
-``otherParams[0]`` are left out (the frame's point count says how many
-returned), as the platform does.
+One path makes every cloud of the project (``scan``, ``publish``, the GUI,
+exports): :class:`MountedCaster` takes a :class:`~livox_viz.pattern.PatternChunk`
+of any length and returns a :class:`ScanFrame` of its returns: true
+sensor-frame points, their int16 encoding, the decoded points a client sees,
+ranges, per-point times and stream indices, and the sensor's world pose.
+Rays with no return within ``otherParams[0]`` are left out (the frame's point
+count says how many returned), as the platform does. :class:`LidarScanner`
+is a pattern stream and a mounted caster cut into published frames.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import trimesh
@@ -18,21 +22,26 @@ import trimesh
 from .codec import decode_int16, encode_int16
 from .config import SensorConfig
 from .directions import directions_from_xy
-from .pattern import ScanPattern
+from .pattern import PatternChunk, make_pattern, points_before
 from .poses import Pose, sensor_world_pose
 from .raycast import EmbreeCaster, RayCaster
+
+#: Rays cast in one call at most: a huge frame is cast in parts so memory stays bounded.
+CAST_PART = 1 << 20
 
 
 @dataclass(frozen=True)
 class ScanFrame:
-    """The returns of one published frame (M of its W*H rays).
+    """The returns of a run of rays (a published frame, or any chunk of the stream).
 
     Parameters
     ----------
     index : int
-        Frame number from the scan start.
+        Frame number of the first ray, from the scan start.
     ray_count : int
-        Rays fired in the frame (W*H, fewer for a partial last frame).
+        Rays fired (W*H for a whole frame).
+    stream_index : (M,) int64
+        Stream index of each return's ray.
     t : (M,) float64
         Emission time of each return, seconds since the scan start.
     xy_deg : (M, 2) float64
@@ -42,35 +51,103 @@ class ScanFrame:
     xyz_sensor : (M, 3) float64
         True hit points in the sensor FRD frame, metres.
     xyz_int16 : (M, 3) int16
-        The published encoding.
-    xyz_decoded : (M, 3) float64
-        What a client decodes, sensor FRD, metres.
+        The published encoding (sensor FRD).
     xyz_world : (M, 3) float64
         True hit points in the world NED frame, metres.
     sensor_pose : Pose
-        The sensor's pose in the world for this frame.
+        The sensor's pose in the world (NED) for these rays.
     timestamp : float
-        Scan time of the frame's first ray, seconds (what RflySim stamps a frame with).
+        Scan time of the first ray, seconds (what RflySim stamps a frame with).
+    end_time : float
+        Scan time just after the last ray, seconds.
+    range_max : float
+        The int16 scale, metres.
     """
 
     index: int
     ray_count: int
+    stream_index: np.ndarray
     t: np.ndarray
     xy_deg: np.ndarray
     range_m: np.ndarray
     xyz_sensor: np.ndarray
     xyz_int16: np.ndarray
-    xyz_decoded: np.ndarray
     xyz_world: np.ndarray
     sensor_pose: Pose
     timestamp: float
+    end_time: float
+    range_max: float
 
     def __len__(self) -> int:
         return int(self.range_m.shape[0])
 
+    @cached_property
+    def xyz_decoded(self) -> np.ndarray:
+        """``(M, 3)`` float64 what a client decodes, sensor FRD, metres."""
+        return decode_int16(self.xyz_int16, self.range_max)
+
+    @cached_property
+    def xyz_world_decoded(self) -> np.ndarray:
+        """``(M, 3)`` float64 the decoded points placed in the world (NED) with the frame's pose."""
+        return self.sensor_pose.origin + self.xyz_decoded @ self.sensor_pose.rotation.T
+
+
+
+class MountedCaster:
+    """Casts pattern chunks from a sensor mounted on a vehicle into a scene.
+
+    Parameters
+    ----------
+    config : SensorConfig
+        Gives the mount (``SensorPosXYZ``, ``SensorAngEuler``) and the range.
+    scene : trimesh.Trimesh or RayCaster
+        The world NED scene, or a caster already built for it.
+    vehicle_pose : Pose, optional
+        The vehicle's pose in the world; default the origin.
+    """
+
+    def __init__(self, config: SensorConfig, scene: trimesh.Trimesh | RayCaster,
+                 vehicle_pose: Pose | None = None) -> None:
+        self.config = config
+        self.caster: RayCaster = EmbreeCaster(scene) if isinstance(scene, trimesh.Trimesh) else scene
+        self.vehicle_pose = vehicle_pose or Pose()
+        self.sensor_pose = sensor_world_pose(config, self.vehicle_pose)
+
+    def cast(self, chunk: PatternChunk) -> ScanFrame:
+        """The returns of the chunk's rays."""
+        config = self.config
+        rotation, origin = self.sensor_pose.rotation, self.sensor_pose.origin
+        parts = []
+        for first in range(0, max(len(chunk), 1), CAST_PART):
+            xy = chunk.xy_deg[first : first + CAST_PART]
+            directions_sensor = directions_from_xy(xy)
+            directions_world = directions_sensor @ rotation.T
+            distance = self.caster.distances(origin, directions_world, config.range_max)
+            hit = np.flatnonzero(np.isfinite(distance))
+            range_m = distance[hit]
+            parts.append((first + hit, range_m, directions_sensor[hit] * range_m[:, None],
+                          origin + directions_world[hit] * range_m[:, None]))
+        rows = np.concatenate([p[0] for p in parts])
+        xyz_sensor = np.concatenate([p[2] for p in parts])
+        return ScanFrame(
+            index=chunk.start // config.points_per_frame,
+            ray_count=len(chunk),
+            stream_index=chunk.start + rows,
+            t=chunk.t[rows],
+            xy_deg=chunk.xy_deg[rows],
+            range_m=np.concatenate([p[1] for p in parts]),
+            xyz_sensor=xyz_sensor,
+            xyz_int16=encode_int16(xyz_sensor, config.range_max),
+            xyz_world=np.concatenate([p[3] for p in parts]),
+            sensor_pose=self.sensor_pose,
+            timestamp=chunk.start / config.point_rate,
+            end_time=chunk.stop / config.point_rate,
+            range_max=config.range_max,
+        )
+
 
 class LidarScanner:
-    """Streams frames of the configuration's pattern cast into a scene.
+    """Streams published frames of the configuration's pattern cast into a scene.
 
     Parameters
     ----------
@@ -91,66 +168,36 @@ class LidarScanner:
         seed: int = 0,
     ) -> None:
         self.config = config
-        self.caster: RayCaster = EmbreeCaster(scene) if isinstance(scene, trimesh.Trimesh) else scene
-        self.vehicle_pose = vehicle_pose or Pose()
-        self.sensor_pose = sensor_world_pose(config, self.vehicle_pose)
-        self.pattern = ScanPattern(config, seed=seed)
-        self._rotation = self.sensor_pose.rotation
-        self._origin = self.sensor_pose.origin
+        self.mount = MountedCaster(config, scene, vehicle_pose)
+        self.pattern = make_pattern(config, seed=seed)
+
+    @property
+    def caster(self) -> RayCaster:
+        """The ray caster of the scene."""
+        return self.mount.caster
+
+    @property
+    def sensor_pose(self) -> Pose:
+        """The sensor's pose in the world."""
+        return self.mount.sensor_pose
 
     @property
     def time(self) -> float:
         """Scan time of the next ray, seconds."""
         return self.pattern.time
 
+    def cast(self, chunk: PatternChunk) -> ScanFrame:
+        """The returns of any chunk of the stream (see :meth:`MountedCaster.cast`)."""
+        return self.mount.cast(chunk)
+
     def next_frame(self) -> ScanFrame:
         """Fire the rest of the current frame (W*H rays from a frame start) and return its returns."""
-        frame_index = self.pattern.position // self.config.points_per_frame
-        chunk = self.pattern.next_frame()
-        return self._cast(frame_index, chunk.xy_deg, chunk.t)
+        return self.mount.cast(self.pattern.next_frame())
 
     def frames(self, seconds: float) -> Iterator[ScanFrame]:
         """Frames until ``seconds`` of scan time (the last one partial if it does not fit)."""
-        total = int(np.ceil(seconds * self.config.point_rate - 1e-9))
+        total = points_before(seconds, self.config.point_rate)
+        per_frame = self.config.points_per_frame
         while self.pattern.position < total:
-            frame_index = self.pattern.position // self.config.points_per_frame
-            frame_end = (frame_index + 1) * self.config.points_per_frame
-            chunk = self.pattern.take(min(frame_end, total) - self.pattern.position)
-            yield self._cast(frame_index, chunk.xy_deg, chunk.t)
-
-    def cast_sensor_directions(self, directions_sensor: np.ndarray) -> np.ndarray:
-        """Ranges along rays given in the sensor frame.
-
-        Parameters
-        ----------
-        directions_sensor : (n, 3) float64
-            Unit rays, sensor FRD.
-
-        Returns
-        -------
-        range_m : (n,) float64
-            Metres; ``inf`` where nothing is hit within ``otherParams[0]``.
-        """
-        return self.caster.distances(self._origin, directions_sensor @ self._rotation.T, self.config.range_max)
-
-    def _cast(self, frame_index: int, xy_deg: np.ndarray, t: np.ndarray) -> ScanFrame:
-        directions_sensor = directions_from_xy(xy_deg)
-        directions_world = directions_sensor @ self._rotation.T
-        distance = self.caster.distances(self._origin, directions_world, self.config.range_max)
-        hit = np.isfinite(distance)
-        range_m = distance[hit]
-        xyz_sensor = directions_sensor[hit] * range_m[:, None]
-        xyz_int16 = encode_int16(xyz_sensor, self.config.range_max)
-        return ScanFrame(
-            index=frame_index,
-            ray_count=int(xy_deg.shape[0]),
-            t=t[hit].copy(),
-            xy_deg=xy_deg[hit].copy(),
-            range_m=range_m,
-            xyz_sensor=xyz_sensor,
-            xyz_int16=xyz_int16,
-            xyz_decoded=decode_int16(xyz_int16, self.config.range_max),
-            xyz_world=self._origin + directions_world[hit] * range_m[:, None],
-            sensor_pose=self.sensor_pose,
-            timestamp=frame_index * self.config.points_per_frame / self.config.point_rate,
-        )
+            frame_end = (self.pattern.position // per_frame + 1) * per_frame
+            yield self.mount.cast(self.pattern.take(min(frame_end, total) - self.pattern.position))

@@ -13,7 +13,6 @@ import numpy as np
 
 from .config import SensorConfig
 from .errors import LivoxVizError
-from .poses import Pose
 from .rflysim import (
     LivoxFrame,
     Reassembler,
@@ -42,11 +41,6 @@ class PublishReport:
     def speed(self) -> float:
         """Scan seconds published per wall second."""
         return self.scan_seconds / self.wall_seconds if self.wall_seconds > 0 else float("inf")
-
-
-def frame_pose(frame: ScanFrame) -> np.ndarray:
-    """``(6,)`` posAng of a scanned frame."""
-    return frame.sensor_pose.as_array()
 
 
 class UdpSender:
@@ -104,7 +98,7 @@ class ShmSender:
         self.link.close()
 
 
-def publish(frames: Iterable[ScanFrame], sender: UdpSender | ShmSender, speed: float | None, point_rate: float,
+def publish(frames: Iterable[ScanFrame], sender: UdpSender | ShmSender, speed: float | None,
             on_progress: Callable[[PublishReport], None] | None = None) -> PublishReport:
     """Send each frame at its scan time divided by ``speed`` (None: as fast as possible).
 
@@ -119,41 +113,15 @@ def publish(frames: Iterable[ScanFrame], sender: UdpSender | ShmSender, speed: f
             delay = due - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
-        report.datagrams += sender.send(frame.timestamp, frame_pose(frame), frame.xyz_int16)
+        report.datagrams += sender.send(frame.timestamp, frame.sensor_pose.as_array(), frame.xyz_int16)
         report.frames += 1
         report.points += len(frame)
-        report.scan_seconds = frame.timestamp + frame.ray_count / point_rate
+        report.scan_seconds = frame.end_time
         if on_progress is not None:
             on_progress(report)
     report.send_errors = sender.errors
     report.wall_seconds = time.monotonic() - start
     return report
-
-
-def livox_to_scan_frame(frame: LivoxFrame, config: SensorConfig) -> ScanFrame:
-    """A received frame as a :class:`~livox_viz.scan.ScanFrame`, for export and display.
-
-    Per-point times are not on the wire: every point gets the frame's timestamp.
-    """
-    decoded = frame.decoded(config.range_max)
-    pose = Pose(tuple(frame.pos_ang[:3]), *frame.pos_ang[3:])
-    ranges = np.linalg.norm(decoded, axis=1)
-    safe = np.where(ranges > 0, ranges, 1.0)[:, None]
-    from .directions import xy_from_directions
-
-    return ScanFrame(
-        index=round(frame.timestamp * config.data_check_freq),
-        ray_count=config.points_per_frame,
-        t=np.full(decoded.shape[0], frame.timestamp),
-        xy_deg=xy_from_directions(decoded / safe),
-        range_m=ranges,
-        xyz_sensor=decoded,
-        xyz_int16=frame.xyz_int16,
-        xyz_decoded=decoded,
-        xyz_world=pose.origin + decoded @ pose.rotation.T,
-        sensor_pose=pose,
-        timestamp=frame.timestamp,
-    )
 
 
 @dataclass
@@ -186,6 +154,8 @@ class UdpReceiver:
                 raise LivoxVizError(f"port {port} on {host} is in use by another program") from None
             raise LivoxVizError(f"cannot listen on {host}:{port} ({exc.strerror})") from None
         self.socket.settimeout(0.2)
+        #: The port bound (the one the system chose when asked for port 0).
+        self.port = int(self.socket.getsockname()[1])
         self.assembler = Reassembler()
         self.report = ListenReport()
 
@@ -219,7 +189,7 @@ class UdpReceiver:
         frames: list[LivoxFrame] = []
         self.socket.setblocking(False)
         try:
-            for frame in self.frames(_stop_when_empty(self.socket, max_datagrams)):
+            for frame in self.frames(_UntilEmpty(self.socket, max_datagrams)):
                 frames.append(frame)
         finally:
             self.socket.settimeout(0.2)
@@ -229,20 +199,22 @@ class UdpReceiver:
         self.socket.close()
 
 
-def _stop_when_empty(sock: socket.socket, limit: int) -> Callable[[], bool]:
-    """A stop test for :meth:`UdpReceiver.frames` that ends when no datagram is waiting."""
-    import select
+class _UntilEmpty:
+    """A stop test for :meth:`UdpReceiver.frames` that ends when no datagram is waiting (or after ``limit``)."""
 
-    seen = [0]
+    def __init__(self, sock: socket.socket, limit: int) -> None:
+        self.socket = sock
+        self.limit = limit
+        self.seen = 0
 
-    def stop() -> bool:
-        seen[0] += 1
-        if seen[0] > limit:
+    def __call__(self) -> bool:
+        import select
+
+        self.seen += 1
+        if self.seen > self.limit:
             return True
-        ready, _, _ = select.select([sock], [], [], 0)
+        ready, _, _ = select.select([self.socket], [], [], 0)
         return not ready
-
-    return stop
 
 
 class ShmReceiver:
@@ -289,8 +261,10 @@ def status_line(report: ListenReport, assembler: Reassembler, elapsed: float) ->
     rate = report.frames / elapsed if elapsed > 0 else 0.0
     per_frame = report.points / report.frames if report.frames else 0.0
     drops = sum(assembler.drops.values())
-    reason = f" (last: {assembler.last_error})" if drops else ""
-    return f"{report.frames} frames, {rate:5.1f} frames/s, {per_frame:8.0f} points/frame, drops {drops}{reason}"
+    restarts = f", sender restarts {assembler.restarts}" if assembler.restarts else ""
+    reason = f" (last: {assembler.last_error})" if drops or assembler.restarts else ""
+    return (f"{report.frames} frames, {rate:5.1f} frames/s, {per_frame:8.0f} points/frame, drops {drops}"
+            f"{restarts}{reason}")
 
 
 def print_status(text: str) -> None:

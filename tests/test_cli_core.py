@@ -75,7 +75,7 @@ def test_coverage_json(capsys: pytest.CaptureFixture[str]) -> None:
         (["info", "--config", "/nonexistent.json"], "no such file"),
         (["pattern", "--seconds", "-1", "--out", "x.npz"], "allowed: a finite number > 0"),
         (["pattern", "--seconds", "nan", "--out", "x.npz"], "allowed: a finite number > 0"),
-        (["pattern", "--out", "x.txt"], "allowed: .npz or .csv"),
+        (["pattern", "--out", "x.txt"], "allowed: .npz, .csv"),
         (["coverage", "--cell-deg", "0"], "allowed: a finite number > 0"),
     ],
 )

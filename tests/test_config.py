@@ -128,7 +128,8 @@ def test_nan_and_infinity_are_rejected(tmp_path: Path, bad: str) -> None:
     text = json.dumps(SEED_JSON).replace("2.956", bad)
     path = tmp_path / "nan.json"
     path.write_text(text)
-    with pytest.raises(ConfigError, match=f"{bad} is not a number JSON allows"):
+    # The message names the file, the key and the word.
+    with pytest.raises(ConfigError, match=rf"nan.json: otherParams\[1\] = {bad}, which JSON does not allow"):
         load_config(path)
 
 

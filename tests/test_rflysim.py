@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 import socket
 import struct
 import threading
@@ -29,11 +30,10 @@ from livox_viz.rflysim import (
     unpack_payload,
 )
 
-RNG = np.random.default_rng(0)
 
-
-def random_points(count: int) -> np.ndarray:
-    return RNG.integers(-32767, 32768, size=(count, 3)).astype(np.int16)
+def random_points(count: int, seed: int = 0) -> np.ndarray:
+    """Reproducible int16 points, the same whatever ran before (no shared generator)."""
+    return np.random.default_rng(seed).integers(-32767, 32768, size=(count, 3)).astype(np.int16)
 
 
 def spec_decoder(payload: bytes, range_max: float) -> np.ndarray:
@@ -83,7 +83,7 @@ def test_three_chunks_in_any_order(order: tuple[int, ...]) -> None:
 def test_incomplete_and_stale_frames_are_dropped() -> None:
     assembler = Reassembler()
     first = split_datagrams(pack_payload(np.zeros(6), random_points(25_000)), 1.0)
-    second = split_datagrams(pack_payload(np.zeros(6), random_points(25_000)), 2.0)
+    second = split_datagrams(pack_payload(np.zeros(6), random_points(25_000, seed=1)), 2.0)
     assembler.feed(first[0])
     for datagram in second:
         result = assembler.feed(datagram)
@@ -116,16 +116,63 @@ def test_garbage_datagrams_are_counted(mutate, reason: str) -> None:
 @given(st.lists(st.one_of(
     st.binary(max_size=200),
     st.builds(lambda idx, cnt, ts, body: DATAGRAM_HEADER.pack(FRAME_CHECKSUM, 24 + len(body), idx, cnt, ts) + body,
-              st.integers(-3, 5), st.integers(-2, 10**9), st.floats(allow_nan=True), st.binary(max_size=100)),
+              st.integers(-3, 5), st.integers(-2, 10**9), st.sampled_from([0.0, 0.1, 0.2, 7.5, -1.0, math.nan]),
+              st.binary(max_size=250)),
 ), max_size=60))
 def test_fuzzed_reassembler_never_crashes_or_grows(datagrams: list[bytes]) -> None:
-    assembler = Reassembler(max_pending=4)
+    # A small budget the generated input can exceed: 60 bodies of up to 250 bytes on six timestamps.
+    assembler = Reassembler(max_frame_bytes=400, max_pending=2, max_chunks=8)
     for datagram in datagrams:
         result = assembler.feed(datagram)
         if result is not None:
-            assert isinstance(result[1], bytes)
-        assert len(assembler._pending) <= 4
-        assert assembler.pending_bytes <= 4 * 100 * 60
+            assert isinstance(result[1], bytes) and len(result[1]) <= 400
+        assert len(assembler._pending) <= 2
+        assert assembler.pending_bytes <= 2 * 400
+
+
+def test_the_fuzz_bound_is_reachable() -> None:
+    """Without the size limit the same kind of input would hold more than the bound."""
+    body = bytes(250)
+    datagrams = [DATAGRAM_HEADER.pack(FRAME_CHECKSUM, 24 + len(body), i, 5, 0.1) + body for i in range(4)]
+    assembler = Reassembler(max_frame_bytes=400, max_pending=2, max_chunks=8)
+    for datagram in datagrams:
+        assembler.feed(datagram)
+    assert assembler.drops["frame too large"] == 1 and assembler.pending_bytes <= 400
+    unbounded = Reassembler(max_frame_bytes=10_000, max_pending=2, max_chunks=8)
+    for datagram in datagrams:
+        unbounded.feed(datagram)
+    assert unbounded.pending_bytes == 1000 > 2 * 400
+
+
+def frame_datagrams(timestamp: float, seed: int = 0) -> list[bytes]:
+    return split_datagrams(pack_payload(np.zeros(6), random_points(25_000, seed)), timestamp)
+
+
+def test_timestamps_going_back_are_a_restart_not_deafness() -> None:
+    assembler = Reassembler()
+    done = [assembler.feed(d) for t in (0.0, 0.1, 0.2, 0.3) for d in frame_datagrams(t)]
+    assert sum(r is not None for r in done) == 4
+    # The publisher restarts: its clock starts again at 0. Every frame of the new run arrives.
+    again = [assembler.feed(d) for t in (0.0, 0.1, 0.2) for d in frame_datagrams(t, seed=2)]
+    assert [r[0] for r in again if r is not None] == [0.0, 0.1, 0.2]
+    assert assembler.restarts == 1 and "went back" in assembler.last_error
+
+
+def test_one_forged_datagram_costs_no_frame() -> None:
+    assembler = Reassembler()
+    forged = struct.pack("<4i1d", 1234567890, 52, 0, 1, 1e300) + struct.pack("<6fi", 0, 0, 0, 0, 0, 0, 0)
+    assert assembler.feed(frame_datagrams(0.0)[0]) is None
+    assert assembler.feed(forged) is not None  # a well-formed empty frame: it is one
+    delivered = [assembler.feed(d) for t in (0.1, 0.2) for d in frame_datagrams(t)]
+    assert [r[0] for r in delivered if r is not None] == [0.1, 0.2]
+
+
+def test_a_duplicate_frame_is_dropped() -> None:
+    assembler = Reassembler()
+    datagrams = frame_datagrams(0.5)
+    assert [assembler.feed(d) is not None for d in datagrams] == [False, False, True]
+    assert all(assembler.feed(d) is None for d in datagrams)
+    assert assembler.drops["duplicate frame"] == 1
 
 
 def test_request_bytes_field_by_field(mid70: SensorConfig) -> None:

@@ -3,8 +3,8 @@
 Pure numpy (no VTK), so its bookkeeping is tested without a window. A view
 wraps the ring's arrays once as VTK arrays (zero copy) and, after each write,
 only marks them modified and points its vertex cells at the live slots
-``tail .. tail+count`` through :meth:`PointRing.cell_connectivity`, a slice of
-a doubled index array, so a tick costs the new points, not all points on
+``tail .. tail+count`` through :meth:`PointRing.live_slots`, a slice of a
+doubled index array, so a tick costs the new points, not all points on
 screen.
 """
 

@@ -2,7 +2,9 @@
 
 Each view adds its actors once and afterwards only marks the ring's arrays
 modified and re-points its vertex cells at the live slots (see
-:class:`~widgets.ring.PointRing`): no actor is re-created on a tick.
+:class:`~livox_viz_gui.ring.PointRing`): no actor is re-created on a tick.
+Each view subscribes to the session and redraws what depends on the
+configuration, the scene or the vehicle pose whenever one of them changes.
 """
 
 from __future__ import annotations
@@ -12,15 +14,13 @@ import math
 import numpy as np
 import pyvista as pv
 
-from livox_viz.poses import sensor_world_pose
-
 from .ring import PointRing
 from .session import Session
 
 #: NED (z down) to the display's z-up frame: x north stays, y east -> -y, z down -> up.
 NED_TO_DISPLAY = np.diag([1.0, -1.0, -1.0, 1.0])
 PATTERN_UNITS = {"time": "time, s", "figure-8": "figure-8 in flower", "petal": "petal in flower",
-                 "flower": "flower in figure", "arc": "arc in figure-8"}
+                 "flower": "flower in figure", "arc": "arc in figure-8", "laser": "laser"}
 SCENE_UNITS = {"range": "range, m", "height": "height, m", "time": "time, s"}
 
 
@@ -60,6 +60,14 @@ def _address(array: np.ndarray) -> int:
     return int(array.__array_interface__["data"][0])
 
 
+def add_scalar_bar(plotter: pv.Plotter, title: str, mapper) -> object:
+    """The vertical colour bar both views show at their right edge."""
+    return plotter.add_scalar_bar(
+        title, mapper=mapper, vertical=True, position_x=0.9, position_y=0.2, width=0.05, height=0.6,
+        title_font_size=12, label_font_size=11, color="#dde3ea", n_labels=5, fmt="%.3g",
+    )
+
+
 class _View:
     """What both views share: the plotter, the session, and their own renderer in the window.
 
@@ -94,22 +102,27 @@ class PatternView(_View):
             self.poly, scalars="scalars", cmap="turbo", point_size=2.0, render_points_as_spheres=False,
             show_scalar_bar=False, name="pattern", reset_camera=False, lighting=False,
         )
-        self._reference_ring = session.reference_ring
+        self._reference_ring = session.overlay.ring
         self.reference_poly = ring_polydata(self._reference_ring)
         self.reference_actor = plotter.add_mesh(
             self.reference_poly, color="#f5f7fa", opacity=0.55, point_size=1.5, render_points_as_spheres=False,
             name="reference", reset_camera=False, lighting=False, scalars=None,
         )
-        self.scalar_bar = plotter.add_scalar_bar(
-            PATTERN_UNITS[session.pattern_colour], mapper=self.actor.mapper, vertical=True,
-            position_x=0.9, position_y=0.2, width=0.05, height=0.6, title_font_size=12,
-            label_font_size=11, color="#dde3ea", n_labels=5, fmt="%.3g",
-        )
+        self.scalar_bar = add_scalar_bar(plotter, PATTERN_UNITS[session.display.pattern_colour], self.actor.mapper)
         self._density_grid = None
         self.density_actor = None
+        self._guides_radius: float | None = None
         self._make_density_image()
         self.draw_guides()
         self.reset_camera()
+        session.subscribe(self._on_change)
+
+    def _on_change(self, what: str) -> None:
+        if what == "config":
+            radius_changed = self._guides_radius != self.session.config.half_fov_deg
+            self.draw_guides()
+            if radius_changed:
+                self.reset_camera()
 
     def _make_density_image(self) -> None:
         """The density image of the window's points (shown instead of the points when they outnumber pixels)."""
@@ -144,7 +157,7 @@ class PatternView(_View):
 
     def density_shown(self) -> bool:
         """Whether the view draws the density image rather than the points."""
-        mode = self.session.pattern_drawing
+        mode = self.session.display.drawing
         if mode != "auto":
             return mode == "density"
         width, height = self.renderer.GetSize()
@@ -158,6 +171,7 @@ class PatternView(_View):
             plotter.remove_actor(name, render=False)
         self._guides = []
         radius = self.session.config.half_fov_deg
+        self._guides_radius = radius
         step = _ring_step(radius)
         rings = [*np.arange(step, radius, step), radius]
         for k, ring_radius in enumerate(rings):
@@ -219,12 +233,13 @@ class PatternView(_View):
         if self.scalar_bar.GetLookupTable() is not bar_table:
             self.scalar_bar.SetLookupTable(bar_table)
         update_ring_polydata(self.poly, self._ring)
-        self._reference_ring = self.session.reference_ring
+        overlay = self.session.overlay
+        self._reference_ring = overlay.ring
         update_ring_polydata(self.reference_poly, self._reference_ring)
-        self.reference_actor.SetVisibility(self.session.reference is not None and self.session.reference_visible)
+        self.reference_actor.SetVisibility(overlay.source is not None and overlay.visible)
         low, high = self.session.pattern_scalar_range()
         self.actor.mapper.scalar_range = (low, high if high > low else low + 1e-6)
-        self.scalar_bar.SetTitle("points/cell, log" if density else PATTERN_UNITS[self.session.pattern_colour])
+        self.scalar_bar.SetTitle("points/cell, log" if density else PATTERN_UNITS[self.session.display.pattern_colour])
 
 
 def _ring_step(radius: float) -> float:
@@ -268,13 +283,18 @@ class SceneView(_View):
             show_scalar_bar=False, name="cloud", reset_camera=False, lighting=False,
         )
         self.actor.user_matrix = NED_TO_DISPLAY
-        self.scalar_bar = plotter.add_scalar_bar(
-            SCENE_UNITS[session.scene_colour], mapper=self.actor.mapper, vertical=True,
-            position_x=0.9, position_y=0.2, width=0.05, height=0.6, title_font_size=12,
-            label_font_size=11, color="#dde3ea", n_labels=5, fmt="%.3g",
-        )
+        self.scalar_bar = add_scalar_bar(plotter, SCENE_UNITS[session.display.scene_colour], self.actor.mapper)
         self.draw_vehicle()
         self.reset_camera()
+        session.subscribe(self._on_change)
+
+    def _on_change(self, what: str) -> None:
+        """Anything the vehicle, the sensor or its cone depend on may have changed: draw them again."""
+        if what == "scene":
+            self.draw_scene()
+        self.draw_vehicle()
+        if what in ("scene", "pose"):
+            self.reset_camera()
 
     def draw_scene(self) -> None:
         """The scene's triangles (again, when the session's scene changed)."""
@@ -299,7 +319,7 @@ class SceneView(_View):
         actor = plotter.add_mesh(body.transform(transform, inplace=False), color="#e8eef5", name="vehicle",
                                  reset_camera=False)
         actor.user_matrix = NED_TO_DISPLAY
-        sensor = sensor_world_pose(session.config, vehicle)
+        sensor = session.sensor_pose
         boresight = sensor.rotation @ np.array([1.0, 0.0, 0.0])
         half = math.radians(min(session.config.half_fov_deg, 80.0))
         length = 1.6
@@ -318,14 +338,13 @@ class SceneView(_View):
         actor = plotter.add_mesh(wire, color="#f2c14e", line_width=2, name="fov-cone", reset_camera=False,
                                  lighting=False)
         actor.user_matrix = NED_TO_DISPLAY
-        plotter.remove_actor("fov-rim", render=False)
         actor = plotter.add_mesh(pv.Sphere(radius=0.06, center=sensor.origin), color="#f2c14e", name="sensor",
                                  reset_camera=False)
         actor.user_matrix = NED_TO_DISPLAY
 
     def reset_camera(self) -> None:
         """Behind and above the vehicle, looking along the sensor's boresight."""
-        sensor = sensor_world_pose(self.session.config, self.session.vehicle_pose)
+        sensor = self.session.sensor_pose
         boresight = sensor.rotation @ np.array([1.0, 0.0, 0.0])
         flat = np.array([boresight[0], boresight[1], 0.0])
         flat = flat / np.linalg.norm(flat) if np.linalg.norm(flat) > 1e-6 else np.array([1.0, 0, 0])
@@ -342,13 +361,9 @@ class SceneView(_View):
 
     def update(self) -> None:
         """Show the ring's current points and colours."""
-        if self._scene_shown is not self.session.scene:
-            self.draw_scene()
-            self.draw_vehicle()
-            self.reset_camera()
         if self._ring is not self.session.scene_ring:
             self._ring = self.session.scene_ring
         update_ring_polydata(self.poly, self._ring)
         low, high = self.session.scene_scalar_range()
         self.actor.mapper.scalar_range = (low, high if high > low else low + 1e-6)
-        self.scalar_bar.SetTitle(SCENE_UNITS[self.session.scene_colour])
+        self.scalar_bar.SetTitle(SCENE_UNITS[self.session.display.scene_colour])

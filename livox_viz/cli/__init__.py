@@ -1,0 +1,123 @@
+"""The ``livox-viz`` command line: one table of commands, grouped by area.
+
+The model's commands live in this package. Other installed packages add
+theirs through the ``livox_viz.commands`` entry-point group: each entry point
+names a sequence of :class:`~livox_viz.cli.common.Command` rows (the model
+never names those packages). Every command exits 0 on success and 2 with a
+one-line ``livox-viz: error:`` message on bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from collections.abc import Iterable, Sequence
+from importlib.metadata import entry_points
+
+from ..errors import LivoxVizError
+from . import fit_commands, pattern_commands, scan_commands, wire_commands
+from .common import PROG, Command, UsageError
+
+ENTRY_POINT_GROUP = "livox_viz.commands"
+MODEL_COMMANDS: tuple[Command, ...] = (
+    *pattern_commands.COMMANDS, *scan_commands.COMMANDS, *fit_commands.COMMANDS, *wire_commands.COMMANDS,
+)
+
+__all__ = ["ENTRY_POINT_GROUP", "MODEL_COMMANDS", "Command", "UsageError", "build_parser", "main"]
+
+
+class Terminated(Exception):
+    """SIGTERM or SIGHUP arrived: unwind like Ctrl-C, so writers remove their temporary files."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that exits 2 with a one-line message (argparse's own usage dump is long)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def installed_commands() -> list[Command]:
+    """The commands other installed packages register under :data:`ENTRY_POINT_GROUP`."""
+    found: list[Command] = []
+    for entry in entry_points(group=ENTRY_POINT_GROUP):
+        found.extend(entry.load())
+    return found
+
+
+def build_parser(commands: Iterable[Command]) -> argparse.ArgumentParser:
+    """The whole command line; each subcommand has ``--help`` with an example."""
+    parser = _Parser(
+        prog=PROG,
+        description="Visualise and tune the simulated Livox lidar of RflySim (TypeID 6).",
+        epilog="Run 'livox-viz COMMAND --help' for a command's options.",
+    )
+    parser.add_argument("--version", action="version", version=f"{PROG} {_version()}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for command in commands:
+        child = sub.add_parser(
+            command.name, help=command.help, description=f"{command.help}\n\nexample:\n  {command.example}",
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        command.arguments(child)
+        child.set_defaults(handler=command.handler)
+    return parser
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return __version__
+
+
+def _raise_terminated(signum: int, _frame: object) -> None:
+    raise Terminated(signal.Signals(signum).name)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status.
+
+    With no command (or only options), the installed default command runs
+    (the GUI's window, when the GUI package is installed).
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    commands = [*MODEL_COMMANDS, *installed_commands()]
+    parser = build_parser(commands)
+    default = next((c.name for c in commands if c.default), None)
+    names = {c.name for c in commands}
+    if default and not any(a in names or a in ("-h", "--help", "--version") for a in argv):
+        argv = [default, *argv]
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help, --version, or a usage error (status 2)
+        return int(exc.code or 0)
+    if args.command is None:
+        parser.print_help()
+        return 0
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous = {sig: signal.signal(sig, _raise_terminated) for sig in (signal.SIGTERM, signal.SIGHUP)
+                if in_main_thread}
+    try:
+        return int(args.handler(args) or 0)
+    except LivoxVizError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"{PROG}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+    except Terminated as exc:
+        print(f"{PROG}: stopped by {exc}; unfinished files were removed", file=sys.stderr)
+        return 143
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

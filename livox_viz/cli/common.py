@@ -1,0 +1,167 @@
+"""What every command shares: the command record, argument types and the shared options.
+
+A :class:`Command` is one row of the command table: its name, handler, help
+with an example, and a function that adds its options. The model's commands
+are listed by area in this package; other installed packages add rows through
+the ``livox_viz.commands`` entry-point group (see :func:`livox_viz.cli.main`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..atomic import resolve_destination
+from ..config import SensorConfig, load_config
+from ..errors import LivoxVizError
+from ..presets import DEFAULT_PRESET, load_preset
+
+PROG = "livox-viz"
+Handler = Callable[[argparse.Namespace], int]
+
+
+class UsageError(LivoxVizError):
+    """A command-line value that does not parse or is not allowed."""
+
+
+@dataclass(frozen=True)
+class Command:
+    """One subcommand of ``livox-viz``.
+
+    Parameters
+    ----------
+    name : str
+    handler : callable
+        Runs the command with the parsed arguments; returns the exit status.
+    help : str
+        One line.
+    example : str
+        A command line shown in ``--help``.
+    arguments : callable
+        Adds the command's options to its parser.
+    default : bool
+        Run this command when none is named (at most one command may say so).
+    """
+
+    name: str
+    handler: Handler
+    help: str
+    example: str
+    arguments: Callable[[argparse.ArgumentParser], None]
+    default: bool = False
+
+
+# Argument types -------------------------------------------------------------------------
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: allowed: a finite number > 0")
+    return value
+
+
+def float_list(text: str) -> list[float]:
+    """argparse type: comma-separated numbers > 0, e.g. ``0.1,0.5,1``."""
+    values = [positive_float(part) for part in text.split(",") if part.strip()]
+    if not values:
+        raise argparse.ArgumentTypeError(f"{text!r}: allowed: numbers > 0 separated by commas")
+    return values
+
+
+def whole_number(low: int, high: int, meaning: str = "") -> Callable[[str], int]:
+    """argparse type: a whole number in [low, high]; ``meaning`` says what the ends mean."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{text}: allowed: {meaning or f'{low} to {high}'}")
+        return value
+
+    return parse
+
+
+seed_value = whole_number(0, 2**63 - 1, "a whole number from 0 to 2**63 - 1")
+port_value = whole_number(0, 65535, "0 (any free port) to 65535")
+
+
+# Shared options -------------------------------------------------------------------------
+def add_config_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--preset NAME | --config FILE [--seq-id N]``."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--preset", help=f"preset name or JSON path (default {DEFAULT_PRESET})")
+    group.add_argument("--config", help="RflySim sensor JSON or Config.json")
+    parser.add_argument("--seq-id", type=int, help="SeqID of the sensor to use in a Config.json")
+
+
+def add_seed_argument(parser: argparse.ArgumentParser) -> None:
+    """``--seed N`` (the rosette's random generator; a Risley stream ignores it)."""
+    parser.add_argument("--seed", type=seed_value, default=0, help="random seed, >= 0 (default 0)")
+
+
+def config_from_args(args: argparse.Namespace) -> SensorConfig:
+    """The configuration the ``--preset``/``--config`` arguments name."""
+    if getattr(args, "config", None):
+        return load_config(args.config, seq_id=args.seq_id)
+    return load_preset(getattr(args, "preset", None) or DEFAULT_PRESET)
+
+
+def config_label(args: argparse.Namespace) -> str:
+    """A short name for the configuration in use (for titles and sidecars)."""
+    if getattr(args, "config", None):
+        return Path(args.config).stem
+    preset = getattr(args, "preset", None)
+    return Path(preset).stem if preset else DEFAULT_PRESET
+
+
+def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--scene NAME|FILE [--up z|y] [--pose x,y,z,roll,pitch,yaw]``."""
+    parser.add_argument("--scene", default="urban", help="scene preset name or mesh file (default urban)")
+    parser.add_argument("--up", choices=("z", "y"), default="z", help="up axis of a mesh file (default z)")
+    parser.add_argument("--pose", help="vehicle pose x,y,z,roll,pitch,yaw in metres/radians, NED "
+                                       "(default: the scene's own); write --pose=-5,0,... when it starts with -")
+    parser.add_argument("--exact", action="store_true",
+                        help="recompute every range in float64 from its triangle's plane (about 10 %% slower; "
+                             "the default float32 ranges are good to 1e-7 of the scene's size)")
+
+
+def scene_from_args(args: argparse.Namespace):
+    """The :class:`~livox_viz.scene.Scene`, vehicle :class:`~livox_viz.poses.Pose` and ray caster the arguments name."""
+    from ..poses import Pose
+    from ..raycast import EmbreeCaster
+    from ..scene import open_scene
+
+    scene = open_scene(args.scene, up=args.up)
+    pose = Pose.parse(args.pose) if args.pose else scene.vehicle_pose
+    return scene, pose, EmbreeCaster(scene.mesh, exact=getattr(args, "exact", False))
+
+
+def check_output_path(path: str | Path, suffixes: tuple[str, ...]) -> Path:
+    """Refuse an output path before any work: wrong suffix, an existing folder, a missing folder.
+
+    Parameters
+    ----------
+    path : path-like
+        Where the command will write.
+    suffixes : tuple of str
+        The allowed endings, e.g. ``(".ply", ".npz")``.
+    """
+    out = Path(path)
+    if out.is_dir():
+        raise UsageError(f"{out}: is a folder; allowed: a file name ending in {', '.join(suffixes)}")
+    if out.suffix.lower() not in suffixes:
+        raise UsageError(f"{out}: unknown format {out.suffix or '(none)'}; allowed: {', '.join(suffixes)}")
+    resolve_destination(out)
+    folder = out.resolve().parent
+    if not os.access(folder, os.W_OK):
+        raise UsageError(f"{out}: the folder {folder} is not writable")
+    return out

@@ -1,0 +1,210 @@
+"""Commands about the pattern alone: ``info``, ``presets``, ``pattern``, ``coverage``."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+
+import numpy as np
+
+from ..atomic import atomic_path, make_work_dir
+from ..codec import max_decode_error
+from ..config import SensorConfig
+from ..metrics import LIVOX_CELL_DEG, pattern_coverage
+from ..npzstream import NpzColumns
+from ..pattern import make_pattern, points_before
+from ..presets import list_presets
+from ..progress import Progress
+from ..workload import check_points
+from .common import (
+    Command,
+    UsageError,
+    add_config_arguments,
+    add_seed_argument,
+    check_output_path,
+    config_from_args,
+    config_label,
+    float_list,
+    positive_float,
+)
+
+# info ----------------------------------------------------------------------------------
+UNIT_TITLES = {"arc": "arc", "petal": "petal", "figure8": "figure-8", "flower": "flower", "figure": "figure",
+               "frame": "frame"}
+
+
+def derived_figures(cfg: SensorConfig) -> dict[str, float | int | str]:
+    """The figures ``livox-viz info`` prints, by name."""
+    rate = cfg.point_rate
+    figures: dict[str, float | int | str] = {"point_rate_pts_per_s": rate, "pattern_model": cfg.pattern_model}
+    for unit, points in cfg.unit_points.items():
+        figures[f"points_per_{unit}"] = points
+        figures[f"{unit}_s"] = points / rate
+    if cfg.pattern_model == "rflysim":
+        figures.update({
+            "petals_per_flower": 2 * cfg.figure8_per_flower,
+            "petal_spacing_deg": cfg.petal_spacing_deg,
+            "flower_step_deg": cfg.flower_step_deg,
+            "jitter_max_deg": cfg.jitter_max_deg,
+            "jitter_scope": cfg.jitter_scope,
+            "petal_length_deg": cfg.half_fov_deg,
+            "petal_height_deg": cfg.petal_height,
+        })
+    else:
+        risley = cfg.risley
+        figures.update({
+            "prism_rpm": list(risley.prism_rpm),
+            "prism_deflection_deg": list(risley.deflection_deg),
+            "lasers": risley.lasers,
+            "series_terms": len(risley.terms),
+        })
+    figures.update({
+        "fov_deg": cfg.camera_fov,
+        "range_max_m": cfg.range_max,
+        "range_step_m": cfg.range_step,
+        "max_decode_error_m": max_decode_error(cfg.range_max),
+    })
+    return figures
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    cfg = config_from_args(args)
+    figures = derived_figures(cfg)
+    if args.json:
+        print(json.dumps({"config": config_label(args), **figures}, indent=2))
+        return 0
+    model = "Risley track" if cfg.pattern_model == "risley" else "rosette"
+    print(f"{config_label(args)}: Livox {model} (RflySim TypeID {cfg.type_id}), SeqID {cfg.seq_id}")
+    print(f"  field of view      {cfg.camera_fov:g} deg (cone of half-angle {cfg.half_fov_deg:g} deg)")
+    print(f"  point rate         {cfg.point_rate:,} pts/s = "
+          f"{cfg.data_width} x {cfg.data_height} x {cfg.data_check_freq} Hz")
+    for unit, points in cfg.unit_points.items():
+        print(f"  {UNIT_TITLES[unit]:<18} {points:>10,} pts  {points / cfg.point_rate * 1e3:10.3f} ms")
+    if cfg.pattern_model == "rflysim":
+        print(f"  petals per flower  {2 * cfg.figure8_per_flower}, {cfg.petal_spacing_deg:g} deg apart")
+        print(f"  flower step        {cfg.flower_step_deg:g} deg, "
+              f"+ U(0,1) x {cfg.jitter_max_deg:g} deg after each {cfg.jitter_scope}")
+        print(f"  petal              length {cfg.half_fov_deg:g} deg, half-width {cfg.petal_height:g} deg, "
+              f"p = {cfg.spacing_exponent:g}, q = {cfg.tip_exponent:g}")
+    else:
+        risley = cfg.risley
+        print(f"  prisms             {risley.prism_rpm[0]:+.1f} / {risley.prism_rpm[1]:+.1f} rpm, deflections "
+              f"{risley.deflection_deg[0]:.3f} / {risley.deflection_deg[1]:.3f} deg")
+        print(f"  series             {len(risley.terms)} terms, {risley.lasers} laser(s)")
+    print(f"  range              {cfg.range_max:g} m, int16 step {cfg.range_step * 1e3:.3f} mm, "
+          f"max decode error {max_decode_error(cfg.range_max) * 1e3:.3f} mm")
+    return 0
+
+
+def _info_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_arguments(parser)
+    parser.add_argument("--json", action="store_true", help="print JSON")
+
+
+# presets -------------------------------------------------------------------------------
+def cmd_presets(args: argparse.Namespace) -> int:
+    presets = list_presets()
+    if args.json:
+        print(json.dumps([{"name": p.name, "path": str(p.path), "description": p.description,
+                           "shipped": p.shipped} for p in presets], indent=2))
+        return 0
+    width = max((len(p.name) for p in presets), default=10)
+    for info in presets:
+        origin = "" if info.shipped else "  [user]"
+        print(f"{info.name:<{width}}  {info.description}{origin}")
+    return 0
+
+
+def _presets_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--json", action="store_true", help="print JSON")
+
+
+# pattern -------------------------------------------------------------------------------
+def cmd_pattern(args: argparse.Namespace) -> int:
+    cfg = config_from_args(args)
+    out = check_output_path(args.out, (".npz", ".csv"))
+    total = points_before(args.seconds, cfg.point_rate)
+    check_points(total, f"pattern --seconds {args.seconds:g}", force=args.force)
+    pattern = make_pattern(cfg, seed=args.seed)
+    progress = Progress(f"pattern -> {out.name}", args.seconds, "s")
+    block = max(cfg.points_per_frame, 100_000)
+    labels = list(pattern.take(0).labels())
+    if out.suffix.lower() == ".npz":
+        work = make_work_dir(out)
+        try:
+            columns = {"xy_deg": ("<f8", (2,)), "t": ("<f8", ())}
+            columns.update({name: ("<i8", ()) for name in labels})
+            table = NpzColumns(work, columns)
+            try:
+                while pattern.position < total:
+                    chunk = pattern.take(min(block, total - pattern.position))
+                    table.append({"xy_deg": chunk.xy_deg, "t": chunk.t, **chunk.labels()})
+                    progress.update(chunk.stop / cfg.point_rate)
+                with atomic_path(out) as tmp:
+                    table.finish(tmp)
+            finally:
+                table.close()
+        finally:
+            import shutil
+
+            shutil.rmtree(work, ignore_errors=True)
+    else:
+        with atomic_path(out) as tmp, open(tmp, "w", newline="", encoding="utf-8") as handle:
+            csv.writer(handle).writerow(["x_deg", "y_deg", "t", *labels])
+            while pattern.position < total:
+                chunk = pattern.take(min(block, total - pattern.position))
+                columns = [chunk.xy_deg[:, 0], chunk.xy_deg[:, 1], chunk.t, *chunk.labels().values()]
+                np.savetxt(handle, np.column_stack(columns), fmt=["%.9g"] * 3 + ["%d"] * len(labels), delimiter=",")
+                progress.update(chunk.stop / cfg.point_rate)
+    progress.close()
+    print(f"wrote {total:,} points ({args.seconds:g} s, seed {args.seed}) to {out}")
+    return 0
+
+
+def _pattern_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_arguments(parser)
+    parser.add_argument("--seconds", type=positive_float, default=1.0, help="scan time to write (default 1)")
+    add_seed_argument(parser)
+    parser.add_argument("--out", required=True, help="output file, .npz or .csv")
+    parser.add_argument("--force", action="store_true", help="allow more points than the documented budget")
+
+
+# coverage ------------------------------------------------------------------------------
+def cmd_coverage(args: argparse.Namespace) -> int:
+    cfg = config_from_args(args)
+    if args.cell_deg > cfg.half_fov_deg:
+        raise UsageError(f"--cell-deg {args.cell_deg:g} is larger than the FOV's half-angle "
+                         f"{cfg.half_fov_deg:g} deg; allowed: up to {cfg.half_fov_deg:g}")
+    fractions = pattern_coverage(cfg, args.seconds, cell_deg=args.cell_deg, seed=args.seed)
+    if args.json:
+        print(json.dumps({"config": config_label(args), "cell_deg": args.cell_deg, "seed": args.seed,
+                          "coverage": [{"seconds": s, "fraction": float(f)}
+                                       for s, f in zip(args.seconds, fractions, strict=True)]}, indent=2))
+        return 0
+    print(f"{config_label(args)}: FOV coverage, {args.cell_deg:g} deg cells, seed {args.seed}")
+    print("  integration s   coverage %")
+    for seconds, fraction in zip(args.seconds, fractions, strict=True):
+        print(f"  {seconds:13g}   {100 * fraction:10.2f}")
+    return 0
+
+
+def _coverage_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_arguments(parser)
+    parser.add_argument("--seconds", type=float_list, default=[0.1, 0.5, 1.0, 2.0],
+                        help="integration times, comma-separated (default 0.1,0.5,1,2)")
+    parser.add_argument("--cell-deg", type=positive_float, default=LIVOX_CELL_DEG,
+                        help=f"grid cell size in degrees (default {LIVOX_CELL_DEG:.4f} = 5 mrad)")
+    add_seed_argument(parser)
+    parser.add_argument("--json", action="store_true", help="print JSON")
+
+
+COMMANDS: tuple[Command, ...] = (
+    Command("info", cmd_info, "print the derived figures of a sensor configuration",
+            "livox-viz info --preset livox_mid70", _info_arguments),
+    Command("presets", cmd_presets, "list the sensor presets", "livox-viz presets", _presets_arguments),
+    Command("pattern", cmd_pattern, "write the scan pattern (angles, times, labels) to .npz or .csv",
+            "livox-viz pattern --seconds 0.5 --seed 1 --out pattern.npz", _pattern_arguments),
+    Command("coverage", cmd_coverage, "FOV coverage against integration time",
+            "livox-viz coverage --seconds 0.1,0.5,1,2 --json", _coverage_arguments),
+)

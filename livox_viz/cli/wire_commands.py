@@ -1,0 +1,222 @@
+"""Commands on RflySim's wire: ``publish``, ``listen``, ``request``."""
+
+from __future__ import annotations
+
+import argparse
+import socket
+import sys
+import time
+from contextlib import nullcontext
+
+from ..config import load_config
+from ..export import FORMATS, PointCloudWriter
+from ..frames import ReceivedFrame
+from ..presets import DEFAULT_PRESET, load_preset
+from ..rflysim import REQUEST_PORT_BASE, parse_host_port, send_protocol_destination, sensor_request
+from ..scan import LidarScanner
+from ..transport import ShmReceiver, ShmSender, UdpReceiver, UdpSender, print_status, publish, status_line
+from ..workload import check_points
+from .common import (
+    Command,
+    UsageError,
+    add_config_arguments,
+    add_scene_arguments,
+    add_seed_argument,
+    check_output_path,
+    config_from_args,
+    config_label,
+    port_value,
+    positive_float,
+    scene_from_args,
+    whole_number,
+)
+
+SPEED_RANGE = (0.01, 1000.0)
+
+
+def _seconds_or_forever(text: str) -> float | None:
+    if text.strip().lower() == "forever":
+        return None
+    return positive_float(text)
+
+
+def _speed(text: str) -> float:
+    value = positive_float(text)
+    if not SPEED_RANGE[0] <= value <= SPEED_RANGE[1]:
+        raise argparse.ArgumentTypeError(f"{text}: allowed: {SPEED_RANGE[0]:g} to {SPEED_RANGE[1]:g} x real time")
+    return value
+
+
+class _Every:
+    """True at most once per ``seconds`` of wall time (for live status lines)."""
+
+    def __init__(self, seconds: float) -> None:
+        self.seconds = seconds
+        self._last = time.monotonic()
+
+    def due(self) -> bool:
+        now = time.monotonic()
+        if now - self._last < self.seconds:
+            return False
+        self._last = now
+        return True
+
+
+# publish -------------------------------------------------------------------------------------
+def cmd_publish(args: argparse.Namespace) -> int:
+    cfg = config_from_args(args)
+    if args.seconds is not None:
+        check_points(args.seconds * cfg.point_rate, f"publish --seconds {args.seconds:g}", force=args.force)
+    _, pose, caster = scene_from_args(args)
+    if args.to:
+        host, port = parse_host_port(args.to)
+        sender = UdpSender(host, port)
+        where = f"udp {host}:{port}"
+    else:
+        destination = send_protocol_destination(cfg)
+        if destination.transport == "udp":
+            sender = UdpSender(destination.host, destination.port)
+            where = f"udp {destination.host}:{destination.port} (SendProtocol)"
+        else:
+            sender = ShmSender(cfg, args.shm_dir)
+            where = f"shared memory {sender.link.path} (SendProtocol[0] = 0)"
+    scanner = LidarScanner(cfg, caster, pose, seed=args.seed)
+    frames = scanner.frames(args.seconds if args.seconds is not None else float("inf"))
+    speed = None if args.unpaced else args.speed
+    print(f"publishing {cfg.points_per_frame:,}-ray frames at {cfg.data_check_freq} Hz "
+          f"({'unpaced' if speed is None else f'{speed:g}x real time'}) to {where}", file=sys.stderr)
+    every = _Every(1.0)
+
+    def progress(report) -> None:
+        if every.due():
+            error = f", send errors {sender.errors} ({sender.last_error})" if sender.errors else ""
+            print(f"  {report.frames} frames, {report.points:,} points, scan t = {report.scan_seconds:.1f} s"
+                  f"{error}", file=sys.stderr)
+
+    try:
+        report = publish(frames, sender, speed, progress)
+    finally:
+        sender.close()
+    error = f", {report.send_errors} send errors (last: {sender.last_error})" if report.send_errors else ""
+    print(f"sent {report.frames} frames, {report.points:,} points in {report.wall_seconds:.2f} s: "
+          f"{report.frames / max(report.wall_seconds, 1e-9):.1f} frames/s = "
+          f"{report.scan_seconds / max(report.wall_seconds, 1e-9):.1f} x real time{error}")
+    if report.frames and report.datagrams == 0:
+        raise UsageError(f"nothing could be sent to {where} ({sender.last_error or 'every send failed'})")
+    return 0
+
+
+def _publish_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_arguments(parser)
+    add_scene_arguments(parser)
+    add_seed_argument(parser)
+    parser.add_argument("--to", help="HOST:PORT for UDP (default: the config's SendProtocol)")
+    parser.add_argument("--seconds", type=_seconds_or_forever, default=10.0,
+                        help="scan time, or 'forever' (default 10)")
+    parser.add_argument("--speed", type=_speed, default=1.0,
+                        help=f"times real time, {SPEED_RANGE[0]:g} to {SPEED_RANGE[1]:g} (default 1)")
+    parser.add_argument("--unpaced", action="store_true", help="send as fast as possible")
+    parser.add_argument("--shm-dir", default="/dev/shm", help="folder of the shared memory block (default /dev/shm)")
+    parser.add_argument("--force", action="store_true", help="allow more points than the documented budget")
+
+
+# listen --------------------------------------------------------------------------------------
+def open_receiver(args: argparse.Namespace, config) -> tuple[UdpReceiver | ShmReceiver, str]:
+    """The receiver ``--port``/``--host``/``--shm`` name, and where it listens in words."""
+    if args.shm:
+        receiver = ShmReceiver(config, args.shm_dir)
+        return receiver, f"shared memory {receiver.link.path}"
+    receiver = UdpReceiver(args.host, args.port)
+    return receiver, f"udp {args.host}:{receiver.port}"
+
+
+def add_receiver_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--host``, ``--port``, ``--shm``, ``--shm-dir`` (shared with the GUI's live view)."""
+    parser.add_argument("--host", default="0.0.0.0", help="address to bind (default 0.0.0.0)")
+    parser.add_argument("--port", type=port_value, default=9999, help="UDP port, 0 for any free one (default 9999)")
+    parser.add_argument("--shm", action="store_true", help="read /dev/shm/RflySim3DImg_<SeqID> instead of UDP")
+    parser.add_argument("--shm-dir", default="/dev/shm", help="folder of the shared memory block")
+
+
+def cmd_listen(args: argparse.Namespace) -> int:
+    cfg = load_config(args.config, seq_id=args.seq_id) if args.config else load_preset(DEFAULT_PRESET)
+    out = check_output_path(args.record, FORMATS) if args.record else None
+    receiver, where = open_receiver(args, cfg)
+    start = time.monotonic()
+    last_data = start
+    every = _Every(1.0)
+
+    def stop() -> bool:
+        now = time.monotonic()
+        if every.due():
+            print_status(status_line(receiver.report, receiver.assembler, now - start))
+        if args.frames is not None and receiver.report.frames >= args.frames:
+            return True
+        if args.seconds is not None and now - start >= args.seconds:
+            return True
+        return args.timeout is not None and now - last_data >= args.timeout
+
+    print(f"listening on {where} (range {cfg.range_max:g} m); Ctrl-C to stop", file=sys.stderr, flush=True)
+    interrupted = False
+    with PointCloudWriter(out) if out is not None else nullcontext() as writer:
+        try:
+            for frame in receiver.frames(stop):
+                last_data = time.monotonic()
+                if writer is not None:
+                    writer.write(ReceivedFrame(frame, cfg.range_max, cfg.data_check_freq))
+        except KeyboardInterrupt:
+            interrupted = True  # Ctrl-C ends listening; what was received is kept
+        finally:
+            receiver.close()
+    report = receiver.report
+    print_status(status_line(report, receiver.assembler, time.monotonic() - start))
+    cpu = report.cpu_seconds / report.frames * 1e3 if report.frames else 0.0
+    print(f"received {report.frames} frames, {report.points:,} points; receiver CPU {cpu:.2f} ms per frame"
+          + (f"; recorded to {out}" if writer is not None else "") + (" (interrupted)" if interrupted else ""))
+    return 0
+
+
+def _listen_arguments(parser: argparse.ArgumentParser) -> None:
+    add_receiver_arguments(parser)
+    parser.add_argument("--config", help="sensor JSON giving the range (int16 scale); default the default preset")
+    parser.add_argument("--seq-id", type=int, help="SeqID in a Config.json")
+    parser.add_argument("--record", help="write the frames to .ply .pcd .las .npz or .csv")
+    parser.add_argument("--frames", type=int, help="stop after this many frames")
+    parser.add_argument("--seconds", type=positive_float, help="stop after this many wall seconds")
+    parser.add_argument("--timeout", type=positive_float, help="stop after this many seconds without a frame")
+
+
+# request -------------------------------------------------------------------------------------
+def cmd_request(args: argparse.Namespace) -> int:
+    cfg = config_from_args(args)
+    data = sensor_request(cfg)
+    host, port = parse_host_port(args.to, REQUEST_PORT_BASE + args.window)
+    if args.dry_run:
+        print(f"sensor request for {config_label(args)} ({len(data)} bytes) to {host}:{port}:")
+        print(data.hex())
+        return 0
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        try:
+            sock.sendto(data, (host, port))
+        except OSError as exc:
+            raise UsageError(f"cannot send to {host}:{port} ({exc.strerror or exc})") from None
+    print(f"sent the {len(data)}-byte sensor request of {config_label(args)} to {host}:{port}")
+    return 0
+
+
+def _request_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_arguments(parser)
+    parser.add_argument("--to", required=True, help="HOST[:PORT]; the port defaults to 20010 + --window")
+    parser.add_argument("--window", type=whole_number(0, 65535 - REQUEST_PORT_BASE), default=0,
+                        help="RflySim window index (default 0)")
+    parser.add_argument("--dry-run", action="store_true", help="print the 92 bytes in hex instead of sending")
+
+
+COMMANDS: tuple[Command, ...] = (
+    Command("publish", cmd_publish, "stand in for RflySim's Livox sensor: send scan frames live",
+            "livox-viz publish --to 127.0.0.1:9999 --seconds 10 --speed 1", _publish_arguments),
+    Command("listen", cmd_listen, "receive RflySim Livox frames, report them, record them",
+            "livox-viz listen --port 9999 --record received.npz", _listen_arguments),
+    Command("request", cmd_request, "ask a running RflySim for this sensor (the <16H15f request)",
+            "livox-viz request --to 127.0.0.1 --dry-run", _request_arguments),
+)
