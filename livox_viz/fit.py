@@ -27,7 +27,7 @@ import numpy as np
 from .config import SensorConfig
 from .errors import LivoxVizError
 from .metrics import LIVOX_CELL_DEG, coverage_curve
-from .pattern import ScanPattern, arc_xy
+from .pattern import ScanPattern, arc_xy, make_pattern
 from .reference import ReferencePattern
 
 #: Integration times the structure fit matches, seconds.
@@ -353,6 +353,8 @@ class Comparison:
     density_edges_deg: np.ndarray
     density_ours: np.ndarray
     density_reference: np.ndarray
+    #: (rms, p95, max) degrees sample for sample, when ours is a deterministic track at the reference's rate.
+    track_residual: tuple[float, float, float] | None = None
 
 
 def compare(config: SensorConfig, reference: ReferencePattern, seed: int = 0,
@@ -365,15 +367,20 @@ def compare(config: SensorConfig, reference: ReferencePattern, seed: int = 0,
     if not usable:
         raise LivoxVizError(f"the reference holds {reference.seconds:.3g} s; allowed: at least {min(seconds):g} s")
     duration = reference.seconds
-    ours = ScanPattern(config, seed=seed).take(round(duration * config.point_rate)).xy_deg
+    ours = make_pattern(config, seed=seed).take(round(duration * config.point_rate)).xy_deg
     ref_radius = float(reference.alpha_deg.max())
     ours_cov = window_coverage(ours, config.point_rate, usable, config.half_fov_deg)
     ref_cov = window_coverage(reference.xy_deg, reference.rate, usable, ref_radius)
     radius = max(config.half_fov_deg, ref_radius)
     edges, ours_density = radial_density(ours, radius, bins)
     _, ref_density = radial_density(reference.xy_deg, radius, bins)
+    residual = None
+    if config.pattern_model == "risley" and config.point_rate == reference.rate and len(ours) == len(reference.t):
+        from .risley_fit import track_residual
+
+        residual = track_residual(ours, reference.xy_deg)
     return Comparison(np.array(usable), ours_cov, ref_cov, edges, ours_density / duration,
-                      ref_density / duration)
+                      ref_density / duration, residual)
 
 
 def plot_comparison(result: Comparison, path, title: str) -> None:

@@ -134,3 +134,37 @@ def _read_csv(path: Path) -> np.ndarray:
     azimuth = np.radians(table[:, 0])
     elevation = np.radians(90.0 - table[:, 1])
     return xy_from_zup(azimuth, elevation)
+
+
+def pattern_table(config, name: str, seconds: float = 4.0, seed: int = 0) -> ReferencePattern:
+    """The first ``seconds`` of a configuration's pattern as a table, like a measured one.
+
+    Parameters
+    ----------
+    config : SensorConfig
+    name : str
+    seconds : float
+    seed : int
+    """
+    from .pattern import make_pattern, points_before
+    from .workload import check_points
+
+    count = points_before(seconds, config.point_rate)
+    check_points(count, f"{seconds:g} s of {name}")
+    chunk = make_pattern(config, seed).take(count)
+    return ReferencePattern(name, chunk.xy_deg.copy(), chunk.t.copy(), float(config.point_rate))
+
+
+def is_table_path(text: str | os.PathLike[str]) -> bool:
+    """Whether a reference names a table file (.npy or .csv) rather than a preset."""
+    return Path(text).suffix.lower() in (".npy", ".csv")
+
+
+def load_table_or_preset(text: str, rate: float = DEFAULT_RATE, seconds: float = 4.0,
+                         seed: int = 0) -> ReferencePattern:
+    """A reference given on the command line: a table file, or a preset (name or JSON) replayed for ``seconds``."""
+    if is_table_path(text):
+        return load_reference(text, rate=rate)
+    from .presets import load_preset
+
+    return pattern_table(load_preset(text), Path(text).stem, seconds, seed)

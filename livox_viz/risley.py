@@ -56,18 +56,21 @@ class RisleyPattern(PatternStream):
     def points(self, start: int, count: int) -> PatternChunk:
         """Points ``start .. start+count-1`` (any range: the track is a function of k alone)."""
         path, times = self._output(start, count)
-        lasers = self._lasers
-        for first in range(start, start + count, self._block):
-            rows = min(self._block, start + count - first)
+        lasers, block, stop = self._lasers, self._block, start + count
+        # Blocks start at multiples of the block size whatever the chunk, so a sample is computed
+        # the same way however the stream is cut: bit for bit.
+        for first in range(start - start % block, stop, block):
+            low, high = max(first, start) - first, min(first + block, stop) - first
             phasor = self._phasors_at(first)
-            out = path[first - start : first - start + rows]
+            out = path[first + low - start : first + high - start]
             if lasers == 1:
-                np.matmul(self._table[:rows], self._coefficients[0] * phasor, out=out)
+                np.matmul(self._table[low:high], self._coefficients[0] * phasor, out=out)
                 continue
             for laser in range(lasers):
-                offset = (laser - first) % lasers
-                if offset < rows:
-                    out[offset::lasers] = self._table[offset:rows:lasers] @ (self._coefficients[laser] * phasor)
+                offset = (laser - low) % lasers  # block is a multiple of K: row r of the block is laser r mod K
+                if offset < high - low:
+                    rows = slice(low + offset, high, lasers)
+                    out[offset::lasers] = self._table[rows] @ (self._coefficients[laser] * phasor)
         return PatternChunk(self.config, start, path.view(np.float64).reshape(count, 2), times)
 
     def _phasors_at(self, sample: int) -> np.ndarray:

@@ -1,20 +1,58 @@
-"""Commands that hold the model against measured patterns: ``fit`` and ``compare``."""
+"""Commands that hold a model against a measured pattern or another preset: ``fit`` and ``compare``."""
 
 from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import replace
+
+import numpy as np
 
 from ..atomic import write_text_atomic
+from ..config import SensorConfig
 from ..fit import compare, fit_reference, plot_comparison
 from ..presets import DESCRIPTION_KEY
-from ..reference import load_reference
-from .common import Command, add_config_arguments, add_seed_argument, config_from_args, config_label, positive_float
+from ..reference import ReferencePattern, is_table_path, load_table_or_preset
+from ..risley_fit import fit_risley
+from .common import (
+    Command,
+    UsageError,
+    add_config_arguments,
+    add_seed_argument,
+    check_output_path,
+    config_from_args,
+    config_label,
+    positive_float,
+    whole_number,
+)
+
+
+def _reference(args: argparse.Namespace) -> ReferencePattern:
+    """``fit``'s target: a table file, or with ``--to`` a preset's own track."""
+    if (args.reference is None) == (args.to is None):
+        raise UsageError("give a table (REFERENCE) or --to PRESET, one of them")
+    text = args.reference if args.reference is not None else args.to
+    if args.to is not None and is_table_path(text):
+        raise UsageError(f"--to {text}: allowed: a preset name or a sensor JSON (a table goes without --to)")
+    return load_table_or_preset(text, rate=args.rate, seconds=args.seconds, seed=args.seed)
+
+
+def _write_preset(args: argparse.Namespace, config: SensorConfig, description: str) -> None:
+    data = config.to_json_dict()
+    data[DESCRIPTION_KEY] = description
+    write_text_atomic(args.out, json.dumps(data, indent=2) + "\n")
+    print(f"wrote {args.out}")
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
-    reference = load_reference(args.reference, rate=args.rate)
-    result = fit_reference(reference)
+    if args.out:
+        check_output_path(args.out, (".json",))
+    reference = _reference(args)
+    if args.model == "risley":
+        return _fit_risley(args, reference)
+    if args.beams is not None:
+        raise UsageError("--beams goes with --model risley (the rosette has one laser)")
+    result = fit_reference(reference, base=_base(args).with_pattern_model("rflysim"))
     cfg, shape, structure = result.config, result.shape, result.structure
     print(f"{reference.name}: {len(reference.t):,} points, {reference.seconds:g} s, {shape.petals} petals")
     print(f"  CameraFOV        {cfg.camera_fov:10.4f} deg")
@@ -33,19 +71,66 @@ def cmd_fit(args: argparse.Namespace) -> int:
         print(f"                   {t:13g}   {100 * ref:11.2f}   {100 * fit:5.2f}")
         rows.append(f"{t:g} s {100 * ref:.1f}/{100 * fit:.1f} %")
     if args.out:
-        data = cfg.to_json_dict()
-        data[DESCRIPTION_KEY] = (
-            f"Fitted to {reference.name} ({reference.seconds:g} s): shape residual rms {shape.rms_deg:.3f} deg, "
-            f"p95 {shape.p95_deg:.3f} deg; coverage reference/fit {', '.join(rows)}"
-        )
-        write_text_atomic(args.out, json.dumps(data, indent=2) + "\n")
-        print(f"wrote {args.out}")
+        _write_preset(args, cfg, f"RflySim rosette fitted to {reference.name} ({reference.seconds:g} s): shape "
+                                 f"residual rms {shape.rms_deg:.3f} deg, p95 {shape.p95_deg:.3f} deg; coverage "
+                                 f"reference/fit {', '.join(rows)}")
     return 0
+
+
+def _base(args: argparse.Namespace) -> SensorConfig:
+    """The configuration whose RflySim fields a fitted preset keeps (``--preset``/``--config``)."""
+    return config_from_args(args)
+
+
+def _fit_risley(args: argparse.Namespace, reference: ReferencePattern) -> int:
+    fit = fit_risley(reference, beams=args.beams)
+    params = fit.params
+    half_fov = float(np.hypot(reference.xy_deg[:, 0], reference.xy_deg[:, 1]).max())
+    config = replace(_base(args), risley=params, pattern_model="risley", camera_fov=round(2 * half_fov, 4))
+    rate = config.point_rate
+    forced = "" if args.beams is None else f" (forced; the step pattern says {fit.lasers_found})"
+    print(f"{reference.name}: {len(reference.t):,} rows, {reference.seconds:g} s at {reference.rate:g} rows/s")
+    print(f"  lasers           {params.lasers}{forced}")
+    print(f"  prism A          {params.prism_hz[0]:+.6f} Hz = {params.prism_rpm[0]:+.3f} rpm, "
+          f"deflection {params.deflection_deg[0]:.5f} deg, phase {params.phase_rad[0]:+.6f} rad")
+    print(f"  prism B          {params.prism_hz[1]:+.6f} Hz = {params.prism_rpm[1]:+.3f} rpm, "
+          f"deflection {params.deflection_deg[1]:.5f} deg, phase {params.phase_rad[1]:+.6f} rad")
+    print(f"  series           {len(params.terms)} terms: {' '.join(f'({m},{n})' for m, n in params.terms)}")
+    print(f"  track residual   rms {fit.rms_deg:.6f} deg, p95 {fit.p95_deg:.6f} deg, max {fit.max_deg:.6f} deg "
+          f"(sample for sample)")
+    if params.lasers > 1:
+        print("  per laser rms    " + " ".join(f"{v:.6f}" for v in fit.rms_per_laser_deg) + " deg")
+    print(f"  fitted in        {fit.seconds:.1f} s")
+    if abs(rate - reference.rate) > 1e-6 * reference.rate:
+        print(f"  note: the preset's W x H x F = {rate:,} pts/s differs from the table's {reference.rate:g} rows/s; "
+              "its samples fall at other times than the table's rows")
+    if args.out:
+        _write_preset(args, config, f"Risley track fitted to {reference.name} ({reference.seconds:g} s, "
+                                    f"{params.lasers} laser{'s' if params.lasers > 1 else ''}): track residual rms "
+                                    f"{fit.rms_deg:.2g} deg, p95 {fit.p95_deg:.2g} deg, max {fit.max_deg:.2g} deg "
+                                    f"sample for sample")
+    return 0
+
+
+def _fit_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("reference", nargs="?", help="measured table: .npy [theta, phi] radians or Livox CSV "
+                                                     "(degrees)")
+    parser.add_argument("--to", help="fit to a preset's own track instead of a table, e.g. livox_mid70_risley")
+    parser.add_argument("--model", choices=("rflysim", "risley"), default="rflysim",
+                        help="rflysim: RflySim's rosette parameters (default); risley: the prism track")
+    parser.add_argument("--beams", type=whole_number(1, 16), help="with --model risley: the number of lasers "
+                                                                  "(default: read off the table's step pattern)")
+    parser.add_argument("--rate", type=positive_float, default=100_000.0, help="rows per second (default 100000)")
+    parser.add_argument("--seconds", type=positive_float, default=4.0,
+                        help="with --to: how much of the preset's track to fit (default 4)")
+    add_seed_argument(parser)
+    add_config_arguments(parser)
+    parser.add_argument("--out", help="write the fitted preset JSON here (RflySim fields from --preset/--config)")
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
     cfg = config_from_args(args)
-    reference = load_reference(args.reference, rate=args.rate)
+    reference = load_table_or_preset(args.reference, rate=args.rate, seconds=args.seconds, seed=args.seed)
     result = compare(cfg, reference, seed=args.seed)
     print(f"{config_label(args)} against {reference.name} ({reference.seconds:g} s)")
     print("  integration s   reference %   ours %   difference pp")
@@ -57,32 +142,33 @@ def cmd_compare(args: argparse.Namespace) -> int:
     for k in range(0, len(result.density_ours), max(1, len(result.density_ours) // 10)):
         print(f"  {edges[k]:5.1f}-{edges[k + 1]:<5.1f}  {result.density_reference[k] / 1e6:9.3f}  "
               f"{result.density_ours[k] / 1e6:9.3f}")
+    if result.track_residual is not None:
+        rms, p95, worst = result.track_residual
+        print(f"  track residual   rms {rms:.6f} deg, p95 {p95:.6f} deg, max {worst:.6f} deg (sample for sample)")
     if args.plot:
+        check_output_path(args.plot, (".png",))
         plot_comparison(result, args.plot, f"{config_label(args)} vs {reference.name}")
         print(f"wrote {args.plot}")
     return 0
 
 
-
-
-def _fit_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("reference", help="measured pattern: .npy [theta, phi] radians or Livox CSV (degrees)")
-    parser.add_argument("--rate", type=positive_float, default=100_000.0, help="points per second (default 100000)")
-    parser.add_argument("--out", help="write the fitted preset JSON here")
-
-
 def _compare_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_arguments(parser)
-    parser.add_argument("reference", help="measured pattern: .npy or Livox CSV")
-    parser.add_argument("--rate", type=positive_float, default=100_000.0, help="points per second (default 100000)")
+    parser.add_argument("reference", help="a measured table (.npy or Livox CSV) or a preset (name or JSON)")
+    parser.add_argument("--rate", type=positive_float, default=100_000.0, help="rows per second of a table "
+                                                                               "(default 100000)")
+    parser.add_argument("--seconds", type=positive_float, default=4.0,
+                        help="how much of a preset reference to replay (default 4)")
     add_seed_argument(parser)
     parser.add_argument("--plot", help="write a PNG plot of both curves and their difference")
 
 
 COMMANDS: tuple[Command, ...] = (
-    Command("fit", cmd_fit, "fit the model's parameters to a measured pattern and write a preset",
-            "livox-viz fit ../shared/reference/mid40.npy --out presets/livox_mid40.json", _fit_arguments),
-    Command("compare", cmd_compare, "coverage and radial density of a preset against a measured pattern",
-            "livox-viz compare --preset livox_mid40 ../shared/reference/mid40.npy --plot compare.png",
+    Command("fit", cmd_fit, "fit a pattern model's parameters to a measured table or a preset's track",
+            "livox-viz fit --model risley ../shared/reference/mid70.npy --preset livox_mid70 --out mine.json",
+            _fit_arguments),
+    Command("compare", cmd_compare, "coverage, radial density and track residual of a preset against a table or "
+                                    "another preset",
+            "livox-viz compare --preset livox_mid70_fitted livox_mid70_risley --plot compare.png",
             _compare_arguments),
 )
