@@ -7,6 +7,10 @@
    on top of one render (target <= 50 ms).
 3. The cost of our bookkeeping per tick with 100 000 and with 1 000 000 points
    in the window (flat means it does not grow with the points on screen).
+4. The live charts: a slider change until both curves (coverage and radial
+   density) of ours are redrawn, with 1 000 000 points in the window and a
+   Risley reference shown, for the rosette and for the Risley model: our own
+   work (target <= 100 ms), next to one render of the whole window.
 """
 
 from __future__ import annotations
@@ -112,5 +116,36 @@ def bookkeeping_for(session: Session, app: LivoxVizApp):
     return run
 
 
+def chart_cost(preset: str, name: str, values: list[float]) -> None:
+    """Print the cost of slider changes of ``name`` to the redrawn curves, a million points in the window."""
+    from livox_viz_gui.overlay import PresetSource
+
+    session = Session(load_preset(preset), open_scene("urban"), seed=0, preset_name=preset)
+    app = LivoxVizApp(session, off_screen=True, window_size=(1600, 900), views="both")
+    session.overlay.set_source(PresetSource(load_preset("livox_mid70_risley"), "livox_mid70_risley"), 0.0)
+    session.set_window(WINDOWS.index(None))
+    session.advance_to(10.0)
+    app.refresh()
+    app.render()
+    render = median_time(app.plotter.ren_win.Render)
+    points = session.pattern_ring.count
+    costs = []
+    for value in values:
+        session.set_window(WINDOWS.index(None))
+        session.advance_to(10.0)  # the window holds a million points again before each change
+        start = time.perf_counter()
+        app.on_param(name, value)
+        costs.append(time.perf_counter() - start)
+    app.close()
+    print(f"charts, {preset}: slider {name} -> both curves redrawn, our work {statistics.median(costs) * 1e3:.1f} "
+          f"ms (target <= 100 ms) with {points:,} points in the window; one render of the window {render * 1e3:.0f} ms")
+
+
+def charts() -> None:
+    chart_cost("livox_mid70", "petal_height", [3.0 + 0.2 * k for k in range(9)])
+    chart_cost("livox_mid70_risley", "prism_rpm_a", [4000.0 + 50 * k for k in range(9)])
+
+
 if __name__ == "__main__":
     main()
+    charts()

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from .config import PARAM_RANGES, SensorConfig, load_config, save_config
 from .errors import ConfigError, LivoxVizError
-from .pattern import PatternChunk, ScanPattern
+from .pattern import PatternChunk, ScanPattern, make_pattern
 from .presets import DEFAULT_PRESET, list_presets, load_preset
 
 __all__ = [
@@ -22,6 +22,7 @@ __all__ = [
     "list_presets",
     "load_config",
     "load_preset",
+    "make_pattern",
     "save_config",
 ]
 __version__ = "0.1.0"

@@ -18,7 +18,7 @@ import numpy as np
 
 from .config import SensorConfig
 from .errors import LivoxVizError
-from .pattern import ScanPattern
+from .pattern import make_pattern
 
 LIVOX_CELL_DEG = math.degrees(0.005)
 
@@ -78,13 +78,15 @@ class CoverageGrid:
         cell : (n,) int64
         """
         half = self.cells_per_side
-        ij = np.floor(np.asarray(xy_deg, dtype=np.float64) / self.cell_deg) + half
-        valid = np.all((ij >= 0) & (ij < 2 * half), axis=1)
-        flat = np.full(ij.shape[0], -1, dtype=np.int64)
-        rows = ij[valid].astype(np.int64)
-        candidate = rows[:, 0] * (2 * half) + rows[:, 1]
-        flat[valid] = np.where(self.inside_mask.ravel()[candidate], candidate, -1)
-        return flat
+        position = np.asarray(xy_deg, dtype=np.float64) * (1.0 / self.cell_deg)
+        position += half
+        # Inside [0, 2 half) truncation is the floor; anything outside is no cell.
+        valid = np.all((position >= 0) & (position < 2 * half), axis=1)
+        index = position.astype(np.int64)
+        candidate = index[:, 0] * (2 * half) + index[:, 1]
+        candidate[~valid] = 0
+        inside = self.inside_mask.ravel()[candidate] & valid
+        return np.where(inside, candidate, -1)
 
 
 def coverage(xy_deg: np.ndarray, radius_deg: float, cell_deg: float = LIVOX_CELL_DEG) -> float:
@@ -126,9 +128,10 @@ def coverage_curve(
     """
     grid = CoverageGrid(radius_deg, cell_deg)
     cells = grid.cell_index(xy_deg)
-    hit = cells >= 0
-    _, first = np.unique(cells[hit], return_index=True)
-    first_seen = np.sort(np.flatnonzero(hit)[first])
+    hit = np.flatnonzero(cells >= 0)
+    first = np.full(grid.inside_mask.size, np.iinfo(np.int64).max, dtype=np.int64)
+    np.minimum.at(first, cells[hit], hit)  # the first point in each cell
+    first_seen = np.sort(first[first != np.iinfo(np.int64).max])
     counted = np.searchsorted(first_seen, np.asarray(counts, dtype=np.int64), side="left")
     return counted / grid.cell_count
 
@@ -161,7 +164,7 @@ def pattern_coverage(
     if counts.max() > 200_000_000:
         raise LivoxVizError(f"{times.max():g} s is {counts.max()} points; allowed: at most 200 million")
     grid = CoverageGrid(config.half_fov_deg, cell_deg)
-    pattern = ScanPattern(config, seed)
+    pattern = make_pattern(config, seed)
     seen = np.zeros(grid.inside_mask.size, dtype=bool)
     covered_at = np.zeros(counts.size, dtype=np.int64)
     order = np.argsort(counts)
@@ -210,3 +213,59 @@ def radial_density(
     counts, _ = np.histogram(alpha, bins=edges)
     solid_angle = 2.0 * np.pi * -np.diff(np.cos(np.radians(edges)))
     return edges, counts / solid_angle
+
+
+#: Integration times of the coverage chart, seconds.
+CURVE_SECONDS: tuple[float, ...] = (0.05, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0)
+#: Points a chart's curves are computed from at most (so a redraw stays well under 100 ms).
+CURVE_POINTS = 1_000_000
+
+
+@dataclass(frozen=True)
+class PatternCurves:
+    """Coverage against integration time and radial density of a stream from its start.
+
+    Parameters
+    ----------
+    seconds : (k,) float64
+        Integration times the stream covers.
+    coverage : (k,) float64
+        Fraction of the FOV's 5 mrad cells hit in [0, T).
+    density_alpha_deg : (b,) float64
+        Ring centres, degrees off the boresight.
+    density : (b,) float64
+        Points per steradian per second over the whole stream.
+    """
+
+    seconds: np.ndarray
+    coverage: np.ndarray
+    density_alpha_deg: np.ndarray
+    density: np.ndarray
+
+
+def stream_curves(xy_deg: np.ndarray, rate: float, radius_deg: float,
+                  seconds: Sequence[float] = CURVE_SECONDS, bins: int = 30) -> PatternCurves:
+    """:class:`PatternCurves` of the points ``xy_deg`` (in firing order at ``rate`` points/s).
+
+    Parameters
+    ----------
+    xy_deg : (n, 2) float64
+    rate : float
+    radius_deg : float
+        FOV half-angle for coverage and the density's outer edge.
+    seconds : (k,) float
+    bins : int
+    """
+    usable = np.array([s for s in seconds if round(s * rate) <= xy_deg.shape[0]], dtype=np.float64)
+    counts = np.round(usable * rate).astype(np.int64)
+    fraction = coverage_curve(xy_deg, counts, radius_deg) if usable.size else np.zeros(0)
+    edges, density = radial_density(xy_deg, radius_deg, bins)
+    duration = xy_deg.shape[0] / rate
+    return PatternCurves(usable, fraction, 0.5 * (edges[1:] + edges[:-1]), density / max(duration, 1e-12))
+
+
+def config_curves(config: SensorConfig, seed: int = 0, seconds: Sequence[float] = CURVE_SECONDS) -> PatternCurves:
+    """:class:`PatternCurves` of a configuration's pattern over ``max(seconds)`` (at most :data:`CURVE_POINTS`)."""
+    count = min(round(max(seconds) * config.point_rate), CURVE_POINTS)
+    xy = make_pattern(config, seed).take(count).xy_deg
+    return stream_curves(xy, config.point_rate, config.half_fov_deg, seconds)

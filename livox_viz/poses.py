@@ -78,6 +78,14 @@ class Pose:
         """``(3,)`` float64 position in the parent."""
         return np.array(self.position, dtype=np.float64)
 
+    @property
+    def matrix(self) -> np.ndarray:
+        """``(4, 4)`` float64 homogeneous transform from this frame to the parent."""
+        transform = np.eye(4)
+        transform[:3, :3] = self.rotation
+        transform[:3, 3] = self.origin
+        return transform
+
     def compose(self, child: Pose) -> Pose:
         """The pose of ``child`` (given in this frame) in this frame's parent."""
         rotation = self.rotation @ child.rotation

@@ -49,8 +49,10 @@ class RisleyPattern(PatternStream):
         self._phase0 = params.term_phase
         self._coefficients = np.ascontiguousarray(params.coefficients)
         self._block = _BLOCK - _BLOCK % self._lasers if self._lasers <= _BLOCK else self._lasers
-        steps = np.arange(self._block, dtype=np.float64)[:, None] * self._cycles_per_sample[None, :]
+        steps = self._cycles_per_sample[:, None] * np.arange(self._block, dtype=np.float64)[None, :]
+        # (J, block): one term's phasors along a row, so a block is one row-vector-times-matrix product.
         self._table = np.exp(2j * np.pi * np.mod(steps, 1.0))
+        self._cached_block = (-1, np.zeros(0, dtype=np.complex128))
         self._position = 0
 
     def points(self, start: int, count: int) -> PatternChunk:
@@ -64,19 +66,21 @@ class RisleyPattern(PatternStream):
             phasor = self._phasors_at(first)
             out = path[first + low - start : first + high - start]
             if lasers == 1:
-                np.matmul(self._table[low:high], self._coefficients[0] * phasor, out=out)
+                np.matmul(self._coefficients[0] * phasor, self._table[:, low:high], out=out)
                 continue
             for laser in range(lasers):
-                offset = (laser - low) % lasers  # block is a multiple of K: row r of the block is laser r mod K
+                offset = (laser - low) % lasers  # block is a multiple of K: sample r of the block is laser r mod K
                 if offset < high - low:
                     rows = slice(low + offset, high, lasers)
-                    out[offset::lasers] = self._table[rows] @ (self._coefficients[laser] * phasor)
+                    out[offset::lasers] = (self._coefficients[laser] * phasor) @ self._table[:, rows]
         return PatternChunk(self.config, start, path.view(np.float64).reshape(count, 2), times)
 
     def _phasors_at(self, sample: int) -> np.ndarray:
-        """``(J,)`` complex128 exp(i (m_j A + l_j B)) at sample ``sample``, from k directly."""
-        turns = np.mod(self._cycles_per_sample * float(sample), 1.0)
-        return np.exp(1j * (self._phase0 + 2.0 * math.pi * turns))
+        """``(J,)`` complex128 exp(i (m_j A + l_j B)) at sample ``sample``, from k directly (the last one kept)."""
+        if self._cached_block[0] != sample:
+            turns = np.mod(self._cycles_per_sample * float(sample), 1.0)
+            self._cached_block = (sample, np.exp(1j * (self._phase0 + 2.0 * math.pi * turns)))
+        return self._cached_block[1]
 
 
 def risley_xy(params, t: np.ndarray, laser: np.ndarray | None = None) -> np.ndarray:

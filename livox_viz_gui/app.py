@@ -22,6 +22,7 @@ from livox_viz import LivoxVizError, list_presets, load_config
 from livox_viz.config import PARAM_RANGES
 
 from . import files
+from .charts import CurveCharts
 from .controls import Sliders
 from .hud import HeadsUp
 from .keys import KEYS
@@ -67,8 +68,9 @@ class LivoxVizApp:
         self.views = views
         self.screenshot_dir = Path(screenshot_dir)
         if views == "both":
-            plotter = pv.Plotter(off_screen=off_screen, shape=(2, 2), row_weights=[5, 1], window_size=window_size,
-                                 border=False, title="livox-viz")
+            # Pattern, scene and the charts above; the sliders of each below.
+            plotter = pv.Plotter(off_screen=off_screen, shape=(2, 3), row_weights=[5, 1], col_weights=[5, 4, 3],
+                                 window_size=window_size, border=False, title="livox-viz")
         else:
             plotter = pv.Plotter(off_screen=off_screen, window_size=window_size, title="livox-viz")
         # Multisampling costs a factor of 3 on a million points in software GL; smooth lines instead.
@@ -79,6 +81,7 @@ class LivoxVizApp:
         scene_spot = (0, 1) if views == "both" else (0, 0)
         self.scene_view = SceneView(plotter, session, scene_spot) if views in ("both", "scene") else None
         self.sliders: Sliders | None = None
+        self.charts = CurveCharts(plotter, (0, 2), session) if views == "both" else None
         self._ready = False  # pyvista calls each slider's callback once as it is created
         if views == "both":
             self.sliders = Sliders(plotter, session.config, self.on_param, self.on_speed, self.on_window,
@@ -332,7 +335,7 @@ class LivoxVizApp:
         """Bring every actor and text up to date with the session (no render)."""
         if not self._ready:
             return
-        for view in (self.pattern_view, self.scene_view):
+        for view in (self.pattern_view, self.scene_view, self.charts):
             if view is not None:
                 view.update()
         self.hud.update(self.session, show_scene=self.scene_view is not None)

@@ -66,7 +66,7 @@ class Sliders:
     Parameters
     ----------
     plotter : pyvista.Plotter
-        With the slider panes at subplots (1, 0) and (1, 1).
+        With the slider panes at subplots (1, 0), (1, 1) and (1, 2).
     config : SensorConfig
         Their first values.
     on_param : callable
@@ -96,17 +96,21 @@ class Sliders:
         plotter.subplot(1, 1)
         plotter.set_background("#0c0f15")
         for k, (name, title) in enumerate(SENSOR_SLIDERS):
-            x0 = 0.03 + k * 0.245
-            self.widgets[name] = self._param_slider(name, title, config, (x0, 0.68), (x0 + 0.2, 0.68), on_param)
+            row, col = divmod(k, 2)
+            x0 = 0.05 + col * 0.5
+            y = 0.68 - row * 0.45
+            self.widgets[name] = self._param_slider(name, title, config, (x0, y), (x0 + 0.4, y), on_param)
+        plotter.subplot(1, 2)
+        plotter.set_background("#0c0f15")
         # Speed moves on a log scale and the window over a list: the label shows the value, not the position.
         self.widgets["speed"] = plotter.add_slider_widget(
             lambda value: on_speed(10.0**value), rng=[math.log10(SPEED_RANGE[0]), math.log10(SPEED_RANGE[1])],
-            value=math.log10(speed), title="speed", pointa=(0.03, 0.23), pointb=(0.23, 0.23),
+            value=math.log10(speed), title="speed", pointa=(0.05, 0.68), pointb=(0.45, 0.68),
             interaction_event="always", **_STYLE,
         )
         self.widgets["window"] = plotter.add_slider_widget(
             lambda value: on_window(round(min(max(value, 0), len(WINDOWS) - 1))), rng=[0, len(WINDOWS) - 1],
-            value=window_index, title="window", pointa=(0.275, 0.23), pointb=(0.475, 0.23),
+            value=window_index, title="window", pointa=(0.55, 0.68), pointb=(0.95, 0.68),
             interaction_event="end", **_STYLE,
         )
         for name in ("speed", "window"):

@@ -115,6 +115,7 @@ class Session:
         self._listeners: list[Callable[[str], None]] = []
         check_points(window_capacity(self.window, config.point_rate), "the integration window", WINDOW_BUDGET)
         self.config = config
+        self._fit_display()
         self._make_rings()
         self.restart()
 
@@ -149,12 +150,16 @@ class Session:
             self.preset_name = preset_name
         if resize:
             self._make_rings()
-        if self.display.step_unit not in step_units(config):
-            self.display.step_unit = step_units(config)[-1]
-        if self.display.pattern_colour not in pattern_colours(config):
-            self.display.pattern_colour = "time"
+        self._fit_display()
         self.restart()
         self._changed("config")
+
+    def _fit_display(self) -> None:
+        """Keep the step unit and pattern colour to those the configuration's pattern has."""
+        if self.display.step_unit not in step_units(self.config):
+            self.display.step_unit = step_units(self.config)[-1]
+        if self.display.pattern_colour not in pattern_colours(self.config):
+            self.display.pattern_colour = "time"
 
     def set_param(self, name: str, value: float) -> bool:
         """Change one configuration field and restart; False (and a message) if the value is not allowed."""

@@ -118,11 +118,10 @@ class PatternView(_View):
         session.subscribe(self._on_change)
 
     def _on_change(self, what: str) -> None:
-        if what == "config":
-            radius_changed = self._guides_radius != self.session.config.half_fov_deg
+        # The guides are drawn from the FOV alone: redrawn (and the camera refitted) when it changed.
+        if what == "config" and self._guides_radius != self.session.config.half_fov_deg:
             self.draw_guides()
-            if radius_changed:
-                self.reset_camera()
+            self.reset_camera()
 
     def _make_density_image(self) -> None:
         """The density image of the window's points (shown instead of the points when they outnumber pixels)."""
@@ -203,12 +202,14 @@ class PatternView(_View):
     def reset_camera(self) -> None:
         """Look straight at the angular plane, orthographic, FOV filling the view."""
         radius = self.session.config.half_fov_deg
+        width, height = self.renderer.GetSize()
         camera = self.renderer.camera
         camera.enable_parallel_projection()
-        camera.focal_point = (radius * 0.08, 0, 0)
-        camera.position = (radius * 0.08, 0, radius * 10)
+        # The FOV and its labels fit across as well as up, with the colour bar's strip on the right free.
+        camera.focal_point = (radius * 0.12, radius * 0.03, 0)
+        camera.position = (radius * 0.12, radius * 0.03, radius * 10)
         camera.up = (0, 1, 0)
-        camera.parallel_scale = radius * 1.18
+        camera.parallel_scale = radius * max(1.18, 1.32 * height / max(width, 1))
         self.renderer.ResetCameraClippingRange()
 
     def update(self) -> None:
@@ -267,6 +268,20 @@ def quadrotor_mesh(size: float = 0.5) -> pv.PolyData:
     return merged
 
 
+def fov_cone(half_angle_deg: float, length: float = 1.6) -> pv.PolyData:
+    """The FOV as a wire cone in the sensor frame (x the boresight): a rim and eight rays from the apex.
+
+    A translucent surface would hide the cloud behind it and push VTK into its slower translucent pass.
+    """
+    radius = length * math.tan(math.radians(half_angle_deg))
+    angles = np.linspace(0.0, 2 * math.pi, 97)
+    rim = np.column_stack([np.full(angles.size, length), radius * np.cos(angles), radius * np.sin(angles)])
+    wire = pv.lines_from_points(rim)
+    for k in range(0, 96, 12):
+        wire = wire.merge(pv.Line((0.0, 0.0, 0.0), rim[k]))
+    return wire
+
+
 class SceneView(_View):
     """The 3D scene (z up on screen), the vehicle, the sensor with its FOV cone, and the decoded cloud."""
 
@@ -307,40 +322,24 @@ class SceneView(_View):
         self.scene_actor.user_matrix = NED_TO_DISPLAY
 
     def draw_vehicle(self) -> None:
-        """The vehicle at its pose, the sensor and a cone of the FOV along its boresight."""
-        session = self.session
+        """The vehicle at its pose, the sensor and a wire cone of the FOV along its boresight.
+
+        The shapes are made once in their own frames (the cone again only when the FOV changes);
+        a change of pose only moves them.
+        """
         plotter = self.plotter
         plotter.subplot(*self.subplot)
-        vehicle = session.vehicle_pose
-        body = quadrotor_mesh()
-        transform = np.eye(4)
-        transform[:3, :3] = vehicle.rotation
-        transform[:3, 3] = vehicle.origin
-        actor = plotter.add_mesh(body.transform(transform, inplace=False), color="#e8eef5", name="vehicle",
-                                 reset_camera=False)
-        actor.user_matrix = NED_TO_DISPLAY
-        sensor = session.sensor_pose
-        boresight = sensor.rotation @ np.array([1.0, 0.0, 0.0])
-        half = math.radians(min(session.config.half_fov_deg, 80.0))
-        length = 1.6
-        # The FOV as a wire cone: a rim and eight rays from the sensor. A translucent surface
-        # would hide the cloud behind it and push VTK into its slower translucent pass.
-        radius = length * math.tan(half)
-        side = np.cross(boresight, [0.0, 0.0, 1.0])
-        side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-6 else np.array([0.0, 1.0, 0.0])
-        up = np.cross(side, boresight)
-        angles = np.linspace(0.0, 2 * math.pi, 97)
-        rim = sensor.origin + boresight * length + radius * (np.outer(np.cos(angles), side)
-                                                            + np.outer(np.sin(angles), up))
-        wire = pv.lines_from_points(rim)
-        for k in range(0, 96, 12):
-            wire = wire.merge(pv.Line(sensor.origin, rim[k]))
-        actor = plotter.add_mesh(wire, color="#f2c14e", line_width=2, name="fov-cone", reset_camera=False,
-                                 lighting=False)
-        actor.user_matrix = NED_TO_DISPLAY
-        actor = plotter.add_mesh(pv.Sphere(radius=0.06, center=sensor.origin), color="#f2c14e", name="sensor",
-                                 reset_camera=False)
-        actor.user_matrix = NED_TO_DISPLAY
+        if "vehicle" not in plotter.actors:
+            plotter.add_mesh(quadrotor_mesh(), color="#e8eef5", name="vehicle", reset_camera=False)
+            plotter.add_mesh(pv.Sphere(radius=0.06), color="#f2c14e", name="sensor", reset_camera=False)
+        half = min(self.session.config.half_fov_deg, 80.0)
+        if getattr(self, "_cone_half_deg", None) != half:
+            self._cone_half_deg = half
+            plotter.add_mesh(fov_cone(half), color="#f2c14e", line_width=2, name="fov-cone", reset_camera=False,
+                             lighting=False)
+        plotter.actors["vehicle"].user_matrix = NED_TO_DISPLAY @ self.session.vehicle_pose.matrix
+        for name in ("sensor", "fov-cone"):
+            plotter.actors[name].user_matrix = NED_TO_DISPLAY @ self.session.sensor_pose.matrix
 
     def reset_camera(self) -> None:
         """Behind and above the vehicle, looking along the sensor's boresight."""

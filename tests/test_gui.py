@@ -274,9 +274,10 @@ def test_a_new_mount_moves_the_drawn_sensor(app: LivoxVizApp, tmp_path: Path, se
     np.testing.assert_allclose(app.session.sensor_pose.origin, expected, atol=1e-12)
     to_display = np.array([1, -1, -1])
     np.testing.assert_allclose(app.plotter.actors["sensor"].GetCenter(), expected * to_display, atol=1e-6)
-    cone = app.plotter.actors["fov-cone"].GetMapper().GetInput()
-    apex = np.asarray(cone.points)
-    assert np.min(np.linalg.norm(apex - expected, axis=1)) < 1e-9  # the cone's rays start at the sensor
+    cone = app.plotter.actors["fov-cone"]
+    apex = np.array(cone.user_matrix) @ [0.0, 0.0, 0.0, 1.0]
+    np.testing.assert_allclose(apex[:3], expected * to_display, atol=1e-9)  # the cone starts at the sensor
+    assert np.asarray(cone.GetMapper().GetInput().points)[:, 0].max() == pytest.approx(1.6)
     # The rays come from the same place: every decoded point lies farther from the new origin than 0.
     app.session.advance_to(0.2)
     ring = app.session.scene_ring
@@ -445,3 +446,62 @@ def test_scene_cycle_survives_a_broken_mesh(app: LivoxVizApp, tmp_path: Path, mo
     app.refresh()
     assert app.scene_view._scene_shown is session.scene
     assert app.scene_view.scene_actor.GetMapper().GetInput().n_cells == len(session.scene.mesh.faces)
+
+
+def test_risley_preset_sliders_and_model_switch(app: LivoxVizApp) -> None:
+    session = app.session
+    app._guarded(app.toggle_pattern_model)()
+    assert "no Risley track" in session.message and session.config.pattern_model == "rflysim"
+    session.set_config(load_preset("livox_mid70_risley"), "livox_mid70_risley")
+    shown = app.sliders.param_widgets()
+    assert {"prism_rpm_a", "deflection_b", "laser_spacing"} <= set(shown) and "petal_height" not in shown
+    assert app.sliders.value("prism_rpm_a") == pytest.approx(4664.0)
+    assert session.display.step_unit == "frame"
+    session.advance_to(0.1)
+    reach = np.hypot(*session.pattern_ring.ordered(session.pattern_ring.positions)[:, :2].T).max()
+    app.on_param("deflection_a", 8.0)
+    assert session.config.risley.deflection_deg[0] == 8.0 and app.sliders.value("deflection_a") == 8.0
+    session.advance_to(0.1)
+    smaller = np.hypot(*session.pattern_ring.ordered(session.pattern_ring.positions)[:, :2].T).max()
+    assert smaller < reach - 8.0  # the outer rim moved in with prism A's deflection
+    app.toggle_pattern_model()
+    assert session.config.pattern_model == "rflysim" and "petal_height" in app.sliders.param_widgets()
+    app.toggle_pattern_model()
+    assert session.config.pattern_model == "risley" and session.config.risley.deflection_deg[0] == 8.0
+
+
+def test_charts_follow_the_sliders_and_the_reference(app: LivoxVizApp) -> None:
+    from livox_viz.metrics import config_curves
+    from livox_viz_gui.overlay import PresetSource
+
+    session, charts = app.session, app.charts
+    np.testing.assert_allclose(charts.ours_coverage.y, 100 * config_curves(session.config).coverage)
+    assert not charts.reference_coverage.visible
+    app.cycle_reference()
+    app.refresh()
+    source = session.overlay.source
+    assert isinstance(source, PresetSource) and source.name == "livox_mid40_risley"
+    expected = config_curves(load_preset("livox_mid40_risley"))
+    np.testing.assert_allclose(charts.reference_coverage.y, 100 * expected.coverage)
+    np.testing.assert_allclose(charts.reference_density.y, expected.density / 1e6)
+    assert charts.reference_coverage.visible
+    before = np.array(charts.ours_coverage.y)
+    app.on_param("jitter_max_deg", 8.0)
+    after = np.array(charts.ours_coverage.y)
+    np.testing.assert_allclose(after, 100 * config_curves(session.config).coverage)
+    assert not np.allclose(before, after)
+
+
+def test_fit_key_moves_the_sliders_to_the_reference(app: LivoxVizApp) -> None:
+    from livox_viz import ScanPattern
+    from livox_viz.reference import ReferencePattern
+
+    session = app.session
+    truth = session.config.with_param("petal_height", 4.0).with_param("spacing_exponent", 1.7)
+    xy = ScanPattern(truth, seed=3).take(150_000).xy_deg
+    session.overlay.set_source(TableSource(ReferencePattern("truth", xy, np.arange(len(xy)) / 1e5, 1e5)), 0.0)
+    app._guarded(app.fit_to_reference)()
+    assert "fitted to truth" in session.message
+    assert session.config.petal_height == pytest.approx(4.0, abs=1e-3)
+    assert app.sliders.value("petal_height") == pytest.approx(session.config.petal_height)
+    assert app.sliders.value("spacing_exponent") == pytest.approx(1.7, abs=1e-3)
