@@ -464,7 +464,9 @@ class SensorConfig:
         for key in _INTEGER_KEYS:
             value = data[key]
             if not _is_int(value):
-                raise ConfigError(f"{key} = {value!r}; allowed: an integer")
+                spec = PARAM_RANGES.get(_INTEGER_KEYS[key])
+                allowed = spec.describe() if spec is not None else "an integer"
+                raise ConfigError(f"{key} = {value!r}; allowed: {allowed}")
             ints[key] = int(value)
         for key in ("SendProtocol", "otherParams", "SensorPosXYZ", euler_key):
             if not isinstance(data[key], list):

@@ -13,3 +13,22 @@ class LivoxVizError(ValueError):
 
 class ConfigError(LivoxVizError):
     """A sensor configuration that fails validation."""
+
+
+def require_file(path, what: str = "file") -> None:
+    """Raise a :class:`LivoxVizError` unless ``path`` is a readable, non-empty file, saying which it is not.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+    what : str
+        What was expected, e.g. ``"mesh file"``.
+    """
+    if path.is_dir():
+        raise LivoxVizError(f"{path}: is a folder; allowed: a {what}")
+    if not path.exists():
+        raise LivoxVizError(f"{path}: no such {what}")
+    if not path.is_file():
+        raise LivoxVizError(f"{path}: is not a regular file; allowed: a {what}")
+    if path.stat().st_size == 0:
+        raise LivoxVizError(f"{path}: is empty; allowed: a {what}")

@@ -301,6 +301,11 @@ class FitResult:
 def fit_reference(reference: ReferencePattern, base: SensorConfig | None = None) -> FitResult:
     """Fit every model parameter to a measured pattern and build a valid configuration."""
     base = base or SensorConfig()
+    seconds = tuple(t for t in FIT_TIMES if t * reference.rate <= len(reference.t))
+    if not seconds:
+        raise LivoxVizError(f"{reference.name}: {reference.seconds:.4g} s of data; allowed: at least "
+                            f"{min(FIT_TIMES):g} s ({round(min(FIT_TIMES) * reference.rate):,} rows at "
+                            f"{reference.rate:g} rows/s)")
     shape = fit_shape(reference.xy_deg)
     petals = find_petals(reference.xy_deg)
     width = max(1, round(shape.points_per_arc))
@@ -311,7 +316,6 @@ def fit_reference(reference: ReferencePattern, base: SensorConfig | None = None)
     config = config.with_param("spacing_exponent", round(shape.spacing_exponent, 4))
     config = config.with_param("tip_exponent", round(shape.tip_exponent, 4))
     radius = shape.camera_fov / 2
-    seconds = tuple(t for t in FIT_TIMES if t * reference.rate <= len(reference.t))
     structure = fit_structure_from_pairs(reference.xy_deg, petals)
     reference_curve = window_coverage(reference.xy_deg, reference.rate, seconds, radius)
     if structure is None:

@@ -91,8 +91,8 @@ class ReceivedFrame:
 
     @property
     def index(self) -> int:
-        """Frame number, from the timestamp."""
-        return round(self.wire.timestamp * self.frame_rate)
+        """Frame number, from the timestamp (clipped into int64: a sender may stamp anything)."""
+        return int(np.clip(round(self.wire.timestamp * self.frame_rate), -(2**62), 2**62))
 
     @property
     def timestamp(self) -> float:

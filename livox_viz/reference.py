@@ -12,12 +12,13 @@ from __future__ import annotations
 import csv
 import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from .errors import LivoxVizError
+from .errors import LivoxVizError, require_file
 
 DEFAULT_RATE = 100_000.0
 
@@ -78,12 +79,11 @@ def load_reference(path: str | os.PathLike[str], rate: float = DEFAULT_RATE) -> 
     path = Path(path)
     if not math.isfinite(rate) or rate <= 0:
         raise LivoxVizError(f"rate {rate!r}; allowed: points per second > 0")
-    if not path.is_file():
-        raise LivoxVizError(f"{path}: no such file")
+    require_file(path, "scan table (.npy or Livox CSV)")
     if path.suffix.lower() == ".npy":
         try:
             table = np.load(path, allow_pickle=False)
-        except (ValueError, OSError) as exc:
+        except (ValueError, OSError, EOFError) as exc:
             raise LivoxVizError(f"{path}: not a NumPy .npy array ({exc})") from None
         if table.ndim != 2 or table.shape[1] != 2:
             raise LivoxVizError(f"{path}: shape {table.shape}; allowed: (n, 2) columns [theta, phi] in radians")
@@ -104,30 +104,44 @@ def load_reference(path: str | os.PathLike[str], rate: float = DEFAULT_RATE) -> 
     return ReferencePattern(path.stem, xy, t, float(rate))
 
 
-def _check_finite(path: Path, table: np.ndarray) -> None:
+def _check_finite(path: Path, table: np.ndarray, first_line: int | None = None) -> None:
+    """Refuse NaN or infinite rows; ``first_line`` numbers CSV rows by their line in the file."""
     bad = ~np.isfinite(table).all(axis=1)
     if bad.any():
-        raise LivoxVizError(f"{path}: {int(bad.sum())} rows hold NaN or infinite values (first at row "
-                            f"{int(np.flatnonzero(bad)[0])}); allowed: finite angles")
+        row = int(np.flatnonzero(bad)[0])
+        where = f"line {row + first_line}" if first_line is not None else f"row {row}"
+        raise LivoxVizError(f"{path}: {int(bad.sum())} rows hold NaN or infinite values (first at {where}); "
+                            "allowed: finite angles")
 
 
 def _read_csv(path: Path) -> np.ndarray:
-    with open(path, newline="", encoding="utf-8-sig") as handle:
-        reader = csv.reader(handle)
-        header = next(reader, None)
-        if header is None:
-            raise LivoxVizError(f"{path}: empty file")
-        names = [h.strip().lower() for h in header]
-        try:
-            azimuth_col = next(i for i, n in enumerate(names) if n.startswith("azimuth"))
-            zenith_col = next(i for i, n in enumerate(names) if n.startswith("zenith"))
-        except StopIteration:
-            raise LivoxVizError(f"{path}: header {header!r}; allowed: Time/s,Azimuth/deg,Zenith/deg") from None
+    """Azimuth and zenith columns of a Livox CSV, degrees, as pattern x, y; errors name the file's line."""
+    raw = path.read_bytes()
     try:
-        table = np.loadtxt(path, delimiter=",", skiprows=1, usecols=(azimuth_col, zenith_col), ndmin=2)
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise LivoxVizError(f"{path}: not UTF-8 text (byte {exc.start}, line {line}); allowed: a Livox CSV "
+                            "(Time/s,Azimuth/deg,Zenith/deg)") from None
+    lines = text.splitlines()
+    if not lines or not lines[0].strip():
+        raise LivoxVizError(f"{path}: is empty; allowed: a Livox CSV with a header line Time/s,Azimuth/deg,Zenith/deg")
+    header = next(csv.reader([lines[0]]))
+    names = [h.strip().lower() for h in header]
+    try:
+        azimuth_col = next(i for i, n in enumerate(names) if n.startswith("azimuth"))
+        zenith_col = next(i for i, n in enumerate(names) if n.startswith("zenith"))
+    except StopIteration:
+        raise LivoxVizError(f"{path}: header {header!r}; allowed: Time/s,Azimuth/deg,Zenith/deg") from None
+    rows = lines[1:]
+    if not any(row.strip() for row in rows):
+        raise LivoxVizError(f"{path}: has a header but no data rows")
+    try:
+        table = np.loadtxt(rows, delimiter=",", usecols=(azimuth_col, zenith_col), ndmin=2)
     except ValueError as exc:
-        raise LivoxVizError(f"{path}: not numeric ({exc})") from None
-    _check_finite(path, table)
+        message = re.sub(r"at row (\d+)", lambda m: f"at line {int(m.group(1)) + 2}", str(exc).splitlines()[0])
+        raise LivoxVizError(f"{path}: not numeric ({message})") from None
+    _check_finite(path, table, first_line=2)
     if np.abs(table).max() <= 2 * math.pi and np.abs(table[:, 1]).max() < 3.2:
         raise LivoxVizError(f"{path}: angles at most {np.abs(table).max():.3g} look like radians; "
                             "the CSV form is degrees (Azimuth/deg, Zenith/deg)")
@@ -165,6 +179,8 @@ def load_table_or_preset(text: str, rate: float = DEFAULT_RATE, seconds: float =
     """A reference given on the command line: a table file, or a preset (name or JSON) replayed for ``seconds``."""
     if is_table_path(text):
         return load_reference(text, rate=rate)
+    if Path(text).is_dir():
+        raise LivoxVizError(f"{text}: is a folder; allowed: a table (.npy or Livox .csv) or a preset (name or .json)")
     from .presets import load_preset
 
     return pattern_table(load_preset(text), Path(text).stem, seconds, seed)

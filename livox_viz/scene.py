@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from .errors import LivoxVizError
+from .errors import LivoxVizError, require_file
 from .poses import Pose
 from .presets import DESCRIPTION_KEY, shipped_preset_dir, user_config_dir
 
@@ -141,8 +141,7 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z") -> trimesh.Trime
     path = Path(path)
     if up not in UP_AXES:
         raise LivoxVizError(f"up axis {up!r}; allowed: {' or '.join(UP_AXES)}")
-    if not path.is_file():
-        raise LivoxVizError(f"{path}: no such mesh file")
+    require_file(path, "mesh file")
     try:
         loaded = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files

@@ -80,7 +80,8 @@ def cmd_gui(args: argparse.Namespace) -> int:
         for views in ("both", "pattern", "scene"):
             path = folder / f"offscreen-{stamp}-{views}.png"
             session.restart()
-            render_offscreen(session, args.seconds, path, views=views, size=size if views == "both" else (900, 900))
+            square = (min(size),) * 2
+            render_offscreen(session, args.seconds, path, views=views, size=size if views == "both" else square)
             print(f"  {path}")
         return 0
     session = _session(args)

@@ -88,7 +88,7 @@ def test_bad_reference_files(tmp_path: Path, make, message: str) -> None:
 
 def test_too_few_points_for_a_fit() -> None:
     config = SensorConfig()
-    with pytest.raises(LivoxVizError, match="petal"):
+    with pytest.raises(LivoxVizError, match=r"allowed: at least 0\.1 s"):
         fit_reference(as_reference(config, 0.003))
 
 

@@ -138,30 +138,44 @@ def add_receiver_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--shm-dir", default="/dev/shm", help="folder of the shared memory block")
 
 
+class _Listening:
+    """When ``listen`` stops: after ``--frames`` frames, ``--seconds`` of wall time, or ``--timeout`` of silence.
+
+    It also prints the live status line once a second.
+    """
+
+    def __init__(self, args: argparse.Namespace, receiver: UdpReceiver | ShmReceiver) -> None:
+        self.args = args
+        self.receiver = receiver
+        self.start = self.last_data = time.monotonic()
+        self.every = _Every(1.0)
+
+    def heard(self) -> None:
+        self.last_data = time.monotonic()
+
+    def __call__(self) -> bool:
+        args, now = self.args, time.monotonic()
+        if self.every.due():
+            print_status(status_line(self.receiver.report, self.receiver.assembler, now - self.start))
+        if args.frames is not None and self.receiver.report.frames >= args.frames:
+            return True
+        if args.seconds is not None and now - self.start >= args.seconds:
+            return True
+        return args.timeout is not None and now - self.last_data >= args.timeout
+
+
 def cmd_listen(args: argparse.Namespace) -> int:
     cfg = load_config(args.config, seq_id=args.seq_id) if args.config else load_preset(DEFAULT_PRESET)
     out = check_output_path(args.record, FORMATS) if args.record else None
-    receiver, where = open_receiver(args, cfg)
-    start = time.monotonic()
-    last_data = start
-    every = _Every(1.0)
-
-    def stop() -> bool:
-        now = time.monotonic()
-        if every.due():
-            print_status(status_line(receiver.report, receiver.assembler, now - start))
-        if args.frames is not None and receiver.report.frames >= args.frames:
-            return True
-        if args.seconds is not None and now - start >= args.seconds:
-            return True
-        return args.timeout is not None and now - last_data >= args.timeout
-
-    print(f"listening on {where} (range {cfg.range_max:g} m); Ctrl-C to stop", file=sys.stderr, flush=True)
     interrupted = False
+    # The recording's temporary is made first: a folder we cannot write in fails before a port is taken.
     with PointCloudWriter(out) if out is not None else nullcontext() as writer:
+        receiver, where = open_receiver(args, cfg)
+        stop = _Listening(args, receiver)
+        print(f"listening on {where} (range {cfg.range_max:g} m); Ctrl-C to stop", file=sys.stderr, flush=True)
         try:
             for frame in receiver.frames(stop):
-                last_data = time.monotonic()
+                stop.heard()
                 if writer is not None:
                     writer.write(ReceivedFrame(frame, cfg.range_max, cfg.data_check_freq))
         except KeyboardInterrupt:
@@ -169,7 +183,7 @@ def cmd_listen(args: argparse.Namespace) -> int:
         finally:
             receiver.close()
     report = receiver.report
-    print_status(status_line(report, receiver.assembler, time.monotonic() - start))
+    print_status(status_line(report, receiver.assembler, time.monotonic() - stop.start))
     cpu = report.cpu_seconds / report.frames * 1e3 if report.frames else 0.0
     print(f"received {report.frames} frames, {report.points:,} points; receiver CPU {cpu:.2f} ms per frame"
           + (f"; recorded to {out}" if writer is not None else "") + (" (interrupted)" if interrupted else ""))

@@ -1,0 +1,235 @@
+"""Hostile but realistic use: bad input everywhere, kill signals, size limits, a listener that stays awake."""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import signal
+import socket
+import stat
+import struct
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from livox_viz.atomic import remove_dead_leftovers, write_text_atomic
+from livox_viz.cli import main
+from tests.conftest import SEED_JSON
+
+REFERENCE = Path(__file__).resolve().parent.parent.parent / "shared" / "reference"
+HUGE = {**SEED_JSON, "DataWidth": 5000, "DataHeight": 2000, "DataCheckFreq": 1000}
+
+
+def write_inputs(folder: Path) -> None:
+    """The bad files the table below names, made fresh in ``folder``."""
+    (folder / "a_folder.ply").mkdir()
+    (folder / "a_folder.npz").mkdir()
+    (folder / "a_folder.png").mkdir()
+    (folder / "a_folder.json").mkdir()
+    (folder / "huge.json").write_text(json.dumps(HUGE))
+    (folder / "deep.json").write_text("[" * 100_000 + "]" * 100_000)
+    (folder / "nan.json").write_text(json.dumps(SEED_JSON).replace("2.956", "NaN"))
+    (folder / "wide.json").write_text(json.dumps({**SEED_JSON, "DataWidth": 1e9}))
+    (folder / "empty.json").write_text("")
+    (folder / "header_only.csv").write_text("Time/s,Azimuth/deg,Zenith/deg\n")
+    (folder / "latin1.csv").write_bytes("Time/s,Azimuth/deg,Zenith/deg\n0,1,2\n0,\xe9,3\n".encode("latin-1"))
+    rows = "\n".join(f"{k / 1e5},{10 * np.cos(k / 50):.6f},{90 + 10 * np.sin(k / 50):.6f},7,8" for k in range(3000))
+    (folder / "short_extra.csv").write_text("Time/s,Azimuth/deg,Zenith/deg,Reflectivity,Tag\n" + rows + "\n")
+    (folder / "bad_cell.csv").write_text("Time/s,Azimuth/deg,Zenith/deg\n0,1,91\n0,1,x\n")
+    table = np.load(REFERENCE / "mid40.npy")[:5000]
+    np.save(folder / "short.npy", table)
+    np.save(folder / "tiny.npy", table[:1000])
+
+
+BAD_INPUTS: list[tuple[list[str], str]] = [
+    (["scan", "--seconds", "0.1", "--out", "a_folder.ply"], "is a folder"),
+    (["pattern", "--seconds", "0.1", "--out", "a_folder.npz"], "is a folder"),
+    (["render", "--seconds", "0.1", "--out", "a_folder.png"], "is a folder"),
+    (["fit", "short.npy", "--out", "a_folder.json"], "is a folder"),
+    (["listen", "--port", "0", "--seconds", "0.1", "--record", "a_folder.npz"], "is a folder"),
+    (["scan", "--seconds", "0.1", "--out", "/proc/livox.ply"], "cannot write|not writable"),
+    (["listen", "--port", "0", "--seconds", "0.1", "--record", "/proc/livox.npz"], "cannot write|not writable"),
+    (["scan", "--seconds", "0.1", "--out", "missing/x.ply"], "does not exist"),
+    (["pattern", "--seed", "-1", "--out", "p.npz"], "allowed: a whole number from 0"),
+    (["scan", "--seed", "-1", "--out", "p.ply"], "allowed: a whole number from 0"),
+    (["coverage", "--seed", "-1"], "allowed: a whole number from 0"),
+    (["render", "--seed", "-1", "--out", "r.png"], "allowed: a whole number from 0"),
+    (["publish", "--seed", "-1", "--to", "127.0.0.1:9"], "allowed: a whole number from 0"),
+    (["fit", "short.npy"], "allowed: at least 0.1 s"),
+    (["compare", "tiny.npy"], "allowed: at least 0.05 s"),
+    (["render", "--reference", "short.npy", "--seconds", "0.05", "--size", "200x150", "--out", "r.png"], ""),
+    (["fit", "header_only.csv"], "no data rows"),
+    (["fit", "latin1.csv"], "not UTF-8"),
+    (["fit", "short_extra.csv"], "allowed: at least 0.1 s"),
+    (["fit", "bad_cell.csv"], "at line 3"),
+    (["fit", "a_folder.ply"], "is a folder"),
+    (["listen", "--port", "70000"], "allowed: 0 (any free port) to 65535"),
+    (["listen", "--port", "-1"], "allowed: 0 (any free port) to 65535"),
+    (["info", "--config", "deep.json"], "nested too deeply"),
+    (["info", "--config", "nan.json"], "nan.json: otherParams[1] = NaN"),
+    (["info", "--config", "wide.json"], "DataWidth = 1000000000.0; allowed: an integer in [1, 5000]"),
+    (["info", "--config", "empty.json"], "is empty"),
+    (["info", "--config", "a_folder.json"], "is a folder"),
+    (["scan", "--config", "huge.json", "--seconds", "0.1", "--out", "h.ply"], "asks for 1,000,000,000 points"),
+    (["scan", "--seconds", "1e9", "--out", "h.ply"], "allowed: at most 100,000,000; pass --force"),
+    (["pattern", "--config", "huge.json", "--seconds", "0.1", "--out", "h.npz"], "allowed: at most"),
+    (["render", "--config", "huge.json", "--out", "r.png"], "integration window asks for"),
+    (["publish", "--config", "huge.json", "--to", "127.0.0.1:9", "--seconds", "1"], "allowed: at most"),
+    (["coverage", "--cell-deg", "100"], "larger than the FOV's half-angle"),
+    (["publish", "--speed", "1e-9", "--to", "127.0.0.1:9"], "allowed: 0.01 to 1000"),
+    (["publish", "--to", "255.255.255.255:9999", "--seconds", "0.2", "--unpaced"], "nothing could be sent"),
+    (["request", "--to", "127.0.0.1", "--window", "99999", "--dry-run"], "allowed: 0 to 45525"),
+]
+
+
+@pytest.mark.parametrize(("argv", "message"), BAD_INPUTS, ids=[" ".join(a)[:60] for a, _ in BAD_INPUTS])
+def test_bad_input_is_one_line_exit_2_and_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], argv: list[str],
+    message: str,
+) -> None:
+    import re
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    write_inputs(tmp_path)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    code = main(argv)
+    err = capsys.readouterr().err
+    if not message:  # a short table is a fine reference to draw: it must simply work
+        assert code == 0, err
+        assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*before, "r.png"])
+        return
+    lines = [line for line in err.splitlines() if not line.startswith("publishing")]
+    assert code == 2, err
+    assert len(lines) == 1 and "Traceback" not in err and re.match(r"livox-viz( [a-z]+)?: error: ", lines[0]), err
+    assert re.search(message if "|" in message else re.escape(message), lines[0]), lines[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_disk_full_is_one_line_and_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    from livox_viz import npzstream
+
+    def full(self, arrays):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(npzstream.NpzColumns, "append", full)
+    out = tmp_path / "cloud.npz"
+    assert main(["scan", "--seconds", "0.1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "No space left on device" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("signum", "argv", "suffix"), [
+    (signal.SIGTERM, ["scan", "--seconds", "300", "--scene", "open_field"], ".las"),
+    (signal.SIGHUP, ["pattern", "--seconds", "900"], ".npz"),
+])
+def test_kill_and_hang_up_remove_the_temporary_files(tmp_path: Path, signum: int, argv: list[str],
+                                                     suffix: str) -> None:
+    out = tmp_path / f"big{suffix}"
+    process = subprocess.Popen([sys.executable, "-m", "livox_viz", *argv, "--out", str(out)], cwd=tmp_path,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not any(tmp_path.iterdir()):
+        time.sleep(0.05)
+    time.sleep(1.0)  # well into the writing
+    assert process.poll() is None, process.communicate()
+    assert any(p.name.startswith(".big") for p in tmp_path.iterdir())  # the temporary exists now
+    process.send_signal(signum)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode != 0
+    assert "stopped by" in err and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_dead_runs_leftovers_are_removed_by_the_next_run(tmp_path: Path) -> None:
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    leftover_file = tmp_path / f".cloud.ply.livox-viz-{dead.pid}.abc123.part"
+    leftover_dir = tmp_path / f".cloud.npz.livox-viz-{dead.pid}.xyz789.work"
+    leftover_file.write_bytes(b"x" * 1000)
+    leftover_dir.mkdir()
+    (leftover_dir / "points.las").write_bytes(b"y")
+    alive = tmp_path / f".other.ply.livox-viz-{os.getpid()}.keep00.part"
+    alive.write_bytes(b"ours")
+    users = tmp_path / ".cloud.ply.my-own-hidden-file"
+    users.write_bytes(b"not ours")
+    write_text_atomic(tmp_path / "note.txt", "hello")
+    assert not leftover_file.exists() and not leftover_dir.exists()
+    assert alive.exists() and users.exists() and (tmp_path / "note.txt").read_text() == "hello"
+    assert remove_dead_leftovers(tmp_path) == []
+
+
+def test_writing_over_a_symlink_writes_the_target_and_keeps_its_mode(tmp_path: Path) -> None:
+    target = tmp_path / "real.json"
+    target.write_text("{}")
+    target.chmod(0o640)
+    link = tmp_path / "link.json"
+    link.symlink_to(target)
+    write_text_atomic(link, '{"new": 1}')
+    assert link.is_symlink() and json.loads(target.read_text()) == {"new": 1}
+    assert stat.S_IMODE(target.stat().st_mode) == 0o640
+
+
+def test_the_default_command_takes_the_guis_options(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(["--preset", "livox_mid40", "--seconds", "0.05", "--size", "320x200"]) == 0
+    out = capsys.readouterr().out
+    assert "no display" in out
+    assert len(list((tmp_path / "screenshots").glob("offscreen-*-both.png"))) == 1
+
+
+def free_port() -> int:
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()
+    return port
+
+
+def test_one_listener_hears_two_publishers_in_a_row_and_a_forged_datagram(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    port = free_port()
+    received = tmp_path / "received.npz"
+    listener = threading.Thread(target=main, args=(["listen", "--host", "127.0.0.1", "--port", str(port),
+                                                    "--frames", "11", "--timeout", "20", "--record",
+                                                    str(received)],))
+    listener.start()
+    time.sleep(0.5)
+    assert main(["publish", "--to", f"127.0.0.1:{port}", "--seconds", "0.5", "--speed", "5"]) == 0
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as forger:
+        forger.sendto(struct.pack("<4i1d", 1234567890, 52, 0, 1, 1e300) + struct.pack("<6fi", 0, 0, 0, 0, 0, 0, 0),
+                      ("127.0.0.1", port))
+    time.sleep(0.2)
+    # The publisher restarts: its clock starts at 0 again, far behind the forged 1e300.
+    assert main(["publish", "--to", f"127.0.0.1:{port}", "--seconds", "0.5", "--speed", "5"]) == 0
+    listener.join(30)
+    assert not listener.is_alive()
+    out = capsys.readouterr()
+    assert "received 11 frames" in out.out and "sender restarts" in out.err
+    data = np.load(received)
+    sent = tmp_path / "sent.npz"
+    assert main(["scan", "--seconds", "0.5", "--out", str(sent)]) == 0
+    one_run = np.load(sent)
+    # Both runs in full, point for point, around the forged empty frame.
+    np.testing.assert_array_equal(data["xyz_int16"], np.concatenate([one_run["xyz_int16"]] * 2))
+    np.testing.assert_array_equal(data["frame"], np.concatenate([one_run["frame"]] * 2))
+    assert len(data["frame_pose"]) == 11
+
+
+def test_listen_port_zero_says_which_port(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["listen", "--host", "127.0.0.1", "--port", "0", "--seconds", "0.3"]) == 0
+    err = capsys.readouterr().err
+    port = int(err.split("udp 127.0.0.1:")[1].split()[0])
+    assert 0 < port <= 65535
