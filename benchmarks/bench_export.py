@@ -1,8 +1,10 @@
-"""A long export streams (issue: scene ray casting): 60 s of the default preset and scene to PLY and NPZ.
+"""Long exports stream: memory stays flat however long the scan or pattern.
 
-Prints the resident memory after 5 s and after 60 s of scan time (flat means
-the export does not hold the cloud), and the export speed as a multiple of
-real time.
+1. 60 s of the default preset and scene to PLY and NPZ: resident memory after
+   5 s and after 60 s of scan time, and the speed as a multiple of real time.
+2. ``livox-viz pattern --out X.npz`` for 60 s and 600 s in a child process: its
+   peak resident memory (target: flat, not growing with the seconds), next to
+   ``livox-viz info`` (the interpreter and imports alone) in the same run.
 """
 
 from __future__ import annotations
@@ -44,5 +46,32 @@ def main() -> None:
                   f"{SECONDS:g} s ({late - early:+.0f} MiB; the file is {path.stat().st_size / 2**20:.0f} MiB)")
 
 
+def child_peak_mib(argv: list[str], cwd: str) -> tuple[float, float]:
+    """Peak RSS (MiB) and wall time of ``livox-viz ARGV`` in a fresh child process."""
+    import resource
+    import subprocess
+
+    start = time.perf_counter()
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    subprocess.run([sys.executable, "-m", "livox_viz", *argv], cwd=cwd, check=True, capture_output=True)
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    if peak <= before:
+        raise RuntimeError("the child's peak did not exceed an earlier child's; run the largest last")
+    return peak / 1024, time.perf_counter() - start
+
+
+def pattern_memory() -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        base, _ = child_peak_mib(["info"], tmp)
+        print(f"pattern --out .npz, child process peak RSS; 'livox-viz info' alone: {base:.0f} MiB")
+        for seconds in (60, 600):
+            peak, wall = child_peak_mib(["pattern", "--seconds", str(seconds), "--out", "p.npz"], tmp)
+            size = (Path(tmp) / "p.npz").stat().st_size / 2**30
+            print(f"  {seconds:4d} s ({seconds * 100_000:,} points, {size:.1f} GiB file): peak {peak:.0f} MiB "
+                  f"in {wall:.0f} s (target: flat)")
+            (Path(tmp) / "p.npz").unlink()
+
+
 if __name__ == "__main__":
     main()
+    pattern_memory()
