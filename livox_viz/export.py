@@ -34,8 +34,8 @@ FRAME_DESCRIPTION = {
 POINT_FIELDS: tuple[tuple[str, str], ...] = (
     ("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("range", "<f4"), ("time", "<f8"), ("frame", "<u4"),
 )
-#: NPZ columns, one row per point; ``frame_pose`` holds one row per frame:
-#: index, then posAng (x, y, z, roll, pitch, yaw).
+#: NPZ columns, one row per point; ``frame_pose`` holds one row per frame: index, then the sensor's
+#: posAng (x, y, z, roll, pitch, yaw) at the frame's first ray and just after its last.
 _NPZ_ARRAYS: dict[str, tuple[str, tuple[int, ...]]] = {
     "xyz_sensor": ("<f8", (3,)),
     "xyz_world": ("<f8", (3,)),
@@ -121,7 +121,8 @@ class PointCloudWriter:
                 "xyz_sensor": frame.xyz_decoded, "xyz_world": frame.xyz_world, "xyz_int16": frame.xyz_int16,
                 "range": frame.range_m, "t": frame.t, "frame": np.full(len(frame), frame.index),
             })
-            self._npz_poses.append(np.concatenate([[frame.index], frame.sensor_pose.as_array()]))
+            self._npz_poses.append(np.concatenate([[frame.index], frame.sensor_pose.as_array(),
+                                                   frame.end_pose.as_array()]))
         elif self.format == ".las":
             _write_las(self._las, frame, self.coordinates)
         else:
@@ -141,10 +142,11 @@ class PointCloudWriter:
         try:
             with atomic_path(self.path) as tmp:
                 if self._npz is not None:
-                    poses = np.array(self._npz_poses).reshape(-1, 7)
+                    poses = np.array(self._npz_poses).reshape(-1, 13)
                     self._npz.finish(tmp, {"frame_pose": poses, "frame_of_reference": np.array(
-                        json.dumps({**FRAME_DESCRIPTION, "frame_pose": "index, sensor x y z (m, world NED), "
-                                    "roll pitch yaw (rad)"}))})
+                        json.dumps({**FRAME_DESCRIPTION, "frame_pose": "index, then the sensor's pose at the "
+                                    "frame's first ray and just after its last: x y z (m, world NED) roll pitch "
+                                    "yaw (rad) each"}))})
                 elif self.format == ".las":
                     self._las.close()
                     self._las = None

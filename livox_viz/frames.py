@@ -31,7 +31,9 @@ class PointFrame(Protocol):
     timestamp : float
         Seconds since the scan start.
     sensor_pose : Pose
-        The sensor's pose in the world (NED).
+        The sensor's pose in the world (NED) at the frame's start.
+    end_pose : Pose
+        The sensor's pose at the frame's end (the same for a fixed sensor or a received frame).
     t : (M,) float64
         Time of each point, seconds.
     range_m : (M,) float64
@@ -49,6 +51,7 @@ class PointFrame(Protocol):
     index: int
     timestamp: float
     sensor_pose: Pose
+    end_pose: Pose
     t: np.ndarray
     range_m: np.ndarray
     xyz_int16: np.ndarray
@@ -107,6 +110,11 @@ class ReceivedFrame:
         """The posAng sent with the frame."""
         pose = self.wire.pos_ang
         return Pose(tuple(pose[:3]), *pose[3:])
+
+    @property
+    def end_pose(self) -> Pose:
+        """The wire carries one pose per frame: the same as :attr:`sensor_pose`."""
+        return self.sensor_pose
 
     @cached_property
     def t(self) -> np.ndarray:

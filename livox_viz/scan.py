@@ -13,7 +13,7 @@ is a pattern stream and a mounted caster cut into published frames.
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -23,8 +23,9 @@ from .codec import decode_int16, encode_int16
 from .config import SensorConfig
 from .directions import directions_from_xy
 from .pattern import PatternChunk, make_pattern, points_before
-from .poses import Pose, sensor_world_pose
+from .poses import Pose, sensor_mount, sensor_world_pose
 from .raycast import EmbreeCaster, RayCaster
+from .trajectory import Trajectory, pose_quaternion, quat_multiply, quat_rotate
 
 #: Rays cast in one call at most: a huge frame is cast in parts so memory stays bounded.
 CAST_PART = 1 << 20
@@ -55,13 +56,19 @@ class ScanFrame:
     xyz_world : (M, 3) float64
         True hit points in the world NED frame, metres.
     sensor_pose : Pose
-        The sensor's pose in the world (NED) for these rays.
+        The sensor's pose in the world (NED) at the first ray.
     timestamp : float
         Scan time of the first ray, seconds (what RflySim stamps a frame with).
     end_time : float
         Scan time just after the last ray, seconds.
     range_max : float
         The int16 scale, metres.
+    end_pose : Pose, optional
+        The sensor's pose just after the last ray (the same as ``sensor_pose`` for a fixed vehicle).
+    point_origin : (M, 3) float64, optional
+        With a moving vehicle: the sensor's position when each return's ray fired, world NED.
+    point_quaternion : (M, 4) float64, optional
+        With a moving vehicle: the sensor's orientation [x, y, z, w] (sensor FRD -> world NED) then.
     """
 
     index: int
@@ -77,6 +84,9 @@ class ScanFrame:
     timestamp: float
     end_time: float
     range_max: float
+    end_pose: Pose | None = None
+    point_origin: np.ndarray | None = field(default=None, repr=False)
+    point_quaternion: np.ndarray | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return int(self.range_m.shape[0])
@@ -88,7 +98,9 @@ class ScanFrame:
 
     @cached_property
     def xyz_world_decoded(self) -> np.ndarray:
-        """``(M, 3)`` float64 the decoded points placed in the world (NED) with the frame's pose."""
+        """``(M, 3)`` float64 the decoded points placed in the world (NED), each with the pose of its own time."""
+        if self.point_quaternion is not None:
+            return self.point_origin + quat_rotate(self.point_quaternion, self.xyz_decoded)
         return self.sensor_pose.origin + self.xyz_decoded @ self.sensor_pose.rotation.T
 
 
@@ -104,29 +116,55 @@ class MountedCaster:
         The world NED scene, or a caster already built for it.
     vehicle_pose : Pose, optional
         The vehicle's pose in the world; default the origin.
+    trajectory : Trajectory, optional
+        A moving vehicle: each ray starts from the sensor's pose at its own time (``vehicle_pose``
+        is then the pose at t = 0).
     """
 
     def __init__(self, config: SensorConfig, scene: trimesh.Trimesh | RayCaster,
-                 vehicle_pose: Pose | None = None) -> None:
+                 vehicle_pose: Pose | None = None, trajectory: Trajectory | None = None) -> None:
         self.config = config
         self.caster: RayCaster = EmbreeCaster(scene) if isinstance(scene, trimesh.Trimesh) else scene
-        self.vehicle_pose = vehicle_pose or Pose()
+        self.trajectory = trajectory
+        self.vehicle_pose = trajectory.pose_at(trajectory.span[0]) if trajectory is not None else (
+            vehicle_pose or Pose())
+        self.mount = sensor_mount(config)
+        self._mount_quaternion = pose_quaternion(self.mount)
         self.sensor_pose = sensor_world_pose(config, self.vehicle_pose)
 
+    def sensor_pose_at(self, t: float) -> Pose:
+        """The sensor's pose in the world at scan time ``t`` seconds."""
+        if self.trajectory is None:
+            return self.sensor_pose
+        return self.trajectory.pose_at(t).compose(self.mount)
+
+    def sensor_poses_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The sensor's position ``(n, 3)`` and orientation ``(n, 4)`` at times ``t`` ``(n,)``, world NED."""
+        position, quaternion = self.trajectory.poses_at(t)
+        origin = position + quat_rotate(quaternion, np.broadcast_to(self.mount.origin, position.shape))
+        return origin, quat_multiply(quaternion, self._mount_quaternion)
+
     def cast(self, chunk: PatternChunk) -> ScanFrame:
-        """The returns of the chunk's rays."""
+        """The returns of the chunk's rays (each from the sensor's pose at its own time when moving)."""
         config = self.config
-        rotation, origin = self.sensor_pose.rotation, self.sensor_pose.origin
+        moving = self.trajectory is not None
         parts = []
         for first in range(0, max(len(chunk), 1), CAST_PART):
             xy = chunk.xy_deg[first : first + CAST_PART]
             directions_sensor = directions_from_xy(xy)
-            directions_world = directions_sensor @ rotation.T
+            if moving:
+                origin, quaternion = self.sensor_poses_at(chunk.t[first : first + CAST_PART])
+                directions_world = quat_rotate(quaternion, directions_sensor)
+            else:
+                origin = self.sensor_pose.origin
+                directions_world = directions_sensor @ self.sensor_pose.rotation.T
             distance = self.caster.distances(origin, directions_world, config.range_max)
             hit = np.flatnonzero(np.isfinite(distance))
             range_m = distance[hit]
+            start = origin[hit] if moving else origin
             parts.append((first + hit, range_m, directions_sensor[hit] * range_m[:, None],
-                          origin + directions_world[hit] * range_m[:, None]))
+                          start + directions_world[hit] * range_m[:, None],
+                          start if moving else None, quaternion[hit] if moving else None))
         rows = np.concatenate([p[0] for p in parts])
         xyz_sensor = np.concatenate([p[2] for p in parts])
         return ScanFrame(
@@ -139,10 +177,13 @@ class MountedCaster:
             xyz_sensor=xyz_sensor,
             xyz_int16=encode_int16(xyz_sensor, config.range_max),
             xyz_world=np.concatenate([p[3] for p in parts]),
-            sensor_pose=self.sensor_pose,
+            sensor_pose=self.sensor_pose_at(chunk.start / config.point_rate),
             timestamp=chunk.start / config.point_rate,
             end_time=chunk.stop / config.point_rate,
             range_max=config.range_max,
+            end_pose=self.sensor_pose_at(chunk.stop / config.point_rate),
+            point_origin=np.concatenate([p[4] for p in parts]) if moving else None,
+            point_quaternion=np.concatenate([p[5] for p in parts]) if moving else None,
         )
 
 
@@ -158,6 +199,8 @@ class LidarScanner:
         The vehicle's pose in the world.
     seed : int
         Seed of the pattern.
+    trajectory : Trajectory, optional
+        A moving vehicle (see :class:`MountedCaster`).
     """
 
     def __init__(
@@ -166,9 +209,10 @@ class LidarScanner:
         scene: trimesh.Trimesh | RayCaster,
         vehicle_pose: Pose | None = None,
         seed: int = 0,
+        trajectory: Trajectory | None = None,
     ) -> None:
         self.config = config
-        self.mount = MountedCaster(config, scene, vehicle_pose)
+        self.mount = MountedCaster(config, scene, vehicle_pose, trajectory)
         self.pattern = make_pattern(config, seed=seed)
 
     @property
@@ -197,6 +241,8 @@ class LidarScanner:
     def frames(self, seconds: float) -> Iterator[ScanFrame]:
         """Frames until ``seconds`` of scan time (the last one partial if it does not fit)."""
         total = points_before(seconds, self.config.point_rate)
+        if self.mount.trajectory is not None:
+            self.mount.trajectory.check_covers(self.pattern.time, total / self.config.point_rate)
         per_frame = self.config.points_per_frame
         while self.pattern.position < total:
             frame_end = (self.pattern.position // per_frame + 1) * per_frame

@@ -296,7 +296,7 @@ def test_the_gui_cloud_is_the_scan_commands_cloud(urban, tmp_path: Path) -> None
     session.advance_to(0.3)
     ring = session.scene_ring
     shown = ring.ordered(ring.positions)
-    pose = data["frame_pose"][0, 1:]
+    pose = data["frame_pose"][0, 1:7]
     from livox_viz.poses import Pose
 
     sensor = Pose(tuple(pose[:3]), *pose[3:])

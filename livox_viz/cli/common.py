@@ -18,6 +18,7 @@ from pathlib import Path
 from ..atomic import resolve_destination
 from ..config import SensorConfig, load_config
 from ..errors import LivoxVizError
+from ..poses import Pose
 from ..presets import DEFAULT_PRESET, load_preset
 
 PROG = "livox-viz"
@@ -136,13 +137,37 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
 
 def scene_from_args(args: argparse.Namespace):
     """The :class:`~livox_viz.scene.Scene`, vehicle :class:`~livox_viz.poses.Pose` and ray caster the arguments name."""
-    from ..poses import Pose
     from ..raycast import EmbreeCaster
     from ..scene import open_scene
 
     scene = open_scene(args.scene, up=args.up)
     pose = Pose.parse(args.pose) if args.pose else scene.vehicle_pose
     return scene, pose, EmbreeCaster(scene.mesh, exact=getattr(args, "exact", False))
+
+
+def add_trajectory_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--trajectory FILE|hover|line|circle|figure8 [--trajectory-speed V]``."""
+    parser.add_argument("--trajectory", help="a moving vehicle: a TUM file (t x y z qx qy qz qw, world NED, t from "
+                                             "the scan start) or a built-in flight: hover, line, circle, figure8")
+    parser.add_argument("--trajectory-speed", type=float, default=5.0,
+                        help="speed of a built-in flight, m/s (default 5)")
+
+
+def trajectory_from_args(args: argparse.Namespace, start: Pose, seconds: float | None):
+    """The :class:`~livox_viz.trajectory.Trajectory` ``--trajectory`` names (None without one).
+
+    A built-in flight starts at ``start`` (the scene's vehicle pose or ``--pose``) and lasts ``seconds``.
+    """
+    from ..trajectory import BUILTIN_TRAJECTORIES, builtin_trajectory, load_tum
+
+    text = getattr(args, "trajectory", None)
+    if not text:
+        return None
+    if text in BUILTIN_TRAJECTORIES:
+        if seconds is None:
+            raise UsageError("a built-in --trajectory needs a finite --seconds (it is made for the scan's length)")
+        return builtin_trajectory(text, args.trajectory_speed, start, seconds + 0.5)
+    return load_tum(text)
 
 
 def check_output_path(path: str | Path, suffixes: tuple[str, ...]) -> Path:

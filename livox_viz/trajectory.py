@@ -1,0 +1,293 @@
+"""A moving vehicle: trajectories in the world NED frame, interpolated to every point's own time.
+
+A trajectory is a time series of vehicle poses (body FRD in world NED, metres;
+orientation as a unit quaternion ``[qx, qy, qz, qw]`` rotating body vectors into
+the world), t in seconds from the scan start. Between two poses the position
+is linear and the orientation spherical-linear (slerp), evaluated for a
+million points at once with numpy quaternions (scipy's ``Slerp`` gives the
+same rotations, and is the tests' reference, but costs about 1.3 us a point).
+
+Sources: the TUM text format (``t x y z qx qy qz qw``, ``#`` comments), and a
+few built-in flights from the vehicle's start pose (``hover``, ``line``,
+``circle``, ``figure8``) sampled at 1 kHz.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import LivoxVizError, require_file
+from .poses import Pose
+
+BUILTIN_TRAJECTORIES: tuple[str, ...] = ("hover", "line", "circle", "figure8")
+BUILTIN_RATE = 1000.0
+CIRCLE_RADIUS = 15.0
+FIGURE8_SIZE = 20.0
+
+
+# Quaternions [x, y, z, w], vectorised -----------------------------------------------------
+def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a b`` of ``(..., 4)`` quaternions [x, y, z, w]."""
+    ax, ay, az, aw = np.moveaxis(np.asarray(a, dtype=np.float64), -1, 0)
+    bx, by, bz, bw = np.moveaxis(np.asarray(b, dtype=np.float64), -1, 0)
+    return np.stack([aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw,
+                     aw * bw - ax * bx - ay * by - az * bz], axis=-1)
+
+
+def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate ``(n, 3)`` vectors by ``(n, 4)`` (or ``(4,)``) unit quaternions: v + 2w (u x v) + 2 u x (u x v).
+
+    Written on columns: a million vectors without (n, 3) temporaries of ``numpy.cross``.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    v = np.asarray(v, dtype=np.float64)
+    x, y, z, w = (q[..., k] for k in range(4))
+    vx, vy, vz = v[:, 0], v[:, 1], v[:, 2]
+    tx = 2.0 * (y * vz - z * vy)
+    ty = 2.0 * (z * vx - x * vz)
+    tz = 2.0 * (x * vy - y * vx)
+    out = np.empty(v.shape)
+    out[:, 0] = vx + w * tx + (y * tz - z * ty)
+    out[:, 1] = vy + w * ty + (z * tx - x * tz)
+    out[:, 2] = vz + w * tz + (x * ty - y * tx)
+    return out
+
+
+def quat_conjugate(q: np.ndarray) -> np.ndarray:
+    """The inverse of unit quaternions ``(..., 4)``."""
+    return np.asarray(q, dtype=np.float64) * np.array([-1.0, -1.0, -1.0, 1.0])
+
+
+def quat_from_matrix(rotation: np.ndarray) -> np.ndarray:
+    """``(4,)`` [x, y, z, w] of a ``(3, 3)`` rotation matrix."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(rotation).as_quat()
+
+
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """``(..., 3, 3)`` rotation matrices of unit quaternions ``(..., 4)``."""
+    x, y, z, w = np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
+    ], axis=-2)
+
+
+def pose_quaternion(pose: Pose) -> np.ndarray:
+    """``(4,)`` the orientation of a :class:`Pose` as [x, y, z, w]."""
+    return quat_from_matrix(pose.rotation)
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Vehicle poses over time, interpolated to any time inside their span.
+
+    Parameters
+    ----------
+    name : str
+    t : (n,) float64
+        Seconds from the scan start, strictly increasing.
+    position : (n, 3) float64
+        Vehicle position, world NED, metres.
+    quaternion : (n, 4) float64
+        Vehicle orientation [x, y, z, w], body FRD -> world NED (normalised, signs made continuous).
+    """
+
+    name: str
+    t: np.ndarray
+    position: np.ndarray
+    quaternion: np.ndarray
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.t, dtype=np.float64)
+        position = np.asarray(self.position, dtype=np.float64)
+        quaternion = np.asarray(self.quaternion, dtype=np.float64)
+        if t.ndim != 1 or t.size < 2 or position.shape != (t.size, 3) or quaternion.shape != (t.size, 4):
+            raise LivoxVizError(f"trajectory {self.name}: {t.size} poses; allowed: at least 2, each t, x, y, z, "
+                                "qx, qy, qz, qw")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(position)) and np.all(np.isfinite(quaternion))):
+            raise LivoxVizError(f"trajectory {self.name}: NaN or infinite values; allowed: finite numbers")
+        if np.any(np.diff(t) <= 0):
+            row = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
+            raise LivoxVizError(f"trajectory {self.name}: time goes back or repeats at pose {row + 1} "
+                                f"(t = {t[row]:g} s); allowed: strictly increasing times")
+        norm = np.linalg.norm(quaternion, axis=1)
+        if np.any(np.abs(norm - 1.0) > 0.1):
+            row = int(np.flatnonzero(np.abs(norm - 1.0) > 0.1)[0])
+            raise LivoxVizError(f"trajectory {self.name}: the quaternion of pose {row + 1} has length "
+                                f"{norm[row]:.3g}; allowed: a unit quaternion qx qy qz qw")
+        quaternion = quaternion / norm[:, None]
+        # q and -q are the same rotation: make neighbours agree so slerp takes the short way.
+        flips = np.cumsum(np.concatenate([[0], np.einsum("ij,ij->i", quaternion[1:], quaternion[:-1]) < 0])) % 2
+        quaternion = np.where(flips[:, None] == 1, -quaternion, quaternion)
+        relative = quat_multiply(quat_conjugate(quaternion[:-1]), quaternion[1:])
+        angle = 2.0 * np.arctan2(np.linalg.norm(relative[:, :3], axis=1), np.abs(relative[:, 3]))
+        sign = np.where(relative[:, 3] < 0, -1.0, 1.0)
+        axis = relative[:, :3] * sign[:, None]
+        length = np.linalg.norm(axis, axis=1)
+        axis = np.divide(axis, length[:, None], out=np.zeros_like(axis), where=length[:, None] > 0)
+        for name, value in (("t", t), ("position", position), ("quaternion", quaternion)):
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "_axis", axis)
+        object.__setattr__(self, "_half_angle", 0.5 * angle)
+
+    @property
+    def span(self) -> tuple[float, float]:
+        """First and last time, seconds."""
+        return float(self.t[0]), float(self.t[-1])
+
+    def check_covers(self, start: float, stop: float) -> None:
+        """Refuse a scan from ``start`` to ``stop`` seconds that leaves the trajectory's span."""
+        low, high = self.span
+        if start < low - 1e-9 or stop > high + 1e-9:
+            raise LivoxVizError(f"trajectory {self.name} spans {low:g} to {high:g} s; the scan needs {start:g} to "
+                                f"{stop:g} s (no extrapolation: give a longer trajectory or fewer --seconds)")
+
+    def poses_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Position ``(m, 3)`` and orientation ``(m, 4)`` at times ``t`` ``(m,)`` seconds (linear, slerp)."""
+        t = np.asarray(t, dtype=np.float64)
+        if t.size == 0:
+            return np.zeros((0, 3)), np.zeros((0, 4))
+        self.check_covers(float(t.min()), float(t.max()))
+        segment = self._segments(t)
+        t0 = self.t[segment]
+        fraction = (t - t0) / (self.t[segment + 1] - t0)
+        position = np.empty((t.size, 3))
+        for axis in range(3):
+            start, step = self.position[:-1, axis], np.diff(self.position[:, axis])
+            np.multiply(fraction, step[segment], out=position[:, axis])
+            position[:, axis] += start[segment]
+        half = fraction * self._half_angle[segment]
+        sin_half = np.sin(half)
+        # q0 (axis sin, cos): the product written out on columns (no stacked temporaries).
+        x0, y0, z0, w0 = (self.quaternion[:-1, k][segment] for k in range(4))
+        ax, ay, az = (self._axis[:, k][segment] * sin_half for k in range(3))
+        aw = np.cos(half)
+        out = np.empty((t.size, 4))
+        out[:, 0] = w0 * ax + x0 * aw + y0 * az - z0 * ay
+        out[:, 1] = w0 * ay - x0 * az + y0 * aw + z0 * ax
+        out[:, 2] = w0 * az + x0 * ay - y0 * ax + z0 * aw
+        out[:, 3] = w0 * aw - x0 * ax - y0 * ay - z0 * az
+        return position, out
+
+    def _segments(self, t: np.ndarray) -> np.ndarray:
+        """``(m,)`` int64 the segment (pose k to k+1) of each time; fast for sorted times (one run per segment)."""
+        if t.size > 64 and np.all(t[1:] >= t[:-1]):
+            first = max(int(np.searchsorted(self.t, t[0], side="right")) - 1, 0)
+            last = min(int(np.searchsorted(self.t, t[-1], side="right")), self.t.size - 1)
+            edges = np.searchsorted(t, self.t[first + 1 : last], side="left")
+            counts = np.diff(np.concatenate([[0], edges, [t.size]]))
+            return np.repeat(np.arange(first, first + counts.size), counts)
+        return np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, self.t.size - 2)
+
+    def pose_at(self, t: float) -> Pose:
+        """The vehicle's :class:`Pose` at one time."""
+        from .poses import matrix_to_euler
+
+        position, quaternion = self.poses_at(np.array([t]))
+        return Pose(tuple(position[0]), *matrix_to_euler(quat_to_matrix(quaternion[0])))
+
+    def velocity_at(self, t: np.ndarray) -> np.ndarray:
+        """``(m, 3)`` the piecewise-constant velocity between poses, world NED, m/s."""
+        segment = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, self.t.size - 2)
+        return (self.position[segment + 1] - self.position[segment]) / np.diff(self.t)[segment, None]
+
+
+def load_tum(path: str | os.PathLike[str]) -> Trajectory:
+    """Read a TUM trajectory: ``t x y z qx qy qz qw`` per line, ``#`` comments, world NED, t from the scan start.
+
+    Raises
+    ------
+    LivoxVizError
+        Naming the file and the line of what is wrong.
+    """
+    path = Path(path)
+    require_file(path, "TUM trajectory (t x y z qx qy qz qw per line)")
+    rows = []
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise LivoxVizError(f"{path}: not UTF-8 text; allowed: a TUM trajectory (t x y z qx qy qz qw)") from None
+    for number, line in enumerate(text.splitlines(), start=1):
+        words = line.split("#", 1)[0].replace(",", " ").split()
+        if not words:
+            continue
+        if len(words) != 8:
+            raise LivoxVizError(f"{path}: line {number} has {len(words)} values; allowed: 8 (t x y z qx qy qz qw)")
+        try:
+            rows.append([float(w) for w in words])
+        except ValueError:
+            raise LivoxVizError(f"{path}: line {number} is not numeric: {line.strip()[:60]!r}") from None
+    if len(rows) < 2:
+        raise LivoxVizError(f"{path}: {len(rows)} poses; allowed: at least 2")
+    table = np.array(rows)
+    return Trajectory(path.name, table[:, 0], table[:, 1:4], table[:, 4:8])
+
+
+def save_tum(trajectory: Trajectory, path: str | os.PathLike[str]) -> None:
+    """Write a trajectory as TUM text, atomically."""
+    from .atomic import write_text_atomic
+
+    lines = ["# livox-viz trajectory: t (s from the scan start) x y z (m, world NED) qx qy qz qw (body FRD -> NED)"]
+    for t, p, q in zip(trajectory.t, trajectory.position, trajectory.quaternion, strict=True):
+        lines.append(" ".join(f"{v:.9f}" for v in (t, *p, *q)))
+    write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+def builtin_trajectory(name: str, speed: float, start: Pose, seconds: float) -> Trajectory:
+    """A built-in flight from ``start``, ``seconds`` long, sampled at :data:`BUILTIN_RATE`.
+
+    Parameters
+    ----------
+    name : {"hover", "line", "circle", "figure8"}
+        ``hover`` stays; ``line`` flies straight ahead at ``speed``; ``circle``
+        turns right on a 15 m circle at ``speed`` facing along the path;
+        ``figure8`` flies a 20 m lemniscate at a mean speed of about ``speed``.
+    speed : float
+        m/s.
+    start : Pose
+        The vehicle's pose at t = 0 (NED).
+    seconds : float
+        How long, s.
+    """
+    if name not in BUILTIN_TRAJECTORIES:
+        raise LivoxVizError(f"trajectory {name!r}; allowed: a TUM file or {', '.join(BUILTIN_TRAJECTORIES)}")
+    if not (math.isfinite(speed) and 0 <= speed <= 100):
+        raise LivoxVizError(f"--speed {speed!r}; allowed: 0 to 100 m/s")
+    count = max(2, math.ceil(seconds * BUILTIN_RATE) + 1)
+    t = np.arange(count) / BUILTIN_RATE
+    heading = start.yaw
+    forward = np.array([math.cos(heading), math.sin(heading), 0.0])
+    right = np.array([-math.sin(heading), math.cos(heading), 0.0])
+    yaw = np.full(count, heading)
+    if name == "hover":
+        local = np.zeros((count, 2))
+    elif name == "line":
+        local = np.column_stack([speed * t, np.zeros(count)])
+    elif name == "circle":
+        rate = speed / CIRCLE_RADIUS
+        local = CIRCLE_RADIUS * np.column_stack([np.sin(rate * t), 1.0 - np.cos(rate * t)])
+        yaw = heading + rate * t
+    else:
+        # Gerono's lemniscate x = a sin(wt), y = a sin(wt) cos(wt); its mean speed is about 1.22 a w.
+        rate = speed / (1.22 * FIGURE8_SIZE / 2) if speed > 0 else 0.0
+        a = FIGURE8_SIZE / 2
+        local = np.column_stack([a * np.sin(rate * t), a * np.sin(rate * t) * np.cos(rate * t)])
+        velocity = np.column_stack([a * rate * np.cos(rate * t), a * rate * np.cos(2 * rate * t)])
+        yaw = heading + np.arctan2(velocity[:, 1], velocity[:, 0])
+    position = start.origin + local[:, :1] * forward + local[:, 1:] * right
+    from scipy.spatial.transform import Rotation
+
+    tilt = Rotation.from_euler("ZYX", [0.0, start.pitch, start.roll])
+    orientation = Rotation.from_rotvec(np.outer(yaw, [0.0, 0.0, 1.0])) * tilt
+    return Trajectory(f"{name} at {speed:g} m/s", t, position, orientation.as_quat())
