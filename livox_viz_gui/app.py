@@ -28,7 +28,7 @@ from .hud import HeadsUp
 from .keys import KEYS
 from .overlay import WINDOWS, PresetSource, TableSource
 from .playback import next_choice
-from .session import DRAWINGS, SCENE_COLOURS, Session, pattern_colours, step_units
+from .session import CLOUD_FRAMES, DRAWINGS, SCENE_COLOURS, Session, pattern_colours, step_units
 from .views import PatternView, SceneView
 
 TIMER_MS = 33
@@ -201,6 +201,13 @@ class LivoxVizApp:
                                 "(e.g. livox_mid70_risley) or --preset")
         self.session.set_config(config.with_pattern_model(model))
         self.session.message = f"pattern model {model}"
+
+    def toggle_cloud_frame(self) -> None:
+        """World or sensor accumulation of the cloud; the window is cast again in the new way."""
+        display = self.session.display
+        display.cloud_frame = next_choice(CLOUD_FRAMES, display.cloud_frame)
+        self.session.set_window(self.session.window_index)
+        self.session.message = f"cloud in the {display.cloud_frame} frame"
 
     def cycle_drawing(self) -> None:
         """Pattern view: density image when points outnumber pixels (auto), always points, always density."""

@@ -18,11 +18,13 @@ from livox_viz.cli.common import (
     add_config_arguments,
     add_scene_arguments,
     add_seed_argument,
+    add_trajectory_arguments,
     check_output_path,
     config_from_args,
     config_label,
     positive_float,
     scene_from_args,
+    trajectory_from_args,
 )
 from livox_viz.cli.wire_commands import add_receiver_arguments, open_receiver
 
@@ -32,11 +34,16 @@ def _session(args: argparse.Namespace):
 
     config = config_from_args(args)
     scene, pose, caster = scene_from_args(args)
+    # The window plays on: a built-in flight lasts two minutes, or the render's seconds.
+    trajectory = trajectory_from_args(args, pose, max(args.seconds, GUI_FLIGHT_SECONDS))
     session = Session(config, scene, seed=args.seed, preset_name=config_label(args), vehicle_pose=pose,
-                      caster=caster)
+                      caster=caster, trajectory=trajectory)
     if getattr(args, "reference", None):
         session.overlay.set_source(reference_source(args.reference, args.reference_rate, args.seed), 0.0)
     return session
+
+
+GUI_FLIGHT_SECONDS = 120.0
 
 
 def reference_source(text: str, rate: float, seed: int = 0):
@@ -113,6 +120,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 def _common_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_arguments(parser)
     add_scene_arguments(parser)
+    add_trajectory_arguments(parser)
     add_seed_argument(parser)
     parser.add_argument("--reference", help="overlay a reference in the pattern view: a measured table (.npy "
                                             "radians or Livox CSV) or a preset (e.g. livox_mid70_risley)")

@@ -81,9 +81,13 @@ class HeadsUp:
         )
         scene_lines = ""
         if show_scene:
+            moving = ""
+            if session.trajectory is not None:
+                moving = (f"\ntrajectory {session.trajectory.name}, cloud in the {session.display.cloud_frame} "
+                          "frame (w)")
             scene_lines = (f"scene {session.scene.name}: {len(session.scene.mesh.faces):,} triangles\n"
                            f"decoded cloud: {session.scene_ring.count:,} returns in the window\n"
-                           f"colour: {session.display.scene_colour}  (k)")
+                           f"colour: {session.display.scene_colour}  (k){moving}")
         if self.scene_state is not None:
             self.scene_state.SetText(2, scene_lines)
         elif scene_lines:

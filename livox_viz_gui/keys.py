@@ -46,6 +46,8 @@ KEYS: tuple[KeyRow, ...] = (
     KeyRow("p", "save the sliders as a user preset (`~/.config/livox-viz/presets`, never over a shipped one)",
            (("p", "save_preset"),), "preset"),
     KeyRow("n / b", "next / previous preset", (("n", "next_preset"), ("b", "previous_preset")), "presets"),
+    KeyRow("w", "moving sensor: the cloud in the world (each point with the pose of its own time: walls stay sharp) "
+           "/ as the sensor sees it (the motion's smear shows)", (("w", "toggle_cloud_frame"),)),
     KeyRow("g", "pattern drawing: auto (a density image once points outnumber pixels) / points / density",
            (("g", "cycle_drawing"),)),
     KeyRow("m", "next scene: the built-in ones, then mesh files in `~/.config/livox-viz/scenes` (a file that fails "

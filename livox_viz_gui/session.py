@@ -26,6 +26,7 @@ from livox_viz.poses import Pose
 from livox_viz.raycast import EmbreeCaster, RayCaster
 from livox_viz.scan import MountedCaster
 from livox_viz.scene import Scene
+from livox_viz.trajectory import Trajectory
 from livox_viz.workload import WINDOW_BUDGET, check_points
 
 from .overlay import WINDOWS, ReferenceOverlay, window_capacity
@@ -41,6 +42,7 @@ PATTERN_COLOURS: dict[str, tuple[str, str] | None] = {
     "flower": ("flower", "figure"), "arc": ("arc", "figure8"), "laser": None,
 }
 SCENE_COLOURS: tuple[str, ...] = ("range", "height", "time")
+CLOUD_FRAMES: tuple[str, ...] = ("world", "sensor")
 DRAWINGS: tuple[str, ...] = ("auto", "points", "density")
 #: Most points one tick may add; a slow machine drops scan time rather than freezing.
 MAX_POINTS_PER_TICK = 400_000
@@ -61,12 +63,17 @@ class DisplayOptions:
         points than the view has pixels), ``"points"`` or ``"density"``.
     step_unit : str
         A key of :data:`STEP_UNITS`.
+    cloud_frame : {"world", "sensor"}
+        How a moving sensor's cloud accumulates: each point placed with the pose of its own
+        time (a static wall stays sharp), or as the sensor sees it, placed with the pose at the
+        end of its chunk (the smear of the motion shows).
     """
 
     pattern_colour: str = "time"
     scene_colour: str = "range"
     drawing: str = "auto"
     step_unit: str = "flower"
+    cloud_frame: str = "world"
 
 
 def step_units(config: SensorConfig) -> tuple[str, ...]:
@@ -95,10 +102,14 @@ class Session:
         Default: the scene's own.
     caster : RayCaster, optional
         Built for ``scene``; default an :class:`~livox_viz.raycast.EmbreeCaster`.
+    trajectory : Trajectory, optional
+        A moving vehicle; playback stops at its end.
     """
 
     def __init__(self, config: SensorConfig, scene: Scene, seed: int = 0, preset_name: str = "",
-                 vehicle_pose: Pose | None = None, caster: RayCaster | None = None) -> None:
+                 vehicle_pose: Pose | None = None, caster: RayCaster | None = None,
+                 trajectory: Trajectory | None = None) -> None:
+        self.trajectory = trajectory
         self.scene = scene
         self.seed = seed
         self.preset_name = preset_name
@@ -193,14 +204,27 @@ class Session:
 
     @property
     def sensor_pose(self) -> Pose:
-        """The sensor's pose in the world, from the configuration's mount and the vehicle."""
-        return self.mount.sensor_pose
+        """The sensor's pose in the world now, from the configuration's mount and the vehicle."""
+        return self.mount.sensor_pose_at(self._pose_time())
+
+    @property
+    def vehicle_pose_now(self) -> Pose:
+        """The vehicle's pose at the current scan time (its fixed pose when it does not move)."""
+        if self.trajectory is None:
+            return self.vehicle_pose
+        return self.trajectory.pose_at(self._pose_time())
+
+    def _pose_time(self) -> float:
+        if self.trajectory is None:
+            return 0.0
+        low, high = self.trajectory.span
+        return min(max(self.scan_time, low), high)
 
     # Scan ----------------------------------------------------------------------------------
     def restart(self) -> None:
         """Start the pattern again from scan time 0."""
         self.pattern = make_pattern(self.config, seed=self.seed)
-        self.mount = MountedCaster(self.config, self.caster, self.vehicle_pose)
+        self.mount = MountedCaster(self.config, self.caster, self.vehicle_pose, self.trajectory)
         self.scan_time = 0.0
         self.playback.restart()
         self.frame_index = 0
@@ -275,7 +299,15 @@ class Session:
         return count
 
     def advance_to(self, scan_time: float) -> int:
-        """Emit (and cast) every point before ``scan_time`` seconds; returns how many."""
+        """Emit (and cast) every point before ``scan_time`` seconds; returns how many.
+
+        With a trajectory, playback stops (and pauses) at its end: there is no pose after it.
+        """
+        if self.trajectory is not None and scan_time > self.trajectory.span[1]:
+            scan_time = self.trajectory.span[1]
+            if not self.playback.paused:
+                self.playback.paused = True
+                self.message = f"end of the trajectory {self.trajectory.name} at {scan_time:g} s (x restarts)"
         target = points_before(scan_time, self.config.point_rate)
         missing = target - self.pattern.position
         if missing > MAX_POINTS_PER_TICK:
@@ -312,10 +344,15 @@ class Session:
         self._count_in(xyz)
 
     def _add_cloud(self, frame: PointFrame, index: np.ndarray) -> None:
-        """The scene ring gets the decoded returns, placed in the world with the frame's pose."""
+        """The scene ring gets the decoded returns, placed in the world with each point's pose
+        (or, in the sensor-frame mode, all with the pose at the end of the chunk)."""
         if len(frame) == 0:
             return
-        world = frame.xyz_world_decoded
+        if self.display.cloud_frame == "sensor":
+            end = frame.end_pose
+            world = end.origin + frame.xyz_decoded @ end.rotation.T
+        else:
+            world = frame.xyz_world_decoded
         self.scene_ring.write(world, self.scene_scalars(world, frame.range_m, frame.t), frame.t, index)
 
     def _drop_old(self) -> None:

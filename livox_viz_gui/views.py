@@ -337,9 +337,40 @@ class SceneView(_View):
             self._cone_half_deg = half
             plotter.add_mesh(fov_cone(half), color="#f2c14e", line_width=2, name="fov-cone", reset_camera=False,
                              lighting=False)
-        plotter.actors["vehicle"].user_matrix = NED_TO_DISPLAY @ self.session.vehicle_pose.matrix
+        self.place_vehicle()
+        self.draw_path()
+
+    def place_vehicle(self) -> None:
+        """Move the vehicle, the sensor and the cone to their poses at the current scan time.
+
+        The camera follows the vehicle (moved by as much as it moved), keeping the user's angle and zoom.
+        """
+        actors = self.plotter.actors
+        vehicle = self.session.vehicle_pose_now
+        actors["vehicle"].user_matrix = NED_TO_DISPLAY @ vehicle.matrix
         for name in ("sensor", "fov-cone"):
-            plotter.actors[name].user_matrix = NED_TO_DISPLAY @ self.session.sensor_pose.matrix
+            actors[name].user_matrix = NED_TO_DISPLAY @ self.session.sensor_pose.matrix
+        here = NED_TO_DISPLAY[:3, :3] @ vehicle.origin
+        followed = getattr(self, "_followed", None)
+        if followed is not None and not np.array_equal(here, followed):
+            camera = self.renderer.camera
+            camera.position = tuple(np.array(camera.position) + here - followed)
+            camera.focal_point = tuple(np.array(camera.focal_point) + here - followed)
+            self.renderer.ResetCameraClippingRange()
+        self._followed = here
+
+    def draw_path(self) -> None:
+        """The trajectory's path as a line (once per trajectory); nothing for a vehicle that stays."""
+        trajectory = self.session.trajectory
+        if trajectory is None or getattr(self, "_path_of", None) is trajectory:
+            return
+        self._path_of = trajectory
+        stride = max(1, trajectory.t.size // 2000)
+        path = pv.lines_from_points(np.asarray(trajectory.position[::stride]))
+        self.plotter.subplot(*self.subplot)
+        actor = self.plotter.add_mesh(path, color="#7fd3ff", line_width=2, name="path", reset_camera=False,
+                                      lighting=False)
+        actor.user_matrix = NED_TO_DISPLAY
 
     def reset_camera(self) -> None:
         """Behind and above the vehicle, looking along the sensor's boresight."""
@@ -359,7 +390,9 @@ class SceneView(_View):
         self.renderer.ResetCameraClippingRange()
 
     def update(self) -> None:
-        """Show the ring's current points and colours."""
+        """Show the ring's current points and colours, and the vehicle where it is now."""
+        if self.session.trajectory is not None:
+            self.place_vehicle()
         if self._ring is not self.session.scene_ring:
             self._ring = self.session.scene_ring
         update_ring_polydata(self.poly, self._ring)

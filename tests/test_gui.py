@@ -505,3 +505,33 @@ def test_fit_key_moves_the_sliders_to_the_reference(app: LivoxVizApp) -> None:
     assert session.config.petal_height == pytest.approx(4.0, abs=1e-3)
     assert app.sliders.value("petal_height") == pytest.approx(session.config.petal_height)
     assert app.sliders.value("spacing_exponent") == pytest.approx(1.7, abs=1e-3)
+
+
+def test_a_moving_vehicle_is_followed_and_its_cloud_frame_switches(urban) -> None:
+    from livox_viz.trajectory import builtin_trajectory
+
+    trajectory = builtin_trajectory("line", 8.0, urban.vehicle_pose, 3.0)
+    session = Session(load_preset("livox_mid70"), urban, seed=0, trajectory=trajectory)
+    app = LivoxVizApp(session, off_screen=True, window_size=SIZE)
+    try:
+        camera_before = np.array(app.scene_view.renderer.camera.position)
+        session.advance_to(1.0)
+        app.refresh()
+        moved = np.array(app.plotter.actors["vehicle"].user_matrix)[:3, 3]
+        expected = trajectory.pose_at(1.0).origin * [1, -1, -1]
+        np.testing.assert_allclose(moved, expected, atol=1e-9)
+        np.testing.assert_allclose(np.array(app.scene_view.renderer.camera.position) - camera_before,
+                                   expected - urban.vehicle_pose.origin * [1, -1, -1], atol=1e-9)
+        assert "path" in app.plotter.actors
+        world = session.scene_ring.ordered(session.scene_ring.positions).copy()
+        app.toggle_cloud_frame()
+        assert session.display.cloud_frame == "sensor" and session.scan_time == pytest.approx(1.0)
+        smeared = session.scene_ring.ordered(session.scene_ring.positions)
+        # The same returns, placed differently: up to the distance flown in a chunk apart.
+        assert smeared.shape == world.shape and 0.01 < np.abs(smeared - world).max() < 8.0 * 0.5
+        session.playback.paused = False
+        session.advance_to(5.0)  # past the end of the flight: it stops there
+        assert session.scan_time == pytest.approx(3.0) and session.playback.paused
+        assert "end of the trajectory" in session.message
+    finally:
+        app.close()

@@ -137,3 +137,30 @@ def test_imu_at_rest_reads_gravity_and_noise_is_seeded() -> None:
     assert np.std(np.diff(a.angular_velocity[:, 0])) / math.sqrt(2) == pytest.approx(1.7e-4 * math.sqrt(200), rel=0.1)
     with pytest.raises(LivoxVizError, match="allowed: 200 to 10000"):
         synthesize_imu(level, 50.0)
+
+
+def test_publish_sends_each_frames_own_pose(tmp_path: Path) -> None:
+    import socket
+    import threading
+
+    from livox_viz.cli import main
+
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()
+    received = tmp_path / "received.npz"
+    listener = threading.Thread(target=main, args=(["listen", "--host", "127.0.0.1", "--port", str(port),
+                                                    "--frames", "5", "--timeout", "20", "--record",
+                                                    str(received)],))
+    listener.start()
+    import time
+
+    time.sleep(0.5)
+    assert main(["publish", "--to", f"127.0.0.1:{port}", "--seconds", "0.5", "--unpaced", "--trajectory", "line",
+                 "--trajectory-speed", "10", "--pose=0,0,-2,0,0,0"]) == 0
+    listener.join(30)
+    poses = np.load(received)["frame_pose"]
+    # posAng (float32 on the wire) moves 1 m north per 0.1 s frame: the pose at each frame's first ray.
+    np.testing.assert_allclose(poses[:, 1], np.arange(5) * 1.0, atol=1e-5)
+    np.testing.assert_allclose(poses[:, 3], -2.3, atol=1e-5)  # the sensor 0.3 m above the body

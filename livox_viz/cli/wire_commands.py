@@ -22,12 +22,14 @@ from .common import (
     add_config_arguments,
     add_scene_arguments,
     add_seed_argument,
+    add_trajectory_arguments,
     check_output_path,
     config_from_args,
     config_label,
     port_value,
     positive_float,
     scene_from_args,
+    trajectory_from_args,
     whole_number,
 )
 
@@ -68,6 +70,9 @@ def cmd_publish(args: argparse.Namespace) -> int:
     if args.seconds is not None:
         check_points(args.seconds * cfg.point_rate, f"publish --seconds {args.seconds:g}", force=args.force)
     _, pose, caster = scene_from_args(args)
+    trajectory = trajectory_from_args(args, pose, args.seconds)
+    if trajectory is not None and args.seconds is not None:
+        trajectory.check_covers(0.0, args.seconds)
     if args.to:
         host, port = parse_host_port(args.to)
         sender = UdpSender(host, port)
@@ -80,8 +85,9 @@ def cmd_publish(args: argparse.Namespace) -> int:
         else:
             sender = ShmSender(cfg, args.shm_dir)
             where = f"shared memory {sender.link.path} (SendProtocol[0] = 0)"
-    scanner = LidarScanner(cfg, caster, pose, seed=args.seed)
-    frames = scanner.frames(args.seconds if args.seconds is not None else float("inf"))
+    scanner = LidarScanner(cfg, caster, pose, seed=args.seed, trajectory=trajectory)
+    seconds = args.seconds if args.seconds is not None else (trajectory.span[1] if trajectory else float("inf"))
+    frames = scanner.frames(seconds)
     speed = None if args.unpaced else args.speed
     print(f"publishing {cfg.points_per_frame:,}-ray frames at {cfg.data_check_freq} Hz "
           f"({'unpaced' if speed is None else f'{speed:g}x real time'}) to {where}", file=sys.stderr)
@@ -109,6 +115,7 @@ def cmd_publish(args: argparse.Namespace) -> int:
 def _publish_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_arguments(parser)
     add_scene_arguments(parser)
+    add_trajectory_arguments(parser)
     add_seed_argument(parser)
     parser.add_argument("--to", help="HOST:PORT for UDP (default: the config's SendProtocol)")
     parser.add_argument("--seconds", type=_seconds_or_forever, default=10.0,
