@@ -73,41 +73,79 @@ class ImuSamples:
     specific_force: np.ndarray
 
 
+class _Splines:
+    """Cubic position and rotation splines through a (short) trajectory."""
+
+    def __init__(self, trajectory: Trajectory) -> None:
+        from scipy.interpolate import CubicSpline
+        from scipy.spatial.transform import Rotation, RotationSpline
+
+        self.position = CubicSpline(trajectory.t, trajectory.position, axis=0)
+        self.rotation = RotationSpline(trajectory.t, Rotation.from_quat(trajectory.quaternion))
+
+
 class TrajectoryMotion:
     """Smooth position, velocity, acceleration, orientation and body angular rate of a trajectory.
+
+    The splines are made over windows of :attr:`WINDOW` seconds (with :attr:`MARGIN` seconds of
+    poses on each side, so the window's ends do not show), one window at a time: memory stays flat
+    however long the flight.
 
     Parameters
     ----------
     trajectory : Trajectory
     """
 
-    def __init__(self, trajectory: Trajectory) -> None:
-        from scipy.interpolate import CubicSpline
-        from scipy.spatial.transform import Rotation, RotationSpline
+    WINDOW = 10.0
+    MARGIN = 1.0
 
+    def __init__(self, trajectory: Trajectory) -> None:
         self.trajectory = trajectory
-        self._position = CubicSpline(trajectory.t, trajectory.position, axis=0)
-        self._rotation = RotationSpline(trajectory.t, Rotation.from_quat(trajectory.quaternion))
+        self._window = -1
+        self._splines: _Splines | None = None
+
+    def _evaluate(self, t: np.ndarray, what):
+        """``what(splines, times)`` evaluated window by window over ``t``, in the order of ``t``."""
+        t = np.asarray(t, dtype=np.float64)
+        start = self.trajectory.span[0]
+        window = np.floor((t - start) / self.WINDOW).astype(np.int64)
+        results, order = [], []
+        for index in np.unique(window):
+            rows = np.flatnonzero(window == index)
+            if index != self._window:
+                low = start + index * self.WINDOW
+                self._splines = _Splines(self.trajectory.between(low - self.MARGIN, low + self.WINDOW + self.MARGIN))
+                self._window = int(index)
+            results.append(what(self._splines, t[rows]))
+            order.append(rows)
+        if len(results) == 1:
+            return results[0]
+        stacked = np.concatenate(results)
+        out = np.empty_like(stacked)
+        out[np.concatenate(order)] = stacked
+        return out
 
     def position(self, t: np.ndarray) -> np.ndarray:
         """``(n, 3)`` world NED, metres."""
-        return self._position(t)
+        return self._evaluate(t, lambda s, x: s.position(x))
 
     def velocity(self, t: np.ndarray) -> np.ndarray:
         """``(n, 3)`` world NED, m/s."""
-        return self._position(t, 1)
+        return self._evaluate(t, lambda s, x: s.position(x, 1))
 
     def acceleration(self, t: np.ndarray) -> np.ndarray:
         """``(n, 3)`` world NED, m/s^2."""
-        return self._position(t, 2)
+        return self._evaluate(t, lambda s, x: s.position(x, 2))
 
     def rotation(self, t: np.ndarray):
         """The body -> world orientation at ``t``, a scipy ``Rotation`` of n."""
-        return self._rotation(t)
+        from scipy.spatial.transform import Rotation
+
+        return Rotation.from_quat(self._evaluate(t, lambda s, x: s.rotation(x).as_quat()))
 
     def angular_velocity(self, t: np.ndarray) -> np.ndarray:
         """``(n, 3)`` rad/s in the body frame."""
-        return self._rotation(t, 1)
+        return self._evaluate(t, lambda s, x: s.rotation(x, 1))
 
 
 def synthesize_imu(trajectory: Trajectory, rate: float = MIN_RATE, noise: ImuNoise | None = None,
@@ -136,7 +174,7 @@ def synthesize_imu(trajectory: Trajectory, rate: float = MIN_RATE, noise: ImuNoi
     motion = TrajectoryMotion(trajectory)
     gravity = np.array([0.0, 0.0, GRAVITY])
     force = motion.rotation(t).inv().apply(motion.acceleration(t) - gravity)
-    omega = motion.angular_velocity(t)
+    omega = motion.angular_velocity(t)  # the splines are made one window at a time
     noise = noise or ImuNoise()
     if any(vars(noise).values()):
         rng = np.random.default_rng(seed)

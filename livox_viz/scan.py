@@ -129,20 +129,25 @@ class MountedCaster:
         self.vehicle_pose = trajectory.pose_at(trajectory.span[0]) if trajectory is not None else (
             vehicle_pose or Pose())
         self.mount = sensor_mount(config)
-        self._mount_quaternion = pose_quaternion(self.mount)
         self.sensor_pose = sensor_world_pose(config, self.vehicle_pose)
+        # The sensor's own track: the mount applied at every pose of the vehicle's. Slerp commutes with
+        # the fixed mount rotation; the lever arm's chord between two poses is off by |m| theta^2 / 8
+        # (3e-9 m for a 0.3 m arm turning 0.3 rad/s between 1 kHz poses).
+        self._track = None if trajectory is None else Trajectory(
+            f"{trajectory.name} (sensor)", trajectory.t,
+            trajectory.position + quat_rotate(trajectory.quaternion,
+                                              np.broadcast_to(self.mount.origin, trajectory.position.shape)),
+            quat_multiply(trajectory.quaternion, pose_quaternion(self.mount)))
 
     def sensor_pose_at(self, t: float) -> Pose:
         """The sensor's pose in the world at scan time ``t`` seconds."""
-        if self.trajectory is None:
+        if self._track is None:
             return self.sensor_pose
-        return self.trajectory.pose_at(t).compose(self.mount)
+        return self._track.pose_at(t)
 
     def sensor_poses_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The sensor's position ``(n, 3)`` and orientation ``(n, 4)`` at times ``t`` ``(n,)``, world NED."""
-        position, quaternion = self.trajectory.poses_at(t)
-        origin = position + quat_rotate(quaternion, np.broadcast_to(self.mount.origin, position.shape))
-        return origin, quat_multiply(quaternion, self._mount_quaternion)
+        return self._track.poses_at(t)
 
     def cast(self, chunk: PatternChunk) -> ScanFrame:
         """The returns of the chunk's rays (each from the sensor's pose at its own time when moving)."""

@@ -76,6 +76,10 @@ def test_interpolation_is_linear_and_slerp() -> None:
     vectors = rng.normal(size=(5000, 3))
     np.testing.assert_allclose(quat_rotate(quaternion, vectors),
                                np.einsum("nij,nj->ni", quat_to_matrix(quaternion), vectors), atol=1e-12)
+    for k in (0, 777, 4999):
+        pose = trajectory.pose_at(float(query[k]))
+        np.testing.assert_allclose(pose.rotation, quat_to_matrix(quaternion[k]), atol=1e-12)
+        np.testing.assert_allclose(pose.origin, position[k], atol=1e-12)
     with pytest.raises(LivoxVizError, match="no extrapolation"):
         trajectory.poses_at(np.array([t[-1] + 0.5]))
 

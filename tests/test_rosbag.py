@@ -123,3 +123,34 @@ def test_an_existing_bag_folder_is_never_replaced(tmp_path: Path, capsys: pytest
     assert main(["scan", "--seconds", "0.1", "--rosbag", str(bag)]) == 2
     assert "exists" in capsys.readouterr().err and (bag / "mine.txt").read_text() == "keep"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bag"]
+
+
+def test_packed_imu_and_odometry_read_back_as_written(tmp_path: Path) -> None:
+    from livox_viz.imu import TrajectoryMotion, synthesize_imu
+    from livox_viz.poses import Pose
+    from livox_viz.rosbag import RosbagWriter
+    from livox_viz.trajectory import builtin_trajectory
+
+    flight_ = builtin_trajectory("figure8", 6.0, Pose((1.0, 2.0, -5.0), 0.1, 0.0, 0.3), 2.0)
+    imu = synthesize_imu(flight_, 200.0, start=0.0, stop=1.0)
+    motion = TrajectoryMotion(flight_)
+    with RosbagWriter(tmp_path / "bag", Pose((0.1, 0.0, -0.2), 0.0, 0.2, 0.0)) as writer:
+        writer.write_imu(imu)
+        writer.write_ground_truth(imu.t, motion.position(imu.t), motion.rotation(imu.t).as_matrix(),
+                                  motion.velocity(imu.t), motion.angular_velocity(imu.t))
+    messages = read_bag(tmp_path / "bag")
+    got = np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z,
+                     m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z]
+                    for _, m in messages["/livox/imu"]])
+    np.testing.assert_array_equal(got, np.hstack([ros_body(imu.angular_velocity), ros_body(imu.specific_force)]))
+    stamps = np.array([m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for _, m in messages["/livox/imu"]])
+    np.testing.assert_array_equal(stamps, 1_700_000_000 * 10**9 + np.round(imu.t * 1e9).astype(np.int64))
+    imu_messages = [m for _, m in messages["/livox/imu"]]
+    assert all(m.header.frame_id == "base_link" and m.orientation_covariance[0] == -1 for m in imu_messages)
+    odom = [m for _, m in messages["/odom"]]
+    np.testing.assert_allclose([[m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z]
+                                for m in odom], ros_position(motion.position(imu.t)), atol=1e-12)
+    assert odom[5].child_frame_id == "base_link" and odom[5].header.frame_id == "odom"
+    transform = messages["/tf"][7][1].transforms[0]
+    assert transform.child_frame_id == "base_link" and transform.transform.rotation.w == pytest.approx(
+        odom[7].pose.pose.orientation.w)
