@@ -31,8 +31,9 @@ bench: venv
 	@for script in benchmarks/bench_*.py; do echo "== $$script"; $(BIN)/python $$script || exit 1; done
 
 screenshots: venv
-	$(BIN)/livox-viz render --view pattern --seconds 1 --out screenshots/pattern.png
-	$(BIN)/livox-viz render --view scene --seconds 1 --out screenshots/scene.png
+	$(BIN)/livox-viz render --view both --seconds 1 --preset livox_mid70_fitted --reference livox_mid70_risley --out screenshots/both.png
+	$(BIN)/livox-viz render --view pattern --seconds 1 --size 900x900 --out screenshots/pattern.png
+	$(BIN)/livox-viz render --view scene --seconds 2 --trajectory line --trajectory-speed 6 --size 900x900 --out screenshots/scene.png
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache

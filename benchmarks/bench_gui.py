@@ -124,15 +124,16 @@ def chart_cost(preset: str, name: str, values: list[float]) -> None:
     app = LivoxVizApp(session, off_screen=True, window_size=(1600, 900), views="both")
     session.overlay.set_source(PresetSource(load_preset("livox_mid70_risley"), "livox_mid70_risley"), 0.0)
     session.set_window(WINDOWS.index(None))
-    session.advance_to(10.0)
+    for second in range(1, 11):  # a tick adds at most 400 000 points
+        session.advance_to(float(second))
     app.refresh()
     app.render()
     render = median_time(app.plotter.ren_win.Render)
     points = session.pattern_ring.count
     costs = []
     for value in values:
-        session.set_window(WINDOWS.index(None))
-        session.advance_to(10.0)  # the window holds a million points again before each change
+        for second in range(1, 11):  # the window holds a million points again before each change
+            session.advance_to(float(second))
         start = time.perf_counter()
         app.on_param(name, value)
         costs.append(time.perf_counter() - start)
