@@ -52,3 +52,25 @@ def small_config(**changes: object) -> SensorConfig:
                   other_params=(100.0, 2.0, 1.4, 1.18, 3.0, 2.0, 1.0, 0.0))
     values.update(changes)
     return SensorConfig(**values)  # type: ignore[arg-type]
+
+
+def free_udp_port() -> int:
+    """A UDP port on the loopback that nothing uses right now."""
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def start_listening(argv: list[str]):
+    """Run ``livox-viz listen ARGV`` in a thread and give it half a second to bind; returns the thread."""
+    import threading
+    import time
+
+    from livox_viz.cli import main
+
+    listener = threading.Thread(target=main, args=(["listen", *argv],))
+    listener.start()
+    time.sleep(0.5)
+    return listener

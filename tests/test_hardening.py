@@ -11,7 +11,6 @@ import stat
 import struct
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -20,7 +19,7 @@ import pytest
 
 from livox_viz.atomic import remove_dead_leftovers, write_text_atomic
 from livox_viz.cli import main
-from tests.conftest import SEED_JSON
+from tests.conftest import SEED_JSON, free_udp_port, start_listening
 
 REFERENCE = Path(__file__).resolve().parent.parent.parent / "shared" / "reference"
 HUGE = {**SEED_JSON, "DataWidth": 5000, "DataHeight": 2000, "DataCheckFreq": 1000}
@@ -189,24 +188,13 @@ def test_the_default_command_takes_the_guis_options(tmp_path: Path, monkeypatch:
     assert len(list((tmp_path / "screenshots").glob("offscreen-*-both.png"))) == 1
 
 
-def free_port() -> int:
-    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    probe.bind(("127.0.0.1", 0))
-    port = probe.getsockname()[1]
-    probe.close()
-    return port
-
-
 def test_one_listener_hears_two_publishers_in_a_row_and_a_forged_datagram(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    port = free_port()
+    port = free_udp_port()
     received = tmp_path / "received.npz"
-    listener = threading.Thread(target=main, args=(["listen", "--host", "127.0.0.1", "--port", str(port),
-                                                    "--frames", "11", "--timeout", "20", "--record",
-                                                    str(received)],))
-    listener.start()
-    time.sleep(0.5)
+    listener = start_listening(["--host", "127.0.0.1", "--port", str(port), "--frames", "11", "--timeout", "20",
+                                "--record", str(received)])
     assert main(["publish", "--to", f"127.0.0.1:{port}", "--seconds", "0.5", "--speed", "5"]) == 0
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as forger:
         forger.sendto(struct.pack("<4i1d", 1234567890, 52, 0, 1, 1e300) + struct.pack("<6fi", 0, 0, 0, 0, 0, 0, 0),

@@ -144,23 +144,14 @@ def test_imu_at_rest_reads_gravity_and_noise_is_seeded() -> None:
 
 
 def test_publish_sends_each_frames_own_pose(tmp_path: Path) -> None:
-    import socket
-    import threading
-
     from livox_viz.cli import main
 
-    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    probe.bind(("127.0.0.1", 0))
-    port = probe.getsockname()[1]
-    probe.close()
-    received = tmp_path / "received.npz"
-    listener = threading.Thread(target=main, args=(["listen", "--host", "127.0.0.1", "--port", str(port),
-                                                    "--frames", "5", "--timeout", "20", "--record",
-                                                    str(received)],))
-    listener.start()
-    import time
+    from .conftest import free_udp_port, start_listening
 
-    time.sleep(0.5)
+    port = free_udp_port()
+    received = tmp_path / "received.npz"
+    listener = start_listening(["--host", "127.0.0.1", "--port", str(port), "--frames", "5", "--timeout", "20",
+                                "--record", str(received)])
     assert main(["publish", "--to", f"127.0.0.1:{port}", "--seconds", "0.5", "--unpaced", "--trajectory", "line",
                  "--trajectory-speed", "10", "--pose=0,0,-2,0,0,0"]) == 0
     listener.join(30)

@@ -6,7 +6,6 @@ import itertools
 import math
 import socket
 import struct
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +28,8 @@ from livox_viz.rflysim import (
     split_datagrams,
     unpack_payload,
 )
+
+from .conftest import free_udp_port, start_listening
 
 
 def random_points(count: int, seed: int = 0) -> np.ndarray:
@@ -220,18 +221,10 @@ def test_shared_memory_round_trip(tmp_path: Path, mid70: SensorConfig) -> None:
 
 
 def test_loopback_udp_publish_and_listen(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    probe.bind(("127.0.0.1", 0))
-    port = probe.getsockname()[1]
-    probe.close()
+    port = free_udp_port()
     received = tmp_path / "received.npz"
     sent = tmp_path / "sent.npz"
-    listener = threading.Thread(target=main, args=(["listen", "--port", str(port), "--frames", "5",
-                                                    "--timeout", "20", "--record", str(received)],))
-    listener.start()
-    import time
-
-    time.sleep(0.5)
+    listener = start_listening(["--port", str(port), "--frames", "5", "--timeout", "20", "--record", str(received)])
     assert main(["publish", "--to", f"127.0.0.1:{port}", "--seconds", "0.5", "--speed", "10"]) == 0
     listener.join(30)
     assert not listener.is_alive()
