@@ -170,25 +170,26 @@ class MountedCaster:
             parts.append((first + hit, range_m, directions_sensor[hit] * range_m[:, None],
                           start + directions_world[hit] * range_m[:, None],
                           start if moving else None, quaternion[hit] if moving else None))
-        rows = np.concatenate([p[0] for p in parts])
-        xyz_sensor = np.concatenate([p[2] for p in parts])
+        columns = [p[0] for p in parts] if len(parts) == 1 else [np.concatenate(c) for c in zip(*parts, strict=True)]
+        rows, range_m, xyz_sensor, xyz_world, point_origin, point_quaternion = columns if len(parts) > 1 else (
+            parts[0])
         return ScanFrame(
             index=chunk.start // config.points_per_frame,
             ray_count=len(chunk),
             stream_index=chunk.start + rows,
             t=chunk.t[rows],
             xy_deg=chunk.xy_deg[rows],
-            range_m=np.concatenate([p[1] for p in parts]),
+            range_m=range_m,
             xyz_sensor=xyz_sensor,
             xyz_int16=encode_int16(xyz_sensor, config.range_max),
-            xyz_world=np.concatenate([p[3] for p in parts]),
+            xyz_world=xyz_world,
             sensor_pose=self.sensor_pose_at(chunk.start / config.point_rate),
             timestamp=chunk.start / config.point_rate,
             end_time=chunk.stop / config.point_rate,
             range_max=config.range_max,
             end_pose=self.sensor_pose_at(chunk.stop / config.point_rate),
-            point_origin=np.concatenate([p[4] for p in parts]) if moving else None,
-            point_quaternion=np.concatenate([p[5] for p in parts]) if moving else None,
+            point_origin=point_origin,
+            point_quaternion=point_quaternion,
         )
 
 

@@ -196,17 +196,27 @@ class Trajectory:
         return np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, self.t.size - 2)
 
     def pose_at(self, t: float) -> Pose:
-        """The :class:`Pose` at one time."""
-        from .poses import matrix_to_euler
-
+        """The :class:`Pose` at one time (in plain floats: it is asked for twice a frame)."""
         self.check_covers(t, t)
         k = min(max(int(np.searchsorted(self.t, t, side="right")) - 1, 0), self.t.size - 2)
-        fraction = (t - self.t[k]) / (self.t[k + 1] - self.t[k])
-        half = fraction * self._half_angle[k]
-        step = np.concatenate([self._axis[k] * np.sin(half), [np.cos(half)]])
-        position = self.position[k] + fraction * (self.position[k + 1] - self.position[k])
-        rotation = quat_to_matrix(quat_multiply(self.quaternion[k], step))
-        return Pose(tuple(position), *matrix_to_euler(rotation))
+        t0, t1 = float(self.t[k]), float(self.t[k + 1])
+        fraction = (t - t0) / (t1 - t0)
+        half = fraction * float(self._half_angle[k])
+        s = math.sin(half)
+        bx, by, bz = (float(v) * s for v in self._axis[k])
+        bw = math.cos(half)
+        ax, ay, az, aw = (float(v) for v in self.quaternion[k])
+        x = aw * bx + ax * bw + ay * bz - az * by
+        y = aw * by - ax * bz + ay * bw + az * bx
+        z = aw * bz + ax * by - ay * bx + az * bw
+        w = aw * bw - ax * bx - ay * by - az * bz
+        p0, p1 = self.position[k], self.position[k + 1]
+        position = tuple(float(a) + fraction * (float(b) - float(a)) for a, b in zip(p0, p1, strict=True))
+        # Z-Y-X Euler angles of the quaternion (the convention of poses.euler_matrix).
+        roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+        pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+        yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+        return Pose(position, roll, pitch, yaw)
 
     def between(self, start: float, stop: float) -> Trajectory:
         """The poses from the last one at or before ``start`` to the first one at or after ``stop``."""
