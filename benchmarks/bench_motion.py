@@ -45,7 +45,7 @@ def moving_against_fixed() -> None:
             pass
 
     moving = fixed = float("inf")
-    for _ in range(5):  # interleaved, best of each: the machine's speed drifts between runs
+    for _ in range(9):  # interleaved, best of each: the machine's speed drifts between runs
         moving = min(moving, best_of(lambda: run(flight), 1))
         fixed = min(fixed, best_of(lambda: run(None), 1))
     print(f"end to end, {SECONDS:g} s of scan: moving (line at 5 m/s, per-ray poses) {moving * 1e3:.0f} ms = "
