@@ -141,11 +141,16 @@ class Trajectory:
             object.__setattr__(self, name, value)
         object.__setattr__(self, "_axis", axis)
         object.__setattr__(self, "_half_angle", 0.5 * angle)
-        # Per axis, contiguous: a segment's start and its step to the next pose.
-        object.__setattr__(self, "_start", [np.ascontiguousarray(position[:-1, k]) for k in range(3)])
-        object.__setattr__(self, "_step", [np.diff(position[:, k]) for k in range(3)])
-        object.__setattr__(self, "_quaternion_columns", [np.ascontiguousarray(quaternion[:-1, k]) for k in range(4)])
-        object.__setattr__(self, "_axis_columns", [np.ascontiguousarray(axis[:, k]) for k in range(3)])
+        # Per segment: the velocity, the half-angle's rate, and the sine part A of the slerp
+        # q0 (u sin h, cos h) = A sin h + q0 cos h, with A = q0 (u, 0).
+        dt = np.diff(t)
+        object.__setattr__(self, "_half_angle_rate", 0.5 * angle / dt)
+        axis_quaternion = np.column_stack([axis, np.zeros(len(axis))])
+        sine_part = quat_multiply(quaternion[:-1], axis_quaternion)
+        for name, table in (("_velocity_by_axis", np.diff(position, axis=0) / dt[:, None]),
+                            ("_position_by_axis", position[:-1]), ("_sine_part_by_axis", sine_part),
+                            ("_quaternion_by_axis", quaternion[:-1])):
+            object.__setattr__(self, name, np.ascontiguousarray(table.T))
 
     @property
     def span(self) -> tuple[float, float]:
@@ -160,34 +165,34 @@ class Trajectory:
                                 f"{stop:g} s (no extrapolation: give a longer trajectory or fewer --seconds)")
 
     def poses_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Position ``(m, 3)`` and orientation ``(m, 4)`` at times ``t`` ``(m,)`` seconds (linear, slerp)."""
+        """Position ``(m, 3)`` and orientation ``(m, 4)`` at times ``t`` ``(m,)`` seconds (linear, slerp).
+
+        Within segment k the slerp is ``q_k (u_k sin h, cos h)`` with h linear in t, so the result is
+        ``A_k sin h + q_k cos h`` with a constant ``A_k`` per segment: two row gathers and two products
+        per point, however the quaternions are written.
+        """
         t = np.asarray(t, dtype=np.float64)
         if t.size == 0:
             return np.zeros((0, 3)), np.zeros((0, 4))
-        self.check_covers(float(t.min()), float(t.max()))
-        segment = self._segments(t)
-        t0 = self.t[segment]
-        fraction = (t - t0) / (self.t[segment + 1] - t0)
-        position = np.empty((t.size, 3))
-        for axis in range(3):
-            np.multiply(fraction, self._step[axis][segment], out=position[:, axis])
-            position[:, axis] += self._start[axis][segment]
-        half = fraction * self._half_angle[segment]
-        sin_half = np.sin(half)
-        # q0 (axis sin, cos): the product written out on columns (no stacked temporaries).
-        x0, y0, z0, w0 = (column[segment] for column in self._quaternion_columns)
-        ax, ay, az = (column[segment] * sin_half for column in self._axis_columns)
-        aw = np.cos(half)
-        out = np.empty((t.size, 4))
-        out[:, 0] = w0 * ax + x0 * aw + y0 * az - z0 * ay
-        out[:, 1] = w0 * ay - x0 * az + y0 * aw + z0 * ax
-        out[:, 2] = w0 * az + x0 * ay - y0 * ax + z0 * aw
-        out[:, 3] = w0 * aw - x0 * ax - y0 * ay - z0 * az
-        return position, out
+        sorted_times = t.size < 2 or bool(t[-1] >= t[0] and np.all(t[1:] >= t[:-1]))
+        self.check_covers(*((float(t[0]), float(t[-1])) if sorted_times else (float(t.min()), float(t.max()))))
+        segment = self._segments(t, sorted_times)
+        elapsed = t - self.t[segment]
+        # Component by component (rows of the transposed tables): long loops, where numpy is fast.
+        position = np.take(self._velocity_by_axis, segment, axis=1)
+        position *= elapsed
+        position += np.take(self._position_by_axis, segment, axis=1)
+        half = elapsed * self._half_angle_rate[segment]
+        quaternion = np.take(self._sine_part_by_axis, segment, axis=1)
+        quaternion *= np.sin(half)
+        cosine = np.take(self._quaternion_by_axis, segment, axis=1)
+        cosine *= np.cos(half)
+        quaternion += cosine
+        return np.ascontiguousarray(position.T), np.ascontiguousarray(quaternion.T)
 
-    def _segments(self, t: np.ndarray) -> np.ndarray:
+    def _segments(self, t: np.ndarray, sorted_times: bool) -> np.ndarray:
         """``(m,)`` int64 the segment (pose k to k+1) of each time; fast for sorted times (one run per segment)."""
-        if t.size > 64 and np.all(t[1:] >= t[:-1]):
+        if t.size > 64 and sorted_times:
             first = max(int(np.searchsorted(self.t, t[0], side="right")) - 1, 0)
             last = min(int(np.searchsorted(self.t, t[-1], side="right")), self.t.size - 1)
             edges = np.searchsorted(t, self.t[first + 1 : last], side="left")
