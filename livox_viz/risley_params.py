@@ -159,11 +159,6 @@ class RisleyParams:
         """``(J,)`` float64 phase of each term at t = 0, radians: m a0 + l b0."""
         return np.array([m * self.phase_rad[0] + n * self.phase_rad[1] for m, n in self.terms])
 
-    @property
-    def reach_deg(self) -> float:
-        """An upper bound of the angle off the boresight: the largest sum of |c| over a laser's terms."""
-        return float(np.abs(self.coefficients).sum(axis=1).max())
-
     def laser_spacing_deg(self) -> float:
         """Mean distance between neighbouring lasers' series centres (their constant terms), degrees; 0 for one."""
         if self.lasers < 2:

@@ -230,11 +230,6 @@ class Trajectory:
         last = max(last, first + 2)
         return Trajectory(self.name, self.t[first:last], self.position[first:last], self.quaternion[first:last])
 
-    def velocity_at(self, t: np.ndarray) -> np.ndarray:
-        """``(m, 3)`` the piecewise-constant velocity between poses, world NED, m/s."""
-        segment = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, self.t.size - 2)
-        return (self.position[segment + 1] - self.position[segment]) / np.diff(self.t)[segment, None]
-
 
 def load_tum(path: str | os.PathLike[str]) -> Trajectory:
     """Read a TUM trajectory: ``t x y z qx qy qz qw`` per line, ``#`` comments, world NED, t from the scan start.

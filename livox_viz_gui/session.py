@@ -132,7 +132,7 @@ class Session:
 
     # Listeners ----------------------------------------------------------------------------
     def subscribe(self, listener: Callable[[str], None]) -> None:
-        """Call ``listener(what)`` after every change of ``"config"``, ``"scene"`` or ``"pose"``."""
+        """Call ``listener(what)`` after every change of ``"config"`` or ``"scene"``."""
         self._listeners.append(listener)
 
     def _changed(self, what: str) -> None:
@@ -195,12 +195,6 @@ class Session:
         self.vehicle_pose = scene.vehicle_pose
         self.restart()
         self._changed("scene")
-
-    def set_vehicle_pose(self, pose: Pose) -> None:
-        """Move the vehicle and restart the scan."""
-        self.vehicle_pose = pose
-        self.restart()
-        self._changed("pose")
 
     @property
     def sensor_pose(self) -> Pose:

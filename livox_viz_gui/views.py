@@ -308,7 +308,7 @@ class SceneView(_View):
         if what == "scene":
             self.draw_scene()
         self.draw_vehicle()
-        if what in ("scene", "pose"):
+        if what == "scene":
             self.reset_camera()
 
     def draw_scene(self) -> None:
