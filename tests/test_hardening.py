@@ -84,6 +84,9 @@ BAD_INPUTS: list[tuple[list[str], str]] = [
     (["publish", "--speed", "1e-9", "--to", "127.0.0.1:9"], "allowed: 0.01 to 1000"),
     (["publish", "--to", "255.255.255.255:9999", "--seconds", "0.2", "--unpaced"], "nothing could be sent"),
     (["request", "--to", "127.0.0.1", "--window", "99999", "--dry-run"], "allowed: 0 to 45525"),
+    (["gui", "--listen", "--port", "0"], "needs a display"),
+    (["scan", "--seconds", "2", "--trajectory", "nowhere.txt", "--out", "m.npz"], "no such TUM trajectory"),
+    (["scan", "--seconds", "0.1", "--imu-noise", "1,2,3", "--rosbag", "bag"], "allowed: 4 numbers"),
 ]
 
 
