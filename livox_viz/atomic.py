@@ -108,8 +108,6 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         os.chmod(tmp, mode)
         os.replace(tmp, path)
     except OSError as exc:
-        if isinstance(exc, LivoxVizError):
-            raise
         raise LivoxVizError(f"{path}: cannot write ({exc.strerror or exc}); the old file, if any, is kept") from exc
     finally:
         tmp.unlink(missing_ok=True)

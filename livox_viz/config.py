@@ -504,12 +504,12 @@ def _risley_with(risley: RisleyParams, name: str, value: float) -> RisleyParams:
     if name in ("prism_rpm_a", "prism_rpm_b"):
         hz = list(risley.prism_hz)
         hz[name.endswith("_b")] = value / 60.0
-        return risley.with_values(prism_hz=tuple(hz))
+        return replace(risley, prism_hz=tuple(hz))
     if name in ("deflection_a", "deflection_b"):
         deflection = list(risley.deflection_deg)
         deflection[name.endswith("_b")] = value
-        return risley.with_values(deflection_deg=tuple(deflection))
-    return risley.with_values(laser_spacing=value)
+        return replace(risley, deflection_deg=tuple(deflection))
+    return replace(risley, laser_spacing=value)
 
 
 def _is_int(value: Any) -> bool:

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
 
@@ -165,10 +165,6 @@ class RisleyParams:
             return 0.0
         centre = self.coefficients[:, self.terms.index((0, 0))] if (0, 0) in self.terms else np.zeros(self.lasers)
         return float(np.abs(np.diff(centre)).mean())
-
-    def with_values(self, **changes: Any) -> RisleyParams:
-        """A copy with fields changed (validated)."""
-        return replace(self, **changes)
 
     # JSON ---------------------------------------------------------------------------------
     def to_json(self) -> dict[str, Any]:

@@ -63,7 +63,7 @@ class ScanFrame:
         Scan time just after the last ray, seconds.
     range_max : float
         The int16 scale, metres.
-    end_pose : Pose, optional
+    end_pose : Pose
         The sensor's pose just after the last ray (the same as ``sensor_pose`` for a fixed vehicle).
     point_origin : (M, 3) float64, optional
         With a moving vehicle: the sensor's position when each return's ray fired, world NED.
@@ -84,7 +84,7 @@ class ScanFrame:
     timestamp: float
     end_time: float
     range_max: float
-    end_pose: Pose | None = None
+    end_pose: Pose
     point_origin: np.ndarray | None = field(default=None, repr=False)
     point_quaternion: np.ndarray | None = field(default=None, repr=False)
 

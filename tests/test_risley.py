@@ -88,7 +88,7 @@ def test_fit_finds_six_lasers_and_their_frequencies() -> None:
 
 def test_fit_of_a_single_laser_with_other_speeds_and_a_forced_beam_count() -> None:
     base = load_preset("livox_mid40_risley").risley
-    params = base.with_values(prism_hz=(-35.5, 52.25))  # both speeds new, senses swapped
+    params = replace(base, prism_hz=(-35.5, 52.25))  # both speeds new, senses swapped
     table = table_of(params, 100_000, 50_000.0)
     fit = fit_risley(table)
     assert fit.params.lasers == 1
