@@ -72,8 +72,7 @@ def bag_speed() -> None:
                 for frame in frames:
                     writer.write_frame(frame)
                 writer.write_imu(imu)
-                writer.write_ground_truth(imu.t, motion.position(imu.t), motion.rotation(imu.t).as_matrix(),
-                                          motion.velocity(imu.t), motion.angular_velocity(imu.t))
+                writer.write_motion(motion, imu.t)
             subprocess.run(["rm", "-rf", str(folder)], check=True)
 
         def npz() -> None:

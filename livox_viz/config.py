@@ -305,6 +305,11 @@ class SensorConfig:
         return self.other_params[6]
 
     @property
+    def lasers(self) -> int:
+        """K, lasers firing in turn in the pattern in use (1 for the rosette)."""
+        return self.risley.lasers if self.pattern_model == "risley" else 1
+
+    @property
     def points_per_frame(self) -> int:
         """W*H, points in one published frame."""
         return self.data_width * self.data_height

@@ -256,8 +256,7 @@ class PatternChunk:
     @property
     def laser(self) -> np.ndarray:
         """``(n,)`` int64 laser of each point (k mod K; all 0 for one laser or the rosette)."""
-        lasers = self.config.risley.lasers if self.config.pattern_model == "risley" else 1
-        return self.index % lasers
+        return self.index % self.config.lasers
 
 
 def make_pattern(config: SensorConfig, seed: int = 0):

@@ -298,6 +298,12 @@ class RosbagWriter:
         self._write_packed(self._odom, stamps, odometry_bytes)
         self._write_packed(self._tf, stamps, transform_bytes)
 
+    def write_motion(self, motion, t: np.ndarray) -> None:
+        """The ground truth of a :class:`~livox_viz.imu.TrajectoryMotion` at times ``t`` (s), see
+        :meth:`write_ground_truth`."""
+        self.write_ground_truth(t, motion.position(t), motion.rotation(t).as_matrix(), motion.velocity(t),
+                                motion.angular_velocity(t))
+
     def _write_packed(self, connection, stamps: np.ndarray, records: np.ndarray) -> None:
         size = records.dtype.itemsize
         view = memoryview(records.tobytes())

@@ -362,8 +362,7 @@ class Session:
         if mode == "time":
             return t.astype(np.float32)
         if mode == "laser":
-            lasers = self.config.risley.lasers if self.config.risley is not None else 1
-            return (stream_index % lasers).astype(np.float32)
+            return (stream_index % self.config.lasers).astype(np.float32)
         unit, within = PATTERN_COLOURS[mode]
         sizes = self.config.unit_points
         return ((stream_index // sizes[unit]) % (sizes[within] // sizes[unit])).astype(np.float32)
@@ -375,7 +374,7 @@ class Session:
             low = self.scan_time - self.window if self.window is not None else 0.0
             return max(0.0, low), max(self.scan_time, 1e-6)
         if mode == "laser":
-            top = self.config.risley.lasers if self.config.risley is not None else 1
+            top = self.config.lasers
         else:
             unit, within = PATTERN_COLOURS[mode]
             top = self.config.unit_points[within] // self.config.unit_points[unit]

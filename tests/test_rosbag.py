@@ -136,8 +136,7 @@ def test_packed_imu_and_odometry_read_back_as_written(tmp_path: Path) -> None:
     motion = TrajectoryMotion(flight_)
     with RosbagWriter(tmp_path / "bag", Pose((0.1, 0.0, -0.2), 0.0, 0.2, 0.0)) as writer:
         writer.write_imu(imu)
-        writer.write_ground_truth(imu.t, motion.position(imu.t), motion.rotation(imu.t).as_matrix(),
-                                  motion.velocity(imu.t), motion.angular_velocity(imu.t))
+        writer.write_motion(motion, imu.t)
     messages = read_bag(tmp_path / "bag")
     got = np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z,
                      m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z]

@@ -87,9 +87,7 @@ class _BagSink:
             rows = slice(self._done, upto)
             t = self.imu.t[rows]
             self.writer.write_imu(ImuSamples(t, self.imu.angular_velocity[rows], self.imu.specific_force[rows]))
-            rotation = self.motion.rotation(t).as_matrix()
-            self.writer.write_ground_truth(t, self.motion.position(t), rotation, self.motion.velocity(t),
-                                           self.motion.angular_velocity(t))
+            self.writer.write_motion(self.motion, t)
             self._done = upto
 
 
@@ -101,9 +99,8 @@ def _open_bag(args, cfg, scanner, trajectory, pose):
     flight = trajectory if trajectory is not None else builtin_trajectory("hover", 0.0, pose, args.seconds + 0.5)
     noise = ImuNoise(*args.imu_noise) if args.imu_noise else ImuNoise()
     imu = synthesize_imu(flight, args.imu_rate, noise, seed=args.seed, start=0.0, stop=args.seconds)
-    lasers = cfg.risley.lasers if cfg.pattern_model == "risley" else 1
     names = RosNames.parse(args.ros_names) if args.ros_names else RosNames()
-    with RosbagWriter(args.rosbag, scanner.mount.mount, names, lasers=lasers) as writer:
+    with RosbagWriter(args.rosbag, scanner.mount.mount, names, lasers=cfg.lasers) as writer:
         sink = _BagSink(writer, imu, TrajectoryMotion(flight))
         yield sink
         sink.motion_until(imu.t.size)  # the samples at the scan's very end
