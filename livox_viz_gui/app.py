@@ -15,7 +15,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pyvista as pv
 
 from livox_viz import LivoxVizError, list_presets, load_config
@@ -264,16 +263,14 @@ class LivoxVizApp:
     def fit_to_reference(self) -> None:
         """Fit the rosette's parameters to the reference's track and move the sliders there."""
         from livox_viz.fit import fit_reference
-        from livox_viz.reference import ReferencePattern
+        from livox_viz.reference import pattern_table
 
         self._require_reference()
         source = self.session.overlay.source
         if isinstance(source, TableSource):
             table = source.table
         else:
-            count = round(4.0 * source.rate)
-            xy = source.xy(0, count)
-            table = ReferencePattern(source.name, xy, np.arange(count) / source.rate, source.rate)
+            table = pattern_table(source.config, source.name, 4.0, source.seed)
         start = time.perf_counter()
         result = fit_reference(table, base=self.session.config.with_pattern_model("rflysim"))
         self.session.set_config(result.config, f"fitted-to-{source.name}")
