@@ -25,7 +25,7 @@ test: venv
 	$(BIN)/python -m pytest
 
 lint: venv
-	$(BIN)/ruff check livox_viz livox_viz_gui tests benchmarks
+	$(BIN)/ruff check livox_viz widgets tests benchmarks
 
 bench: venv
 	@for script in benchmarks/bench_*.py; do echo "== $$script"; $(BIN)/python $$script || exit 1; done

@@ -18,9 +18,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import rss_mib
 
 from livox_viz import load_preset
-from livox_viz.export import PointCloudWriter
-from livox_viz.scan import LidarScanner
-from livox_viz.scene import open_scene
+from livox_viz.casting.scan import LidarScanner
+from livox_viz.files.export import PointCloudWriter
+from livox_viz.scene.scenes import open_scene
 
 SECONDS = 60.0
 

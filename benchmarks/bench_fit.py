@@ -7,27 +7,22 @@ and the fitted figures.
 
 from __future__ import annotations
 
-import sys
 import time
-from pathlib import Path
 
-from livox_viz.fit import compare, fit_reference
-from livox_viz.reference import load_reference
-
-TABLE = Path(__file__).resolve().parents[2] / "shared" / "reference" / "mid40.npy"
+from livox_viz.fitting.compare import compare
+from livox_viz.fitting.reference import load_reference
+from livox_viz.fitting.rosette_fit import fit_reference
 
 
 def main() -> None:
-    if not TABLE.is_file():
-        sys.exit(f"{TABLE} not found: the benchmark needs shared/ beside the checkout")
     start = time.perf_counter()
-    reference = load_reference(TABLE)
+    reference = load_reference("mid40")
     read = time.perf_counter() - start
     start = time.perf_counter()
     result = fit_reference(reference)
     fit = time.perf_counter() - start
     shape = result.shape
-    print(f"fit of {TABLE.name} ({reference.seconds:g} s, {len(reference.t):,} points): {fit:.2f} s "
+    print(f"fit of {reference.name} ({reference.seconds:g} s, {len(reference.t):,} points): {fit:.2f} s "
           f"(target <= 30 s); reading the table: {read:.2f} s")
     print(f"  shape residual rms {shape.rms_deg:.4f} deg (target <= 0.25), p95 {shape.p95_deg:.4f} deg")
     table = compare(result.config, reference, seed=0, seconds=(0.1, 0.5, 1.0))

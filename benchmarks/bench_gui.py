@@ -22,11 +22,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from livox_viz.widgets.app import LivoxVizApp
+from livox_viz.widgets.overlay import WINDOWS
+from livox_viz.widgets.session import Session
+
 from livox_viz import load_preset
-from livox_viz.scene import open_scene
-from livox_viz_gui.app import LivoxVizApp
-from livox_viz_gui.overlay import WINDOWS
-from livox_viz_gui.session import Session
+from livox_viz.scene.scenes import open_scene
 
 REPEATS = 9
 
@@ -118,7 +119,7 @@ def bookkeeping_for(session: Session, app: LivoxVizApp):
 
 def chart_cost(preset: str, name: str, values: list[float]) -> None:
     """Print the cost of slider changes of ``name`` to the redrawn curves, a million points in the window."""
-    from livox_viz_gui.overlay import PresetSource
+    from livox_viz.widgets.overlay import PresetSource
 
     session = Session(load_preset(preset), open_scene("urban"), seed=0, preset_name=preset)
     app = LivoxVizApp(session, off_screen=True, window_size=(1600, 900), views="both")

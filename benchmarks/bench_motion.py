@@ -25,11 +25,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import best_of
 
 from livox_viz import load_preset
+from livox_viz.casting.scan import LidarScanner
 from livox_viz.cli import main as cli
-from livox_viz.raycast import EmbreeCaster
-from livox_viz.scan import LidarScanner
-from livox_viz.scene import open_scene
-from livox_viz.trajectory import builtin_trajectory
+from livox_viz.motion.flights import builtin_trajectory
+from livox_viz.scene.raycast import EmbreeCaster
+from livox_viz.scene.scenes import open_scene
 
 SECONDS = 10.0
 
@@ -54,10 +54,10 @@ def moving_against_fixed() -> None:
 
 
 def bag_speed() -> None:
-    from livox_viz.export import PointCloudWriter
-    from livox_viz.imu import TrajectoryMotion, synthesize_imu
-    from livox_viz.poses import sensor_mount
-    from livox_viz.rosbag import RosbagWriter
+    from livox_viz.config.mount import sensor_mount
+    from livox_viz.files.export import PointCloudWriter
+    from livox_viz.files.rosbag import RosbagWriter
+    from livox_viz.motion.imu import TrajectoryMotion, synthesize_imu
 
     cfg = load_preset("livox_mid70")
     urban = open_scene("urban")

@@ -25,11 +25,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import best_of
 
 from livox_viz import ScanPattern, load_preset
-from livox_viz.directions import directions_from_xy
-from livox_viz.poses import Pose, sensor_world_pose
-from livox_viz.raycast import EmbreeCaster
-from livox_viz.scan import LidarScanner
-from livox_viz.scene import open_scene
+from livox_viz.casting.directions import directions_from_xy
+from livox_viz.casting.scan import LidarScanner
+from livox_viz.config.mount import sensor_world_pose
+from livox_viz.core.poses import Pose
+from livox_viz.scene.raycast import EmbreeCaster
+from livox_viz.scene.scenes import open_scene
 
 RAYS = 1_000_000
 

@@ -19,11 +19,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import best_of
 
 from livox_viz import load_preset, make_pattern
-from livox_viz.fit import window_coverage
-from livox_viz.reference import load_reference
-from livox_viz.risley_fit import fit_risley, track_residual
-
-TABLES = Path(__file__).resolve().parents[2] / "shared" / "reference"
+from livox_viz.fitting.reference import load_reference
+from livox_viz.fitting.risley_fit import fit_risley, track_residual
+from livox_viz.patterns.metrics import window_coverage
 
 
 def stream_speed() -> None:
@@ -51,21 +49,18 @@ def stream_speed() -> None:
 
 def fits() -> None:
     for name in ("mid40", "mid70"):
-        path = TABLES / f"{name}.npy"
-        if not path.is_file():
-            sys.exit(f"{path} not found: the benchmark needs shared/ beside the checkout")
         start = time.perf_counter()
-        table = load_reference(path)
+        table = load_reference(name)
         read = time.perf_counter() - start
         fit = fit_risley(table)
-        print(f"fit --model risley {name}.npy: {fit.seconds:.2f} s (target <= 30 s; reading it {read:.2f} s), "
+        print(f"fit --model risley {name}: {fit.seconds:.2f} s (target <= 30 s; reading it {read:.2f} s), "
               f"{fit.params.lasers} laser, {len(fit.params.terms)} terms, track residual rms {fit.rms_deg:.2e} deg, "
               f"p95 {fit.p95_deg:.2e}, max {fit.max_deg:.2e}")
         preset = load_preset(f"livox_{name}_risley")
         rms, p95, worst = track_residual(make_pattern(preset).take(len(table.t)).xy_deg, table.xy_deg)
         print(f"  preset livox_{name}_risley against the table: rms {rms:.2e} deg, p95 {p95:.2e}, max {worst:.2e} "
               "(target rms <= 0.01)")
-    table = load_reference(TABLES / "mid70.npy")
+    table = load_reference("mid70")
     fitted = load_preset("livox_mid70_fitted")
     seconds = (0.1, 0.5, 1.0, 2.0)
     ours = window_coverage(make_pattern(fitted, 0).take(len(table.t)).xy_deg, fitted.point_rate, seconds,

@@ -6,10 +6,12 @@ commands through the ``livox_viz.commands`` entry point.
 
 from __future__ import annotations
 
-from .config import PARAM_RANGES, SensorConfig, load_config, save_config
-from .errors import ConfigError, LivoxVizError
-from .pattern import PatternChunk, ScanPattern, make_pattern
-from .presets import DEFAULT_PRESET, list_presets, load_preset
+from livox_viz.config.presets import DEFAULT_PRESET, list_presets, load_preset
+from livox_viz.config.sensor import PARAM_RANGES, SensorConfig, load_config, save_config
+from livox_viz.core.errors import ConfigError, LivoxVizError
+from livox_viz.patterns.factory import make_pattern
+from livox_viz.patterns.rosette import ScanPattern
+from livox_viz.patterns.stream import PatternChunk
 
 __all__ = [
     "DEFAULT_PRESET",

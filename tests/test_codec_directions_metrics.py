@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from livox_viz import ScanPattern, SensorConfig
-from livox_viz.codec import decode_int16, encode_int16, max_decode_error
-from livox_viz.directions import directions_from_xy, xy_from_directions
-from livox_viz.metrics import CoverageGrid, coverage, coverage_curve, pattern_coverage, radial_density
+from livox_viz.casting.codec import decode_int16, encode_int16, max_decode_error
+from livox_viz.casting.directions import directions_from_xy, xy_from_directions
+from livox_viz.patterns.metrics import CoverageGrid, coverage, coverage_curve, pattern_coverage, radial_density
 
 
 @pytest.mark.parametrize("range_max", [600.0, 1.0, 123.4])

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from livox_viz import ConfigError, LivoxVizError, SensorConfig, load_config, load_preset, save_config
-from livox_viz.config import JITTER_SCOPE_KEY, PARAM_RANGES
+from livox_viz.config.sensor import JITTER_SCOPE_KEY, PARAM_RANGES
 
 from .conftest import SEED_JSON
 
@@ -20,7 +20,7 @@ def write(path: Path, data: object) -> Path:
 
 
 def test_preset_is_exactly_the_seed_configuration(mid70: SensorConfig) -> None:
-    from livox_viz.presets import preset_path
+    from livox_viz.config.presets import preset_path
 
     assert json.loads(preset_path("livox_mid70").read_text()) == SEED_JSON
     assert (mid70.data_width, mid70.data_height, mid70.data_check_freq) == (250, 40, 10)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -10,10 +9,10 @@ import pytest
 
 from livox_viz import LivoxVizError, ScanPattern, SensorConfig, load_preset
 from livox_viz.cli import main
-from livox_viz.fit import compare, fit_reference, window_coverage
-from livox_viz.reference import ReferencePattern, load_reference
-
-MID40 = Path(__file__).resolve().parents[2] / "shared" / "reference" / "mid40.npy"
+from livox_viz.fitting.compare import compare
+from livox_viz.fitting.reference import ReferencePattern, load_reference
+from livox_viz.fitting.rosette_fit import fit_reference
+from livox_viz.patterns.metrics import window_coverage
 
 
 def as_reference(config: SensorConfig, seconds: float, seed: int = 3) -> ReferencePattern:
@@ -111,16 +110,8 @@ def test_window_coverage_of_a_repeating_pattern() -> None:
     assert flower[0] == pytest.approx(longer[0], abs=1e-9)
 
 
-def mid40_or_skip() -> Path:
-    if MID40.is_file():
-        return MID40
-    if os.environ.get("CI"):
-        pytest.fail(f"{MID40} is missing: CI runs with shared/ beside the clone")
-    pytest.skip("the measured reference table is not beside this checkout")
-
-
 def test_fitted_mid40_preset_against_the_table() -> None:
-    reference = load_reference(mid40_or_skip())
+    reference = load_reference("mid40")
     preset = load_preset("livox_mid40")
     result = compare(preset, reference, seed=0, seconds=(0.1, 0.5, 1.0))
     assert np.abs(result.coverage_ours - result.coverage_reference).max() < 0.03
@@ -130,13 +121,13 @@ def test_fitted_mid40_preset_against_the_table() -> None:
 
 def test_fit_cli_on_mid40(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "mid40.json"
-    assert main(["fit", str(mid40_or_skip()), "--out", str(out)]) == 0
+    assert main(["fit", "mid40", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     rms = float(text.split("rms ")[1].split()[0])
     assert rms <= 0.25
     fitted = load_preset(str(out))
     assert fitted == load_preset("livox_mid40")
-    assert main(["compare", "--config", str(out), str(MID40), "--plot", str(tmp_path / "c.png")]) == 0
+    assert main(["compare", "--config", str(out), "mid40", "--plot", str(tmp_path / "c.png")]) == 0
     assert (tmp_path / "c.png").stat().st_size > 10_000
 
 

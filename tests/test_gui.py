@@ -15,12 +15,13 @@ import pytest
 
 pv = pytest.importorskip("pyvista")
 
+from livox_viz.widgets.app import LivoxVizApp, render_offscreen  # noqa: E402
+from livox_viz.widgets.controls import PATTERN_SLIDERS, SENSOR_SLIDERS, slider_range  # noqa: E402
+from livox_viz.widgets.overlay import WINDOWS, TableSource  # noqa: E402
+from livox_viz.widgets.session import Session  # noqa: E402
+
 from livox_viz import PARAM_RANGES, SensorConfig, load_preset  # noqa: E402
-from livox_viz.scene import open_scene  # noqa: E402
-from livox_viz_gui.app import LivoxVizApp, render_offscreen  # noqa: E402
-from livox_viz_gui.controls import PATTERN_SLIDERS, SENSOR_SLIDERS, slider_range  # noqa: E402
-from livox_viz_gui.overlay import WINDOWS, TableSource  # noqa: E402
-from livox_viz_gui.session import Session  # noqa: E402
+from livox_viz.scene.scenes import open_scene  # noqa: E402
 
 ROSETTE_SLIDERS = PATTERN_SLIDERS["rflysim"]
 
@@ -269,7 +270,7 @@ def test_a_new_mount_moves_the_drawn_sensor(app: LivoxVizApp, tmp_path: Path, se
     moved = replace(app.session.config, sensor_pos_xyz=(2.0, 0.0, -3.0))
     app.session.set_config(moved, "moved")
     app.refresh()
-    expected = app.session.vehicle_pose.compose(__import__("livox_viz.poses", fromlist=["Pose"]).Pose(
+    expected = app.session.vehicle_pose.compose(__import__("livox_viz.core.poses", fromlist=["Pose"]).Pose(
         (2.0, 0.0, -3.0))).origin
     np.testing.assert_allclose(app.session.sensor_pose.origin, expected, atol=1e-12)
     to_display = np.array([1, -1, -1])
@@ -281,7 +282,7 @@ def test_a_new_mount_moves_the_drawn_sensor(app: LivoxVizApp, tmp_path: Path, se
     # The rays come from the same place: every decoded point lies farther from the new origin than 0.
     app.session.advance_to(0.2)
     ring = app.session.scene_ring
-    assert ring.count > 0 and app.session.mount.sensor_pose.origin.tolist() == expected.tolist()
+    assert ring.count > 0 and app.session.mounted.sensor_pose.origin.tolist() == expected.tolist()
 
 
 def test_the_gui_cloud_is_the_scan_commands_cloud(urban, tmp_path: Path) -> None:
@@ -297,7 +298,7 @@ def test_the_gui_cloud_is_the_scan_commands_cloud(urban, tmp_path: Path) -> None
     ring = session.scene_ring
     shown = ring.ordered(ring.positions)
     pose = data["frame_pose"][0, 1:7]
-    from livox_viz.poses import Pose
+    from livox_viz.core.poses import Pose
 
     sensor = Pose(tuple(pose[:3]), *pose[3:])
     expected = sensor.origin + data["xyz_sensor"] @ sensor.rotation.T
@@ -347,7 +348,7 @@ def test_real_window_under_xvfb(tmp_path: Path) -> None:
 
 def test_reference_overlay_plays_in_step(app: LivoxVizApp) -> None:
     from livox_viz import ScanPattern
-    from livox_viz.reference import ReferencePattern
+    from livox_viz.fitting.reference import ReferencePattern
 
     session = app.session
     app._guarded(app.toggle_reference)()
@@ -371,8 +372,8 @@ def test_reference_overlay_plays_in_step(app: LivoxVizApp) -> None:
 
 
 def test_received_frames_feed_the_views(app: LivoxVizApp) -> None:
-    from livox_viz.rflysim import LivoxFrame
-    from livox_viz.scan import LidarScanner
+    from livox_viz.casting.scan import LidarScanner
+    from livox_viz.wire.rflysim import LivoxFrame
 
     session = app.session
     scanner = LidarScanner(session.config, session.caster, session.vehicle_pose, seed=0)
@@ -403,7 +404,7 @@ def test_received_frames_feed_the_views(app: LivoxVizApp) -> None:
 
 
 def test_density_image_follows_the_window(app: LivoxVizApp) -> None:
-    from livox_viz.metrics import coverage
+    from livox_viz.patterns.metrics import coverage
 
     session = app.session
     app.on_window(0)  # 0.1 s
@@ -471,8 +472,9 @@ def test_risley_preset_sliders_and_model_switch(app: LivoxVizApp) -> None:
 
 
 def test_charts_follow_the_sliders_and_the_reference(app: LivoxVizApp) -> None:
-    from livox_viz.metrics import config_curves
-    from livox_viz_gui.overlay import PresetSource
+    from livox_viz.widgets.overlay import PresetSource
+
+    from livox_viz.patterns.metrics import config_curves
 
     session, charts = app.session, app.charts
     np.testing.assert_allclose(charts.ours_coverage.y, 100 * config_curves(session.config).coverage)
@@ -494,7 +496,7 @@ def test_charts_follow_the_sliders_and_the_reference(app: LivoxVizApp) -> None:
 
 def test_fit_key_moves_the_sliders_to_the_reference(app: LivoxVizApp) -> None:
     from livox_viz import ScanPattern
-    from livox_viz.reference import ReferencePattern
+    from livox_viz.fitting.reference import ReferencePattern
 
     session = app.session
     truth = session.config.with_param("petal_height", 4.0).with_param("spacing_exponent", 1.7)
@@ -508,7 +510,7 @@ def test_fit_key_moves_the_sliders_to_the_reference(app: LivoxVizApp) -> None:
 
 
 def test_a_moving_vehicle_is_followed_and_its_cloud_frame_switches(urban) -> None:
-    from livox_viz.trajectory import builtin_trajectory
+    from livox_viz.motion.flights import builtin_trajectory
 
     trajectory = builtin_trajectory("line", 8.0, urban.vehicle_pose, 3.0)
     session = Session(load_preset("livox_mid70"), urban, seed=0, trajectory=trajectory)

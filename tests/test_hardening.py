@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from livox_viz.atomic import remove_dead_leftovers, write_text_atomic
 from livox_viz.cli import main
+from livox_viz.core.atomic import remove_dead_leftovers, write_text_atomic
+from livox_viz.fitting.reference import shipped_table_dir
 from tests.conftest import SEED_JSON, free_udp_port, start_listening
 
-REFERENCE = Path(__file__).resolve().parent.parent.parent / "shared" / "reference"
 HUGE = {**SEED_JSON, "DataWidth": 5000, "DataHeight": 2000, "DataCheckFreq": 1000}
 
 
@@ -41,7 +41,7 @@ def write_inputs(folder: Path) -> None:
     rows = "\n".join(f"{k / 1e5},{10 * np.cos(k / 50):.6f},{90 + 10 * np.sin(k / 50):.6f},7,8" for k in range(3000))
     (folder / "short_extra.csv").write_text("Time/s,Azimuth/deg,Zenith/deg,Reflectivity,Tag\n" + rows + "\n")
     (folder / "bad_cell.csv").write_text("Time/s,Azimuth/deg,Zenith/deg\n0,1,91\n0,1,x\n")
-    table = np.load(REFERENCE / "mid40.npy")[:5000]
+    table = np.load(shipped_table_dir() / "mid40.npy")[:5000]
     np.save(folder / "short.npy", table)
     np.save(folder / "tiny.npy", table[:1000])
 
@@ -116,7 +116,7 @@ def test_bad_input_is_one_line_exit_2_and_leaves_nothing(
 
 def test_disk_full_is_one_line_and_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                   capsys: pytest.CaptureFixture[str]) -> None:
-    from livox_viz import npzstream
+    from livox_viz.files import npzstream
 
     def full(self, arrays):
         raise OSError(errno.ENOSPC, "No space left on device")

@@ -11,11 +11,14 @@ import trimesh
 from scipy.spatial.transform import Rotation, Slerp
 
 from livox_viz import LivoxVizError, load_preset
-from livox_viz.codec import max_decode_error
-from livox_viz.imu import GRAVITY, ImuNoise, TrajectoryMotion, synthesize_imu
-from livox_viz.poses import Pose
-from livox_viz.scan import LidarScanner
-from livox_viz.trajectory import Trajectory, builtin_trajectory, load_tum, quat_rotate, quat_to_matrix, save_tum
+from livox_viz.casting.codec import max_decode_error
+from livox_viz.casting.scan import LidarScanner
+from livox_viz.core.poses import Pose
+from livox_viz.core.rotations import quat_rotate, quat_to_matrix
+from livox_viz.motion.flights import builtin_trajectory
+from livox_viz.motion.imu import GRAVITY, ImuNoise, TrajectoryMotion, synthesize_imu
+from livox_viz.motion.trajectory import Trajectory
+from livox_viz.motion.tum import load_tum, save_tum
 
 WALL_X = 40.0
 SPEED = 5.0

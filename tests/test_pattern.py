@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from livox_viz import ScanPattern, SensorConfig
-from livox_viz.pattern import arc_xy, config_arc_xy, figure8_template, petal_xy
+from livox_viz.patterns.rosette import arc_xy, config_arc_xy, figure8_template, petal_xy
 
 from .conftest import small_config
 

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from livox_viz import LivoxVizError, SensorConfig
 from livox_viz.cli import main
-from livox_viz.rflysim import (
+from livox_viz.wire.rflysim import (
     DATAGRAM_HEADER,
     FRAME_CHECKSUM,
     Reassembler,

@@ -11,15 +11,14 @@ import pytest
 
 from livox_viz import ConfigError, SensorConfig, load_preset
 from livox_viz.cli import main
-from livox_viz.config import load_config
-from livox_viz.metrics import coverage_curve
-from livox_viz.pattern import make_pattern
-from livox_viz.reference import ReferencePattern, load_reference
-from livox_viz.risley import RisleyPattern, risley_xy
-from livox_viz.risley_fit import find_lasers, fit_risley, track_residual
-from livox_viz.risley_params import RisleyParams
+from livox_viz.config.risley_params import RisleyParams
+from livox_viz.config.sensor import load_config
+from livox_viz.fitting.reference import ReferencePattern, load_reference
+from livox_viz.fitting.risley_fit import find_lasers, fit_risley, track_residual
+from livox_viz.patterns.factory import make_pattern
+from livox_viz.patterns.metrics import coverage_curve
+from livox_viz.patterns.risley import RisleyPattern, risley_xy
 
-REFERENCE = Path(__file__).resolve().parent.parent.parent / "shared" / "reference"
 SIX_TERMS = ((1, 0), (0, 1), (2, -1), (-1, 2), (0, 0), (1, -1), (1, 1), (2, 0))
 
 
@@ -62,7 +61,7 @@ def test_stream_does_not_drift_after_hours() -> None:
 
 @pytest.mark.parametrize(("preset", "table"), [("livox_mid40_risley", "mid40"), ("livox_mid70_risley", "mid70")])
 def test_presets_replay_the_tables_sample_for_sample(preset: str, table: str) -> None:
-    reference = load_reference(REFERENCE / f"{table}.npy")
+    reference = load_reference(table)
     cfg = load_preset(preset)
     assert cfg.pattern_model == "risley" and cfg.point_rate == reference.rate
     ours = make_pattern(cfg).take(len(reference.t))
@@ -103,7 +102,7 @@ def test_lasers_are_read_off_the_step_pattern() -> None:
     table = table_of(six_lasers(), 24_000, 240_000.0)
     z = table.xy_deg[:, 0] + 1j * table.xy_deg[:, 1]
     assert find_lasers(z) == 6
-    single = load_reference(REFERENCE / "mid40.npy").xy_deg[:20_000]
+    single = load_reference("mid40").xy_deg[:20_000]
     assert find_lasers(single[:, 0] + 1j * single[:, 1]) == 1
 
 

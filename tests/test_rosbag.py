@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
+from livox_viz.casting.codec import max_decode_error
 from livox_viz.cli import main
-from livox_viz.codec import max_decode_error
-from livox_viz.rosbag import CUSTOM_MSG, CUSTOM_POINT_MSG, custom_msg_cdr, ros_body, ros_orientation, ros_position
-from livox_viz.trajectory import save_tum
+from livox_viz.core.rotations import enu_flu_from_ned_frd, enu_from_ned, flu_from_frd
+from livox_viz.files.rosbag import CUSTOM_MSG, CUSTOM_POINT_MSG, custom_msg_cdr
+from livox_viz.motion.tum import save_tum
 
 from .test_motion import WALL_X, flight
 
@@ -51,13 +52,13 @@ def test_custom_msg_bytes_are_rosbags_own() -> None:
 
 def test_ned_frd_to_enu_flu_at_the_boundary() -> None:
     # North is ENU y, east ENU x, down -z; forward stays x, right becomes -y, down -z.
-    np.testing.assert_array_equal(ros_position([[1.0, 2.0, 3.0]]), [[2.0, 1.0, -3.0]])
-    np.testing.assert_array_equal(ros_body([[1.0, 2.0, 3.0]]), [[1.0, -2.0, -3.0]])
+    np.testing.assert_array_equal(enu_from_ned([[1.0, 2.0, 3.0]]), [[2.0, 1.0, -3.0]])
+    np.testing.assert_array_equal(flu_from_frd([[1.0, 2.0, 3.0]]), [[1.0, -2.0, -3.0]])
     # A vehicle yawed 90 degrees (NED: facing east) faces ENU x: its FLU forward maps to (1, 0, 0).
     yawed = Rotation.from_euler("z", 90, degrees=True).as_matrix()
-    np.testing.assert_allclose(ros_orientation(yawed) @ [1, 0, 0], [1, 0, 0], atol=1e-12)
-    np.testing.assert_allclose(ros_orientation(np.eye(3)) @ [1, 0, 0], [0, 1, 0], atol=1e-12)  # north
-    assert np.linalg.det(ros_orientation(yawed)) == pytest.approx(1.0)
+    np.testing.assert_allclose(enu_flu_from_ned_frd(yawed) @ [1, 0, 0], [1, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(enu_flu_from_ned_frd(np.eye(3)) @ [1, 0, 0], [0, 1, 0], atol=1e-12)  # north
+    assert np.linalg.det(enu_flu_from_ned_frd(yawed)) == pytest.approx(1.0)
 
 
 def read_bag(path: Path) -> dict[str, list]:
@@ -88,7 +89,7 @@ def test_the_bag_holds_the_npz_frames_in_ros_frames_and_deskews_onto_the_wall(tm
     custom = [m for _, m in messages["/livox/lidar"]]
     assert len(custom) == len(data["frame_pose"]) == 5
     points = np.concatenate([[(p.x, p.y, p.z) for p in m.points] for m in custom])
-    np.testing.assert_allclose(points, ros_body(data["xyz_sensor"]), atol=1e-5)  # float32 of the same points
+    np.testing.assert_allclose(points, flu_from_frd(data["xyz_sensor"]), atol=1e-5)  # float32 of the same points
     times = np.concatenate([m.timebase + np.array([p.offset_time for p in m.points]) for m in custom])
     np.testing.assert_allclose((times - 1_700_000_000 * 10**9) / 1e9, data["t"], atol=1e-9)
     cloud = messages["/livox/points"][2][1]
@@ -97,7 +98,7 @@ def test_the_bag_holds_the_npz_frames_in_ros_frames_and_deskews_onto_the_wall(tm
     decoded = np.frombuffer(cloud.data.tobytes(), dtype=layout)
     frame = data["frame"] == 2
     np.testing.assert_allclose(np.column_stack([decoded["x"], decoded["y"], decoded["z"]]),
-                               ros_body(data["xyz_sensor"][frame]), atol=1e-5)
+                               flu_from_frd(data["xyz_sensor"][frame]), atol=1e-5)
     assert len(messages["/livox/imu"]) == 101  # 200 Hz from 0 to 0.5 s
     # De-skew with the bag's own ground truth: every point onto the wall (ENU y = north = 40 m).
     odom = [m for _, m in messages["/odom"]]
@@ -126,10 +127,10 @@ def test_an_existing_bag_folder_is_never_replaced(tmp_path: Path, capsys: pytest
 
 
 def test_packed_imu_and_odometry_read_back_as_written(tmp_path: Path) -> None:
-    from livox_viz.imu import TrajectoryMotion, synthesize_imu
-    from livox_viz.poses import Pose
-    from livox_viz.rosbag import RosbagWriter
-    from livox_viz.trajectory import builtin_trajectory
+    from livox_viz.core.poses import Pose
+    from livox_viz.files.rosbag import RosbagWriter
+    from livox_viz.motion.flights import builtin_trajectory
+    from livox_viz.motion.imu import TrajectoryMotion, synthesize_imu
 
     flight_ = builtin_trajectory("figure8", 6.0, Pose((1.0, 2.0, -5.0), 0.1, 0.0, 0.3), 2.0)
     imu = synthesize_imu(flight_, 200.0, start=0.0, stop=1.0)
@@ -141,14 +142,15 @@ def test_packed_imu_and_odometry_read_back_as_written(tmp_path: Path) -> None:
     got = np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z,
                      m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z]
                     for _, m in messages["/livox/imu"]])
-    np.testing.assert_array_equal(got, np.hstack([ros_body(imu.angular_velocity), ros_body(imu.specific_force)]))
+    expected = np.hstack([flu_from_frd(imu.angular_velocity), flu_from_frd(imu.specific_force)])
+    np.testing.assert_array_equal(got, expected)
     stamps = np.array([m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for _, m in messages["/livox/imu"]])
     np.testing.assert_array_equal(stamps, 1_700_000_000 * 10**9 + np.round(imu.t * 1e9).astype(np.int64))
     imu_messages = [m for _, m in messages["/livox/imu"]]
     assert all(m.header.frame_id == "base_link" and m.orientation_covariance[0] == -1 for m in imu_messages)
     odom = [m for _, m in messages["/odom"]]
     np.testing.assert_allclose([[m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z]
-                                for m in odom], ros_position(motion.position(imu.t)), atol=1e-12)
+                                for m in odom], enu_from_ned(motion.position(imu.t)), atol=1e-12)
     assert odom[5].child_frame_id == "base_link" and odom[5].header.frame_id == "odom"
     transform = messages["/tf"][7][1].transforms[0]
     assert transform.child_frame_id == "base_link" and transform.transform.rotation.w == pytest.approx(

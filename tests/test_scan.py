@@ -13,14 +13,17 @@ import pytest
 import trimesh
 
 from livox_viz import LivoxVizError, ScanPattern, SensorConfig
+from livox_viz.casting.codec import max_decode_error
+from livox_viz.casting.directions import directions_from_xy
+from livox_viz.casting.scan import LidarScanner
 from livox_viz.cli import main
-from livox_viz.codec import max_decode_error
-from livox_viz.directions import directions_from_xy
-from livox_viz.export import PointCloudWriter, read_pcd
-from livox_viz.poses import Pose, euler_matrix, sensor_world_pose
-from livox_viz.raycast import EmbreeCaster, TrimeshCaster
-from livox_viz.scan import LidarScanner
-from livox_viz.scene import default_scene, load_mesh_file, load_scene, open_scene
+from livox_viz.config.mount import sensor_world_pose
+from livox_viz.core.poses import Pose
+from livox_viz.core.rotations import euler_matrix
+from livox_viz.files.export import PointCloudWriter
+from livox_viz.scene.raycast import EmbreeCaster, TrimeshCaster
+from livox_viz.scene.scenes import default_scene, load_mesh_file, load_scene, open_scene
+from tests.readers import read_pcd
 
 
 def at_origin(cfg: SensorConfig, **changes: object) -> SensorConfig:

@@ -16,7 +16,8 @@ import threading
 from collections.abc import Iterable, Sequence
 from importlib.metadata import entry_points
 
-from ..errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError
+
 from . import fit_commands, pattern_commands, scan_commands, wire_commands
 from .common import PROG, Command, UsageError
 

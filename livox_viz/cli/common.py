@@ -15,11 +15,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..atomic import resolve_destination
-from ..config import SensorConfig, load_config
-from ..errors import LivoxVizError
-from ..poses import Pose
-from ..presets import DEFAULT_PRESET, load_preset
+from livox_viz.config.presets import DEFAULT_PRESET, load_preset
+from livox_viz.config.sensor import SensorConfig, load_config
+from livox_viz.core.atomic import resolve_destination
+from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.poses import Pose
 
 PROG = "livox-viz"
 Handler = Callable[[argparse.Namespace], int]
@@ -136,9 +136,9 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def scene_from_args(args: argparse.Namespace):
-    """The :class:`~livox_viz.scene.Scene`, vehicle :class:`~livox_viz.poses.Pose` and ray caster the arguments name."""
-    from ..raycast import EmbreeCaster
-    from ..scene import open_scene
+    """The :class:`~livox_viz.scene.scenes.Scene`, vehicle :class:`~livox_viz.core.poses.Pose` and ray caster named."""
+    from livox_viz.scene.raycast import EmbreeCaster
+    from livox_viz.scene.scenes import open_scene
 
     scene = open_scene(args.scene, up=args.up)
     pose = Pose.parse(args.pose) if args.pose else scene.vehicle_pose
@@ -154,11 +154,12 @@ def add_trajectory_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def trajectory_from_args(args: argparse.Namespace, start: Pose, seconds: float | None):
-    """The :class:`~livox_viz.trajectory.Trajectory` ``--trajectory`` names (None without one).
+    """The :class:`~livox_viz.motion.trajectory.Trajectory` ``--trajectory`` names (None without one).
 
     A built-in flight starts at ``start`` (the scene's vehicle pose or ``--pose``) and lasts ``seconds``.
     """
-    from ..trajectory import BUILTIN_TRAJECTORIES, builtin_trajectory, load_tum
+    from livox_viz.motion.flights import BUILTIN_TRAJECTORIES, builtin_trajectory
+    from livox_viz.motion.tum import load_tum
 
     text = getattr(args, "trajectory", None)
     if not text:

@@ -8,12 +8,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..atomic import write_text_atomic
-from ..config import SensorConfig
-from ..fit import compare, fit_reference, plot_comparison
-from ..presets import DESCRIPTION_KEY
-from ..reference import ReferencePattern, is_table_path, load_table_or_preset
-from ..risley_fit import fit_risley
+from livox_viz.config.presets import DESCRIPTION_KEY
+from livox_viz.config.sensor import SensorConfig
+from livox_viz.core.atomic import write_text_atomic
+from livox_viz.fitting.compare import compare
+from livox_viz.fitting.plot import plot_comparison
+from livox_viz.fitting.reference import ReferencePattern, is_table, load_table_or_preset
+from livox_viz.fitting.risley_fit import fit_risley
+from livox_viz.fitting.rosette_fit import fit_reference
+
 from .common import (
     Command,
     UsageError,
@@ -32,7 +35,7 @@ def _reference(args: argparse.Namespace) -> ReferencePattern:
     if (args.reference is None) == (args.to is None):
         raise UsageError("give a table (REFERENCE) or --to PRESET, one of them")
     text = args.reference if args.reference is not None else args.to
-    if args.to is not None and is_table_path(text):
+    if args.to is not None and is_table(text):
         raise UsageError(f"--to {text}: allowed: a preset name or a sensor JSON (a table goes without --to)")
     return load_table_or_preset(text, rate=args.rate, seconds=args.seconds, seed=args.seed)
 
@@ -113,14 +116,15 @@ def _fit_risley(args: argparse.Namespace, reference: ReferencePattern) -> int:
 
 
 def _fit_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("reference", nargs="?", help="measured table: .npy [theta, phi] radians or Livox CSV "
-                                                     "(degrees)")
+    parser.add_argument("reference", nargs="?", help="scan table: a shipped one by name (mid40, mid70), a .npy "
+                                                     "[theta, phi] in radians or a Livox CSV (degrees)")
     parser.add_argument("--to", help="fit to a preset's own track instead of a table, e.g. livox_mid70_risley")
     parser.add_argument("--model", choices=("rflysim", "risley"), default="rflysim",
                         help="rflysim: RflySim's rosette parameters (default); risley: the prism track")
     parser.add_argument("--beams", type=whole_number(1, 16), help="with --model risley: the number of lasers "
                                                                   "(default: read off the table's step pattern)")
-    parser.add_argument("--rate", type=positive_float, default=100_000.0, help="rows per second (default 100000)")
+    parser.add_argument("--rate", type=positive_float,
+                        help="rows per second of a table (default: a shipped table's own rate, else 100000)")
     parser.add_argument("--seconds", type=positive_float, default=4.0,
                         help="with --to: how much of the preset's track to fit (default 4)")
     add_seed_argument(parser)
@@ -154,9 +158,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def _compare_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_arguments(parser)
-    parser.add_argument("reference", help="a measured table (.npy or Livox CSV) or a preset (name or JSON)")
-    parser.add_argument("--rate", type=positive_float, default=100_000.0, help="rows per second of a table "
-                                                                               "(default 100000)")
+    parser.add_argument("reference", help="a scan table (mid40, mid70, a .npy or a Livox CSV) or a preset (name or "
+                                          "JSON)")
+    parser.add_argument("--rate", type=positive_float,
+                        help="rows per second of a table (default: a shipped table's own rate, else 100000)")
     parser.add_argument("--seconds", type=positive_float, default=4.0,
                         help="how much of a preset reference to replay (default 4)")
     add_seed_argument(parser)
@@ -165,10 +170,10 @@ def _compare_arguments(parser: argparse.ArgumentParser) -> None:
 
 COMMANDS: tuple[Command, ...] = (
     Command("fit", cmd_fit, "fit a pattern model's parameters to a measured table or a preset's track",
-            "livox-viz fit --model risley ../shared/reference/mid70.npy --preset livox_mid70 --out mine.json",
+            "livox-viz fit --model risley mid70 --preset livox_mid70 --out mine.json",
             _fit_arguments),
     Command("compare", cmd_compare, "coverage, radial density and track residual of a preset against a table or "
                                     "another preset",
-            "livox-viz compare --preset livox_mid70_fitted livox_mid70_risley --plot compare.png",
+            "livox-viz compare --preset livox_mid70_fitted mid70 --plot compare.png",
             _compare_arguments),
 )

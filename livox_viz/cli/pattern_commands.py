@@ -8,15 +8,17 @@ import json
 
 import numpy as np
 
-from ..atomic import atomic_path, make_work_dir
-from ..codec import max_decode_error
-from ..config import SensorConfig
-from ..metrics import LIVOX_CELL_DEG, pattern_coverage
-from ..npzstream import NpzColumns
-from ..pattern import make_pattern, points_before
-from ..presets import list_presets
-from ..progress import Progress
-from ..workload import check_points
+from livox_viz.casting.codec import max_decode_error
+from livox_viz.config.presets import list_presets
+from livox_viz.config.sensor import SensorConfig
+from livox_viz.core.atomic import atomic_path, make_work_dir
+from livox_viz.core.progress import Progress
+from livox_viz.core.workload import check_points
+from livox_viz.files.npzstream import NpzColumns
+from livox_viz.patterns.factory import make_pattern
+from livox_viz.patterns.metrics import LIVOX_CELL_DEG, pattern_coverage
+from livox_viz.patterns.stream import points_before
+
 from .common import (
     Command,
     UsageError,

@@ -10,14 +10,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..export import FORMATS, PointCloudWriter
-from ..imu import ImuNoise, ImuSamples
-from ..pattern import points_before
-from ..progress import Progress
-from ..scan import LidarScanner
-from ..scene import list_scenes
-from ..trajectory import builtin_trajectory
-from ..workload import check_points
+from livox_viz.casting.scan import LidarScanner
+from livox_viz.core.progress import Progress
+from livox_viz.core.workload import check_points
+from livox_viz.files.export import FORMATS, PointCloudWriter
+from livox_viz.motion.flights import builtin_trajectory
+from livox_viz.motion.imu import ImuNoise, ImuSamples
+from livox_viz.patterns.stream import points_before
+from livox_viz.scene.scenes import list_scenes
+
 from .common import (
     PROG,
     Command,
@@ -93,14 +94,14 @@ class _BagSink:
 
 @contextmanager
 def _open_bag(args, cfg, scanner, trajectory, pose):
-    from ..imu import TrajectoryMotion, synthesize_imu
-    from ..rosbag import RosbagWriter, RosNames
+    from livox_viz.files.rosbag import RosbagWriter, RosNames
+    from livox_viz.motion.imu import TrajectoryMotion, synthesize_imu
 
     flight = trajectory if trajectory is not None else builtin_trajectory("hover", 0.0, pose, args.seconds + 0.5)
     noise = ImuNoise(*args.imu_noise) if args.imu_noise else ImuNoise()
     imu = synthesize_imu(flight, args.imu_rate, noise, seed=args.seed, start=0.0, stop=args.seconds)
     names = RosNames.parse(args.ros_names) if args.ros_names else RosNames()
-    with RosbagWriter(args.rosbag, scanner.mount.mount, names, lasers=cfg.lasers) as writer:
+    with RosbagWriter(args.rosbag, scanner.mounted.mount_pose, names, lasers=cfg.lasers) as writer:
         sink = _BagSink(writer, imu, TrajectoryMotion(flight))
         yield sink
         sink.motion_until(imu.t.size)  # the samples at the scan's very end

@@ -8,14 +8,15 @@ import sys
 import time
 from contextlib import nullcontext
 
-from ..config import load_config
-from ..export import FORMATS, PointCloudWriter
-from ..frames import ReceivedFrame
-from ..presets import DEFAULT_PRESET, load_preset
-from ..rflysim import REQUEST_PORT_BASE, parse_host_port, send_protocol_destination, sensor_request
-from ..scan import LidarScanner
-from ..transport import ShmReceiver, ShmSender, UdpReceiver, UdpSender, print_status, publish, status_line
-from ..workload import check_points
+from livox_viz.casting.scan import LidarScanner
+from livox_viz.config.presets import DEFAULT_PRESET, load_preset
+from livox_viz.config.sensor import load_config
+from livox_viz.core.workload import check_points
+from livox_viz.files.export import FORMATS, PointCloudWriter
+from livox_viz.wire.received import ReceivedFrame
+from livox_viz.wire.rflysim import REQUEST_PORT_BASE, parse_host_port, send_protocol_destination, sensor_request
+from livox_viz.wire.transport import ShmReceiver, ShmSender, UdpReceiver, UdpSender, print_status, publish, status_line
+
 from .common import (
     Command,
     UsageError,

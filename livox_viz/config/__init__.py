@@ -1,0 +1,8 @@
+"""Stage 1, the sensor: RflySim's TypeID-6 JSON object as a validated, frozen value.
+
+Takes a JSON file or a preset name and gives a :class:`~livox_viz.config.sensor.SensorConfig`
+(W, H, F, FOV, ``otherParams``, the mount, the pattern model and its parameters), the
+Risley/track parameters it may carry (:mod:`~livox_viz.config.risley_params`), the
+sensor's mount on the vehicle (:mod:`~livox_viz.config.mount`) and the shipped and user
+presets (:mod:`~livox_viz.config.presets`).
+"""

@@ -1,0 +1,623 @@
+"""The RflySim Livox sensor configuration (TypeID 6) as a validated, frozen value.
+
+A :class:`SensorConfig` is built from the JSON object of RflySim's vision-sensor
+list (``Config.json``). Loading and saving keeps every key the model does not
+use (and their order), and the spelling of the mounting-angle key that was read
+(``SensorAngEular`` as RflySim writes it, or ``SensorAngEuler`` as the original
+document does). Files written from scratch use RflySim's spelling, 8
+``otherParams`` and 8 ``SendProtocol`` values, so RflySim's client loads them.
+
+The one option of ours, ``jitter_scope``, travels in an extra key
+(``LivoxVizJitterScope``) that RflySim ignores; it is written only when it is
+not the default ``"flower"``."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Literal
+
+from livox_viz.config.risley_params import RisleyParams
+from livox_viz.core.atomic import write_text_atomic
+from livox_viz.core.errors import ConfigError
+from livox_viz.core.jsonfile import read_json_file
+
+JitterScope = Literal["flower", "figure"]
+
+
+JITTER_SCOPES: tuple[str, ...] = ("flower", "figure")
+
+
+LIVOX_TYPE_ID = 6
+
+
+EULER_KEY_RFLYSIM = "SensorAngEular"
+
+
+EULER_KEY_DOCUMENT = "SensorAngEuler"
+
+
+JITTER_SCOPE_KEY = "LivoxVizJitterScope"
+
+
+PATTERN_MODEL_KEY = "LivoxVizPatternModel"
+
+
+RISLEY_KEY = "LivoxVizRisley"
+
+
+#: The pattern models: RflySim's petal rosette (scan-model.md) and the real sensors' Risley track (risley.md).
+PATTERN_MODELS: tuple[str, ...] = ("rflysim", "risley")
+
+
+DEFAULT_SEND_PROTOCOL: tuple[int, ...] = (0, 127, 0, 0, 1, 9999, 0, 0)
+
+
+MAX_POINTS_PER_FRAME = 10_000_000
+
+
+@dataclass(frozen=True)
+class ParamRange:
+    """The allowed interval of one numeric field, shared by validation and sliders.
+
+    Parameters
+    ----------
+    name : str
+        The field as a user sees it, e.g. ``"otherParams[1]"``.
+    label : str
+        What it means, with its unit.
+    low, high : float
+        The interval's ends.
+    low_open, high_open : bool
+        Whether an end itself is excluded.
+    integer : bool
+        Whether the value must be a whole number.
+    """
+
+    name: str
+    label: str
+    low: float
+    high: float
+    low_open: bool = False
+    high_open: bool = False
+    integer: bool = False
+
+    def describe(self) -> str:
+        """Return the interval in the usual notation, e.g. ``(0, 180)``."""
+        left = "(" if self.low_open else "["
+        right = ")" if self.high_open else "]"
+        kind = "an integer in " if self.integer else ""
+        return f"{kind}{left}{_fmt(self.low)}, {_fmt(self.high)}{right}"
+
+    def contains(self, value: float) -> bool:
+        """Whether ``value`` is finite and inside the interval."""
+        if not math.isfinite(value):
+            return False
+        if self.integer and value != int(value):
+            return False
+        above = value > self.low if self.low_open else value >= self.low
+        below = value < self.high if self.high_open else value <= self.high
+        return above and below
+
+    def check(self, value: Any) -> float:
+        """Return ``value`` as a float, or raise :class:`ConfigError` naming the range."""
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(
+                f"{self.name} ({self.label}) must be a number, got {value!r}; "
+                f"allowed: {self.describe()}"
+            )
+        if not self.contains(float(value)):
+            raise ConfigError(
+                f"{self.name} ({self.label}) = {value!r} is out of range; "
+                f"allowed: {self.describe()}"
+            )
+        return float(value)
+
+
+def _fmt(value: float) -> str:
+    return str(int(value)) if float(value).is_integer() else f"{value:g}"
+
+
+#: The validated range of every tunable field, keyed by the attribute name.
+PARAM_RANGES: dict[str, ParamRange] = {
+    "data_width": ParamRange("DataWidth", "points per arc", 1, 5000, integer=True),
+    "data_height": ParamRange("DataHeight", "arcs per frame", 1, 2000, integer=True),
+    "data_check_freq": ParamRange("DataCheckFreq", "frames per second", 1, 1000, integer=True),
+    "camera_fov": ParamRange("CameraFOV", "full field of view, deg", 0, 180, True, True),
+    "range_max": ParamRange("otherParams[0]", "maximum range, m", 0, 10000, low_open=True),
+    "petal_height": ParamRange("otherParams[1]", "petal half-width, deg", 0, 45, low_open=True),
+    "spacing_exponent": ParamRange("otherParams[2]", "point-spacing exponent", 0, 10, low_open=True),
+    "tip_exponent": ParamRange("otherParams[3]", "tip-side calibration exponent", 0, 10, low_open=True),
+    "figure8_per_flower": ParamRange("otherParams[4]", "figure-8s per flower", 1, 360, integer=True),
+    "flowers_per_figure": ParamRange("otherParams[5]", "flowers per figure", 1, 360, integer=True),
+    "jitter_max_deg": ParamRange("otherParams[6]", "maximum random rotation, deg", 0, 360),
+    "prism_rpm_a": ParamRange("LivoxVizRisley prism A", "prism A speed, rpm", -20000, 20000),
+    "prism_rpm_b": ParamRange("LivoxVizRisley prism B", "prism B speed, rpm", -20000, 20000),
+    "deflection_a": ParamRange("LivoxVizRisley deflection A", "prism A deflection, deg", 0, 45, low_open=True),
+    "deflection_b": ParamRange("LivoxVizRisley deflection B", "prism B deflection, deg", 0, 45, low_open=True),
+    "laser_spacing": ParamRange("LivoxVizRisley laser_spacing", "lasers' spacing, x fitted", 0, 10),
+}
+
+
+#: The tunable fields of the Risley model (they need ``LivoxVizRisley`` parameters).
+RISLEY_PARAMS: tuple[str, ...] = ("prism_rpm_a", "prism_rpm_b", "deflection_a", "deflection_b", "laser_spacing")
+
+
+_INTEGER_KEYS = {
+    "SeqID": "SeqID",
+    "TypeID": "TypeID",
+    "TargetCopter": "TargetCopter",
+    "TargetMountType": "TargetMountType",
+    "DataWidth": "data_width",
+    "DataHeight": "data_height",
+    "DataCheckFreq": "data_check_freq",
+}
+
+
+_REQUIRED_KEYS = (
+    "SeqID",
+    "TypeID",
+    "TargetCopter",
+    "TargetMountType",
+    "DataWidth",
+    "DataHeight",
+    "DataCheckFreq",
+    "SendProtocol",
+    "CameraFOV",
+    "SensorPosXYZ",
+    "otherParams",
+)
+
+
+_OTHER_PARAM_FIELDS = (
+    "range_max",
+    "petal_height",
+    "spacing_exponent",
+    "tip_exponent",
+    "figure8_per_flower",
+    "flowers_per_figure",
+    "jitter_max_deg",
+)
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """One Livox rosette sensor (RflySim TypeID 6), validated on construction.
+
+    Parameters
+    ----------
+    data_width : int
+        W, points on one arc (half a petal).
+    data_height : int
+        H, arcs per published frame.
+    data_check_freq : int
+        F, frames per second.
+    camera_fov : float
+        Full field of view, degrees (twice the petal length).
+    other_params : tuple of float
+        ``otherParams`` as 8 values: range (m), petal height h (deg), spacing
+        exponent p, tip exponent q, figure-8s per flower N8, flowers per
+        figure Nf, maximum jitter (deg), and an unused eighth value.
+    sensor_pos_xyz : tuple of float
+        Sensor origin in the vehicle body frame (FRD), metres.
+    sensor_ang_euler : tuple of float
+        Mounting angles [roll, pitch, yaw] relative to the body, radians.
+    seq_id, type_id, target_copter, target_mount_type : int
+        RflySim's bookkeeping fields, preserved.
+    send_protocol : tuple of int
+        RflySim's ``SendProtocol``: [0] 1 = UDP / 0 = shared memory,
+        [1..4] IPv4 bytes, [5] port, [6..7] unused.
+    jitter_scope : {"flower", "figure"}
+        When the random rotation is added to the running offset.
+    pattern_model : {"rflysim", "risley"}
+        Which pattern the sensor scans: RflySim's rosette from ``otherParams``
+        or the Risley-prism track of :attr:`risley`.
+    risley : RisleyParams, optional
+        The Risley track (``LivoxVizRisley``); needed when ``pattern_model`` is ``"risley"``.
+    source : dict
+        The JSON object as it was read (key order and unknown keys are kept
+        for saving); empty for a configuration made from scratch.
+    euler_key : str
+        The spelling of the mounting-angle key to write.
+    """
+
+    data_width: int = 250
+    data_height: int = 40
+    data_check_freq: int = 10
+    camera_fov: float = 70.432
+    other_params: tuple[float, ...] = (600.0, 2.956, 1.4, 1.18, 10.0, 5.0, 1.0, 0.0)
+    sensor_pos_xyz: tuple[float, float, float] = (0.0, 0.0, -0.3)
+    sensor_ang_euler: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    seq_id: int = 0
+    type_id: int = LIVOX_TYPE_ID
+    target_copter: int = 1
+    target_mount_type: int = 0
+    send_protocol: tuple[int, ...] = DEFAULT_SEND_PROTOCOL
+    jitter_scope: str = "flower"
+    pattern_model: str = "rflysim"
+    risley: RisleyParams | None = None
+    source: Mapping[str, Any] = field(default_factory=dict, compare=False, repr=False)
+    euler_key: str = field(default=EULER_KEY_RFLYSIM, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        for name in ("data_width", "data_height", "data_check_freq"):
+            _check_int(PARAM_RANGES[name], getattr(self, name))
+        PARAM_RANGES["camera_fov"].check(self.camera_fov)
+        if self.type_id != LIVOX_TYPE_ID:
+            raise ConfigError(
+                f"TypeID = {self.type_id!r} is not a Livox rosette lidar; allowed: {LIVOX_TYPE_ID}"
+            )
+        params = tuple(self.other_params)
+        if not 7 <= len(params) <= 8:
+            raise ConfigError(
+                f"otherParams has {len(params)} values; allowed: 7 or 8 "
+                "(range, petal height, p, q, figure-8s per flower, flowers per figure, jitter[, unused])"
+            )
+        for name, value in zip(_OTHER_PARAM_FIELDS, params[:7], strict=True):
+            PARAM_RANGES[name].check(value)
+        if len(params) == 8:
+            _check_finite("otherParams[7]", params[7])
+        if self.data_width * self.data_height > MAX_POINTS_PER_FRAME:
+            raise ConfigError(
+                f"DataWidth*DataHeight = {self.data_width * self.data_height} points per frame; "
+                f"allowed: at most {MAX_POINTS_PER_FRAME}"
+            )
+        _check_vector("SensorPosXYZ", self.sensor_pos_xyz, 3)
+        _check_vector(self.euler_key, self.sensor_ang_euler, 3)
+        if len(self.send_protocol) != 8 or not all(_is_int(v) for v in self.send_protocol):
+            raise ConfigError(
+                f"SendProtocol = {list(self.send_protocol)!r}; allowed: a list of 8 integers"
+            )
+        if self.jitter_scope not in JITTER_SCOPES:
+            raise ConfigError(
+                f"jitter_scope = {self.jitter_scope!r}; allowed: {' or '.join(JITTER_SCOPES)}"
+            )
+        if self.pattern_model not in PATTERN_MODELS:
+            raise ConfigError(
+                f"{PATTERN_MODEL_KEY} = {self.pattern_model!r}; allowed: {' or '.join(PATTERN_MODELS)}"
+            )
+        if self.pattern_model == "risley" and self.risley is None:
+            raise ConfigError(f"{PATTERN_MODEL_KEY} is 'risley' but there is no {RISLEY_KEY} object")
+        if self.euler_key not in (EULER_KEY_RFLYSIM, EULER_KEY_DOCUMENT):
+            raise ConfigError(
+                f"euler_key = {self.euler_key!r}; allowed: {EULER_KEY_RFLYSIM} or {EULER_KEY_DOCUMENT}"
+            )
+        for name in ("seq_id", "target_copter", "target_mount_type"):
+            if not _is_int(getattr(self, name)):
+                raise ConfigError(f"{name} = {getattr(self, name)!r}; allowed: an integer")
+        # Normalise sequences to tuples of floats so equal configs compare equal.
+        object.__setattr__(self, "other_params", tuple(float(v) for v in params) + (0.0,) * (8 - len(params)))
+        object.__setattr__(self, "sensor_pos_xyz", tuple(float(v) for v in self.sensor_pos_xyz))
+        object.__setattr__(self, "sensor_ang_euler", tuple(float(v) for v in self.sensor_ang_euler))
+        object.__setattr__(self, "send_protocol", tuple(int(v) for v in self.send_protocol))
+
+    # Derived figures of the model -------------------------------------------------
+    @property
+    def range_max(self) -> float:
+        """Maximum range and int16 scale, metres (``otherParams[0]``)."""
+        return self.other_params[0]
+
+    @property
+    def petal_height(self) -> float:
+        """Petal half-width h at its middle, degrees (``otherParams[1]``)."""
+        return self.other_params[1]
+
+    @property
+    def spacing_exponent(self) -> float:
+        """Point-spacing exponent p along an arc (``otherParams[2]``)."""
+        return self.other_params[2]
+
+    @property
+    def tip_exponent(self) -> float:
+        """Calibration exponent q of the tip-side part of an arc (``otherParams[3]``)."""
+        return self.other_params[3]
+
+    @property
+    def figure8_per_flower(self) -> int:
+        """N8, figure-8s per flower (``otherParams[4]``)."""
+        return int(self.other_params[4])
+
+    @property
+    def flowers_per_figure(self) -> int:
+        """Nf, flowers per figure (``otherParams[5]``)."""
+        return int(self.other_params[5])
+
+    @property
+    def jitter_max_deg(self) -> float:
+        """Largest random rotation added to the running offset, degrees (``otherParams[6]``)."""
+        return self.other_params[6]
+
+    @property
+    def lasers(self) -> int:
+        """K, lasers firing in turn in the pattern in use (1 for the rosette)."""
+        return self.risley.lasers if self.pattern_model == "risley" else 1
+
+    @property
+    def points_per_frame(self) -> int:
+        """W*H, points in one published frame."""
+        return self.data_width * self.data_height
+
+    @property
+    def point_rate(self) -> int:
+        """W*H*F, points per second."""
+        return self.points_per_frame * self.data_check_freq
+
+    @property
+    def points_per_figure8(self) -> int:
+        """4W: a figure-8 is four arcs."""
+        return 4 * self.data_width
+
+    @property
+    def points_per_flower(self) -> int:
+        """4W*N8."""
+        return self.points_per_figure8 * self.figure8_per_flower
+
+    @property
+    def points_per_figure(self) -> int:
+        """4W*N8*Nf."""
+        return self.points_per_flower * self.flowers_per_figure
+
+    @property
+    def unit_points(self) -> dict[str, int]:
+        """Points in each unit of the stream, smallest first: arc, petal, figure8, flower, figure, frame.
+
+        The Risley track has no petal structure: its only unit is the frame.
+        """
+        if self.pattern_model == "risley":
+            return {"frame": self.points_per_frame}
+        return {
+            "arc": self.data_width,
+            "petal": 2 * self.data_width,
+            "figure8": self.points_per_figure8,
+            "flower": self.points_per_flower,
+            "figure": self.points_per_figure,
+            "frame": self.points_per_frame,
+        }
+
+    @property
+    def petal_spacing_deg(self) -> float:
+        """Angle between neighbouring petals of one flower, 180/N8 degrees."""
+        return 180.0 / self.figure8_per_flower
+
+    @property
+    def flower_step_deg(self) -> float:
+        """Rotation from one flower of a figure to the next, (180/N8)/Nf degrees."""
+        return self.petal_spacing_deg / self.flowers_per_figure
+
+    @property
+    def half_fov_deg(self) -> float:
+        """Half-angle of the FOV cone (the petal length), degrees."""
+        return self.camera_fov / 2.0
+
+    @property
+    def range_step(self) -> float:
+        """The int16 quantisation step range/32767, metres."""
+        return self.range_max / 32767.0
+
+    def with_param(self, name: str, value: float) -> SensorConfig:
+        """Return a copy with one tunable field (a key of :data:`PARAM_RANGES`) changed.
+
+        Raises :class:`ConfigError` if the value is outside the field's range.
+        """
+        if name not in PARAM_RANGES:
+            raise ConfigError(f"unknown parameter {name!r}; allowed: {', '.join(PARAM_RANGES)}")
+        spec = PARAM_RANGES[name]
+        value = spec.check(value)
+        if spec.integer:
+            value = int(value)
+        if name in RISLEY_PARAMS:
+            return replace(self, risley=_risley_with(self._require_risley(), name, value))
+        if name in _OTHER_PARAM_FIELDS:
+            params = list(self.other_params)
+            params[_OTHER_PARAM_FIELDS.index(name)] = value
+            return replace(self, other_params=tuple(params))
+        return replace(self, **{name: value})
+
+    def param_value(self, name: str) -> float:
+        """The current value of a tunable field named as in :data:`PARAM_RANGES`."""
+        if name in RISLEY_PARAMS:
+            risley = self._require_risley()
+            return {"prism_rpm_a": risley.prism_rpm[0], "prism_rpm_b": risley.prism_rpm[1],
+                    "deflection_a": risley.deflection_deg[0], "deflection_b": risley.deflection_deg[1],
+                    "laser_spacing": risley.laser_spacing}[name]
+        return float(getattr(self, name))
+
+    def _require_risley(self) -> RisleyParams:
+        if self.risley is None:
+            raise ConfigError(f"this configuration has no {RISLEY_KEY} parameters; load a Risley preset "
+                              "(e.g. livox_mid70_risley)")
+        return self.risley
+
+    def with_pattern_model(self, model: str) -> SensorConfig:
+        """A copy that scans with ``model`` ("rflysim" or "risley")."""
+        return replace(self, pattern_model=model)
+
+    # JSON ---------------------------------------------------------------------------
+    def to_json_dict(self) -> dict[str, Any]:
+        """The RflySim JSON object, in the key order that was read (new keys last)."""
+        values: dict[str, Any] = {
+            "SeqID": self.seq_id,
+            "TypeID": self.type_id,
+            "TargetCopter": self.target_copter,
+            "TargetMountType": self.target_mount_type,
+            "DataWidth": self.data_width,
+            "DataHeight": self.data_height,
+            "DataCheckFreq": self.data_check_freq,
+            "SendProtocol": list(self.send_protocol),
+            "CameraFOV": _json_number(self.camera_fov),
+            "SensorPosXYZ": [_json_number(v) for v in self.sensor_pos_xyz],
+            self.euler_key: [_json_number(v) for v in self.sensor_ang_euler],
+            "otherParams": [_json_number(v) for v in self.other_params],
+        }
+        out: dict[str, Any] = {}
+        for key, old in self.source.items():
+            out[key] = values.pop(key) if key in values else old
+        out.update(values)
+        if self.jitter_scope != "flower" or JITTER_SCOPE_KEY in out:
+            out[JITTER_SCOPE_KEY] = self.jitter_scope
+        if self.pattern_model != "rflysim" or PATTERN_MODEL_KEY in out:
+            out[PATTERN_MODEL_KEY] = self.pattern_model
+        if self.risley is not None:
+            out[RISLEY_KEY] = self.risley.to_json()
+        else:
+            out.pop(RISLEY_KEY, None)
+        return out
+
+    @classmethod
+    def from_json_dict(cls, data: Any) -> SensorConfig:
+        """Build and validate a configuration from one RflySim sensor object.
+
+        Raises
+        ------
+        ConfigError
+            Naming the missing or bad key and what is allowed.
+        """
+        if not isinstance(data, Mapping):
+            raise ConfigError(
+                f"a sensor configuration must be a JSON object, got {type(data).__name__}"
+            )
+        for key in _REQUIRED_KEYS:
+            if key not in data:
+                raise ConfigError(f"missing key {key!r}; a RflySim sensor object needs {', '.join(_REQUIRED_KEYS)}")
+        if EULER_KEY_RFLYSIM in data:
+            euler_key = EULER_KEY_RFLYSIM
+        elif EULER_KEY_DOCUMENT in data:
+            euler_key = EULER_KEY_DOCUMENT
+        else:
+            raise ConfigError(
+                f"missing key {EULER_KEY_RFLYSIM!r} (or {EULER_KEY_DOCUMENT!r}): "
+                "the sensor mounting angles [roll, pitch, yaw] in radians"
+            )
+        ints: dict[str, int] = {}
+        for key in _INTEGER_KEYS:
+            value = data[key]
+            if not _is_int(value):
+                spec = PARAM_RANGES.get(_INTEGER_KEYS[key])
+                allowed = spec.describe() if spec is not None else "an integer"
+                raise ConfigError(f"{key} = {value!r}; allowed: {allowed}")
+            ints[key] = int(value)
+        for key in ("SendProtocol", "otherParams", "SensorPosXYZ", euler_key):
+            if not isinstance(data[key], list):
+                raise ConfigError(f"{key} = {data[key]!r}; allowed: a JSON list of numbers")
+        other_params = data["otherParams"]
+        for index, value in enumerate(other_params):
+            _check_finite(f"otherParams[{index}]", value)
+        camera_fov = data["CameraFOV"]
+        _check_finite("CameraFOV", camera_fov)
+        scope = data.get(JITTER_SCOPE_KEY, "flower")
+        risley = RisleyParams.from_json(data[RISLEY_KEY]) if RISLEY_KEY in data else None
+        return cls(
+            data_width=ints["DataWidth"],
+            data_height=ints["DataHeight"],
+            data_check_freq=ints["DataCheckFreq"],
+            camera_fov=float(camera_fov),
+            other_params=tuple(other_params),
+            sensor_pos_xyz=tuple(data["SensorPosXYZ"]),
+            sensor_ang_euler=tuple(data[euler_key]),
+            seq_id=ints["SeqID"],
+            type_id=ints["TypeID"],
+            target_copter=ints["TargetCopter"],
+            target_mount_type=ints["TargetMountType"],
+            send_protocol=tuple(data["SendProtocol"]),
+            jitter_scope=scope,
+            pattern_model=data.get(PATTERN_MODEL_KEY, "rflysim"),
+            risley=risley,
+            source=dict(data),
+            euler_key=euler_key,
+        )
+
+
+def _risley_with(risley: RisleyParams, name: str, value: float) -> RisleyParams:
+    """The Risley parameters with one slider's value (rpm, degrees or the spacing scale) changed."""
+    if name in ("prism_rpm_a", "prism_rpm_b"):
+        hz = list(risley.prism_hz)
+        hz[name.endswith("_b")] = value / 60.0
+        return replace(risley, prism_hz=tuple(hz))
+    if name in ("deflection_a", "deflection_b"):
+        deflection = list(risley.deflection_deg)
+        deflection[name.endswith("_b")] = value
+        return replace(risley, deflection_deg=tuple(deflection))
+    return replace(risley, laser_spacing=value)
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _check_int(spec: ParamRange, value: Any) -> None:
+    if not _is_int(value):
+        raise ConfigError(f"{spec.name} ({spec.label}) = {value!r}; allowed: {spec.describe()}")
+    spec.check(value)
+
+
+def _check_finite(name: str, value: Any) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ConfigError(f"{name} = {value!r}; allowed: a finite number")
+
+
+def _check_vector(name: str, values: Any, length: int) -> None:
+    if len(values) != length:
+        raise ConfigError(f"{name} has {len(values)} values; allowed: {length} finite numbers")
+    for index, value in enumerate(values):
+        _check_finite(f"{name}[{index}]", value)
+
+
+def _json_number(value: float) -> int | float:
+    """Write whole numbers as JSON integers (600, not 600.0), as RflySim's files do."""
+    return int(value) if float(value).is_integer() and abs(value) < 2**53 else float(value)
+
+
+def select_sensor(data: Any, seq_id: int | None = None) -> Mapping[str, Any]:
+    """Pick the Livox sensor object out of a single object or a ``Config.json``.
+
+    Parameters
+    ----------
+    data : dict
+        Either one sensor object, or ``{"VisionSensors": [...]}``.
+    seq_id : int, optional
+        The ``SeqID`` to choose; default the first TypeID-6 entry.
+    """
+    if isinstance(data, Mapping) and "VisionSensors" in data:
+        sensors = data["VisionSensors"]
+        if not isinstance(sensors, list):
+            raise ConfigError("VisionSensors must be a JSON list of sensor objects")
+        livox = [s for s in sensors if isinstance(s, Mapping) and s.get("TypeID") == LIVOX_TYPE_ID]
+        if seq_id is not None:
+            livox = [s for s in livox if s.get("SeqID") == seq_id]
+            if not livox:
+                raise ConfigError(f"no TypeID-6 sensor with SeqID {seq_id} in VisionSensors")
+        if not livox:
+            found = sorted({s.get("TypeID") for s in sensors if isinstance(s, Mapping)}, key=str)
+            raise ConfigError(
+                f"VisionSensors holds no Livox sensor (TypeID 6); TypeIDs found: {found or 'none'}"
+            )
+        return livox[0]
+    if seq_id is not None and isinstance(data, Mapping) and data.get("SeqID") != seq_id:
+        raise ConfigError(f"the sensor object has SeqID {data.get('SeqID')!r}, not {seq_id}")
+    return data
+
+
+def load_config(path: str | os.PathLike[str], seq_id: int | None = None) -> SensorConfig:
+    """Load a sensor configuration from a JSON file (one sensor object or a Config.json).
+
+    Parameters
+    ----------
+    path : path-like
+        The JSON file.
+    seq_id : int, optional
+        Which sensor of a ``Config.json``; default the first TypeID-6 one.
+    """
+    data = read_json_file(path)
+    try:
+        return SensorConfig.from_json_dict(select_sensor(data, seq_id))
+    except ConfigError as exc:
+        raise ConfigError(f"{Path(path).name}: {exc}") from None
+
+
+def save_config(config: SensorConfig, path: str | os.PathLike[str]) -> None:
+    """Save a configuration as a single RflySim sensor object, atomically."""
+    write_text_atomic(path, json.dumps(config.to_json_dict(), indent=2) + "\n")

@@ -1,0 +1,82 @@
+"""A JSON reader that turns every failure into one line naming the file and what is wrong.
+
+NaN and Infinity (which Python's parser accepts but JSON does not) are refused
+with the key that holds them; so are files over :data:`MAX_JSON_BYTES` and
+nesting too deep to parse.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from livox_viz.core.errors import ConfigError
+
+# Files ------------------------------------------------------------------------------
+MAX_JSON_BYTES = 64 << 20
+
+
+class _NonFinite(float):
+    """A NaN or Infinity the JSON held, kept so the error can name its key."""
+
+    word = ""
+
+
+def read_json_file(path: str | os.PathLike[str]) -> Any:
+    """Parse a JSON file, turning every failure into a one-line :class:`ConfigError`.
+
+    NaN and Infinity (which Python's parser accepts but JSON does not) are
+    refused with the key that holds them; so are files over 64 MiB and
+    nesting too deep to parse.
+    """
+    path = Path(path)
+    try:
+        if path.is_dir():
+            raise ConfigError(f"{path}: is a folder, expected a JSON file")
+        if path.is_file() and path.stat().st_size > MAX_JSON_BYTES:
+            raise ConfigError(f"{path}: {path.stat().st_size:,} bytes; allowed: at most {MAX_JSON_BYTES:,}")
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot read ({exc})") from None
+    if not text.strip():
+        raise ConfigError(f"{path}: is empty, expected a JSON object")
+    try:
+        data = json.loads(text, parse_constant=_mark_constant)
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"{path}: malformed JSON at line {exc.lineno} column {exc.colno}: {exc.msg}") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: JSON nested too deeply; allowed: a sensor object a few levels deep") from None
+    where = _find_non_finite(data, "")
+    if where is not None:
+        key, word = where
+        raise ConfigError(f"{path}: {key or 'the top level'} = {word}, which JSON does not allow; "
+                          "allowed: finite numbers")
+    return data
+
+
+def _mark_constant(word: str) -> _NonFinite:
+    value = _NonFinite(word.replace("Infinity", "inf"))
+    value.word = word
+    return value
+
+
+def _find_non_finite(value: Any, where: str, depth: int = 0) -> tuple[str, str] | None:
+    """The key path (``otherParams[1]``) and word of the first NaN/Infinity in parsed JSON, or None."""
+    if isinstance(value, _NonFinite):
+        return where, value.word
+    if depth > 200:
+        return None
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for key, item in items:
+        if isinstance(key, str):
+            name = f"{where}.{key}" if where else key
+        else:
+            name = f"{where}[{key}]"
+        found = _find_non_finite(item, name, depth + 1)
+        if found is not None:
+            return found
+    return None

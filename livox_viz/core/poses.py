@@ -1,0 +1,90 @@
+"""Rigid poses in an NED/FRD parent frame: position in metres, [roll, pitch, yaw] in radians.
+
+A :class:`Pose` is what ``--pose``, a scene's vehicle pose, the sensor mount and
+RflySim's ``posAng`` hold; its rotation is :func:`~livox_viz.core.rotations.euler_matrix`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.rotations import euler_matrix, matrix_to_euler, quat_from_matrix
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A rigid pose: position in metres and [roll, pitch, yaw] in radians, in its parent's NED/FRD frame.
+
+    Parameters
+    ----------
+    position : tuple of float
+        x, y, z in metres (NED: north, east, down).
+    roll, pitch, yaw : float
+        Radians.
+    """
+
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    roll: float = 0.0
+    pitch: float = 0.0
+    yaw: float = 0.0
+
+    def __post_init__(self) -> None:
+        values = [*self.position, self.roll, self.pitch, self.yaw]
+        if len(self.position) != 3 or not all(math.isfinite(v) for v in values):
+            raise LivoxVizError(f"pose {values!r}; allowed: 6 finite numbers x,y,z (m), roll,pitch,yaw (rad)")
+        object.__setattr__(self, "position", tuple(float(v) for v in self.position))
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """``(3, 3)`` float64 rotation from this frame to the parent."""
+        return euler_matrix(self.roll, self.pitch, self.yaw)
+
+    @property
+    def origin(self) -> np.ndarray:
+        """``(3,)`` float64 position in the parent."""
+        return np.array(self.position, dtype=np.float64)
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """``(4, 4)`` float64 homogeneous transform from this frame to the parent."""
+        transform = np.eye(4)
+        transform[:3, :3] = self.rotation
+        transform[:3, 3] = self.origin
+        return transform
+
+    def compose(self, child: Pose) -> Pose:
+        """The pose of ``child`` (given in this frame) in this frame's parent."""
+        rotation = self.rotation @ child.rotation
+        position = self.origin + self.rotation @ child.origin
+        return Pose(tuple(position), *matrix_to_euler(rotation))
+
+    def as_array(self) -> np.ndarray:
+        """``(6,)`` float64: x, y, z, roll, pitch, yaw (RflySim's ``posAng`` order)."""
+        return np.array([*self.position, self.roll, self.pitch, self.yaw], dtype=np.float64)
+
+    @classmethod
+    def parse(cls, text: str) -> Pose:
+        """Parse ``"x,y,z,roll,pitch,yaw"`` (metres, radians), as given to ``--pose``."""
+        parts = [p.strip() for p in text.split(",")]
+        try:
+            values = [float(p) for p in parts]
+        except ValueError:
+            raise LivoxVizError(
+                f"pose {text!r} does not parse; allowed: x,y,z,roll,pitch,yaw (6 numbers, metres and radians)"
+            ) from None
+        if len(values) != 6:
+            raise LivoxVizError(f"pose {text!r} has {len(values)} numbers; allowed: x,y,z,roll,pitch,yaw (6)")
+        return cls(tuple(values[:3]), *values[3:])  # type: ignore[arg-type]
+
+
+
+
+
+
+def pose_quaternion(pose: Pose) -> np.ndarray:
+    """``(4,)`` the orientation of a :class:`Pose` as [x, y, z, w]."""
+    return quat_from_matrix(pose.rotation)

@@ -1,0 +1,415 @@
+"""ROS 2 bags (rosbag2, MCAP storage) of a scan, for FAST-LIO, LIO-Livox, Point-LIO, RViz and Foxglove.
+
+Written with the pure-Python ``rosbags`` library; no ROS installation is
+needed. Topics (the Livox ROS driver 2's names by default, all settable):
+
+* ``/livox/lidar``: ``livox_ros_driver2/msg/CustomMsg``, one per frame, each
+  point with its ``offset_time`` (ns) from the frame's ``timebase`` (what
+  FAST-LIO reads by default);
+* ``/livox/points``: ``sensor_msgs/msg/PointCloud2`` in the driver's layout
+  (x, y, z, intensity float32; tag, line uint8; timestamp float64 ns), one per frame;
+* ``/livox/imu``: ``sensor_msgs/msg/Imu`` (no orientation: covariance[0] = -1);
+* ``/odom``: ``nav_msgs/msg/Odometry``, the ground truth of the vehicle, and the
+  same as ``/tf`` (odom -> base_link); ``/tf_static`` holds base_link -> livox_frame.
+
+**Frames (REP 103/105).** The project is NED/FRD; ROS is ENU/FLU. At this
+boundary, and only here: world NED (x north, y east, z down) -> ENU
+``(y, x, -z)``; body and sensor FRD (x forward, y right, z down) -> FLU
+``(x, -y, -z)``; an orientation R (FRD -> NED) becomes
+``R_ENU_FLU = C_NED_ENU R C_FRD_FLU``. Points are in the sensor's FLU frame at
+their own time (what the driver gives); times are ``time_base`` plus the scan
+time.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from livox_viz.casting.scan import ScanFrame
+from livox_viz.core.atomic import make_work_dir, remove_dead_leftovers
+from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.poses import Pose
+from livox_viz.core.rotations import FRD_TO_FLU, enu_flu_from_ned_frd, enu_from_ned, flu_from_frd, quat_from_matrix
+from livox_viz.motion.imu import ImuSamples
+
+#: Scan time 0 is this many seconds after the Unix epoch in the bag (a fixed, reproducible date).
+DEFAULT_TIME_BASE = 1_700_000_000.0
+
+CUSTOM_POINT_MSG = """uint32 offset_time
+float32 x
+float32 y
+float32 z
+uint8 reflectivity
+uint8 tag
+uint8 line
+"""
+CUSTOM_MSG = """std_msgs/Header header
+uint64 timebase
+uint32 point_num
+uint8 lidar_id
+uint8[3] rsvd
+CustomPoint[] points
+"""
+#: The Livox ROS driver 2's PointCloud2 point: (name, offset, PointField datatype, numpy type).
+POINTCLOUD2_FIELDS: tuple[tuple[str, int, int, str], ...] = (
+    ("x", 0, 7, "<f4"), ("y", 4, 7, "<f4"), ("z", 8, 7, "<f4"), ("intensity", 12, 7, "<f4"),
+    ("tag", 16, 2, "u1"), ("line", 17, 2, "u1"), ("timestamp", 18, 8, "<f8"),
+)
+POINT_STEP = 26
+_PC2_DTYPE = np.dtype({"names": [f[0] for f in POINTCLOUD2_FIELDS], "formats": [f[3] for f in POINTCLOUD2_FIELDS],
+                       "offsets": [f[1] for f in POINTCLOUD2_FIELDS], "itemsize": POINT_STEP})
+# A CustomPoint in CDR: 19 bytes, then padding so the next one's uint32 is 4-aligned.
+_CUSTOM_POINT_DTYPE = np.dtype([("offset_time", "<u4"), ("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
+                                ("reflectivity", "u1"), ("tag", "u1"), ("line", "u1"), ("pad", "u1")])
+
+
+@dataclass(frozen=True)
+class RosNames:
+    """Topic and frame names (defaults: the Livox ROS driver 2's and REP 105's).
+
+    Parameters
+    ----------
+    lidar, points, imu, odom : str
+        Topics of the CustomMsg, PointCloud2, Imu and Odometry messages.
+    lidar_frame, body_frame, world_frame : str
+        The sensor's, the vehicle's and the world's frame ids.
+    """
+
+    lidar: str = "/livox/lidar"
+    points: str = "/livox/points"
+    imu: str = "/livox/imu"
+    odom: str = "/odom"
+    lidar_frame: str = "livox_frame"
+    body_frame: str = "base_link"
+    world_frame: str = "odom"
+
+    @classmethod
+    def parse(cls, text: str) -> RosNames:
+        """``lidar=/x,imu=/y,...`` as given to ``--ros-names``."""
+        values = {}
+        for part in filter(None, (p.strip() for p in text.split(","))):
+            key, _, value = part.partition("=")
+            if key not in cls.__dataclass_fields__ or not value:
+                raise LivoxVizError(f"--ros-names {part!r}; allowed: NAME=VALUE with NAME one of "
+                                    f"{', '.join(cls.__dataclass_fields__)}")
+            values[key] = value
+        return cls(**values)
+
+
+class RosbagWriter:
+    """Writes a rosbag2 folder (MCAP) of frames, IMU samples and the ground truth, atomically.
+
+    The bag is written into a temporary folder beside ``path`` and renamed to
+    ``path`` only by :meth:`close`; :meth:`abort` (or any exception in a
+    ``with`` block) removes it. An existing ``path`` is refused, never replaced.
+
+    Parameters
+    ----------
+    path : path-like
+        The bag folder to make.
+    mount : Pose
+        The sensor's pose on the vehicle (FRD), for ``/tf_static``.
+    names : RosNames
+    time_base : float
+        Unix seconds of scan time 0.
+    lasers : int
+        The ``line`` of a point is its laser (0 for one).
+    """
+
+    def __init__(self, path: str | os.PathLike[str], mount: Pose, names: RosNames | None = None,
+                 time_base: float = DEFAULT_TIME_BASE, lasers: int = 1) -> None:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+        self.path = Path(path)
+        if self.path.exists():
+            raise LivoxVizError(f"{self.path}: exists; allowed: a new folder name for the bag (nothing is replaced)")
+        if not self.path.parent.is_dir():
+            raise LivoxVizError(f"{self.path}: the folder {self.path.parent} does not exist")
+        self.names = names or RosNames()
+        self.time_base_ns = round(time_base * 1e9)
+        self.lasers = lasers
+        self.frames = 0
+        self.points = 0
+        #: Why closing the bag failed during an abort, if it did.
+        self.abort_error = ""
+        self._work = make_work_dir(self.path)
+        store = get_typestore(Stores.ROS2_HUMBLE)
+        types = get_types_from_msg(CUSTOM_POINT_MSG, "livox_ros_driver2/msg/CustomPoint")
+        types.update(get_types_from_msg(CUSTOM_MSG, "livox_ros_driver2/msg/CustomMsg"))
+        store.register(types)
+        self.store = store
+        self._imu_layout: FixedLayout | None = None
+        self._odom_layout: FixedLayout | None = None
+        self._tf_layout: FixedLayout | None = None
+        self._bag = Writer(self._work / "bag", version=8, storage_plugin=StoragePlugin.MCAP)
+        self._bag.open()
+        self._closed = False
+        connect = self._bag.add_connection
+        self._lidar = connect(self.names.lidar, "livox_ros_driver2/msg/CustomMsg", typestore=store)
+        self._points = connect(self.names.points, "sensor_msgs/msg/PointCloud2", typestore=store)
+        self._imu = connect(self.names.imu, "sensor_msgs/msg/Imu", typestore=store)
+        self._odom = connect(self.names.odom, "nav_msgs/msg/Odometry", typestore=store)
+        self._tf = connect("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
+        self._tf_static = connect("/tf_static", "tf2_msgs/msg/TFMessage", typestore=store)
+        # The mount between two FLU frames: both sides of the FRD rotation turned into FLU.
+        mount_flu = FRD_TO_FLU @ mount.rotation @ FRD_TO_FLU
+        self._write(self._tf_static, self.time_base_ns, self._tf_message(
+            [(self.time_base_ns, self.names.body_frame, self.names.lidar_frame, flu_from_frd(mount.origin),
+              quat_from_matrix(mount_flu))]))
+
+    # Messages -----------------------------------------------------------------------------
+    def _stamp(self, nanoseconds: int):
+        time_type = self.store.types["builtin_interfaces/msg/Time"]
+        return time_type(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+
+    def _header(self, nanoseconds: int, frame_id: str):
+        return self.store.types["std_msgs/msg/Header"](stamp=self._stamp(nanoseconds), frame_id=frame_id)
+
+    def _ns(self, seconds: float) -> int:
+        return self.time_base_ns + round(seconds * 1e9)
+
+    def _write(self, connection, nanoseconds: int, message) -> None:
+        self._bag.write(connection, nanoseconds, self.store.serialize_cdr(message, connection.msgtype))
+
+    def _tf_message(self, transforms):
+        """``transforms``: (stamp ns, parent, child, translation (3,), quaternion [x, y, z, w])."""
+        types = self.store.types
+        stamped = []
+        for nanoseconds, parent, child, translation, q in transforms:
+            stamped.append(types["geometry_msgs/msg/TransformStamped"](
+                header=self._header(nanoseconds, parent), child_frame_id=child,
+                transform=types["geometry_msgs/msg/Transform"](
+                    translation=types["geometry_msgs/msg/Vector3"](*map(float, translation)),
+                    rotation=types["geometry_msgs/msg/Quaternion"](*map(float, q)))))
+        return types["tf2_msgs/msg/TFMessage"](transforms=stamped)
+
+    def write_frame(self, frame: ScanFrame) -> None:
+        """One frame as CustomMsg and PointCloud2: decoded points in the sensor FLU frame at their own time."""
+        stamp = self._ns(frame.timestamp)
+        xyz = flu_from_frd(frame.xyz_decoded).astype(np.float32)
+        offset = np.round((frame.t - frame.timestamp) * 1e9).astype(np.int64)
+        line = (frame.stream_index % self.lasers).astype(np.uint8)
+        self._bag.write(self._lidar, stamp, custom_msg_cdr(stamp, self.names.lidar_frame, xyz, offset, line))
+        cloud = np.zeros(len(frame), dtype=_PC2_DTYPE)
+        cloud["x"], cloud["y"], cloud["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+        cloud["line"] = line
+        cloud["timestamp"] = (stamp + offset).astype(np.float64)
+        types = self.store.types
+        fields = [types["sensor_msgs/msg/PointField"](name=name, offset=offset_, datatype=kind, count=1)
+                  for name, offset_, kind, _ in POINTCLOUD2_FIELDS]
+        message = types["sensor_msgs/msg/PointCloud2"](
+            header=self._header(stamp, self.names.lidar_frame), height=1, width=len(frame), fields=fields,
+            is_bigendian=False, point_step=POINT_STEP, row_step=POINT_STEP * len(frame),
+            data=np.frombuffer(cloud.tobytes(), dtype=np.uint8), is_dense=True)
+        self._write(self._points, stamp, message)
+        self.frames += 1
+        self.points += len(frame)
+
+    def write_imu(self, samples: ImuSamples) -> None:
+        """IMU samples (body FRD) as ``sensor_msgs/Imu`` in the body FLU frame, without orientation."""
+        if self._imu_layout is None:
+            types = self.store.types
+            vector = types["geometry_msgs/msg/Vector3"]
+            no_orientation = np.zeros(9)
+            no_orientation[0] = -1.0
+
+            def build(stamp: int, v: np.ndarray):
+                return types["sensor_msgs/msg/Imu"](
+                    header=self._header(stamp, self.names.body_frame),
+                    orientation=types["geometry_msgs/msg/Quaternion"](0.0, 0.0, 0.0, 1.0),
+                    orientation_covariance=no_orientation, angular_velocity=vector(*v[:3]),
+                    angular_velocity_covariance=np.zeros(9), linear_acceleration=vector(*v[3:]),
+                    linear_acceleration_covariance=np.zeros(9))
+
+            self._imu_layout = FixedLayout(self.store, "sensor_msgs/msg/Imu", build, 6)
+        stamps = self.time_base_ns + np.round(samples.t * 1e9).astype(np.int64)
+        values = np.hstack([flu_from_frd(samples.angular_velocity), flu_from_frd(samples.specific_force)])
+        self._write_packed(self._imu, stamps, self._imu_layout.pack(stamps, values))
+
+    def write_ground_truth(self, t: np.ndarray, position: np.ndarray, rotation: np.ndarray,
+                           velocity: np.ndarray, angular_velocity: np.ndarray) -> None:
+        """The vehicle's true motion as ``/odom`` and ``/tf``.
+
+        Parameters
+        ----------
+        t : (n,) float64
+            Seconds.
+        position : (n, 3) float64
+            World NED.
+        rotation : (n, 3, 3) float64
+            Body FRD -> world NED.
+        velocity : (n, 3) float64
+            World NED, m/s.
+        angular_velocity : (n, 3) float64
+            Body FRD, rad/s.
+        """
+        if len(t) == 0:
+            return
+        if self._odom_layout is None:
+            types = self.store.types
+            vector = types["geometry_msgs/msg/Vector3"]
+            zeros = np.zeros(36)
+
+            def odometry(stamp: int, v: np.ndarray):
+                pose = types["geometry_msgs/msg/Pose"](position=types["geometry_msgs/msg/Point"](*v[:3]),
+                                                        orientation=types["geometry_msgs/msg/Quaternion"](*v[3:7]))
+                twist = types["geometry_msgs/msg/Twist"](linear=vector(*v[7:10]), angular=vector(*v[10:13]))
+                return types["nav_msgs/msg/Odometry"](
+                    header=self._header(stamp, self.names.world_frame), child_frame_id=self.names.body_frame,
+                    pose=types["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=zeros),
+                    twist=types["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=zeros))
+
+            def transform(stamp: int, v: np.ndarray):
+                return self._tf_message([(stamp, self.names.world_frame, self.names.body_frame, v[:3], v[3:7])])
+
+            self._odom_layout = FixedLayout(self.store, "nav_msgs/msg/Odometry", odometry, 13)
+            self._tf_layout = FixedLayout(self.store, "tf2_msgs/msg/TFMessage", transform, 7)
+        enu = enu_from_ned(position)
+        quaternions = quat_from_matrix(enu_flu_from_ned_frd(rotation))
+        body_velocity = flu_from_frd(np.einsum("nji,nj->ni", rotation, velocity))
+        stamps = self.time_base_ns + np.round(np.asarray(t) * 1e9).astype(np.int64)
+        pose = np.hstack([enu, quaternions])
+        twist = np.hstack([body_velocity, flu_from_frd(angular_velocity)])
+        odometry_bytes = self._odom_layout.pack(stamps, np.hstack([pose, twist]))
+        transform_bytes = self._tf_layout.pack(stamps, pose)
+        self._write_packed(self._odom, stamps, odometry_bytes)
+        self._write_packed(self._tf, stamps, transform_bytes)
+
+    def write_motion(self, motion, t: np.ndarray) -> None:
+        """The ground truth of a :class:`~livox_viz.imu.TrajectoryMotion` at times ``t`` (s), see
+        :meth:`write_ground_truth`."""
+        self.write_ground_truth(t, motion.position(t), motion.rotation(t).as_matrix(), motion.velocity(t),
+                                motion.angular_velocity(t))
+
+    def _write_packed(self, connection, stamps: np.ndarray, records: np.ndarray) -> None:
+        size = records.dtype.itemsize
+        view = memoryview(records.tobytes())
+        for k, stamp in enumerate(stamps.tolist()):
+            self._bag.write(connection, stamp, view[k * size : (k + 1) * size])
+
+    # Files ------------------------------------------------------------------------------------
+    def close(self) -> Path:
+        """Finish the bag and move the folder into place; returns its path."""
+        if self._closed:
+            return self.path
+        self._bag.close()
+        self._closed = True
+        if self.path.exists():
+            self.abort()
+            raise LivoxVizError(f"{self.path}: appeared while writing; the bag was not moved over it")
+        os.replace(self._work / "bag", self.path)
+        shutil.rmtree(self._work, ignore_errors=True)
+        remove_dead_leftovers(self.path.parent)
+        return self.path
+
+    def abort(self) -> None:
+        """Drop the bag; nothing is left behind."""
+        if not self._closed:
+            self._closed = True
+            try:
+                self._bag.close()
+            except (OSError, ValueError, RuntimeError) as exc:  # the half-written bag is removed below anyway
+                self.abort_error = str(exc)
+        shutil.rmtree(self._work, ignore_errors=True)
+
+    def __enter__(self) -> RosbagWriter:
+        return self
+
+    def __exit__(self, kind, error, tb) -> None:
+        if kind is None:
+            self.close()
+        else:
+            self.abort()
+
+
+class FixedLayout:
+    """CDR messages of one type whose only changing parts are the stamp and some float64 values.
+
+    One message is serialized by rosbags with distinct sentinel numbers; their byte offsets make a
+    numpy record type over the whole message, so thousands of messages are packed at once (rosbags
+    builds one Python object tree per message, about 100 us each). The tests compare the packed
+    bytes with rosbags' own serialization.
+
+    Parameters
+    ----------
+    store : rosbags Typestore
+    msgtype : str
+    build : callable
+        ``build(stamp_ns, values)`` -> the message, values ``(count,)`` float64.
+    count : int
+        Values per message.
+    """
+
+    _SEC, _NSEC = 2_000_000_011, 987_654_321
+
+    def __init__(self, store, msgtype: str, build, count: int) -> None:
+        sentinels = -1.0e300 / (1.0 + np.arange(count) * 0.37)
+        data = bytes(store.serialize_cdr(build(self._SEC * 10**9 + self._NSEC, sentinels), msgtype))
+        marks = [(np.array([self._SEC], "<i4").tobytes(), "<i4"), (np.array([self._NSEC], "<u4").tobytes(), "<u4")]
+        marks += [(np.array([v], "<f8").tobytes(), "<f8") for v in sentinels]
+        offsets = []
+        for mark, _ in marks:
+            where = data.find(mark)
+            if where < 0 or data.find(mark, where + 1) >= 0:
+                raise RuntimeError(f"{msgtype}: cannot place a field of the template (found {where})")
+            offsets.append(where)
+        self.dtype = np.dtype({"names": ["sec", "nsec", *(f"v{k}" for k in range(count))],
+                               "formats": [kind for _, kind in marks], "offsets": offsets, "itemsize": len(data)})
+        self.template = np.frombuffer(data, dtype=np.uint8)
+
+    def pack(self, stamps_ns: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """``(n,)`` records (each one message's bytes) for stamps ``(n,)`` ns and values ``(n, count)``."""
+        # Copies of the whole template (strings and constants included), the numbers written over them.
+        records = np.tile(self.template, (len(stamps_ns), 1)).view(self.dtype).reshape(len(stamps_ns))
+        records["sec"] = stamps_ns // 1_000_000_000
+        records["nsec"] = stamps_ns % 1_000_000_000
+        for k in range(values.shape[1]):
+            records[f"v{k}"] = values[:, k]
+        return records
+
+
+def custom_msg_cdr(stamp_ns: int, frame_id: str, xyz_flu: np.ndarray, offset_ns: np.ndarray,
+                   line: np.ndarray) -> bytes:
+    """A ``livox_ros_driver2/msg/CustomMsg`` in little-endian CDR, built with numpy (rosbags would make a
+    Python object per point); the tests check it byte for byte against rosbags' own serializer.
+
+    Parameters
+    ----------
+    stamp_ns : int
+        Header stamp and ``timebase``, ns.
+    frame_id : str
+    xyz_flu : (M, 3) float32
+    offset_ns : (M,) int64
+        Each point's time after ``timebase``, ns (< 2**32).
+    line : (M,) uint8
+    """
+    if offset_ns.size and (offset_ns.min() < 0 or offset_ns.max() >= 2**32):
+        raise LivoxVizError("a CustomMsg's offset_time must fit uint32 ns (a frame under 4.29 s)")
+    out = bytearray(b"\x00\x01\x00\x00")  # CDR, little-endian
+
+    def align(size: int) -> None:
+        out.extend(b"\x00" * (-(len(out) - 4) % size))
+
+    name = frame_id.encode() + b"\x00"
+    out += np.array([stamp_ns // 1_000_000_000], "<i4").tobytes() + np.array([stamp_ns % 1_000_000_000],
+                                                                             "<u4").tobytes()
+    out += np.array([len(name)], "<u4").tobytes() + name
+    align(8)
+    out += np.array([stamp_ns], "<u8").tobytes()
+    align(4)
+    out += np.array([len(offset_ns)], "<u4").tobytes()
+    out += bytes([0, 0, 0, 0])  # lidar_id, rsvd[3]
+    align(4)
+    out += np.array([len(offset_ns)], "<u4").tobytes()
+    points = np.zeros(len(offset_ns), dtype=_CUSTOM_POINT_DTYPE)
+    points["offset_time"] = offset_ns
+    points["x"], points["y"], points["z"] = xyz_flu[:, 0], xyz_flu[:, 1], xyz_flu[:, 2]
+    points["line"] = line
+    body = points.tobytes()
+    return bytes(out) + (body[:-1] if body else body)  # no padding after the last point

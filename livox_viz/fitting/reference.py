@@ -1,0 +1,224 @@
+"""Measured scan patterns: the reference ``.npy`` table and Livox's simulation CSV, in our angular plane.
+
+Both forms give, row by row in firing order, a ray as azimuth and elevation
+(``.npy``: ``[theta, phi]`` radians, x forward, y left, z up) or azimuth and
+zenith (CSV: ``Time/s,Azimuth/deg,Zenith/deg``, degrees). They are turned into
+pattern x (right), y (up) in degrees, with the angle off the boresight as the
+polar radius, exactly as :mod:`livox_viz.directions` maps our own pattern.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from livox_viz.config.presets import shipped_preset_dir
+from livox_viz.core.errors import LivoxVizError, require_file
+
+DEFAULT_RATE = 100_000.0
+
+
+@dataclass(frozen=True)
+class ReferencePattern:
+    """A measured pattern.
+
+    Parameters
+    ----------
+    name : str
+    xy_deg : (n, 2) float64
+        Pattern x (right), y (up), degrees.
+    t : (n,) float64
+        Firing time of each row, seconds (row / rate).
+    rate : float
+        Points per second.
+    """
+
+    name: str
+    xy_deg: np.ndarray
+    t: np.ndarray
+    rate: float
+
+    @property
+    def alpha_deg(self) -> np.ndarray:
+        """``(n,)`` angle off the boresight, degrees."""
+        return np.hypot(self.xy_deg[:, 0], self.xy_deg[:, 1])
+
+    @property
+    def seconds(self) -> float:
+        """Duration of the table."""
+        return len(self.t) / self.rate
+
+
+def xy_from_zup(azimuth: np.ndarray, elevation: np.ndarray) -> np.ndarray:
+    """Pattern angles from azimuth about +z and elevation (radians; x forward, y left, z up).
+
+    Returns
+    -------
+    xy_deg : (n, 2) float64
+    """
+    d = np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)], 1)
+    alpha = np.degrees(np.arccos(np.clip(d[:, 0], -1.0, 1.0)))
+    lateral = np.hypot(d[:, 1], d[:, 2])
+    scale = np.divide(alpha, lateral, out=np.zeros_like(alpha), where=lateral > 0)
+    return np.column_stack([-d[:, 1] * scale, d[:, 2] * scale])
+
+
+def shipped_table_dir() -> Path:
+    """The folder of the shipped scan tables (a checkout's ``presets/tables`` or the wheel's copy)."""
+    return shipped_preset_dir() / "tables"
+
+
+def shipped_tables() -> dict[str, dict[str, Any]]:
+    """The shipped tables by name (``mid40``, ...): each with its ``rate`` (rows/s) and a ``description``."""
+    try:
+        index = json.loads((shipped_table_dir() / "index.json").read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return {}
+    return {name: entry for name, entry in index.items() if (shipped_table_dir() / f"{name}.npy").is_file()}
+
+
+def is_table(text: str | os.PathLike[str]) -> bool:
+    """Whether a reference names a scan table (a shipped table's name, or a .npy/.csv file) rather than a preset."""
+    return os.fspath(text) in shipped_tables() or Path(text).suffix.lower() in (".npy", ".csv")
+
+
+def load_reference(source: str | os.PathLike[str], rate: float | None = None) -> ReferencePattern:
+    """Read a scan table: a shipped one by name (``"mid70"``), a ``.npy`` table (radians) or a Livox CSV (degrees).
+
+    Parameters
+    ----------
+    source : str or path-like
+        A name from :func:`shipped_tables` or a file.
+    rate : float, optional
+        Rows per second. Default: a shipped table's own rate, else 100 000. A rate that contradicts a
+        shipped table's own is refused rather than replayed at the wrong times.
+
+    Raises
+    ------
+    LivoxVizError
+        Wrong shape, NaN, degrees where radians are expected, too few rows, a contradicting rate.
+    """
+    known = shipped_tables().get(os.fspath(source))
+    if known is not None:
+        own = float(known["rate"])
+        if rate is not None and rate != own:
+            raise LivoxVizError(f"{source} is a {own:g} rows/s table; --rate {rate:g} contradicts it "
+                                "(leave --rate out)")
+        return _load_file(shipped_table_dir() / f"{source}.npy", own, str(source))
+    return _load_file(Path(source), DEFAULT_RATE if rate is None else rate, Path(source).stem)
+
+
+def _load_file(path: Path, rate: float, name: str) -> ReferencePattern:
+    """A table file at ``rate`` rows/s, named ``name``."""
+    if not math.isfinite(rate) or rate <= 0:
+        raise LivoxVizError(f"rate {rate!r}; allowed: points per second > 0")
+    require_file(path, "scan table (.npy or Livox CSV)")
+    if path.suffix.lower() == ".npy":
+        try:
+            table = np.load(path, allow_pickle=False)
+        except (ValueError, OSError, EOFError) as exc:
+            raise LivoxVizError(f"{path}: not a NumPy .npy array ({exc})") from None
+        if table.ndim != 2 or table.shape[1] != 2:
+            raise LivoxVizError(f"{path}: shape {table.shape}; allowed: (n, 2) columns [theta, phi] in radians")
+        table = table.astype(np.float64)
+        _check_finite(path, table)
+        if np.abs(table).max() > 2 * math.pi + 1e-6:
+            raise LivoxVizError(
+                f"{path}: angles up to {np.abs(table).max():.4g} look like degrees; the .npy form is radians"
+            )
+        xy = xy_from_zup(table[:, 0], table[:, 1])
+    elif path.suffix.lower() == ".csv":
+        xy = _read_csv(path)
+    else:
+        raise LivoxVizError(f"{path}: unknown format {path.suffix or '(none)'}; allowed: .npy or .csv")
+    if xy.shape[0] < 16:
+        raise LivoxVizError(f"{path}: {xy.shape[0]} rows; allowed: at least a petal's worth")
+    t = np.arange(xy.shape[0], dtype=np.float64) / rate
+    return ReferencePattern(name, xy, t, float(rate))
+
+
+def _check_finite(path: Path, table: np.ndarray, first_line: int | None = None) -> None:
+    """Refuse NaN or infinite rows; ``first_line`` numbers CSV rows by their line in the file."""
+    bad = ~np.isfinite(table).all(axis=1)
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        where = f"line {row + first_line}" if first_line is not None else f"row {row}"
+        raise LivoxVizError(f"{path}: {int(bad.sum())} rows hold NaN or infinite values (first at {where}); "
+                            "allowed: finite angles")
+
+
+def _read_csv(path: Path) -> np.ndarray:
+    """Azimuth and zenith columns of a Livox CSV, degrees, as pattern x, y; errors name the file's line."""
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise LivoxVizError(f"{path}: not UTF-8 text (byte {exc.start}, line {line}); allowed: a Livox CSV "
+                            "(Time/s,Azimuth/deg,Zenith/deg)") from None
+    lines = text.splitlines()
+    if not lines or not lines[0].strip():
+        raise LivoxVizError(f"{path}: is empty; allowed: a Livox CSV with a header line Time/s,Azimuth/deg,Zenith/deg")
+    header = next(csv.reader([lines[0]]))
+    names = [h.strip().lower() for h in header]
+    try:
+        azimuth_col = next(i for i, n in enumerate(names) if n.startswith("azimuth"))
+        zenith_col = next(i for i, n in enumerate(names) if n.startswith("zenith"))
+    except StopIteration:
+        raise LivoxVizError(f"{path}: header {header!r}; allowed: Time/s,Azimuth/deg,Zenith/deg") from None
+    rows = lines[1:]
+    if not any(row.strip() for row in rows):
+        raise LivoxVizError(f"{path}: has a header but no data rows")
+    try:
+        table = np.loadtxt(rows, delimiter=",", usecols=(azimuth_col, zenith_col), ndmin=2)
+    except ValueError as exc:
+        message = re.sub(r"at row (\d+)", lambda m: f"at line {int(m.group(1)) + 2}", str(exc).splitlines()[0])
+        raise LivoxVizError(f"{path}: not numeric ({message})") from None
+    _check_finite(path, table, first_line=2)
+    if np.abs(table).max() <= 2 * math.pi and np.abs(table[:, 1]).max() < 3.2:
+        raise LivoxVizError(f"{path}: angles at most {np.abs(table).max():.3g} look like radians; "
+                            "the CSV form is degrees (Azimuth/deg, Zenith/deg)")
+    azimuth = np.radians(table[:, 0])
+    elevation = np.radians(90.0 - table[:, 1])
+    return xy_from_zup(azimuth, elevation)
+
+
+def pattern_table(config, name: str, seconds: float = 4.0, seed: int = 0) -> ReferencePattern:
+    """The first ``seconds`` of a configuration's pattern as a table, like a measured one.
+
+    Parameters
+    ----------
+    config : SensorConfig
+    name : str
+    seconds : float
+    seed : int
+    """
+    from livox_viz.core.workload import check_points
+    from livox_viz.patterns.factory import make_pattern
+    from livox_viz.patterns.stream import points_before
+
+    count = points_before(seconds, config.point_rate)
+    check_points(count, f"{seconds:g} s of {name}")
+    chunk = make_pattern(config, seed).take(count)
+    return ReferencePattern(name, chunk.xy_deg.copy(), chunk.t.copy(), float(config.point_rate))
+
+
+def load_table_or_preset(text: str, rate: float | None = None, seconds: float = 4.0,
+                         seed: int = 0) -> ReferencePattern:
+    """A reference given on the command line: a table (shipped name or file), or a preset (name or JSON)
+    replayed for ``seconds``."""
+    if is_table(text):
+        return load_reference(text, rate=rate)
+    if Path(text).is_dir():
+        raise LivoxVizError(f"{text}: is a folder; allowed: a table (.npy or Livox .csv) or a preset (name or .json)")
+    from livox_viz.config.presets import load_preset
+
+    return pattern_table(load_preset(text), Path(text).stem, seconds, seed)

@@ -1,0 +1,228 @@
+"""Fitting the Risley model to a scan table: lasers, prism frequencies, phases and the series' coefficients.
+
+The steps (``risley.md``):
+
+1. **Lasers.** K lasers fire in turn, so the step from one row to the next
+   repeats with period K. For each candidate K the mean change between a step
+   and the step K rows later is small only at the true K (and its multiples):
+   the smallest K whose score is within 1.5 x the best wins. ``beams`` forces K.
+2. **Frequencies.** The two prisms' own terms are the two strongest lines of
+   laser 0's spectrum (Hann window, zero-padded FFT, parabolic peak). They are
+   refined by variable projection: for trial frequencies the coefficients are
+   a linear least-squares problem, and ``scipy.optimize.least_squares`` moves
+   the two frequencies to the smallest residual, first with the two prism
+   terms alone, then with the whole series.
+3. **Coefficients.** One linear least-squares solve per laser on every row.
+   One laser on the boresight needs only rotation-equivariant terms
+   (m + l = 1); off-axis lasers also get the terms of first and second order
+   in their offset (m + l = -1 .. 3). Terms below 1e-5 deg for every laser
+   are dropped and the rest solved again.
+4. **Phases.** a0 and b0 are chosen so that laser 0's prism terms are real
+   and positive (they are then the deflections).
+
+Prism A is the one turning counter-clockwise (positive frequency); if both
+turn the same way, the stronger one.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from livox_viz.config.risley_params import RisleyParams
+from livox_viz.core.errors import LivoxVizError
+from livox_viz.fitting.reference import ReferencePattern
+
+MAX_LASERS = 16
+#: Largest |m| of the rotation-equivariant family (m, 1 - m).
+SINGLE_ORDER = 5
+#: Largest |m| of the other families of an off-axis laser.
+OFFSET_ORDER = 3
+PRUNE_DEG = 1e-5
+#: Rows the frequency refinement uses at most (whole firing groups, spread over the table).
+SUBSAMPLE_ROWS = 100_000
+
+
+@dataclass(frozen=True)
+class RisleyFit:
+    """A fitted Risley track and how well it replays the table.
+
+    Parameters
+    ----------
+    params : RisleyParams
+    lasers_found : int
+        K from the table's step pattern (equal to ``params.lasers`` unless forced).
+    rms_deg, p95_deg, max_deg : float
+        Distance of every row to the model's sample of the same time, degrees.
+    rms_per_laser_deg : (K,) float64
+    seconds : float
+        Time the fit took.
+    """
+
+    params: RisleyParams
+    lasers_found: int
+    rms_deg: float
+    p95_deg: float
+    max_deg: float
+    rms_per_laser_deg: np.ndarray
+    seconds: float
+
+
+def find_lasers(z: np.ndarray, max_lasers: int = MAX_LASERS) -> int:
+    """K, the number of lasers firing in turn, from the period of the row-to-row steps.
+
+    Parameters
+    ----------
+    z : (n,) complex128
+        The table's points, degrees (x + iy).
+    """
+    steps = np.diff(z)
+    scores = []
+    for k in range(1, min(max_lasers, steps.size // 8) + 1):
+        scores.append(float(np.mean(np.abs(steps[k:] - steps[:-k]))))
+    if not scores:
+        return 1
+    best = min(scores)
+    return next(k for k, score in enumerate(scores, start=1) if score <= 1.5 * best)
+
+
+def _spectral_peaks(z: np.ndarray, rate: float, count: int = 2) -> list[tuple[float, float]]:
+    """The ``count`` strongest lines of a signal's spectrum away from 0 Hz: (frequency Hz, amplitude)."""
+    n = z.size
+    window = np.hanning(n)
+    size = 1 << (math.ceil(math.log2(n)) + 2)
+    spectrum = np.abs(np.fft.fft((z - z.mean()) * window, size))
+    freqs = np.fft.fftfreq(size, 1.0 / rate)
+    resolution = rate / n
+    peaks: list[tuple[float, float]] = []
+    spectrum[np.abs(freqs) < 2 * resolution] = 0.0
+    for _ in range(count):
+        i = int(np.argmax(spectrum))
+        if spectrum[i] <= 0:
+            break
+        left, right = spectrum[i - 1], spectrum[(i + 1) % size]
+        denominator = left - 2 * spectrum[i] + right
+        shift = 0.5 * (left - right) / denominator if denominator != 0 else 0.0
+        peaks.append((float(freqs[i] + shift * rate / size), float(spectrum[i] * 2 / window.sum())))
+        spectrum[np.abs(freqs - freqs[i]) < 4 * resolution] = 0.0
+    return peaks
+
+
+def series_terms(lasers: int) -> tuple[tuple[int, int], ...]:
+    """The (m, l) terms fitted: the equivariant family, plus the offset families for several lasers."""
+    terms = [(1, 0), (0, 1)]
+    for order in range(2, SINGLE_ORDER + 1):
+        terms += [(order, 1 - order), (1 - order, order)]
+    if lasers > 1:
+        for total in (0, 2, -1, 3):
+            for m in range(-OFFSET_ORDER, OFFSET_ORDER + 1):
+                if (m, total - m) not in terms:
+                    terms.append((m, total - m))
+    return tuple(terms)
+
+
+def _design(t: np.ndarray, hz: tuple[float, float], terms: tuple[tuple[int, int], ...]) -> np.ndarray:
+    """``(n, J)`` complex128 exp(i 2 pi (m f_A + l f_B) t)."""
+    omega = np.array([m * hz[0] + n * hz[1] for m, n in terms])
+    phase = np.mod(np.outer(t, omega), 1.0)
+    return np.exp(2j * np.pi * phase)
+
+
+def _solve(z: np.ndarray, t: np.ndarray, laser: np.ndarray, lasers: int, hz: tuple[float, float],
+           terms: tuple[tuple[int, int], ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients ``(K, J)`` and residuals ``(n,)`` complex for given frequencies."""
+    coefficients = np.zeros((lasers, len(terms)), dtype=np.complex128)
+    residual = np.empty_like(z)
+    for k in range(lasers):
+        rows = laser == k
+        design = _design(t[rows], hz, terms)
+        solution, *_ = np.linalg.lstsq(design, z[rows], rcond=None)
+        coefficients[k] = solution
+        residual[rows] = z[rows] - design @ solution
+    return coefficients, residual
+
+
+def _refine(z: np.ndarray, t: np.ndarray, laser: np.ndarray, lasers: int, hz: tuple[float, float],
+            terms: tuple[tuple[int, int], ...]) -> tuple[float, float]:
+    from scipy.optimize import least_squares
+
+    def residual(values: np.ndarray) -> np.ndarray:
+        _, r = _solve(z, t, laser, lasers, (values[0], values[1]), terms)
+        return np.concatenate([r.real, r.imag])
+
+    span = float(t[-1] - t[0]) if t.size > 1 else 1.0
+    result = least_squares(residual, np.array(hz), x_scale=np.full(2, 0.05 / span), method="lm",
+                           diff_step=np.full(2, 1e-9), xtol=1e-14, ftol=1e-14)
+    return float(result.x[0]), float(result.x[1])
+
+
+def fit_risley(table: ReferencePattern, beams: int | None = None) -> RisleyFit:
+    """Fit a Risley track to a scan table (sample k fires at k / rate, laser k mod K).
+
+    Parameters
+    ----------
+    table : ReferencePattern
+    beams : int, optional
+        Force the number of lasers K.
+
+    Raises
+    ------
+    LivoxVizError
+        For a table too short to tell the prisms apart, or a bad ``beams``.
+    """
+    start = time.perf_counter()
+    z = table.xy_deg[:, 0] + 1j * table.xy_deg[:, 1]
+    if z.size < 1000:
+        raise LivoxVizError(f"{table.name}: {z.size} rows; allowed: at least 1000 (two turns of the slower prism)")
+    if not np.all(np.isfinite(z)):
+        raise LivoxVizError(f"{table.name}: holds NaN or infinite angles; allowed: finite numbers")
+    found = find_lasers(z)
+    if beams is not None and not 1 <= beams <= MAX_LASERS:
+        raise LivoxVizError(f"--beams {beams}; allowed: 1 to {MAX_LASERS}")
+    lasers = beams or found
+    rate = table.rate
+    t = np.arange(z.size, dtype=np.float64) / rate
+    laser = np.arange(z.size) % lasers
+    first = z[laser == 0]
+    peaks = _spectral_peaks(first, rate / lasers, 2)
+    if len(peaks) < 2:
+        raise LivoxVizError(f"{table.name}: found fewer than two rotating lines; is it a Risley scan?")
+    (f1, a1), (f2, a2) = peaks
+    if (f1 > 0) == (f2 > 0):
+        hz = (f1, f2) if a1 >= a2 else (f2, f1)
+    else:
+        hz = (f1, f2) if f1 > 0 else (f2, f1)
+    slowest = min(abs(hz[0]), abs(hz[1]), abs(hz[0] + hz[1]) or math.inf)
+    if table.seconds < 2.0 / slowest:
+        raise LivoxVizError(f"{table.name}: {table.seconds:.4g} s of data; allowed: at least two periods of the "
+                            f"slower beat ({2.0 / slowest:.4g} s at {slowest:.4g} Hz)")
+    # Frequencies on whole firing groups spread over the table (the same precision per period, far less
+    # time); the coefficients on every row.
+    groups = max(1, z.size // (SUBSAMPLE_ROWS if lasers == 1 else SUBSAMPLE_ROWS // 2))
+    sub = np.flatnonzero((np.arange(z.size) // lasers) % groups == 0)
+    terms = series_terms(lasers)
+    first_terms = terms[:2] + (((0, 0),) if lasers > 1 else ())
+    hz = _refine(z[sub], t[sub], laser[sub], lasers, hz, first_terms)
+    hz = _refine(z[sub], t[sub], laser[sub], lasers, hz, terms)
+    coefficients, _ = _solve(z, t, laser, lasers, hz, terms)
+    keep = np.abs(coefficients).max(axis=0) >= PRUNE_DEG
+    keep[:2] = True
+    terms = tuple(term for term, kept in zip(terms, keep, strict=True) if kept)
+    coefficients, residual = _solve(z, t, laser, lasers, hz, terms)
+    # Phases that make laser 0's prism terms real and positive.
+    a0, b0 = float(np.angle(coefficients[0, 0])), float(np.angle(coefficients[0, 1]))
+    shift = np.exp(-1j * np.array([m * a0 + n * b0 for m, n in terms]))
+    params = RisleyParams(prism_hz=hz, phase_rad=(a0, b0), terms=terms, base_coefficients=coefficients * shift)
+    distance = np.abs(residual)
+    per_laser = np.array([math.sqrt(float(np.mean(distance[laser == k] ** 2))) for k in range(lasers)])
+    return RisleyFit(params, found, math.sqrt(float(np.mean(distance**2))), float(np.percentile(distance, 95)),
+                     float(distance.max()), per_laser, time.perf_counter() - start)
+
+
+def track_residual(xy_a: np.ndarray, xy_b: np.ndarray) -> tuple[float, float, float]:
+    """Sample-for-sample distance of two tracks of the same length: (rms, p95, max) degrees."""
+    distance = np.hypot(*(np.asarray(xy_a) - np.asarray(xy_b)).T)
+    return (math.sqrt(float(np.mean(distance**2))), float(np.percentile(distance, 95)), float(distance.max()))

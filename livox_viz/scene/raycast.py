@@ -1,0 +1,358 @@
+"""First-hit ray casting against a triangle mesh: Embree, and trimesh's numpy intersector.
+
+Both backends share one interface, :meth:`distances`, with documented shapes;
+a ray that hits nothing within ``max_distance`` gets ``inf``.
+
+Embree works in float32. The mesh is moved to its own origin (the centre of
+its bounding box) before the conversion, so precision depends on the scene's
+size, not on where it sits in the world: a range is good to about 1e-7 of the
+scene's size (0.1 mm in a 1 km scene), far below the int16 step of the
+published points (18 mm at 600 m). That is the default. With ``exact=True``
+the distance of every hit is recomputed in float64 from the plane of the
+triangle Embree found (about a tenth more time).
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+from concurrent.futures import ThreadPoolExecutor
+from typing import Protocol
+
+import numpy as np
+import trimesh
+
+from livox_viz.core.errors import LivoxVizError
+
+
+class RayCaster(Protocol):
+    """What every backend offers."""
+
+    def distances(
+        self, origins: np.ndarray, directions: np.ndarray, max_distance: float = np.inf
+    ) -> np.ndarray:
+        """Distance along each ray to its first hit.
+
+        Parameters
+        ----------
+        origins : (n, 3) or (3,) float
+            Ray origins, metres, world frame; one row is used for all rays.
+        directions : (n, 3) float
+            Unit ray directions.
+        max_distance : float
+            Hits farther than this are misses, metres.
+
+        Returns
+        -------
+        distance : (n,) float64
+            Metres; ``inf`` where the ray hits nothing within ``max_distance``.
+        """
+        ...
+
+
+def _check_rays(origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    origins = np.asarray(origins, dtype=np.float64)
+    directions = np.asarray(directions, dtype=np.float64)
+    if directions.ndim != 2 or directions.shape[1] != 3:
+        raise LivoxVizError(f"directions have shape {directions.shape}; allowed: (n, 3)")
+    if origins.shape == (3,):
+        origins = origins[None, :]
+    if origins.ndim != 2 or origins.shape[1] != 3 or origins.shape[0] not in (1, directions.shape[0]):
+        raise LivoxVizError(f"origins have shape {origins.shape}; allowed: (3,), (1, 3) or (n, 3) with n rays")
+    return origins, directions
+
+
+class EmbreeCaster:
+    """First hits through Embree (``embreex``), rays split across threads.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The scene, metres.
+    threads : int, optional
+        Worker threads (Embree releases the GIL); default the number of CPUs.
+    exact : bool
+        Recompute each hit's distance in float64 from its triangle's plane.
+        The default (False) keeps Embree's float32 distance in the re-centred
+        frame (relative error about 1e-7 of the scene's size, far below the
+        int16 step) and saves about a tenth of the time.
+
+    Examples
+    --------
+    >>> caster = EmbreeCaster(trimesh.creation.box((2, 2, 2)))
+    >>> caster.distances(np.zeros(3), np.array([[1.0, 0, 0]])).tolist()
+    [1.0]
+    """
+
+    def __init__(self, mesh: trimesh.Trimesh, threads: int | None = None, exact: bool = False) -> None:
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+
+        if len(mesh.faces) == 0:
+            raise LivoxVizError("the scene has no triangles")
+        self.mesh = mesh
+        self.exact = exact
+        self.local_origin = np.asarray(mesh.bounds, dtype=np.float64).mean(axis=0)
+        vertices = np.asarray(mesh.vertices, dtype=np.float64)
+        faces = np.asarray(mesh.faces, dtype=np.int64)
+        self._scene = rtcore_scene.EmbreeScene()
+        TriangleMesh(self._scene, (vertices - self.local_origin).astype(np.float32), faces.astype(np.int32))
+        # Per-triangle plane in float64: unit normal n and offset n . v0 (world frame).
+        v0 = vertices[faces[:, 0]]
+        normals = np.cross(vertices[faces[:, 1]] - v0, vertices[faces[:, 2]] - v0)
+        lengths = np.linalg.norm(normals, axis=1)
+        normals /= np.where(lengths > 0, lengths, 1.0)[:, None]
+        # One row per triangle, [nx, ny, nz, n . v0], so a hit needs one gather.
+        self._planes = np.column_stack([normals, np.einsum("ij,ij->i", normals, v0)])
+        self._workspaces: dict[int, _Workspace] = {}
+        self.threads = max(1, threads or os.cpu_count() or 1)
+        self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
+        # Embree builds its BVH on the first query; do it now, not inside a timed frame.
+        self._scene.run(np.zeros((1, 3), np.float32), np.full((1, 3), 0.57735, np.float32), query="INTERSECT")
+
+    def triangle_ids(self, origins: np.ndarray, directions: np.ndarray, max_distance: float = np.inf) -> np.ndarray:
+        """Index of the first triangle each ray hits, ``(n,)`` int32, -1 for a miss."""
+        origins, directions = _check_rays(origins, directions)
+        ids = np.empty(directions.shape[0], dtype=np.int32)
+        self._in_parts(origins, directions, max_distance, ids, None)
+        return ids
+
+    def distances(self, origins: np.ndarray, directions: np.ndarray, max_distance: float = np.inf) -> np.ndarray:
+        """See :meth:`RayCaster.distances`."""
+        origins, directions = _check_rays(origins, directions)
+        count = directions.shape[0]
+        distance = np.empty(count, dtype=np.float64)
+        self._in_parts(origins, directions, max_distance, np.empty(count, dtype=np.int32), distance)
+        return distance
+
+    def _in_parts(
+        self,
+        origins: np.ndarray,
+        directions: np.ndarray,
+        max_distance: float,
+        ids: np.ndarray,
+        distance: np.ndarray | None,
+    ) -> None:
+        """Cast contiguous parts of the rays on the worker threads, each part start to finish.
+
+        Everything per ray (float32 conversion, Embree, the float64 plane
+        distance) runs inside the part, so the threads share the work, not just
+        Embree's; numpy releases the GIL for these array operations.
+        """
+        count = directions.shape[0]
+        if count == 0:
+            return
+        limit = np.float32(min(max_distance, 1e37))
+        local = origins - self.local_origin
+        shared_origin = local.shape[0] == 1
+
+        def run(index_bounds: tuple[int, tuple[int, int]]) -> None:
+            index, (start, stop) = index_bounds
+            work = self._workspace(index, stop - start)
+            part_dirs = directions[start:stop]
+            part_local = work.origins(local[0]) if shared_origin else work.per_ray_origins(local[start:stop])
+            part_dirs32 = work.f32_directions
+            part_dirs32[:] = part_dirs
+            if distance is not None and not self.exact:
+                far = self._scene.run(part_local, part_dirs32, dists=work.limits(limit), query="DISTANCE")
+                hit = far < limit
+                distance[start:stop] = np.where(hit, far, np.inf)
+                ids[start:stop] = np.where(hit, 0, -1)
+                return
+            part_ids = self._scene.run(part_local, part_dirs32, dists=work.limits(limit), query="INTERSECT")
+            ids[start:stop] = part_ids
+            if distance is not None:
+                part_origins = origins if shared_origin else origins[start:stop]
+                self._plane_distances(part_origins, part_dirs, part_ids, max_distance, work, distance[start:stop])
+
+        parts = list(enumerate(_split(count, self.threads)))
+        if self._pool is None or len(parts) == 1:
+            for part in parts:
+                run(part)
+        else:
+            list(self._pool.map(run, parts))
+
+    def _workspace(self, index: int, rows: int) -> _Workspace:
+        work = self._workspaces.get(index)
+        if work is None or work.capacity < rows:
+            work = self._workspaces[index] = _Workspace(rows)
+        return work.sized(rows)
+
+    def _plane_distances(
+        self,
+        origins: np.ndarray,
+        directions: np.ndarray,
+        ids: np.ndarray,
+        max_distance: float,
+        work: _Workspace,
+        out: np.ndarray,
+    ) -> None:
+        """Float64 distance to the plane of each hit triangle; ``inf`` for misses and beyond range.
+
+        Parameters
+        ----------
+        origins : (n, 3) or (1, 3) float64
+        directions : (n, 3) float64
+        ids : (n,) int32
+            Hit triangles, -1 for a miss.
+        work : _Workspace
+            Scratch arrays of this part.
+        out : (n,) float64
+            Where the distances go.
+        """
+        missed = ids < 0
+        face = np.maximum(ids, 0, out=work.faces)
+        planes = np.take(self._planes, face, axis=0, out=work.planes)
+        # Plain ufuncs on columns, not einsum: they release the GIL, so both parts run at once.
+        facing = np.multiply(planes[:, 0], directions[:, 0], out=work.facing)
+        for axis in (1, 2):
+            facing += np.multiply(planes[:, axis], directions[:, axis], out=work.scratch)
+        if origins.shape[0] == 1:
+            o = origins[0]
+            along = np.multiply(planes[:, 0], o[0], out=out)
+            for axis in (1, 2):
+                along += np.multiply(planes[:, axis], o[axis], out=work.scratch)
+        else:
+            along = np.multiply(planes[:, 0], origins[:, 0], out=out)
+            for axis in (1, 2):
+                along += np.multiply(planes[:, axis], origins[:, axis], out=work.scratch)
+        np.subtract(planes[:, 3], along, out=along)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            exact = np.divide(along, facing, out=out)
+        unresolved = ~missed & ~(np.isfinite(exact) & (exact >= 0))
+        if np.any(unresolved):
+            # A grazing hit the plane cannot resolve keeps Embree's own float32 answer.
+            rows = np.flatnonzero(unresolved)
+            o = origins if origins.shape[0] == 1 else origins[rows]
+            exact[rows] = self._scene.run(
+                np.ascontiguousarray(np.broadcast_to(o - self.local_origin, (rows.size, 3)), dtype=np.float32),
+                np.ascontiguousarray(directions[rows], dtype=np.float32),
+                query="DISTANCE",
+            )
+        exact[missed | (exact > max_distance)] = np.inf
+
+    def close(self) -> None:
+        """Stop the worker threads."""
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+
+    def __del__(self) -> None:
+        pool = getattr(self, "_pool", None)
+        if pool is not None:
+            pool.shutdown(wait=False)
+
+
+class _Workspace:
+    """Scratch arrays of one part of the rays, kept between calls.
+
+    Fresh arrays of a million rays cost more in page faults than the work
+    done in them, so each worker part keeps its own and reuses them.
+
+    Parameters
+    ----------
+    capacity : int
+        Rays the arrays hold.
+    """
+
+    def __init__(self, capacity: int) -> None:
+        self.capacity = capacity
+        self._origins = np.empty((capacity, 3), dtype=np.float32)
+        self._origin_value: np.ndarray | None = None
+        self._directions = np.empty((capacity, 3), dtype=np.float32)
+        self._limits = np.empty(capacity, dtype=np.float32)
+        self._faces = np.empty(capacity, dtype=np.int32)
+        self._planes = np.empty((capacity, 4), dtype=np.float64)
+        self._facing = np.empty(capacity, dtype=np.float64)
+        self._scratch = np.empty(capacity, dtype=np.float64)
+        self.rows = capacity
+
+    def sized(self, rows: int) -> _Workspace:
+        """Use the first ``rows`` rows."""
+        if rows != self.rows:
+            self._origin_value = None
+        self.rows = rows
+        return self
+
+    def origins(self, value: np.ndarray) -> np.ndarray:
+        """``(rows, 3)`` float32 filled with one origin (refilled only when it changes)."""
+        if self._origin_value is None or not np.array_equal(self._origin_value, value):
+            self._origins[: self.rows] = value
+            self._origin_value = np.array(value)
+        return self._origins[: self.rows]
+
+    def limits(self, value: np.float32) -> np.ndarray:
+        """``(rows,)`` float32 initial ray lengths, filled with ``value``."""
+        limits = self._limits[: self.rows]
+        limits.fill(value)
+        return limits
+
+    def per_ray_origins(self, values: np.ndarray) -> np.ndarray:
+        """``(rows, 3)`` float32 filled with one origin per ray (the shared-origin cache is dropped)."""
+        self._origin_value = None
+        origins = self._origins[: self.rows]
+        origins[:] = values
+        return origins
+
+    @property
+    def f32_directions(self) -> np.ndarray:
+        """``(rows, 3)`` float32 scratch for directions."""
+        return self._directions[: self.rows]
+
+    @property
+    def faces(self) -> np.ndarray:
+        """``(rows,)`` int32 scratch."""
+        return self._faces[: self.rows]
+
+    @property
+    def planes(self) -> np.ndarray:
+        """``(rows, 4)`` float64 scratch."""
+        return self._planes[: self.rows]
+
+    @property
+    def scratch(self) -> np.ndarray:
+        """``(rows,)`` float64 scratch."""
+        return self._scratch[: self.rows]
+
+    @property
+    def facing(self) -> np.ndarray:
+        """``(rows,)`` float64 scratch."""
+        return self._facing[: self.rows]
+
+
+def _split(count: int, parts: int) -> list[tuple[int, int]]:
+    """``parts`` contiguous ranges covering ``0..count`` (fewer for small counts)."""
+    parts = max(1, min(parts, count // 2048 or 1))
+    edges = np.linspace(0, count, parts + 1).astype(int)
+    return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
+
+
+class TrimeshCaster:
+    """First hits through trimesh's pure-numpy intersector (slow; for cross-checks).
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The scene, metres.
+    """
+
+    def __init__(self, mesh: trimesh.Trimesh) -> None:
+        from trimesh.ray.ray_triangle import RayMeshIntersector
+
+        if len(mesh.faces) == 0:
+            raise LivoxVizError("the scene has no triangles")
+        self.mesh = mesh
+        self._intersector = RayMeshIntersector(mesh)
+
+    def distances(self, origins: np.ndarray, directions: np.ndarray, max_distance: float = np.inf) -> np.ndarray:
+        """See :meth:`RayCaster.distances`."""
+        origins, directions = _check_rays(origins, directions)
+        origins = np.broadcast_to(origins, directions.shape)
+        distance = np.full(directions.shape[0], np.inf)
+        if directions.shape[0] == 0:
+            return distance
+        locations, rays, _ = self._intersector.intersects_location(origins, directions, multiple_hits=False)
+        if len(rays):
+            distance[rays] = np.einsum("ij,ij->i", locations - origins[rays], directions[rays])
+        distance[distance > max_distance] = np.inf
+        return distance

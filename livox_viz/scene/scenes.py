@@ -1,0 +1,259 @@
+"""Scenes to cast the scan into: built-in scene presets and mesh files, in the world NED frame.
+
+A scene preset is a JSON file in ``presets/scenes/`` listing primitives in
+world NED coordinates (x north, y east, z down, metres; ground at z = 0) and a
+default vehicle pose. Mesh files (OBJ, STL, PLY, GLB/GLTF, OFF, anything
+trimesh reads) are taken in metres with a stated up axis and turned into NED:
+
+* ``up="z"``: x forward, y left, z up (ROS, most CAD) -> NED (x, -y, -z);
+* ``up="y"``: the glTF convention, +y up, +z forward, -x right -> NED (z, -x, -y).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import trimesh
+
+from livox_viz.config.presets import DESCRIPTION_KEY, shipped_preset_dir, user_config_dir
+from livox_viz.core.errors import LivoxVizError, require_file
+from livox_viz.core.poses import Pose
+
+DEFAULT_SCENE = "urban"
+UP_AXES = ("z", "y")
+_TO_NED = {
+    "z": np.array([[1.0, 0, 0], [0, -1, 0], [0, 0, -1]]),
+    "y": np.array([[0, 0, 1.0], [-1, 0, 0], [0, -1, 0]]),
+}
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A scene ready to cast into.
+
+    Parameters
+    ----------
+    name : str
+        Preset name or file name.
+    mesh : trimesh.Trimesh
+        All triangles, world NED, metres.
+    vehicle_pose : Pose
+        Where the vehicle stands by default.
+    description : str
+        One line for listings.
+    """
+
+    name: str
+    mesh: trimesh.Trimesh
+    vehicle_pose: Pose
+    description: str = ""
+
+
+def scene_dir() -> Path:
+    """Folder of the shipped scene presets."""
+    return shipped_preset_dir() / "scenes"
+
+
+def list_scenes() -> list[tuple[str, str]]:
+    """``(name, description)`` of every shipped scene preset."""
+    found = []
+    for path in sorted(scene_dir().glob("*.json")):
+        try:
+            description = json.loads(path.read_text(encoding="utf-8")).get(DESCRIPTION_KEY, "")
+        except (OSError, json.JSONDecodeError, AttributeError):
+            description = "(unreadable)"
+        found.append((path.stem, description))
+    return found
+
+
+MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off", ".json")
+
+
+def user_scene_dir() -> Path:
+    """The user's own scenes (mesh files or scene JSON): ``$LIVOX_VIZ_SCENES`` or ``~/.config/livox-viz/scenes``."""
+    return user_config_dir("scenes")
+
+
+def scene_choices() -> list[str]:
+    """What the GUI cycles through: shipped scene names, then the user's scene files (paths)."""
+    choices = [name for name, _ in list_scenes()]
+    folder = user_scene_dir()
+    if folder.is_dir():
+        choices += [str(p) for p in sorted(folder.iterdir()) if p.suffix.lower() in MESH_SUFFIXES]
+    return choices
+
+
+def default_scene() -> trimesh.Trimesh:
+    """The built-in default scene's mesh (world NED, metres)."""
+    return load_scene_preset(DEFAULT_SCENE).mesh
+
+
+def load_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE, up: str = "z") -> trimesh.Trimesh:
+    """The mesh of a scene preset (by name or JSON path) or of a mesh file, in world NED.
+
+    Parameters
+    ----------
+    name_or_path : str or path-like
+        A scene preset name (``livox-viz scenes``), a scene JSON, or a mesh file.
+    up : {"z", "y"}
+        Up axis of a mesh file.
+    """
+    return open_scene(name_or_path, up).mesh
+
+
+def open_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE, up: str = "z") -> Scene:
+    """Like :func:`load_scene`, with the scene's name, description and default vehicle pose."""
+    text = os.fspath(name_or_path)
+    names = [name for name, _ in list_scenes()]
+    if text in names:
+        return load_scene_preset(text)
+    path = Path(text)
+    if path.suffix.lower() == ".json":
+        return _scene_from_json(path)
+    if not path.exists():
+        raise LivoxVizError(f"scene {text!r} is neither a scene preset ({', '.join(names)}) nor an existing file")
+    return Scene(path.name, load_mesh_file(path, up), Pose((0.0, 0.0, -1.5)), f"mesh file {path}")
+
+
+def load_scene_preset(name: str) -> Scene:
+    """A shipped scene preset by name."""
+    path = scene_dir() / f"{name}.json"
+    if not path.is_file():
+        names = ", ".join(n for n, _ in list_scenes())
+        raise LivoxVizError(f"unknown scene {name!r}; allowed: {names}")
+    return _scene_from_json(path)
+
+
+def load_mesh_file(path: str | os.PathLike[str], up: str = "z") -> trimesh.Trimesh:
+    """Read a mesh file (metres) and turn it into world NED.
+
+    Raises
+    ------
+    LivoxVizError
+        If the file is missing, not a mesh, empty, or has non-finite vertices.
+    """
+    path = Path(path)
+    if up not in UP_AXES:
+        raise LivoxVizError(f"up axis {up!r}; allowed: {' or '.join(UP_AXES)}")
+    require_file(path, "mesh file")
+    try:
+        loaded = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for unreadable files
+        raise LivoxVizError(f"{path}: not a mesh trimesh can read ({type(exc).__name__}: {exc})") from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise LivoxVizError(
+            f"{path}: holds no triangles; allowed: a mesh with at least one face (OBJ, STL, PLY, GLB, OFF)"
+        )
+    vertices = np.asarray(loaded.vertices, dtype=np.float64)
+    if not np.all(np.isfinite(vertices)):
+        bad = int((~np.isfinite(vertices)).any(axis=1).sum())
+        raise LivoxVizError(f"{path}: {bad} vertices are NaN or infinite; allowed: finite coordinates in metres")
+    return trimesh.Trimesh(vertices @ _TO_NED[up].T, np.asarray(loaded.faces), process=False)
+
+
+# Scene descriptions ------------------------------------------------------------------
+def _scene_from_json(path: Path) -> Scene:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise LivoxVizError(f"{path}: no such scene file") from None
+    except (OSError, json.JSONDecodeError) as exc:
+        raise LivoxVizError(f"{path}: not a readable scene JSON ({exc})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("objects"), list):
+        raise LivoxVizError(f"{path}: a scene JSON needs an 'objects' list")
+    parts = [_primitive(obj, index, path.parent) for index, obj in enumerate(data["objects"])]
+    if not parts:
+        raise LivoxVizError(f"{path}: the scene has no objects")
+    pose_values = data.get("vehicle_pose", [0, 0, -1.5, 0, 0, 0])
+    pose = Pose.parse(",".join(str(v) for v in pose_values))
+    mesh = trimesh.util.concatenate(parts)
+    return Scene(path.stem, mesh, pose, str(data.get(DESCRIPTION_KEY, "")))
+
+
+def _vector(obj: dict[str, Any], key: str, length: int, where: str) -> np.ndarray:
+    value = obj.get(key)
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        array = np.zeros(0)
+    if array.shape != (length,) or not np.all(np.isfinite(array)):
+        raise LivoxVizError(f"{where}: '{key}' = {value!r}; allowed: {length} finite numbers")
+    return array
+
+
+def _number(obj: dict[str, Any], key: str, where: str, default: float | None = None) -> float:
+    value = obj.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise LivoxVizError(f"{where}: '{key}' = {value!r}; allowed: a number > 0")
+    return float(value)
+
+
+def _primitive(obj: Any, index: int, folder: Path) -> trimesh.Trimesh:
+    where = f"object {index}"
+    if not isinstance(obj, dict):
+        raise LivoxVizError(f"{where}: must be a JSON object")
+    kind = obj.get("type")
+    where = f"object {index} ({kind})"
+    if kind == "mesh":
+        mesh = load_mesh_file(folder / str(obj.get("path", "")), str(obj.get("up", "z")))
+        mesh.apply_translation(_vector(obj, "center", 3, where) if "center" in obj else np.zeros(3))
+        return mesh
+    center = _vector(obj, "center", 3, where)
+    if kind == "box":
+        return trimesh.creation.box(_vector(obj, "size", 3, where), trimesh.transformations.translation_matrix(center))
+    if kind == "ground":
+        size = _vector(obj, "size", 2, where)
+        return _grid(center, size, 1, lambda x, y: np.zeros_like(x))
+    if kind == "terrain":
+        size = _vector(obj, "size", 2, where)
+        cells = int(_number(obj, "cells", where, 100))
+        amplitude = _number(obj, "amplitude", where, 2.0)
+        wavelength = _number(obj, "wavelength", where, 20.0)
+        k = 2 * math.pi / wavelength
+
+        def height(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+            return -amplitude * (0.5 + 0.25 * np.sin(k * x) + 0.25 * np.cos(0.7 * k * y + 0.3 * k * x))
+
+        return _grid(center, size, cells, height)
+    if kind == "cylinder":
+        radius, height_m = _number(obj, "radius", where), _number(obj, "height", where)
+        return trimesh.creation.cylinder(radius, height_m, sections=24,
+                                         transform=trimesh.transformations.translation_matrix(center))
+    if kind == "sphere":
+        mesh = trimesh.creation.icosphere(subdivisions=3, radius=_number(obj, "radius", where))
+        mesh.apply_translation(center)
+        return mesh
+    if kind == "roof":
+        return _roof(center, _vector(obj, "size", 3, where))
+    raise LivoxVizError(f"{where}: unknown type {kind!r}; allowed: ground, terrain, box, cylinder, sphere, roof, mesh")
+
+
+def _grid(center: np.ndarray, size: np.ndarray, cells: int, height) -> trimesh.Trimesh:
+    """A ``cells`` x ``cells`` height field (2 triangles a cell) centred on ``center``."""
+    xs = center[0] + np.linspace(-size[0] / 2, size[0] / 2, cells + 1)
+    ys = center[1] + np.linspace(-size[1] / 2, size[1] / 2, cells + 1)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    gz = center[2] + height(gx, gy)
+    vertices = np.column_stack([gx.ravel(), gy.ravel(), gz.ravel()])
+    idx = np.arange((cells + 1) ** 2).reshape(cells + 1, cells + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    faces = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    return trimesh.Trimesh(vertices, faces, process=False)
+
+
+def _roof(center: np.ndarray, size: np.ndarray) -> trimesh.Trimesh:
+    """A gabled roof: base ``size[0]`` x ``size[1]`` at ``center``, ridge ``size[2]`` higher (NED: z smaller)."""
+    hx, hy, rise = size[0] / 2, size[1] / 2, size[2]
+    x0, y0, z0 = center
+    vertices = np.array([
+        [x0 - hx, y0 - hy, z0], [x0 + hx, y0 - hy, z0], [x0 + hx, y0 + hy, z0], [x0 - hx, y0 + hy, z0],
+        [x0 - hx, y0, z0 - rise], [x0 + hx, y0, z0 - rise],
+    ])
+    faces = np.array([[0, 1, 5], [0, 5, 4], [2, 3, 4], [2, 4, 5], [0, 4, 3], [1, 2, 5], [0, 3, 2], [0, 2, 1]])
+    return trimesh.Trimesh(vertices, faces, process=False)

@@ -1,0 +1,276 @@
+"""Sending and receiving live frames: UDP sockets and shared memory around :mod:`livox_viz.rflysim`."""
+
+from __future__ import annotations
+
+import errno
+import socket
+import sys
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from livox_viz.casting.scan import ScanFrame
+from livox_viz.config.sensor import SensorConfig
+from livox_viz.core.errors import LivoxVizError
+from livox_viz.wire.rflysim import (
+    LivoxFrame,
+    Reassembler,
+    SharedMemoryLink,
+    pack_payload,
+    shm_path,
+    shm_size,
+    split_datagrams,
+    unpack_payload,
+)
+
+
+@dataclass
+class PublishReport:
+    """What a publisher did."""
+
+    frames: int = 0
+    points: int = 0
+    datagrams: int = 0
+    send_errors: int = 0
+    wall_seconds: float = 0.0
+    scan_seconds: float = 0.0
+
+    @property
+    def speed(self) -> float:
+        """Scan seconds published per wall second."""
+        return self.scan_seconds / self.wall_seconds if self.wall_seconds > 0 else float("inf")
+
+
+class UdpSender:
+    """Sends frames as RflySim datagrams to one address; send errors are counted, not fatal.
+
+    Parameters
+    ----------
+    host : str
+    port : int
+    """
+
+    def __init__(self, host: str, port: int) -> None:
+        try:
+            infos = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)
+        except socket.gaierror as exc:
+            raise LivoxVizError(f"cannot resolve {host!r}: {exc.strerror}") from None
+        self.address = infos[0][4]
+        self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 8 << 20)
+        self.errors = 0
+        self.last_error = ""
+
+    def send(self, timestamp: float, pos_ang: np.ndarray, xyz_int16: np.ndarray) -> int:
+        """Send one frame (chunk 0 first); returns the datagrams sent."""
+        sent = 0
+        for datagram in split_datagrams(pack_payload(pos_ang, xyz_int16), timestamp):
+            try:
+                self.socket.sendto(datagram, self.address)
+                sent += 1
+            except OSError as exc:
+                self.errors += 1
+                self.last_error = exc.strerror or str(exc)
+        return sent
+
+    def close(self) -> None:
+        self.socket.close()
+
+
+class ShmSender:
+    """Writes frames into RflySim's shared-memory block for a configuration."""
+
+    def __init__(self, config: SensorConfig, folder: str = "/dev/shm") -> None:
+        self.link = SharedMemoryLink(shm_path(config.seq_id, folder), shm_size(config), create=True)
+        self.errors = 0
+        self.last_error = ""
+
+    def send(self, timestamp: float, pos_ang: np.ndarray, xyz_int16: np.ndarray) -> int:
+        if not self.link.write(timestamp, pos_ang, xyz_int16):
+            self.errors += 1
+            self.last_error = "the reader still holds the previous frame"
+            return 0
+        return 1
+
+    def close(self) -> None:
+        self.link.close()
+
+
+def publish(frames: Iterable[ScanFrame], sender: UdpSender | ShmSender, speed: float | None,
+            on_progress: Callable[[PublishReport], None] | None = None) -> PublishReport:
+    """Send each frame at its scan time divided by ``speed`` (None: as fast as possible).
+
+    Pacing is against the clock (frame k is due at start + t_k / speed), so
+    sleeping never accumulates drift.
+    """
+    report = PublishReport()
+    start = time.monotonic()
+    for frame in frames:
+        if speed is not None:
+            due = start + frame.timestamp / speed
+            delay = due - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        report.datagrams += sender.send(frame.timestamp, frame.sensor_pose.as_array(), frame.xyz_int16)
+        report.frames += 1
+        report.points += len(frame)
+        report.scan_seconds = frame.end_time
+        if on_progress is not None:
+            on_progress(report)
+    report.send_errors = sender.errors
+    report.wall_seconds = time.monotonic() - start
+    return report
+
+
+@dataclass
+class ListenReport:
+    """What a receiver saw."""
+
+    frames: int = 0
+    points: int = 0
+    datagrams: int = 0
+    bad_payloads: int = 0
+    cpu_seconds: float = 0.0
+
+
+class UdpReceiver:
+    """Binds a UDP port and yields complete frames.
+
+    Parameters
+    ----------
+    host, port : str, int
+    """
+
+    def __init__(self, host: str, port: int) -> None:
+        self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 16 << 20)
+        try:
+            self.socket.bind((host, port))
+        except OSError as exc:
+            self.socket.close()
+            if exc.errno == errno.EADDRINUSE:
+                raise LivoxVizError(f"port {port} on {host} is in use by another program") from None
+            raise LivoxVizError(f"cannot listen on {host}:{port} ({exc.strerror})") from None
+        self.socket.settimeout(0.2)
+        #: The port bound (the one the system chose when asked for port 0).
+        self.port = int(self.socket.getsockname()[1])
+        self.assembler = Reassembler()
+        self.report = ListenReport()
+
+    def frames(self, stop: Callable[[], bool]) -> Iterable[LivoxFrame]:
+        """Complete, well-formed frames until ``stop()`` is true."""
+        buffer = bytearray(65536)
+        while not stop():
+            try:
+                size = self.socket.recv_into(buffer)
+            except (TimeoutError, BlockingIOError):
+                continue
+            cpu = time.process_time()
+            self.report.datagrams += 1
+            done = self.assembler.feed(bytes(buffer[:size]))
+            frame = None
+            if done is not None:
+                try:
+                    frame = unpack_payload(done[1], done[0])
+                except LivoxVizError as exc:
+                    self.report.bad_payloads += 1
+                    self.assembler.drops["bad payload"] += 1
+                    self.assembler.last_error = str(exc)
+            self.report.cpu_seconds += time.process_time() - cpu
+            if frame is not None:
+                self.report.frames += 1
+                self.report.points += frame.xyz_int16.shape[0]
+                yield frame
+
+    def poll(self, max_datagrams: int = 100_000) -> list[LivoxFrame]:
+        """Every complete frame that has arrived, without waiting."""
+        frames: list[LivoxFrame] = []
+        self.socket.setblocking(False)
+        try:
+            for frame in self.frames(_UntilEmpty(self.socket, max_datagrams)):
+                frames.append(frame)
+        finally:
+            self.socket.settimeout(0.2)
+        return frames
+
+    def close(self) -> None:
+        self.socket.close()
+
+
+class _UntilEmpty:
+    """A stop test for :meth:`UdpReceiver.frames` that ends when no datagram is waiting (or after ``limit``)."""
+
+    def __init__(self, sock: socket.socket, limit: int) -> None:
+        self.socket = sock
+        self.limit = limit
+        self.seen = 0
+
+    def __call__(self) -> bool:
+        import select
+
+        self.seen += 1
+        if self.seen > self.limit:
+            return True
+        ready, _, _ = select.select([self.socket], [], [], 0)
+        return not ready
+
+
+class ShmReceiver:
+    """Polls RflySim's shared-memory block and yields new frames."""
+
+    def __init__(self, config: SensorConfig, folder: str = "/dev/shm") -> None:
+        path = shm_path(config.seq_id, folder)
+        if not path.exists():
+            raise LivoxVizError(f"{path}: no shared memory block (is a publisher running?)")
+        self.link = SharedMemoryLink(path, shm_size(config))
+        self.report = ListenReport()
+        self.assembler = Reassembler()
+
+    def frames(self, stop: Callable[[], bool]) -> Iterable[LivoxFrame]:
+        while not stop():
+            try:
+                frame = self.link.read()
+            except LivoxVizError as exc:
+                self.assembler.drops["bad payload"] += 1
+                self.assembler.last_error = str(exc)
+                frame = None
+            if frame is None:
+                time.sleep(0.001)
+                continue
+            self.report.frames += 1
+            self.report.points += frame.xyz_int16.shape[0]
+            yield frame
+
+    def poll(self, max_datagrams: int = 1) -> list[LivoxFrame]:
+        """The frame waiting in the block, if any, without waiting."""
+        frame = self.link.read()
+        if frame is None:
+            return []
+        self.report.frames += 1
+        self.report.points += frame.xyz_int16.shape[0]
+        return [frame]
+
+    def close(self) -> None:
+        self.link.close()
+
+
+def status_line(report: ListenReport, assembler: Reassembler, elapsed: float) -> str:
+    """``12.0 frames/s, 7400 points/frame, drops 0`` and the last reason, for the live line."""
+    rate = report.frames / elapsed if elapsed > 0 else 0.0
+    per_frame = report.points / report.frames if report.frames else 0.0
+    drops = sum(assembler.drops.values())
+    restarts = f", sender restarts {assembler.restarts}" if assembler.restarts else ""
+    reason = f" (last: {assembler.last_error})" if drops or assembler.restarts else ""
+    return (f"{report.frames} frames, {rate:5.1f} frames/s, {per_frame:8.0f} points/frame, drops {drops}"
+            f"{restarts}{reason}")
+
+
+def print_status(text: str) -> None:
+    """Rewrite the live line on a terminal; print it plainly otherwise."""
+    if sys.stderr.isatty():
+        sys.stderr.write("\r" + text[:160].ljust(100))
+    else:
+        sys.stderr.write(text + "\n")
+    sys.stderr.flush()

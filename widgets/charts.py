@@ -1,0 +1,109 @@
+"""Live charts beside the views: FOV coverage against integration time, and radial density, ours and the reference's.
+
+Both curves of ours are recomputed whenever the configuration changes (the
+session tells us), from the pattern's first seconds (at most a million points,
+so a slider change redraws them in well under 100 ms); the reference's when
+the overlay's source changes. They are pyvista's own charts (VTK context 2D),
+drawn in the same window as the views.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pyvista as pv
+
+from livox_viz.patterns.metrics import CURVE_POINTS, CURVE_SECONDS, PatternCurves, config_curves, stream_curves
+from livox_viz.patterns.stream import points_before
+
+from .overlay import PresetSource, TableSource
+from .session import Session
+
+OURS_COLOUR = "#e0a526"
+REFERENCE_COLOUR = "#2b7bb9"
+_NOT_SHOWN = object()
+
+
+def reference_curves(source: TableSource | PresetSource) -> PatternCurves:
+    """The reference's curves over its first seconds (a table from its first row)."""
+    if isinstance(source, PresetSource):
+        return config_curves(source.config, source.seed)
+    count = min(points_before(max(CURVE_SECONDS), source.rate), CURVE_POINTS, source.table.xy_deg.shape[0])
+    return stream_curves(source.table.xy_deg[:count], source.rate, source.half_fov_deg)
+
+
+def _chart(loc: tuple[float, float], x_label: str, y_label: str) -> pv.Chart2D:
+    chart = pv.Chart2D(size=(0.96, 0.47), loc=loc, x_label=x_label, y_label=y_label)
+    chart.background_color = (0.93, 0.94, 0.96, 1.0)
+    chart.legend_visible = True
+    return chart
+
+
+class CurveCharts:
+    """The two charts in one subplot of the window.
+
+    Parameters
+    ----------
+    plotter : pyvista.Plotter
+    subplot : tuple of int
+    session : Session
+    """
+
+    def __init__(self, plotter: pv.Plotter, subplot: tuple[int, int], session: Session) -> None:
+        self.session = session
+        plotter.subplot(*subplot)
+        plotter.set_background("#10141c")
+        self.coverage = _chart((0.02, 0.515), "integration time, s (log)", "FOV coverage, %")
+        self.coverage.x_axis.log_scale = True
+        self.coverage.x_axis.range = [min(CURVE_SECONDS), max(CURVE_SECONDS)]
+        self.coverage.y_axis.range = [0.0, 100.0]
+        self.density = _chart((0.02, 0.015), "angle off the boresight, deg", "M points / sr / s (log)")
+        self.density.y_axis.log_scale = True
+        placeholder = ([0.05, 4.0], [0.0, 0.0])
+        self.ours_coverage = self.coverage.line(*placeholder, color=OURS_COLOUR, width=2.5, label="ours")
+        self.reference_coverage = self.coverage.line(*placeholder, color=REFERENCE_COLOUR, width=2.5,
+                                                     label="reference")
+        self.ours_density = self.density.line([0.0, 1.0], [0.0, 0.0], color=OURS_COLOUR, width=2.5, label="ours")
+        self.reference_density = self.density.line([0.0, 1.0], [0.0, 0.0], color=REFERENCE_COLOUR, width=2.5,
+                                                   label="reference")
+        plotter.add_chart(self.coverage, self.density)
+        self.ours: PatternCurves | None = None
+        self.reference: PatternCurves | None = None
+        self._reference_source: object = _NOT_SHOWN
+        session.subscribe(self._on_change)
+        self.refresh_ours()
+        self.update()
+
+    def _on_change(self, what: str) -> None:
+        if what == "config":
+            self.refresh_ours()
+
+    def refresh_ours(self) -> None:
+        """Recompute and redraw our two curves from the session's configuration."""
+        self.ours = config_curves(self.session.config, self.session.seed)
+        self.ours_coverage.update(self.ours.seconds, 100.0 * self.ours.coverage)
+        self.ours_density.update(self.ours.density_alpha_deg, self.ours.density / 1e6)
+        self._fit_density_axes()
+
+    def update(self) -> None:
+        """Follow the overlay: the reference's curves when its source changed, hidden without one."""
+        source = self.session.overlay.source
+        if source is self._reference_source:
+            return
+        self._reference_source = source
+        self.reference = reference_curves(source) if source is not None else None
+        shown = self.reference is not None
+        self.reference_coverage.visible = shown
+        self.reference_density.visible = shown
+        if shown:
+            self.reference_coverage.update(self.reference.seconds, 100.0 * self.reference.coverage)
+            self.reference_density.update(self.reference.density_alpha_deg, self.reference.density / 1e6)
+        self._fit_density_axes()
+
+    def _fit_density_axes(self) -> None:
+        curves = [c for c in (self.ours, self.reference) if c is not None]
+        top = max(float(np.max(c.density)) for c in curves) / 1e6
+        positive = [float(np.min(c.density[c.density > 0])) for c in curves if np.any(c.density > 0)]
+        bottom = min(positive) / 1e6 if positive else 1e-3
+        right = max(float(c.density_alpha_deg[-1]) for c in curves) * 1.04
+        self.density.x_axis.range = [0.0, right]
+        self.density.y_axis.range = [bottom / 1.5, max(top * 1.5, bottom * 10)]

@@ -1,0 +1,156 @@
+"""The GUI's commands, registered into ``livox-viz`` through the ``livox_viz.commands`` entry point.
+
+``gui`` (the default command) opens the window; ``render`` draws what it
+shows off-screen into a PNG. This module imports no VTK: the commands import
+the window only when they run, so the model's commands stay light.
+"""
+
+from __future__ import annotations
+
+import argparse
+from datetime import datetime
+from pathlib import Path
+
+from livox_viz.cli.common import (
+    PROG,
+    Command,
+    UsageError,
+    add_config_arguments,
+    add_scene_arguments,
+    add_seed_argument,
+    add_trajectory_arguments,
+    check_output_path,
+    config_from_args,
+    config_label,
+    positive_float,
+    scene_from_args,
+    trajectory_from_args,
+)
+from livox_viz.cli.wire_commands import add_receiver_arguments, open_receiver
+
+
+def _session(args: argparse.Namespace):
+    from .session import Session
+
+    config = config_from_args(args)
+    scene, pose, caster = scene_from_args(args)
+    # The window plays on: a built-in flight lasts two minutes, or the render's seconds.
+    trajectory = trajectory_from_args(args, pose, max(args.seconds, GUI_FLIGHT_SECONDS))
+    session = Session(config, scene, seed=args.seed, preset_name=config_label(args), vehicle_pose=pose,
+                      caster=caster, trajectory=trajectory)
+    if getattr(args, "reference", None):
+        session.overlay.set_source(reference_source(args.reference, args.reference_rate, args.seed), 0.0)
+    return session
+
+
+GUI_FLIGHT_SECONDS = 120.0
+
+
+def reference_source(text: str, rate: float, seed: int = 0):
+    """``--reference``: a measured table (.npy / .csv) or a preset (a name or a sensor JSON)."""
+    from livox_viz import load_preset
+    from livox_viz.fitting.reference import is_table, load_reference
+
+    from .overlay import PresetSource, TableSource
+
+    if is_table(text):
+        return TableSource(load_reference(text, rate=rate))
+    return PresetSource(load_preset(text), Path(text).stem, seed)
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise UsageError(f"--size {text!r}; allowed: WIDTHxHEIGHT in pixels, e.g. 1600x900") from None
+    if not (64 <= width <= 8192 and 64 <= height <= 8192):
+        raise UsageError(f"--size {text!r}; allowed: 64 to 8192 pixels each way")
+    return width, height
+
+
+def cmd_gui(args: argparse.Namespace) -> int:
+    from .app import LivoxVizApp, has_display, render_offscreen
+
+    size = _size(args.size)
+    if args.listen and not has_display():
+        raise UsageError("gui --listen needs a display (DISPLAY is not set); record with 'listen --record' instead")
+    if not has_display():
+        folder = Path("screenshots")
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise UsageError(f"no display, and the folder {folder.resolve()} for off-screen pictures cannot be "
+                             f"made ({exc.strerror})") from None
+        session = _session(args)
+        stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
+        print(f"{PROG}: no display (DISPLAY is not set): rendering the views off-screen into {folder}/ instead")
+        for views in ("both", "pattern", "scene"):
+            path = folder / f"offscreen-{stamp}-{views}.png"
+            session.restart()
+            square = (min(size),) * 2
+            render_offscreen(session, args.seconds, path, views=views, size=size if views == "both" else square)
+            print(f"  {path}")
+        return 0
+    session = _session(args)
+    receiver = None
+    if args.listen:
+        receiver, where = open_receiver(args, session.config)
+        session.source = receiver
+        session.preset_name = "received"
+        session.message = f"listening on {where}"
+    try:
+        LivoxVizApp(session, window_size=size).show()
+    finally:
+        if receiver is not None:
+            receiver.close()
+    return 0
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    from .app import render_offscreen
+
+    out = check_output_path(args.out, (".png",))
+    size = _size(args.size)
+    session = _session(args)
+    render_offscreen(session, args.seconds, out, views=args.view, size=size)
+    print(f"rendered {args.view} after {args.seconds:g} s of scan time to {out} ({size[0]}x{size[1]})")
+    return 0
+
+
+def _common_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_arguments(parser)
+    add_scene_arguments(parser)
+    add_trajectory_arguments(parser)
+    add_seed_argument(parser)
+    parser.add_argument("--reference", help="overlay a reference in the pattern view: a scan table (mid40, mid70, "
+                                            "a .npy in radians or a Livox CSV) or a preset (e.g. livox_mid70_risley)")
+    parser.add_argument("--reference-rate", type=positive_float,
+                        help="rows per second of a reference table (default: a shipped table's own, else 100000)")
+
+
+def _gui_arguments(parser: argparse.ArgumentParser) -> None:
+    _common_arguments(parser)
+    parser.add_argument("--size", default="1600x900", help="window size WIDTHxHEIGHT (default 1600x900)")
+    parser.add_argument("--seconds", type=positive_float, default=1.0,
+                        help="scan time of the off-screen pictures when there is no display (default 1)")
+    parser.add_argument("--listen", action="store_true",
+                        help="show the frames received on --port (RflySim or 'livox-viz publish') instead of the "
+                             "model; with --shm, those in shared memory")
+    add_receiver_arguments(parser)
+
+
+def _render_arguments(parser: argparse.ArgumentParser) -> None:
+    _common_arguments(parser)
+    parser.add_argument("--seconds", type=positive_float, default=1.0, help="scan time (default 1)")
+    parser.add_argument("--view", choices=("pattern", "scene", "both"), default="both",
+                        help="which view (default both)")
+    parser.add_argument("--size", default="1600x900", help="image size WIDTHxHEIGHT (default 1600x900)")
+    parser.add_argument("--out", required=True, help="output PNG")
+
+
+COMMANDS: tuple[Command, ...] = (
+    Command("gui", cmd_gui, "open the interactive window (the default command)",
+            "livox-viz gui --preset livox_mid70 --scene urban", _gui_arguments, default=True),
+    Command("render", cmd_render, "render what the GUI shows after S seconds into a PNG, off-screen",
+            "livox-viz render --view both --seconds 1 --out screenshots/both.png", _render_arguments),
+)

@@ -1,0 +1,207 @@
+"""A fixed-capacity ring of points: what the views draw, updated in place.
+
+Pure numpy (no VTK), so its bookkeeping is tested without a window. A view
+wraps the ring's arrays once as VTK arrays (zero copy) and, after each write,
+only marks them modified and points its vertex cells at the live slots
+``tail .. tail+count`` through :meth:`PointRing.live_slots`, a slice of a
+doubled index array, so a tick costs the new points, not all points on
+screen.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+
+class PointRing:
+    """A circular queue of the newest points, oldest at the tail.
+
+    Parameters
+    ----------
+    capacity : int
+        Points held at most; writing into a full ring overwrites the oldest.
+    """
+
+    def __init__(self, capacity: int) -> None:
+        if capacity < 1:
+            raise ValueError(f"capacity must be >= 1, got {capacity}")
+        self.capacity = int(capacity)
+        self.positions = np.zeros((self.capacity, 3), dtype=np.float32)
+        self.scalars = np.zeros(self.capacity, dtype=np.float32)
+        self.times = np.zeros(self.capacity, dtype=np.float64)
+        self.stream_index = np.zeros(self.capacity, dtype=np.int64)
+        # Slot numbers twice over: any run of live slots is one contiguous slice.
+        self._doubled = np.concatenate([np.arange(self.capacity), np.arange(self.capacity)]).astype(np.int64)
+        self._offsets = np.arange(self.capacity + 1, dtype=np.int64)
+        self.count = 0
+        self.head = 0
+        #: Called with the ``(k, 3)`` positions of points about to leave the ring (overwritten or dropped).
+        self.on_evict: Callable[[np.ndarray], None] | None = None
+
+    @property
+    def tail(self) -> int:
+        """Slot of the oldest live point."""
+        return (self.head - self.count) % self.capacity
+
+    def clear(self) -> None:
+        """Forget every point (the arrays keep their memory)."""
+        self.count = 0
+        self.head = 0
+
+    def write(self, positions: np.ndarray, scalars: np.ndarray, times: np.ndarray, stream_index: np.ndarray) -> None:
+        """Append points in time order, dropping the oldest when full.
+
+        Parameters
+        ----------
+        positions : (n, 3) float
+        scalars : (n,) float
+        times : (n,) float64
+            Emission times, seconds, non-decreasing.
+        stream_index : (n,) int64
+            Point numbers in the pattern stream.
+        """
+        n = positions.shape[0]
+        if n == 0:
+            return
+        if n > self.capacity:
+            positions, scalars = positions[-self.capacity :], scalars[-self.capacity :]
+            times, stream_index = times[-self.capacity :], stream_index[-self.capacity :]
+            n = self.capacity
+        evicted = self.count + n - self.capacity
+        if evicted > 0 and self.on_evict is not None:
+            self.on_evict(self.positions[self._doubled[self.tail : self.tail + evicted]])
+        first = min(n, self.capacity - self.head)
+        for source, target in ((slice(0, first), slice(self.head, self.head + first)),
+                               (slice(first, n), slice(0, n - first))):
+            self.positions[target] = positions[source]
+            self.scalars[target] = scalars[source]
+            self.times[target] = times[source]
+            self.stream_index[target] = stream_index[source]
+        self.head = (self.head + n) % self.capacity
+        self.count = min(self.capacity, self.count + n)
+
+    def drop_older_than(self, time_limit: float) -> int:
+        """Forget points emitted before ``time_limit`` seconds; returns how many remain."""
+        if self.count == 0:
+            return 0
+        tail = self.tail
+        end = tail + self.count
+        if end <= self.capacity:
+            old = int(np.searchsorted(self.times[tail:end], time_limit, side="left"))
+        else:
+            old = int(np.searchsorted(self.times[tail:], time_limit, side="left"))
+            if old == self.capacity - tail:
+                old += int(np.searchsorted(self.times[: end - self.capacity], time_limit, side="left"))
+        if old and self.on_evict is not None:
+            self.on_evict(self.positions[self._doubled[tail : tail + old]])
+        self.count -= old
+        return self.count
+
+    def live_slots(self) -> np.ndarray:
+        """``(count,)`` int64 slot numbers of the live points, oldest first (a view, no copy)."""
+        return self._doubled[self.tail : self.tail + self.count]
+
+    def all_slots(self) -> np.ndarray:
+        """``(capacity,)`` int64 every slot in storage order (a view, no copy): a full ring's cells."""
+        return self._doubled[: self.capacity]
+
+    def cell_offsets(self) -> np.ndarray:
+        """``(count + 1,)`` int64 offsets of one vertex cell per live point (a view, no copy)."""
+        return self._offsets[: self.count + 1]
+
+    def ordered(self, array: np.ndarray) -> np.ndarray:
+        """The live part of one of the ring's arrays, oldest first (a copy)."""
+        return array[self.live_slots()]
+
+
+class CellCounts:
+    """Points per cell of some grid, kept in step with a ring (add what it gains, remove what it evicts).
+
+    Subclasses say which cell a point falls in; the cost of a change is the
+    points changed plus one pass over the cells, never all the points held.
+
+    Parameters
+    ----------
+    size : int
+        Number of cells.
+    """
+
+    def __init__(self, size: int) -> None:
+        self.flat = np.zeros(size, dtype=np.float64)
+
+    def cells(self, positions: np.ndarray) -> np.ndarray:
+        """``(n,)`` int64 cell of each point, -1 for none."""
+        raise NotImplementedError
+
+    def clear(self) -> None:
+        self.flat[:] = 0.0
+
+    def _counted(self, positions: np.ndarray) -> np.ndarray:
+        cells = self.cells(positions)
+        return np.bincount(cells[cells >= 0], minlength=self.flat.size)
+
+    def add(self, positions: np.ndarray) -> None:
+        """Count points in, ``(n, 3)`` or ``(n, 2)`` degrees."""
+        self.flat += self._counted(positions)
+
+    def remove(self, positions: np.ndarray) -> None:
+        """Count points out."""
+        self.flat -= self._counted(positions)
+
+
+class CoverageCounts(CellCounts):
+    """Points per 5 mrad coverage cell of the FOV (see :class:`livox_viz.metrics.CoverageGrid`).
+
+    Parameters
+    ----------
+    radius_deg : float
+        FOV half-angle.
+    """
+
+    def __init__(self, radius_deg: float) -> None:
+        from livox_viz.patterns.metrics import LIVOX_CELL_DEG, CoverageGrid
+
+        self.grid = CoverageGrid(radius_deg, LIVOX_CELL_DEG)
+        super().__init__(self.grid.inside_mask.size)
+        self._cell_count = self.grid.cell_count
+
+    def cells(self, positions: np.ndarray) -> np.ndarray:
+        return self.grid.cell_index(positions[:, :2].astype(np.float64))
+
+    def coverage(self) -> float:
+        """Fraction of the FOV's cells holding at least one point of the ring."""
+        return float(np.count_nonzero(self.flat)) / self._cell_count
+
+
+class DensityGrid(CellCounts):
+    """Points per cell of a square grid over the FOV, for the density image.
+
+    Parameters
+    ----------
+    radius_deg : float
+        Half-width of the grid, degrees.
+    cells : int
+        Cells per side.
+    """
+
+    def __init__(self, radius_deg: float, cells: int = 512) -> None:
+        self.radius = float(radius_deg)
+        self.side = int(cells)
+        super().__init__(self.side * self.side)
+        #: ``(side, side)`` counts, [row = y, column = x]: a view of :attr:`flat`.
+        self.counts = self.flat.reshape(self.side, self.side)
+        #: ``(side * side,)`` float32 log(1 + count), what the view shows.
+        self.display = np.zeros(self.side * self.side, dtype=np.float32)
+
+    def cells(self, positions: np.ndarray) -> np.ndarray:
+        scale = self.side / (2.0 * self.radius)
+        ix = np.clip(((positions[:, 0] + self.radius) * scale).astype(np.int64), 0, self.side - 1)
+        iy = np.clip(((positions[:, 1] + self.radius) * scale).astype(np.int64), 0, self.side - 1)
+        return iy * self.side + ix
+
+    def refresh_display(self) -> np.ndarray:
+        """Update and return :attr:`display`, log(1 + count)."""
+        np.log1p(self.flat, out=self.display, casting="same_kind")
+        return self.display

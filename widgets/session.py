@@ -1,0 +1,419 @@
+"""The state behind the GUI, without VTK: configuration, scene, pattern, cast cloud and their rings.
+
+Parameters flow one way: a slider asks the session for a new configuration
+(:meth:`Session.set_param`); the session validates it, restarts the pattern
+and the caster from it, and tells every listener what changed
+(:meth:`Session.subscribe`); the views redraw whatever depends on it. Every
+array a view shows comes from here, so the off-screen renderer and the tests
+see exactly what the window shows.
+
+The cloud is made by the model's one casting path
+(:class:`~livox_viz.casting.scan.MountedCaster`), the same that ``livox-viz scan``
+writes, and placed in the world with the frame's pose.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from livox_viz import LivoxVizError, SensorConfig
+from livox_viz.casting.point_frame import PointFrame
+from livox_viz.casting.scan import MountedCaster
+from livox_viz.core.poses import Pose
+from livox_viz.core.workload import WINDOW_BUDGET, check_points
+from livox_viz.motion.trajectory import Trajectory
+from livox_viz.patterns.factory import make_pattern
+from livox_viz.patterns.stream import PatternChunk, points_before
+from livox_viz.scene.raycast import EmbreeCaster, RayCaster
+from livox_viz.scene.scenes import Scene
+from livox_viz.wire.received import ReceivedFrame
+
+from .overlay import WINDOWS, ReferenceOverlay, window_capacity
+from .playback import Playback
+from .ring import CoverageCounts, DensityGrid, PointRing
+
+#: The units a step can advance by, as the user names them, and the stream unit behind each.
+STEP_UNITS: dict[str, str] = {"arc": "arc", "petal": "petal", "figure-8": "figure8", "flower": "flower",
+                              "frame": "frame"}
+#: Pattern colour modes and the unit whose number (within the next larger unit) each shows.
+PATTERN_COLOURS: dict[str, tuple[str, str] | None] = {
+    "time": None, "figure-8": ("figure8", "flower"), "petal": ("petal", "flower"),
+    "flower": ("flower", "figure"), "arc": ("arc", "figure8"), "laser": None,
+}
+SCENE_COLOURS: tuple[str, ...] = ("range", "height", "time")
+CLOUD_FRAMES: tuple[str, ...] = ("world", "sensor")
+DRAWINGS: tuple[str, ...] = ("auto", "points", "density")
+#: Most points one tick may add; a slow machine drops scan time rather than freezing.
+MAX_POINTS_PER_TICK = 400_000
+
+
+@dataclass
+class DisplayOptions:
+    """How the views draw: colour modes, the pattern drawing and the step unit.
+
+    Parameters
+    ----------
+    pattern_colour : str
+        A key of :data:`PATTERN_COLOURS`.
+    scene_colour : str
+        One of :data:`SCENE_COLOURS`.
+    drawing : str
+        Pattern view: ``"auto"`` (a density image once the window holds more
+        points than the view has pixels), ``"points"`` or ``"density"``.
+    step_unit : str
+        A key of :data:`STEP_UNITS`.
+    cloud_frame : {"world", "sensor"}
+        How a moving sensor's cloud accumulates: each point placed with the pose of its own
+        time (a static wall stays sharp), or as the sensor sees it, placed with the pose at the
+        end of its chunk (the smear of the motion shows).
+    """
+
+    pattern_colour: str = "time"
+    scene_colour: str = "range"
+    drawing: str = "auto"
+    step_unit: str = "flower"
+    cloud_frame: str = "world"
+
+
+def step_units(config: SensorConfig) -> tuple[str, ...]:
+    """The step units the configuration's pattern has (the Risley track has frames only)."""
+    return tuple(name for name, unit in STEP_UNITS.items() if unit in config.unit_points)
+
+
+def pattern_colours(config: SensorConfig) -> tuple[str, ...]:
+    """The pattern colour modes that mean something for the configuration's pattern."""
+    if config.pattern_model == "risley":
+        return ("time", "laser")
+    return tuple(name for name in PATTERN_COLOURS if name != "laser")
+
+
+class Session:
+    """Pattern and scan state of the GUI.
+
+    Parameters
+    ----------
+    config : SensorConfig
+    scene : Scene
+    seed : int
+    preset_name : str
+        Shown in the heads-up text and written to screenshot sidecars.
+    vehicle_pose : Pose, optional
+        Default: the scene's own.
+    caster : RayCaster, optional
+        Built for ``scene``; default an :class:`~livox_viz.scene.raycast.EmbreeCaster`.
+    trajectory : Trajectory, optional
+        A moving vehicle; playback stops at its end.
+    """
+
+    def __init__(self, config: SensorConfig, scene: Scene, seed: int = 0, preset_name: str = "",
+                 vehicle_pose: Pose | None = None, caster: RayCaster | None = None,
+                 trajectory: Trajectory | None = None) -> None:
+        self.trajectory = trajectory
+        self.scene = scene
+        self.seed = seed
+        self.preset_name = preset_name
+        self.vehicle_pose = vehicle_pose or scene.vehicle_pose
+        self.caster = caster or EmbreeCaster(scene.mesh)
+        self.playback = Playback()
+        self.display = DisplayOptions()
+        self.window_index = 1
+        self.message = ""
+        self.overlay = ReferenceOverlay()
+        #: A receiver with ``poll() -> list of LivoxFrame`` (the live view); None plays the model.
+        self.source = None
+        self._received_points = 0
+        self._listeners: list[Callable[[str], None]] = []
+        check_points(window_capacity(self.window, config.point_rate), "the integration window", WINDOW_BUDGET)
+        self.config = config
+        self._fit_display()
+        self._make_rings()
+        self.restart()
+
+    # Listeners ----------------------------------------------------------------------------
+    def subscribe(self, listener: Callable[[str], None]) -> None:
+        """Call ``listener(what)`` after every change of ``"config"`` or ``"scene"``."""
+        self._listeners.append(listener)
+
+    def _changed(self, what: str) -> None:
+        for listener in self._listeners:
+            listener(what)
+
+    # Configuration, scene, pose ------------------------------------------------------------
+    @property
+    def window(self) -> float | None:
+        """The integration window, seconds, or None for unlimited."""
+        return WINDOWS[self.window_index]
+
+    def set_config(self, config: SensorConfig, preset_name: str | None = None) -> None:
+        """Show another configuration: restart the scan and tell every view.
+
+        Raises
+        ------
+        LivoxVizError
+            If its integration window would hold more points than :data:`~livox_viz.workload.WINDOW_BUDGET`.
+        """
+        check_points(window_capacity(self.window, config.point_rate),
+                     f"a {config.point_rate:,} pts/s pattern in the integration window", WINDOW_BUDGET)
+        resize = config.point_rate != self.config.point_rate or config.half_fov_deg != self.config.half_fov_deg
+        self.config = config
+        if preset_name is not None:
+            self.preset_name = preset_name
+        if resize:
+            self._make_rings()
+        self._fit_display()
+        self.restart()
+        self._changed("config")
+
+    def _fit_display(self) -> None:
+        """Keep the step unit and pattern colour to those the configuration's pattern has."""
+        if self.display.step_unit not in step_units(self.config):
+            self.display.step_unit = step_units(self.config)[-1]
+        if self.display.pattern_colour not in pattern_colours(self.config):
+            self.display.pattern_colour = "time"
+
+    def set_param(self, name: str, value: float) -> bool:
+        """Change one configuration field and restart; False (and a message) if the value is not allowed."""
+        try:
+            config = self.config.with_param(name, value)
+            if config != self.config:
+                self.set_config(config)
+        except LivoxVizError as exc:
+            self.message = str(exc)
+            return False
+        self.message = ""
+        return True
+
+    def set_jitter_scope(self, scope: str) -> None:
+        """Switch when the random rotation is added ("flower" or "figure") and restart."""
+        self.set_config(replace(self.config, jitter_scope=scope))
+
+    def set_scene(self, scene: Scene) -> None:
+        """Cast into another scene (from its own default vehicle pose) and restart the scan."""
+        self.caster = EmbreeCaster(scene.mesh)
+        self.scene = scene
+        self.vehicle_pose = scene.vehicle_pose
+        self.restart()
+        self._changed("scene")
+
+    @property
+    def sensor_pose(self) -> Pose:
+        """The sensor's pose in the world now, from the configuration's mount and the vehicle."""
+        return self.mounted.sensor_pose_at(self._pose_time())
+
+    @property
+    def vehicle_pose_now(self) -> Pose:
+        """The vehicle's pose at the current scan time (its fixed pose when it does not move)."""
+        if self.trajectory is None:
+            return self.vehicle_pose
+        return self.trajectory.pose_at(self._pose_time())
+
+    def _pose_time(self) -> float:
+        if self.trajectory is None:
+            return 0.0
+        low, high = self.trajectory.span
+        return min(max(self.scan_time, low), high)
+
+    # Scan ----------------------------------------------------------------------------------
+    def restart(self) -> None:
+        """Start the pattern again from scan time 0."""
+        self.pattern = make_pattern(self.config, seed=self.seed)
+        self.mounted = MountedCaster(self.config, self.caster, self.vehicle_pose, self.trajectory)
+        self.scan_time = 0.0
+        self.playback.restart()
+        self.frame_index = 0
+        self._clear_rings()
+        self.overlay.refill(0.0)
+
+    def set_window(self, index: int) -> None:
+        """Pick :data:`WINDOWS` ``[index]`` and refill it from the stream (keeps the scan time)."""
+        if not 0 <= index < len(WINDOWS):
+            raise LivoxVizError(f"window index {index}; allowed: 0 to {len(WINDOWS) - 1}")
+        check_points(window_capacity(WINDOWS[index], self.config.point_rate), "the integration window",
+                     WINDOW_BUDGET)
+        self.window_index = index
+        self._make_rings()
+        start_time = 0.0 if self.window is None else max(0.0, self.scan_time - self.window)
+        target = self.scan_time
+        self.pattern = make_pattern(self.config, seed=self.seed)
+        self.pattern.skip(points_before(start_time, self.config.point_rate))
+        self.scan_time = start_time
+        self.advance_to(target)
+
+    def _make_rings(self) -> None:
+        capacity = window_capacity(self.window, self.config.point_rate)
+        self.pattern_ring = PointRing(capacity)
+        self.scene_ring = PointRing(capacity)
+        self.density = DensityGrid(self.config.half_fov_deg)
+        self.coverage_counts = CoverageCounts(self.config.half_fov_deg)
+        self.pattern_ring.on_evict = self._count_out
+
+    def _clear_rings(self) -> None:
+        for ring in (self.pattern_ring, self.scene_ring):
+            ring.clear()
+        self.density.clear()
+        self.coverage_counts.clear()
+
+    def _count_in(self, xyz: np.ndarray) -> None:
+        kept = xyz[-self.pattern_ring.capacity :]
+        self.density.add(kept)
+        self.coverage_counts.add(kept)
+
+    def _count_out(self, xyz: np.ndarray) -> None:
+        self.density.remove(xyz)
+        self.coverage_counts.remove(xyz)
+
+    # Playback ------------------------------------------------------------------------------
+    def tick(self, now: float | None = None) -> int:
+        """Advance by the wall time since the last tick; returns the points added.
+
+        With a live :attr:`source` the frames that arrived are shown instead of the model's pattern.
+        """
+        if self.source is not None:
+            if self.playback.paused:
+                return 0
+            received = [ReceivedFrame(f, self.config.range_max, self.config.data_check_freq)
+                        for f in self.source.poll()]
+            return sum(self.add_received(frame) for frame in received)
+        return self.advance_to(self.scan_time + self.playback.elapsed(now))
+
+    def add_received(self, frame: ReceivedFrame) -> int:
+        """Show a received frame: its angles (from the decoded points) in the pattern view, its points in the scene."""
+        count = len(frame)
+        index = np.arange(self._received_points, self._received_points + count)
+        self._received_points += count
+        self.scan_time = frame.timestamp + 1.0 / self.config.data_check_freq
+        self.frame_index = frame.index
+        xyz = np.zeros((count, 3), dtype=np.float32)
+        xyz[:, :2] = frame.xy_deg
+        self.pattern_ring.write(xyz, self.pattern_scalars(index, frame.t), frame.t, index)
+        self._count_in(xyz)
+        self._add_cloud(frame, index)
+        self._drop_old()
+        return count
+
+    def advance_to(self, scan_time: float) -> int:
+        """Emit (and cast) every point before ``scan_time`` seconds; returns how many.
+
+        With a trajectory, playback stops (and pauses) at its end: there is no pose after it.
+        """
+        if self.trajectory is not None and scan_time > self.trajectory.span[1]:
+            scan_time = self.trajectory.span[1]
+            if not self.playback.paused:
+                self.playback.paused = True
+                self.message = f"end of the trajectory {self.trajectory.name} at {scan_time:g} s (x restarts)"
+        target = points_before(scan_time, self.config.point_rate)
+        missing = target - self.pattern.position
+        if missing > MAX_POINTS_PER_TICK:
+            # Too far behind: jump, keeping only what the window can show.
+            keep = min(self.pattern_ring.capacity, MAX_POINTS_PER_TICK)
+            self.pattern.skip(missing - keep)
+            missing = keep
+        if missing <= 0:
+            self.scan_time = max(self.scan_time, scan_time)
+            return 0
+        chunk = self.pattern.take(missing)
+        self.scan_time = scan_time
+        self.overlay.advance_to(scan_time)
+        self._add_pattern(chunk)
+        frame = self.mounted.cast(chunk)
+        self._add_cloud(frame, frame.stream_index)
+        self._drop_old()
+        self.frame_index = (target - 1) // self.config.points_per_frame
+        return missing
+
+    def step(self, unit: str | None = None) -> int:
+        """Advance to the next boundary of ``unit`` (default the display's step unit); returns the points added."""
+        unit = unit or self.display.step_unit
+        if unit not in step_units(self.config):
+            raise LivoxVizError(f"step unit {unit!r}; allowed: {', '.join(step_units(self.config))}")
+        size = self.config.unit_points[STEP_UNITS[unit]]
+        boundary = (self.pattern.position // size + 1) * size
+        return self.advance_to(boundary / self.config.point_rate)
+
+    def _add_pattern(self, chunk: PatternChunk) -> None:
+        xyz = np.zeros((len(chunk), 3), dtype=np.float32)
+        xyz[:, :2] = chunk.xy_deg
+        self.pattern_ring.write(xyz, self.pattern_scalars(chunk.index, chunk.t), chunk.t, chunk.index)
+        self._count_in(xyz)
+
+    def _add_cloud(self, frame: PointFrame, index: np.ndarray) -> None:
+        """The scene ring gets the decoded returns, placed in the world with each point's pose
+        (or, in the sensor-frame mode, all with the pose at the end of the chunk)."""
+        if len(frame) == 0:
+            return
+        if self.display.cloud_frame == "sensor":
+            end = frame.end_pose
+            world = end.origin + frame.xyz_decoded @ end.rotation.T
+        else:
+            world = frame.xyz_world_decoded
+        self.scene_ring.write(world, self.scene_scalars(world, frame.range_m, frame.t), frame.t, index)
+
+    def _drop_old(self) -> None:
+        if self.window is not None:
+            limit = self.scan_time - self.window
+            self.pattern_ring.drop_older_than(limit)
+            self.scene_ring.drop_older_than(limit)
+
+    # Colours -------------------------------------------------------------------------------
+    def pattern_scalars(self, stream_index: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Scalars of pattern points for the current colour mode, ``(n,)`` float32."""
+        mode = self.display.pattern_colour
+        if mode == "time":
+            return t.astype(np.float32)
+        if mode == "laser":
+            return (stream_index % self.config.lasers).astype(np.float32)
+        unit, within = PATTERN_COLOURS[mode]
+        sizes = self.config.unit_points
+        return ((stream_index // sizes[unit]) % (sizes[within] // sizes[unit])).astype(np.float32)
+
+    def pattern_scalar_range(self) -> tuple[float, float]:
+        """Colour range of the pattern view for the current mode."""
+        mode = self.display.pattern_colour
+        if mode == "time":
+            low = self.scan_time - self.window if self.window is not None else 0.0
+            return max(0.0, low), max(self.scan_time, 1e-6)
+        if mode == "laser":
+            top = self.config.lasers
+        else:
+            unit, within = PATTERN_COLOURS[mode]
+            top = self.config.unit_points[within] // self.config.unit_points[unit]
+        return 0.0, float(max(top - 1, 1))
+
+    def scene_scalars(self, world: np.ndarray, ranges: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Scalars of scene points for the current colour mode, ``(n,)`` float32."""
+        mode = self.display.scene_colour
+        if mode == "range":
+            return ranges.astype(np.float32)
+        if mode == "height":
+            return (-world[:, 2]).astype(np.float32)
+        return t.astype(np.float32)
+
+    def scene_scalar_range(self) -> tuple[float, float]:
+        """Colour range of the scene view for the current mode."""
+        mode = self.display.scene_colour
+        if mode == "range":
+            return 0.0, min(self.config.range_max, 150.0)
+        if mode == "height":
+            return 0.0, 30.0
+        low = self.scan_time - self.window if self.window is not None else 0.0
+        return max(0.0, low), max(self.scan_time, 1e-6)
+
+    def recolour(self) -> None:
+        """Recompute all scalars after a colour mode change."""
+        ring = self.pattern_ring
+        live = ring.live_slots()
+        ring.scalars[live] = self.pattern_scalars(ring.stream_index[live], ring.times[live])
+        ring = self.scene_ring
+        live = ring.live_slots()
+        if ring.count:
+            world = ring.positions[live].astype(np.float64)
+            ranges = np.linalg.norm(world - self.sensor_pose.origin, axis=1)
+            ring.scalars[live] = self.scene_scalars(world, ranges, ring.times[live])
+
+    # Measures ------------------------------------------------------------------------------
+    def visible_coverage(self) -> float:
+        """FOV coverage of the points the pattern view shows (5 mrad cells), kept up to date per point."""
+        return self.coverage_counts.coverage()

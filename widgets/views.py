@@ -1,0 +1,404 @@
+"""The two linked views: the pattern in the angular plane, and the scan cast into the 3D scene.
+
+Each view adds its actors once and afterwards only marks the ring's arrays
+modified and re-points its vertex cells at the live slots (see
+:class:`~livox_viz.widgets.ring.PointRing`): no actor is re-created on a tick.
+Each view subscribes to the session and redraws what depends on the
+configuration, the scene or the vehicle pose whenever one of them changes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pyvista as pv
+
+from livox_viz.core.rotations import FRD_TO_FLU
+
+from .ring import PointRing
+from .session import Session
+
+#: NED (z down) to the display's z-up frame (north-west-up), as a 4x4 actor matrix.
+NED_TO_DISPLAY = np.eye(4)
+NED_TO_DISPLAY[:3, :3] = FRD_TO_FLU
+PATTERN_UNITS = {"time": "time, s", "figure-8": "figure-8 in flower", "petal": "petal in flower",
+                 "flower": "flower in figure", "arc": "arc in figure-8", "laser": "laser"}
+SCENE_UNITS = {"range": "range, m", "height": "height, m", "time": "time, s"}
+
+
+def ring_polydata(ring: PointRing) -> pv.PolyData:
+    """A PolyData sharing the ring's point and scalar arrays (zero copy), one vertex per live point."""
+    poly = pv.PolyData()
+    poly.points = ring.positions
+    poly.point_data.set_array(ring.scalars, "scalars")
+    poly.point_data.active_scalars_name = "scalars"
+    update_ring_polydata(poly, ring)
+    return poly
+
+
+def update_ring_polydata(poly: pv.PolyData, ring: PointRing) -> None:
+    """Tell VTK the ring changed: re-point the vertex cells if the live slots moved, mark the arrays modified.
+
+    A full ring draws every slot, in any order, so its cells stay the same
+    from tick to tick and VTK does not rebuild its index buffer.
+    """
+    if poly.GetPoints().GetData().GetVoidPointer(0) != _address(ring.positions):
+        poly.points = ring.positions
+        poly.point_data.set_array(ring.scalars, "scalars")
+        poly.point_data.active_scalars_name = "scalars"
+    full = ring.count == ring.capacity
+    cells_key = (id(ring), "full") if full else (id(ring), ring.tail, ring.count)
+    if getattr(poly, "_livox_cells_key", None) != cells_key:
+        slots = ring.all_slots() if full else ring.live_slots()
+        poly.SetVerts(pv.CellArray.from_arrays(ring.cell_offsets(), slots))
+        poly._livox_cells_key = cells_key
+    poly.GetPoints().GetData().Modified()
+    poly.GetPoints().Modified()
+    poly.GetPointData().GetArray("scalars").Modified()
+    poly.Modified()
+
+
+def _address(array: np.ndarray) -> int:
+    return int(array.__array_interface__["data"][0])
+
+
+def add_scalar_bar(plotter: pv.Plotter, title: str, mapper) -> object:
+    """The vertical colour bar both views show at their right edge."""
+    return plotter.add_scalar_bar(
+        title, mapper=mapper, vertical=True, position_x=0.9, position_y=0.2, width=0.05, height=0.6,
+        title_font_size=12, label_font_size=11, color="#dde3ea", n_labels=5, fmt="%.3g",
+    )
+
+
+class _View:
+    """What both views share: the plotter, the session, and their own renderer in the window.
+
+    Parameters
+    ----------
+    plotter : pyvista.Plotter
+    session : Session
+    subplot : tuple of int
+        Where the view lives in the plotter.
+    """
+
+    background: tuple[str, str | None] = ("#10141c", None)
+
+    def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
+        self.plotter = plotter
+        self.session = session
+        self.subplot = subplot
+        plotter.subplot(*subplot)
+        self.renderer = plotter.renderer
+        plotter.set_background(self.background[0], top=self.background[1])
+
+
+class PatternView(_View):
+    """The angular plane in degrees: FOV circle, degree rings, the live pattern (or its density image)."""
+
+    def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
+        super().__init__(plotter, session, subplot)
+        self._guides: list = []
+        self._ring = session.pattern_ring
+        self.poly = ring_polydata(self._ring)
+        self.actor = plotter.add_mesh(
+            self.poly, scalars="scalars", cmap="turbo", point_size=2.0, render_points_as_spheres=False,
+            show_scalar_bar=False, name="pattern", reset_camera=False, lighting=False,
+        )
+        self._reference_ring = session.overlay.ring
+        self.reference_poly = ring_polydata(self._reference_ring)
+        self.reference_actor = plotter.add_mesh(
+            self.reference_poly, color="#f5f7fa", opacity=0.55, point_size=1.5, render_points_as_spheres=False,
+            name="reference", reset_camera=False, lighting=False, scalars=None,
+        )
+        self.scalar_bar = add_scalar_bar(plotter, PATTERN_UNITS[session.display.pattern_colour], self.actor.mapper)
+        self._density_grid = None
+        self.density_actor = None
+        self._guides_radius: float | None = None
+        self._make_density_image()
+        self.draw_guides()
+        self.reset_camera()
+        session.subscribe(self._on_change)
+
+    def _on_change(self, what: str) -> None:
+        # The guides are drawn from the FOV alone: redrawn (and the camera refitted) when it changed.
+        if what == "config" and self._guides_radius != self.session.config.half_fov_deg:
+            self.draw_guides()
+            self.reset_camera()
+
+    def _make_density_image(self) -> None:
+        """The density image of the window's points (shown instead of the points when they outnumber pixels)."""
+        grid = self.session.density
+        if grid is self._density_grid:
+            return
+        self._density_grid = grid
+        # A texture on one quad: software GL draws it far faster than a cell per pixel.
+        image = pv.ImageData(dimensions=(grid.side, grid.side, 1))
+        image.point_data.set_array(grid.display, "density")
+        image.point_data.active_scalars_name = "density"
+        self.density_image = image
+        self.density_lut = pv.LookupTable(cmap="inferno", n_values=256)
+        self.density_lut.scalar_range = (0.0, 1.0)
+        colours = np.array(self.density_lut.values)
+        colours[0] = (16, 20, 28, 255)  # empty cells in the view's background colour
+        self.density_lut.values = colours
+        texture = pv.Texture()
+        texture.SetInputData(image)
+        texture.SetLookupTable(self.density_lut)
+        texture.SetColorModeToMapScalars()
+        # Linear filtering and mipmaps: a one-texel trace must not vanish when the image is shrunk.
+        texture.InterpolateOn()
+        texture.MipmapOn()
+        self.density_texture = texture
+        quad = pv.Plane(center=(0.0, 0.0, -0.01), direction=(0, 0, 1), i_size=2 * grid.radius,
+                        j_size=2 * grid.radius, i_resolution=1, j_resolution=1)
+        self.plotter.subplot(*self.subplot)
+        self.density_actor = self.plotter.add_mesh(quad, texture=texture, name="density", reset_camera=False,
+                                                   lighting=False, show_scalar_bar=False)
+        self.density_actor.SetVisibility(False)
+
+    def density_shown(self) -> bool:
+        """Whether the view draws the density image rather than the points."""
+        mode = self.session.display.drawing
+        if mode != "auto":
+            return mode == "density"
+        width, height = self.renderer.GetSize()
+        return self.session.pattern_ring.count > max(width * height, 1)
+
+    def draw_guides(self) -> None:
+        """FOV circle, 10-degree rings with labels, cross hairs, and the axis names."""
+        plotter = self.plotter
+        plotter.subplot(*self.subplot)
+        for name in self._guides:
+            plotter.remove_actor(name, render=False)
+        self._guides = []
+        radius = self.session.config.half_fov_deg
+        self._guides_radius = radius
+        step = _ring_step(radius)
+        rings = [*np.arange(step, radius, step), radius]
+        for k, ring_radius in enumerate(rings):
+            circle = pv.Circle(radius=ring_radius, resolution=180).extract_feature_edges(
+                boundary_edges=True, feature_edges=False, manifold_edges=False)
+            is_fov = k == len(rings) - 1
+            name = f"ring-{k}"
+            plotter.add_mesh(circle, color="#f2c14e" if is_fov else "#3a4454", line_width=2 if is_fov else 1,
+                             name=name, reset_camera=False, lighting=False, pickable=False)
+            self._guides.append(name)
+        for k, (a, b) in enumerate((((-radius, 0, 0), (radius, 0, 0)), ((0, -radius, 0), (0, radius, 0)))):
+            name = f"axis-{k}"
+            plotter.add_mesh(pv.Line(a, b), color="#3a4454", name=name, reset_camera=False, lighting=False)
+            self._guides.append(name)
+        labels = [f"{r:g}°" for r in rings]
+        positions = [(r * math.cos(math.radians(60)), r * math.sin(math.radians(60)), 0) for r in rings]
+        plotter.add_point_labels(
+            positions, labels, font_size=11, text_color="#8a96a8", shape=None, show_points=False,
+            name="ring-labels", always_visible=True, reset_camera=False,
+        )
+        self._guides.append("ring-labels")
+        plotter.add_point_labels(
+            [(radius * 1.02, -radius * 0.08, 0), (radius * 0.02, radius * 1.04, 0)], ["x right", "y up"],
+            font_size=11, text_color="#8a96a8", shape=None, show_points=False, name="axis-labels",
+            always_visible=True, reset_camera=False,
+        )
+        self._guides.append("axis-labels")
+
+    def reset_camera(self) -> None:
+        """Look straight at the angular plane, orthographic, FOV filling the view."""
+        radius = self.session.config.half_fov_deg
+        width, height = self.renderer.GetSize()
+        camera = self.renderer.camera
+        camera.enable_parallel_projection()
+        # The FOV and its labels fit across as well as up, with the colour bar's strip on the right free.
+        camera.focal_point = (radius * 0.12, radius * 0.03, 0)
+        camera.position = (radius * 0.12, radius * 0.03, radius * 10)
+        camera.up = (0, 1, 0)
+        camera.parallel_scale = radius * max(1.18, 1.32 * height / max(width, 1))
+        self.renderer.ResetCameraClippingRange()
+
+    def update(self) -> None:
+        """Show the ring's current points and colours."""
+        if self._ring is not self.session.pattern_ring:
+            self._ring = self.session.pattern_ring
+        self._make_density_image()
+        density = self.density_shown()
+        self.actor.SetVisibility(not density)
+        self.density_actor.SetVisibility(density)
+        if density:
+            display = self.session.density.refresh_display()
+            self.density_image.GetPointData().GetArray("density").Modified()
+            # Saturate at four times the mean of the occupied cells: the centre's pile-up would
+            # otherwise leave everything else dark.
+            counts = self.session.density.counts
+            occupied = max(int(np.count_nonzero(counts)), 1)
+            top = min(float(display.max()), math.log1p(4.0 * float(counts.sum()) / occupied))
+            self.density_lut.scalar_range = (0.0, max(top, 1e-6))
+            self.density_texture.Modified()
+        bar_table = self.density_lut if density else self.actor.mapper.lookup_table
+        if self.scalar_bar.GetLookupTable() is not bar_table:
+            self.scalar_bar.SetLookupTable(bar_table)
+        update_ring_polydata(self.poly, self._ring)
+        overlay = self.session.overlay
+        self._reference_ring = overlay.ring
+        update_ring_polydata(self.reference_poly, self._reference_ring)
+        self.reference_actor.SetVisibility(overlay.source is not None and overlay.visible)
+        low, high = self.session.pattern_scalar_range()
+        self.actor.mapper.scalar_range = (low, high if high > low else low + 1e-6)
+        self.scalar_bar.SetTitle("points/cell, log" if density else PATTERN_UNITS[self.session.display.pattern_colour])
+
+
+def _ring_step(radius: float) -> float:
+    """Spacing of the degree rings: about five rings across the FOV, at 1-2-5 steps."""
+    raw = radius / 4.0
+    magnitude = 10 ** math.floor(math.log10(raw))
+    for factor in (1, 2, 5, 10):
+        if raw <= factor * magnitude:
+            return factor * magnitude
+    return 10 * magnitude
+
+
+def quadrotor_mesh(size: float = 0.5) -> pv.PolyData:
+    """A small quadrotor in its body FRD frame (metres): body, four arms, four rotor discs."""
+    parts = [pv.Box(bounds=(-0.12 * size, 0.12 * size, -0.08 * size, 0.08 * size, -0.05 * size, 0.05 * size))]
+    for angle in (45, 135, 225, 315):
+        direction = np.array([math.cos(math.radians(angle)), math.sin(math.radians(angle)), 0.0])
+        tip = direction * 0.35 * size
+        parts.append(pv.Cylinder(center=tip / 2, direction=direction, radius=0.015 * size, height=0.35 * size))
+        rotor = tip + np.array([0.0, 0.0, -0.04 * size])
+        parts.append(pv.Disc(center=rotor, inner=0.0, outer=0.14 * size, normal=(0, 0, 1)))
+    merged = parts[0]
+    for part in parts[1:]:
+        merged = merged.merge(part)
+    return merged
+
+
+def fov_cone(half_angle_deg: float, length: float = 1.6) -> pv.PolyData:
+    """The FOV as a wire cone in the sensor frame (x the boresight): a rim and eight rays from the apex.
+
+    A translucent surface would hide the cloud behind it and push VTK into its slower translucent pass.
+    """
+    radius = length * math.tan(math.radians(half_angle_deg))
+    angles = np.linspace(0.0, 2 * math.pi, 97)
+    rim = np.column_stack([np.full(angles.size, length), radius * np.cos(angles), radius * np.sin(angles)])
+    wire = pv.lines_from_points(rim)
+    for k in range(0, 96, 12):
+        wire = wire.merge(pv.Line((0.0, 0.0, 0.0), rim[k]))
+    return wire
+
+
+class SceneView(_View):
+    """The 3D scene (z up on screen), the vehicle, the sensor with its FOV cone, and the decoded cloud."""
+
+    background = ("#1a1f29", "#3b4a63")
+
+    def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
+        super().__init__(plotter, session, subplot)
+        self._scene_shown = None
+        self.draw_scene()
+        self._ring = session.scene_ring
+        self.poly = ring_polydata(self._ring)
+        self.actor = plotter.add_mesh(
+            self.poly, scalars="scalars", cmap="viridis", point_size=2.5, render_points_as_spheres=False,
+            show_scalar_bar=False, name="cloud", reset_camera=False, lighting=False,
+        )
+        self.actor.user_matrix = NED_TO_DISPLAY
+        self.scalar_bar = add_scalar_bar(plotter, SCENE_UNITS[session.display.scene_colour], self.actor.mapper)
+        self.draw_vehicle()
+        self.reset_camera()
+        session.subscribe(self._on_change)
+
+    def _on_change(self, what: str) -> None:
+        """Anything the vehicle, the sensor or its cone depend on may have changed: draw them again."""
+        if what == "scene":
+            self.draw_scene()
+        self.draw_vehicle()
+        if what == "scene":
+            self.reset_camera()
+
+    def draw_scene(self) -> None:
+        """The scene's triangles (again, when the session's scene changed)."""
+        if self._scene_shown is self.session.scene:
+            return
+        self._scene_shown = self.session.scene
+        self.plotter.subplot(*self.subplot)
+        self.scene_actor = self.plotter.add_mesh(pv.wrap(self.session.scene.mesh), color="#717d90",
+                                                 smooth_shading=False, name="scene", reset_camera=False)
+        self.scene_actor.user_matrix = NED_TO_DISPLAY
+
+    def draw_vehicle(self) -> None:
+        """The vehicle at its pose, the sensor and a wire cone of the FOV along its boresight.
+
+        The shapes are made once in their own frames (the cone again only when the FOV changes);
+        a change of pose only moves them.
+        """
+        plotter = self.plotter
+        plotter.subplot(*self.subplot)
+        if "vehicle" not in plotter.actors:
+            plotter.add_mesh(quadrotor_mesh(), color="#e8eef5", name="vehicle", reset_camera=False)
+            plotter.add_mesh(pv.Sphere(radius=0.06), color="#f2c14e", name="sensor", reset_camera=False)
+        half = min(self.session.config.half_fov_deg, 80.0)
+        if getattr(self, "_cone_half_deg", None) != half:
+            self._cone_half_deg = half
+            plotter.add_mesh(fov_cone(half), color="#f2c14e", line_width=2, name="fov-cone", reset_camera=False,
+                             lighting=False)
+        self.place_vehicle()
+        self.draw_path()
+
+    def place_vehicle(self) -> None:
+        """Move the vehicle, the sensor and the cone to their poses at the current scan time.
+
+        The camera follows the vehicle (moved by as much as it moved), keeping the user's angle and zoom.
+        """
+        actors = self.plotter.actors
+        vehicle = self.session.vehicle_pose_now
+        actors["vehicle"].user_matrix = NED_TO_DISPLAY @ vehicle.matrix
+        for name in ("sensor", "fov-cone"):
+            actors[name].user_matrix = NED_TO_DISPLAY @ self.session.sensor_pose.matrix
+        here = NED_TO_DISPLAY[:3, :3] @ vehicle.origin
+        followed = getattr(self, "_followed", None)
+        if followed is not None and not np.array_equal(here, followed):
+            camera = self.renderer.camera
+            camera.position = tuple(np.array(camera.position) + here - followed)
+            camera.focal_point = tuple(np.array(camera.focal_point) + here - followed)
+            self.renderer.ResetCameraClippingRange()
+        self._followed = here
+
+    def draw_path(self) -> None:
+        """The trajectory's path as a line (once per trajectory); nothing for a vehicle that stays."""
+        trajectory = self.session.trajectory
+        if trajectory is None or getattr(self, "_path_of", None) is trajectory:
+            return
+        self._path_of = trajectory
+        stride = max(1, trajectory.t.size // 2000)
+        path = pv.lines_from_points(np.asarray(trajectory.position[::stride]))
+        self.plotter.subplot(*self.subplot)
+        actor = self.plotter.add_mesh(path, color="#7fd3ff", line_width=2, name="path", reset_camera=False,
+                                      lighting=False)
+        actor.user_matrix = NED_TO_DISPLAY
+
+    def reset_camera(self) -> None:
+        """Behind and above the vehicle, looking along the sensor's boresight."""
+        sensor = self.session.sensor_pose
+        boresight = sensor.rotation @ np.array([1.0, 0.0, 0.0])
+        flat = np.array([boresight[0], boresight[1], 0.0])
+        flat = flat / np.linalg.norm(flat) if np.linalg.norm(flat) > 1e-6 else np.array([1.0, 0, 0])
+        eye_ned = sensor.origin - flat * 9.0 + np.array([0, 0, -4.5])
+        target_ned = sensor.origin + flat * 25.0 + np.array([0, 0, 1.0])
+        to_display = NED_TO_DISPLAY[:3, :3]
+        camera = self.renderer.camera
+        camera.disable_parallel_projection()
+        camera.position = tuple(to_display @ eye_ned)
+        camera.focal_point = tuple(to_display @ target_ned)
+        camera.up = (0, 0, 1)
+        camera.view_angle = 50
+        self.renderer.ResetCameraClippingRange()
+
+    def update(self) -> None:
+        """Show the ring's current points and colours, and the vehicle where it is now."""
+        if self.session.trajectory is not None:
+            self.place_vehicle()
+        if self._ring is not self.session.scene_ring:
+            self._ring = self.session.scene_ring
+        update_ring_polydata(self.poly, self._ring)
+        low, high = self.session.scene_scalar_range()
+        self.actor.mapper.scalar_range = (low, high if high > low else low + 1e-6)
+        self.scalar_bar.SetTitle(SCENE_UNITS[self.session.display.scene_colour])
