@@ -20,7 +20,8 @@ import math
 import mmap
 import os
 import struct
-from collections import Counter, deque
+from collections import Counter, OrderedDict, deque
+from collections.abc import Hashable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -53,11 +54,14 @@ class LivoxFrame:
         Sensor pose: x, y, z (m, NED), roll, pitch, yaw (rad), as float32 on the wire.
     xyz_int16 : (M, 3) int16
         The points as published, sensor frame.
+    source : str
+        Who sent it: ``HOST:PORT`` of a UDP sender, the block's path for shared memory ("" when unknown).
     """
 
     timestamp: float
     pos_ang: np.ndarray
     xyz_int16: np.ndarray
+    source: str = ""
 
     def decoded(self, range_max: float) -> np.ndarray:
         """``(M, 3)`` float64 metres in the sensor frame."""
@@ -82,7 +86,7 @@ def pack_payload(pos_ang: np.ndarray, xyz_int16: np.ndarray) -> bytes:
     return PAYLOAD_HEADER.pack(*pose.tolist(), points.shape[0]) + points.tobytes()
 
 
-def unpack_payload(payload: bytes, timestamp: float = 0.0) -> LivoxFrame:
+def unpack_payload(payload: bytes, timestamp: float = 0.0, source: str = "") -> LivoxFrame:
     """Read a frame payload; raises :class:`LivoxVizError` if it is short or its PointNum lies."""
     if len(payload) < PAYLOAD_HEADER.size:
         raise LivoxVizError(f"payload of {len(payload)} bytes; allowed: at least {PAYLOAD_HEADER.size}")
@@ -91,7 +95,7 @@ def unpack_payload(payload: bytes, timestamp: float = 0.0) -> LivoxFrame:
     if count < 0 or count > available:
         raise LivoxVizError(f"PointNum {count} but the payload holds {available} points")
     points = np.frombuffer(payload, dtype="<i2", count=count * 3, offset=PAYLOAD_HEADER.size).reshape(count, 3)
-    return LivoxFrame(timestamp, np.array(pose, dtype=np.float64), points.astype(np.int16))
+    return LivoxFrame(timestamp, np.array(pose, dtype=np.float64), points.astype(np.int16), source)
 
 
 # UDP datagrams ---------------------------------------------------------------------------
@@ -125,27 +129,43 @@ class _PendingFrame:
     size: int = 0
 
 
+@dataclass
+class _SenderState:
+    """What the reassembler remembers of one source address."""
+
+    newest_done: float = -math.inf
+    last_delivered: tuple[float, int] | None = None
+
+
 class Reassembler:
     """Puts datagrams back into frames, in any order; drops what is broken, incomplete or a duplicate.
 
-    Memory is bounded: at most ``max_pending`` frames wait at once (the one
-    heard from least recently makes room), and a frame may claim at most
-    ``max_frame_bytes``; garbage never grows it.
+    Frames are reassembled per source address: two senders that stamp the
+    same time (two simulators started together, or a publisher beside RflySim)
+    give two frames, never one mixed from both.
 
-    It never goes deaf: timestamps may go back (a restarted publisher or
-    RflySim, a new sender, or one absurd timestamp before them). A frame that
-    goes back in time is delivered and counted in :attr:`restarts`. What is
-    refused is a late chunk of a frame recently given up as incomplete, and a
-    frame identical to the one delivered just before it (a duplicate).
+    Memory is bounded: at most ``max_pending`` frames wait at once (the one
+    heard from least recently makes room), a frame may claim at most
+    ``max_frame_bytes``, and at most ``max_sources`` senders are remembered;
+    garbage never grows it.
+
+    It never goes deaf: a sender's timestamps may go back (a restarted
+    publisher or RflySim, or one absurd timestamp before them). A frame that
+    goes back in time against its own sender's last one is delivered and
+    counted in :attr:`restarts`. What is refused is a late chunk of a frame
+    recently given up as incomplete, and a frame identical to the one its
+    sender delivered just before it (a duplicate).
 
     Parameters
     ----------
     max_frame_bytes : int
         Largest payload accepted (default 64 MiB, ample for 10 million points).
     max_pending : int
-        Frames (timestamps) waiting for chunks at once.
+        Frames (source and timestamp) waiting for chunks at once.
     max_chunks : int, optional
         Largest chunk count accepted; default what ``max_frame_bytes`` needs.
+    max_sources : int
+        Senders whose last frame is remembered (for restarts and duplicates); the least recent is forgotten.
 
     Attributes
     ----------
@@ -154,24 +174,28 @@ class Reassembler:
     frames : int
         Complete frames returned.
     restarts : int
-        Times the timestamps went back (a new sender or a restarted clock).
+        Times a sender's timestamps went back (a restarted sender or clock).
+    senders : int
+        Source addresses heard from (one forgotten and heard again counts again).
     last_error : str
         The last drop's reason or restart, for the status line.
     """
 
     _REMEMBERED = 16
 
-    def __init__(self, max_frame_bytes: int = 64 << 20, max_pending: int = 4, max_chunks: int | None = None) -> None:
+    def __init__(self, max_frame_bytes: int = 64 << 20, max_pending: int = 4, max_chunks: int | None = None,
+                 max_sources: int = 256) -> None:
         self.max_frame_bytes = max_frame_bytes
         self.max_chunks = max_chunks or math.ceil(max_frame_bytes / MAX_CHUNK)
         self.max_pending = max_pending
+        self.max_sources = max_sources
         self.drops: Counter[str] = Counter()
         self.frames = 0
         self.restarts = 0
-        self._pending: dict[float, _PendingFrame] = {}
-        self._given_up: deque[float] = deque(maxlen=self._REMEMBERED)
-        self._newest_done = -math.inf
-        self._last_delivered: tuple[float, int] | None = None
+        self.senders = 0
+        self._pending: dict[tuple[Hashable, float], _PendingFrame] = {}
+        self._given_up: deque[tuple[Hashable, float]] = deque(maxlen=self._REMEMBERED)
+        self._senders: OrderedDict[Hashable, _SenderState] = OrderedDict()
         self._arrivals = 0
         self.last_error = ""
 
@@ -179,13 +203,24 @@ class Reassembler:
         self.drops[reason] += 1
         self.last_error = reason
 
-    def _give_up(self, timestamp: float) -> None:
-        del self._pending[timestamp]
-        self._given_up.append(timestamp)
+    def _give_up(self, key: tuple[Hashable, float]) -> None:
+        del self._pending[key]
+        self._given_up.append(key)
         self._drop("incomplete frame")
 
-    def feed(self, datagram: bytes) -> tuple[float, bytes] | None:
-        """Take one datagram; returns ``(timestamp, payload)`` when it completes a frame."""
+    def _sender(self, source: Hashable) -> _SenderState:
+        state = self._senders.get(source)
+        if state is None:
+            state = self._senders[source] = _SenderState()
+            self.senders += 1
+            if len(self._senders) > self.max_sources:
+                self._senders.popitem(last=False)
+        self._senders.move_to_end(source)
+        return state
+
+    def feed(self, datagram: bytes, source: Hashable = None) -> tuple[float, bytes] | None:
+        """Take one datagram from ``source`` (e.g. the sender's address); returns ``(timestamp, payload)``
+        when it completes a frame of that source."""
         if len(datagram) < DATAGRAM_HEADER.size:
             self._drop("truncated header")
             return None
@@ -205,15 +240,16 @@ class Reassembler:
         if not math.isfinite(timestamp):
             self._drop("timestamp not finite")
             return None
-        if timestamp in self._given_up:
+        key = (source, timestamp)
+        if key in self._given_up:
             self._drop("stale chunk")
             return None
-        frame = self._pending.get(timestamp)
+        frame = self._pending.get(key)
         if frame is None:
             if len(self._pending) >= self.max_pending:
-                self._give_up(min(self._pending, key=lambda t: self._pending[t].arrival))
+                self._give_up(min(self._pending, key=lambda k: self._pending[k].arrival))
             self._arrivals += 1
-            frame = self._pending[timestamp] = _PendingFrame(count, self._arrivals)
+            frame = self._pending[key] = _PendingFrame(count, self._arrivals)
         if frame.count != count:
             self._drop("chunk count differs within a frame")
             return None
@@ -222,29 +258,30 @@ class Reassembler:
             self._drop("duplicate chunk")
             return None
         if frame.size + len(chunk) > self.max_frame_bytes:
-            del self._pending[timestamp]
-            self._given_up.append(timestamp)
+            del self._pending[key]
+            self._given_up.append(key)
             self._drop("frame too large")
             return None
         frame.chunks[index] = chunk
         frame.size += len(chunk)
         if len(frame.chunks) < count:
             return None
-        del self._pending[timestamp]
-        # Chunks come in order within a sender, so a frame begun before this one will not complete.
-        for older in [t for t, f in self._pending.items() if f.arrival < frame.arrival]:
+        del self._pending[key]
+        # Chunks come in order within a sender, so a frame it began before this one will not complete.
+        for older in [k for k, f in self._pending.items() if k[0] == source and f.arrival < frame.arrival]:
             self._give_up(older)
         payload = b"".join(frame.chunks[i] for i in range(count))
+        sender = self._sender(source)
         fingerprint = (timestamp, hash(payload))
-        if fingerprint == self._last_delivered:
+        if fingerprint == sender.last_delivered:
             self._drop("duplicate frame")
             return None
-        self._last_delivered = fingerprint
-        if timestamp < self._newest_done:
+        sender.last_delivered = fingerprint
+        if timestamp < sender.newest_done:
             self.restarts += 1
-            self.last_error = (f"timestamps went back from {self._newest_done:.6g} s to {timestamp:.6g} s: "
-                               "a new sender or a restarted clock")
-        self._newest_done = timestamp
+            self.last_error = (f"timestamps went back from {sender.newest_done:.6g} s to {timestamp:.6g} s: "
+                               "a restarted sender or clock")
+        sender.newest_done = timestamp
         self.frames += 1
         return timestamp, payload
 
@@ -252,6 +289,18 @@ class Reassembler:
     def pending_bytes(self) -> int:
         """Bytes held for frames not complete yet."""
         return sum(frame.size for frame in self._pending.values())
+
+
+def frame_problem(frame: LivoxFrame) -> str | None:
+    """Why a well-formed frame cannot be used (a NaN or infinite posAng or timestamp), or None.
+
+    Such a frame has no place in the world; a client drops it and counts it under this reason.
+    """
+    if not math.isfinite(frame.timestamp):
+        return "timestamp not finite"
+    if not np.all(np.isfinite(frame.pos_ang)):
+        return "posAng not finite"
+    return None
 
 
 # Sensor request and SendProtocol ------------------------------------------------------------
@@ -384,7 +433,7 @@ class SharedMemoryLink:
             if not 0 <= count <= capacity:
                 raise LivoxVizError(f"shared memory PointNum {count}; allowed: 0 to {capacity}")
             points = np.frombuffer(self._map, dtype="<i2", count=count * 3, offset=SHM_HEADER.size)
-            frame = LivoxFrame(timestamp, np.array(pose), points.reshape(count, 3).astype(np.int16))
+            frame = LivoxFrame(timestamp, np.array(pose), points.reshape(count, 3).astype(np.int16), str(self.path))
         finally:
             self._map[0] = SHM_FLAG_DONE
         return frame

@@ -6,6 +6,7 @@ import errno
 import socket
 import sys
 import time
+from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
@@ -18,6 +19,7 @@ from livox_viz.wire.rflysim import (
     LivoxFrame,
     Reassembler,
     SharedMemoryLink,
+    frame_problem,
     pack_payload,
     shm_path,
     shm_size,
@@ -99,20 +101,23 @@ class ShmSender:
 
 
 def publish(frames: Iterable[ScanFrame], sender: UdpSender | ShmSender, speed: float | None,
-            on_progress: Callable[[PublishReport], None] | None = None) -> PublishReport:
+            on_progress: Callable[[PublishReport], None] | None = None,
+            stop: Callable[[], bool] | None = None) -> PublishReport:
     """Send each frame at its scan time divided by ``speed`` (None: as fast as possible).
 
     Pacing is against the clock (frame k is due at start + t_k / speed), so
-    sleeping never accumulates drift.
+    sleeping never accumulates drift. ``stop()`` true ends publishing before
+    the next frame (``frames`` may be endless).
     """
     report = PublishReport()
     start = time.monotonic()
     for frame in frames:
         if speed is not None:
             due = start + frame.timestamp / speed
-            delay = due - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
+            while (delay := due - time.monotonic()) > 0 and not (stop is not None and stop()):
+                time.sleep(min(delay, 0.1))
+        if stop is not None and stop():
+            break
         report.datagrams += sender.send(frame.timestamp, frame.sensor_pose.as_array(), frame.xyz_int16)
         report.frames += 1
         report.points += len(frame)
@@ -160,24 +165,25 @@ class UdpReceiver:
         self.report = ListenReport()
 
     def frames(self, stop: Callable[[], bool]) -> Iterable[LivoxFrame]:
-        """Complete, well-formed frames until ``stop()`` is true."""
+        """Complete, well-formed frames until ``stop()`` is true, each reassembled from its own sender."""
         buffer = bytearray(65536)
         while not stop():
             try:
-                size = self.socket.recv_into(buffer)
+                size, address = self.socket.recvfrom_into(buffer)
             except (TimeoutError, BlockingIOError):
                 continue
             cpu = time.process_time()
             self.report.datagrams += 1
-            done = self.assembler.feed(bytes(buffer[:size]))
+            done = self.assembler.feed(bytes(buffer[:size]), address)
             frame = None
             if done is not None:
                 try:
-                    frame = unpack_payload(done[1], done[0])
+                    frame = unpack_payload(done[1], done[0], f"{address[0]}:{address[1]}")
                 except LivoxVizError as exc:
                     self.report.bad_payloads += 1
                     self.assembler.drops["bad payload"] += 1
                     self.assembler.last_error = str(exc)
+                frame = _usable(frame, self.assembler)
             self.report.cpu_seconds += time.process_time() - cpu
             if frame is not None:
                 self.report.frames += 1
@@ -217,6 +223,16 @@ class _UntilEmpty:
         return not ready
 
 
+def _usable(frame: LivoxFrame | None, assembler: Reassembler) -> LivoxFrame | None:
+    """The frame, or None (dropped and counted) when its pose or time is not finite."""
+    problem = frame_problem(frame) if frame is not None else None
+    if problem is None:
+        return frame
+    assembler.drops[problem] += 1
+    assembler.last_error = f"{problem} (t = {frame.timestamp:.6g} s, posAng {np.round(frame.pos_ang, 3).tolist()})"
+    return None
+
+
 class ShmReceiver:
     """Polls RflySim's shared-memory block and yields new frames."""
 
@@ -236,6 +252,7 @@ class ShmReceiver:
                 self.assembler.drops["bad payload"] += 1
                 self.assembler.last_error = str(exc)
                 frame = None
+            frame = _usable(frame, self.assembler)
             if frame is None:
                 time.sleep(0.001)
                 continue
@@ -245,7 +262,7 @@ class ShmReceiver:
 
     def poll(self, max_datagrams: int = 1) -> list[LivoxFrame]:
         """The frame waiting in the block, if any, without waiting."""
-        frame = self.link.read()
+        frame = _usable(self.link.read(), self.assembler)
         if frame is None:
             return []
         self.report.frames += 1
@@ -261,10 +278,19 @@ def status_line(report: ListenReport, assembler: Reassembler, elapsed: float) ->
     rate = report.frames / elapsed if elapsed > 0 else 0.0
     per_frame = report.points / report.frames if report.frames else 0.0
     drops = sum(assembler.drops.values())
+    senders = f", senders {assembler.senders}" if assembler.senders > 1 else ""
     restarts = f", sender restarts {assembler.restarts}" if assembler.restarts else ""
     reason = f" (last: {assembler.last_error})" if drops or assembler.restarts else ""
     return (f"{report.frames} frames, {rate:5.1f} frames/s, {per_frame:8.0f} points/frame, drops {drops}"
-            f"{restarts}{reason}")
+            f"{senders}{restarts}{reason}")
+
+
+def drops_text(drops: Counter[str]) -> str:
+    """``2 dropped (posAng not finite 2)``, or "" when nothing was dropped (for the final summary)."""
+    total = sum(drops.values())
+    if not total:
+        return ""
+    return f"{total} dropped ({', '.join(f'{reason} {count}' for reason, count in drops.most_common())})"
 
 
 def print_status(text: str) -> None:
