@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import BinaryIO
@@ -46,14 +47,17 @@ _NPZ_ARRAYS: dict[str, tuple[str, tuple[int, ...]]] = {
 }
 
 
-def frame_records(frame: PointFrame, coordinates: str) -> np.ndarray:
-    """The frame's points as a structured array of :data:`POINT_FIELDS`, ``(M,)``."""
+def frame_records(frame: PointFrame, coordinates: str, extra_fields: Sequence[tuple[str, str]] = (),
+                  extra: Mapping[str, np.ndarray | float] | None = None) -> np.ndarray:
+    """The frame's points as a structured array of :data:`POINT_FIELDS` and ``extra_fields``, ``(M,)``."""
     xyz = frame.xyz_decoded if coordinates == "sensor" else frame.xyz_world
-    records = np.empty(len(frame), dtype=list(POINT_FIELDS))
+    records = np.empty(len(frame), dtype=[*POINT_FIELDS, *extra_fields])
     records["x"], records["y"], records["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
     records["range"] = frame.range_m
     records["time"] = frame.t
     records["frame"] = frame.index
+    for name, _ in extra_fields:
+        records[name] = (extra or {})[name]
     return records
 
 
@@ -68,6 +72,14 @@ class PointCloudWriter:
         Which points PLY/PCD/LAS/CSV hold (NPZ holds both).
     ascii : bool
         ASCII instead of binary PLY/PCD.
+    extra_fields : sequence of (name, numpy type)
+        Per-point fields after :data:`POINT_FIELDS` (an NPZ column, a LAS extra dimension), e.g. a received
+        frame's ``("sender_time", "<f8")``; :meth:`write` is given their values. Types: ``<f8``, ``<i4``, ``<u4``.
+
+    Attributes
+    ----------
+    npz_arrays : dict of str to ndarray
+        Arrays an NPZ gets besides its columns when it is closed (e.g. one row per received frame).
 
     Examples
     --------
@@ -76,7 +88,8 @@ class PointCloudWriter:
     ...         writer.write(frame)
     """
 
-    def __init__(self, path: str | os.PathLike[str], coordinates: str = "sensor", ascii: bool = False) -> None:
+    def __init__(self, path: str | os.PathLike[str], coordinates: str = "sensor", ascii: bool = False,
+                 extra_fields: Sequence[tuple[str, str]] = ()) -> None:
         self.path = Path(path)
         self.format = self.path.suffix.lower()
         if self.format not in FORMATS:
@@ -86,6 +99,8 @@ class PointCloudWriter:
         resolve_destination(self.path)
         self.coordinates = coordinates
         self.ascii = ascii
+        self.extra_fields = tuple(extra_fields)
+        self.npz_arrays: dict[str, np.ndarray] = {}
         self.count = 0
         self._work = make_work_dir(self.path)
         self._body: BinaryIO | None = None
@@ -103,33 +118,41 @@ class PointCloudWriter:
 
     def _open(self) -> None:
         if self.format == ".npz":
-            self._npz = NpzColumns(self._work, _NPZ_ARRAYS)
+            self._npz = NpzColumns(self._work, {**_NPZ_ARRAYS, **{name: (t, ()) for name, t in self.extra_fields}})
         elif self.format == ".las":
-            self._las = _open_las(self._work / "points.las", self.coordinates)
+            self._las = _open_las(self._work / "points.las", self.coordinates, self.extra_fields)
         else:
             self._body = open(self._work / "body", "wb")
             if self.format == ".csv":
                 self._body.write(f"# livox-viz scan; coordinates: {FRAME_DESCRIPTION[self.coordinates]}\n".encode())
-                self._body.write(b"x,y,z,range,time,frame\n")
+                self._body.write((",".join(name for name, _ in self._fields) + "\n").encode())
 
-    def write(self, frame: PointFrame) -> None:
-        """Append one frame's returns."""
+    @property
+    def _fields(self) -> tuple[tuple[str, str], ...]:
+        return (*POINT_FIELDS, *self.extra_fields)
+
+    def write(self, frame: PointFrame, extra: Mapping[str, np.ndarray | float] | None = None) -> None:
+        """Append one frame's returns; ``extra`` holds the values of ``extra_fields`` (per point, or one per frame)."""
         if self._closed:
             raise LivoxVizError(f"{self.path}: the writer is closed")
+        extra = {name: np.broadcast_to(np.asarray((extra or {})[name], dtype=t), (len(frame),))
+                 for name, t in self.extra_fields}
         if self._npz is not None:
             self._npz.append({
                 "xyz_sensor": frame.xyz_decoded, "xyz_world": frame.xyz_world, "xyz_int16": frame.xyz_int16,
-                "range": frame.range_m, "t": frame.t, "frame": np.full(len(frame), frame.index),
+                "range": frame.range_m, "t": frame.t, "frame": np.full(len(frame), frame.index), **extra,
             })
             self._npz_poses.append(np.concatenate([[frame.index], frame.sensor_pose.as_array(),
                                                    frame.end_pose.as_array()]))
         elif self.format == ".las":
-            _write_las(self._las, frame, self.coordinates)
+            _write_las(self._las, frame, self.coordinates, extra)
         else:
-            records = frame_records(frame, self.coordinates)
+            records = frame_records(frame, self.coordinates, self.extra_fields, extra)
             assert self._body is not None
             if self.format == ".csv" or self.ascii:
-                np.savetxt(self._body, _records_as_columns(records), fmt=["%.6f"] * 4 + ["%.9f", "%d"],
+                formats = ["%.6f"] * 4 + ["%.9f", "%d"] + ["%.9f" if t[1] == "f" else "%d"
+                                                            for _, t in self.extra_fields]
+                np.savetxt(self._body, _records_as_columns(records), fmt=formats,
                            delimiter="," if self.format == ".csv" else " ")
             else:
                 self._body.write(records.tobytes())
@@ -143,7 +166,7 @@ class PointCloudWriter:
             with atomic_path(self.path) as tmp:
                 if self._npz is not None:
                     poses = np.array(self._npz_poses).reshape(-1, 13)
-                    self._npz.finish(tmp, {"frame_pose": poses, "frame_of_reference": np.array(
+                    self._npz.finish(tmp, {**self.npz_arrays, "frame_pose": poses, "frame_of_reference": np.array(
                         json.dumps({**FRAME_DESCRIPTION, "frame_pose": "index, then the sensor's pose at the "
                                     "frame's first ray and just after its last: x y z (m, world NED) roll pitch "
                                     "yaw (rad) each"}))})
@@ -191,21 +214,21 @@ class PointCloudWriter:
             return b""
         if self.format == ".ply":
             encoding = "ascii" if self.ascii else "binary_little_endian"
-            types = {"<f4": "float", "<f8": "double", "<u4": "uint"}
+            types = {"<f4": "float", "<f8": "double", "<u4": "uint", "<i4": "int"}
             lines = ["ply", f"format {encoding} 1.0", "comment livox-viz scan",
                      f"comment frame {self.coordinates}: {FRAME_DESCRIPTION[self.coordinates]}",
                      f"element vertex {self.count}"]
-            lines += [f"property {types[t]} {name}" for name, t in POINT_FIELDS]
+            lines += [f"property {types[t]} {name}" for name, t in self._fields]
             lines.append("end_header")
             return ("\n".join(lines) + "\n").encode()
-        sizes = {"<f4": ("4", "F"), "<f8": ("8", "F"), "<u4": ("4", "U")}
+        sizes = {"<f4": ("4", "F"), "<f8": ("8", "F"), "<u4": ("4", "U"), "<i4": ("4", "I")}
         lines = [
             f"# .PCD v0.7 - livox-viz scan; frame {self.coordinates}: {FRAME_DESCRIPTION[self.coordinates]}",
             "VERSION 0.7",
-            "FIELDS " + " ".join(name for name, _ in POINT_FIELDS),
-            "SIZE " + " ".join(sizes[t][0] for _, t in POINT_FIELDS),
-            "TYPE " + " ".join(sizes[t][1] for _, t in POINT_FIELDS),
-            "COUNT " + " ".join("1" for _ in POINT_FIELDS),
+            "FIELDS " + " ".join(name for name, _ in self._fields),
+            "SIZE " + " ".join(sizes[t][0] for _, t in self._fields),
+            "TYPE " + " ".join(sizes[t][1] for _, t in self._fields),
+            "COUNT " + " ".join("1" for _ in self._fields),
             f"WIDTH {self.count}",
             "HEIGHT 1",
             "VIEWPOINT 0 0 0 1 0 0 0",
@@ -215,17 +238,18 @@ class PointCloudWriter:
         return ("\n".join(lines) + "\n").encode()
 
 def _records_as_columns(records: np.ndarray) -> np.ndarray:
-    return np.column_stack([records[name].astype(np.float64) for name, _ in POINT_FIELDS])
+    return np.column_stack([records[name].astype(np.float64) for name in records.dtype.names])
 
 
-def _open_las(path: Path, coordinates: str):
+def _open_las(path: Path, coordinates: str, extra_fields: Sequence[tuple[str, str]] = ()):
     import laspy
 
     header = laspy.LasHeader(point_format=6, version="1.4")
     header.scales = np.array([1e-4, 1e-4, 1e-4])
     header.offsets = np.zeros(3)
     header.add_extra_dims([laspy.ExtraBytesParams("range", np.float32, description="range m"),
-                           laspy.ExtraBytesParams("frame", np.uint32, description="frame index")])
+                           laspy.ExtraBytesParams("frame", np.uint32, description="frame index"),
+                           *(laspy.ExtraBytesParams(name, np.dtype(t).newbyteorder("=")) for name, t in extra_fields)])
     header.generating_software = "livox-viz"
     header.system_identifier = f"livox-viz {coordinates}"[:32]
     metadata = {"frame": coordinates, "description": FRAME_DESCRIPTION[coordinates]}
@@ -233,7 +257,7 @@ def _open_las(path: Path, coordinates: str):
     return laspy.open(path, mode="w", header=header)
 
 
-def _write_las(writer, frame: PointFrame, coordinates: str) -> None:
+def _write_las(writer, frame: PointFrame, coordinates: str, extra: Mapping[str, np.ndarray] | None = None) -> None:
     import laspy
 
     if not len(frame):
@@ -244,4 +268,6 @@ def _write_las(writer, frame: PointFrame, coordinates: str) -> None:
     points.gps_time = frame.t
     points.range = frame.range_m.astype(np.float32)
     points.frame = np.full(len(frame), frame.index, dtype=np.uint32)
+    for name, values in (extra or {}).items():
+        points[name] = values
     writer.write_points(points)

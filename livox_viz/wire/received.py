@@ -1,11 +1,16 @@
-"""A frame received from RflySim (or our publisher), as a client knows it.
+"""A frame received from RflySim (or our publisher), as a client knows it, and how a recording numbers them.
 
-It offers the members of :class:`~livox_viz.casting.point_frame.PointFrame`, so
-the exporters and views take it like a scanned frame.
+:class:`ReceivedFrame` offers the members of
+:class:`~livox_viz.casting.point_frame.PointFrame`, so the exporters and views
+take it like a scanned frame. :class:`RecordingClock` gives each frame of a
+recording a unique increasing index and a time that never goes back, whatever
+the senders do (restart, or send side by side), and keeps the sender's own
+frame number and time beside them.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -32,23 +37,43 @@ class ReceivedFrame:
         The int16 scale, metres.
     frame_rate : float
         Frames per second (``DataCheckFreq``), to number the frame from its timestamp.
+    number : int, optional
+        The frame's index in a recording (see :class:`RecordingClock`); None: the sender's frame number.
+    recording_time : float, optional
+        The frame's time in a recording, seconds; None: the sender's timestamp.
+    session : int
+        Which sender run of the recording it belongs to (a new one for each sender and each restart).
     """
 
     wire: LivoxFrame
     range_max: float
     frame_rate: float
+    number: int | None = None
+    recording_time: float | None = None
+    session: int = 0
 
     def __len__(self) -> int:
         return int(self.wire.xyz_int16.shape[0])
 
     @property
+    def sender_index(self) -> int:
+        """The sender's frame number, from its timestamp (clipped into int32: a sender may stamp anything)."""
+        return int(np.clip(round(self.wire.timestamp * self.frame_rate), -(2**31), 2**31 - 1))
+
+    @property
+    def sender_time(self) -> float:
+        """The sender's timestamp, seconds."""
+        return self.wire.timestamp
+
+    @property
     def index(self) -> int:
-        """Frame number, from the timestamp (clipped into int64: a sender may stamp anything)."""
-        return int(np.clip(round(self.wire.timestamp * self.frame_rate), -(2**62), 2**62))
+        """The frame's number: its index in the recording when numbered, else the sender's."""
+        return self.sender_index if self.number is None else self.number
 
     @property
     def timestamp(self) -> float:
-        return self.wire.timestamp
+        """The frame's time: in the recording when numbered, else the sender's, seconds."""
+        return self.wire.timestamp if self.recording_time is None else self.recording_time
 
     @property
     def xyz_int16(self) -> np.ndarray:
@@ -67,8 +92,8 @@ class ReceivedFrame:
 
     @cached_property
     def t(self) -> np.ndarray:
-        """``(M,)`` float64 the frame's timestamp for every point."""
-        return np.full(len(self), self.wire.timestamp)
+        """``(M,)`` float64 the frame's :attr:`timestamp` for every point."""
+        return np.full(len(self), self.timestamp)
 
     @cached_property
     def xyz_decoded(self) -> np.ndarray:
@@ -94,3 +119,94 @@ class ReceivedFrame:
     def xyz_world(self) -> np.ndarray:
         """Same as :attr:`xyz_world_decoded`: a received frame knows no truer point."""
         return self.xyz_world_decoded
+
+
+#: Per-point fields of a recording besides the usual ones (see ``PointCloudWriter(extra_fields=...)``).
+RECORDING_FIELDS: tuple[tuple[str, str], ...] = (("sender_frame", "<i4"), ("sender_time", "<f8"), ("session", "<u4"))
+#: The columns of :attr:`RecordingClock.table`, one row per recorded frame.
+RECORDING_TABLE_COLUMNS = ("index", "session", "sender_frame", "sender_time", "t")
+
+
+@dataclass
+class _Session:
+    source: str
+    number: int
+    first_sender_time: float
+    start: float | None  # the recording's time of its first frame; None: the sender's own time (first session)
+    last_sender_time: float
+
+
+class RecordingClock:
+    """Numbers the frames of a recording and gives them a time that never goes back.
+
+    Every frame gets the next index (0, 1, 2, ...), whatever its sender calls
+    it. Frames belong to *sessions*: one per sender (source address) and a new
+    one whenever that sender's timestamps go back (a restarted publisher or
+    RflySim). The first session keeps the sender's own time; a later session
+    starts after the newest time recorded so far, by the wall time that passed
+    since that frame arrived (at least one frame period), and then steps
+    exactly as its sender's timestamps do.
+
+    Parameters
+    ----------
+    range_max : float
+        The int16 scale, metres.
+    frame_rate : float
+        Frames per second (``DataCheckFreq``).
+
+    Attributes
+    ----------
+    sessions : list of str
+        The source of each session, in order.
+    restarts : int
+        Sessions that began because a sender's time went back.
+    table : list of tuple
+        One row per frame: :data:`RECORDING_TABLE_COLUMNS`.
+    """
+
+    def __init__(self, range_max: float, frame_rate: float) -> None:
+        self.range_max = range_max
+        self.frame_rate = frame_rate
+        self.sessions: list[str] = []
+        self.restarts = 0
+        self.table: list[tuple[int, int, int, float, float]] = []
+        self._by_source: dict[str, _Session] = {}
+        self._newest: tuple[float, float] | None = None  # (recording time, arrival) of the newest frame
+
+    def number(self, wire: LivoxFrame, arrival: float) -> ReceivedFrame:
+        """The frame, numbered, with its recording time.
+
+        Parameters
+        ----------
+        wire : LivoxFrame
+            What arrived (a finite timestamp).
+        arrival : float
+            When it arrived on the receiver's monotonic clock, seconds.
+        """
+        session = self._by_source.get(wire.source)
+        if session is None or wire.timestamp < session.last_sender_time:
+            if session is not None:
+                self.restarts += 1
+            start = None
+            if self._newest is not None:
+                newest, newest_arrival = self._newest
+                start = newest + max(arrival - newest_arrival, 1.0 / self.frame_rate)
+            session = _Session(wire.source, len(self.sessions), wire.timestamp, start, wire.timestamp)
+            self._by_source[wire.source] = session
+            self.sessions.append(wire.source)
+        session.last_sender_time = wire.timestamp
+        if session.start is None:
+            time = wire.timestamp
+        else:
+            time = session.start + (wire.timestamp - session.first_sender_time)
+        if not math.isfinite(time):  # an absurd sender time (1e308): keep the recording's clock finite
+            time = session.start if session.start is not None else 0.0
+        frame = ReceivedFrame(wire, self.range_max, self.frame_rate, len(self.table), time, session.number)
+        self.table.append((frame.index, session.number, frame.sender_index, wire.timestamp, time))
+        if self._newest is None or time >= self._newest[0]:
+            self._newest = (time, arrival)
+        return frame
+
+    def table_array(self) -> np.ndarray:
+        """``(n, 5)`` float64 :attr:`table`."""
+        return np.array(self.table, dtype=np.float64).reshape(-1, len(RECORDING_TABLE_COLUMNS))
