@@ -208,14 +208,16 @@ def test_one_listener_hears_two_publishers_in_a_row_and_a_forged_datagram(
     listener.join(30)
     assert not listener.is_alive()
     out = capsys.readouterr()
-    assert "received 11 frames" in out.out and "sender restarts" in out.err
+    # Each publisher run and the forger send from their own port: three senders, each its own session.
+    assert "received 11 frames" in out.out and "senders 3" in out.err and "3 sender sessions" in out.out
     data = np.load(received)
     sent = tmp_path / "sent.npz"
     assert main(["scan", "--seconds", "0.5", "--out", str(sent)]) == 0
     one_run = np.load(sent)
-    # Both runs in full, point for point, around the forged empty frame.
+    # Both runs in full, point for point, around the forged empty frame (index 5); each frame its own index.
     np.testing.assert_array_equal(data["xyz_int16"], np.concatenate([one_run["xyz_int16"]] * 2))
-    np.testing.assert_array_equal(data["frame"], np.concatenate([one_run["frame"]] * 2))
+    np.testing.assert_array_equal(data["frame"], np.concatenate([one_run["frame"], one_run["frame"] + 6]))
+    np.testing.assert_array_equal(data["sender_frame"], np.concatenate([one_run["frame"]] * 2))
     assert len(data["frame_pose"]) == 11
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
-import threading
 from collections.abc import Iterable, Sequence
 from importlib.metadata import entry_points
 
@@ -20,17 +19,14 @@ from livox_viz.core.errors import LivoxVizError
 
 from . import fit_commands, pattern_commands, scan_commands, wire_commands
 from .common import PROG, Command, UsageError
+from .signals import Terminated, in_main_thread, raise_terminated, signal_status
 
 ENTRY_POINT_GROUP = "livox_viz.commands"
 MODEL_COMMANDS: tuple[Command, ...] = (
     *pattern_commands.COMMANDS, *scan_commands.COMMANDS, *fit_commands.COMMANDS, *wire_commands.COMMANDS,
 )
 
-__all__ = ["ENTRY_POINT_GROUP", "MODEL_COMMANDS", "Command", "UsageError", "build_parser", "main"]
-
-
-class Terminated(Exception):
-    """SIGTERM or SIGHUP arrived: unwind like Ctrl-C, so writers remove their temporary files."""
+__all__ = ["ENTRY_POINT_GROUP", "MODEL_COMMANDS", "Command", "Terminated", "UsageError", "build_parser", "main"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -73,10 +69,6 @@ def _version() -> str:
     return __version__
 
 
-def _raise_terminated(signum: int, _frame: object) -> None:
-    raise Terminated(signal.Signals(signum).name)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status.
 
@@ -97,9 +89,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 0
-    in_main_thread = threading.current_thread() is threading.main_thread()
-    previous = {sig: signal.signal(sig, _raise_terminated) for sig in (signal.SIGTERM, signal.SIGHUP)
-                if in_main_thread}
+    # A command that must keep what it has (listen --record, publish, the window) takes the signals
+    # itself for a while (signals.StopRequests); everything else unwinds and removes its temporaries.
+    previous = {sig: signal.signal(sig, raise_terminated) for sig in (signal.SIGTERM, signal.SIGHUP)
+                if in_main_thread()}
     try:
         return int(args.handler(args) or 0)
     except LivoxVizError as exc:
@@ -114,7 +107,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except Terminated as exc:
         print(f"{PROG}: stopped by {exc}; unfinished files were removed", file=sys.stderr)
-        return 143
+        return signal_status(exc.signum)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

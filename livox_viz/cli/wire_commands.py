@@ -3,21 +3,35 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import socket
 import sys
 import time
+from collections.abc import Iterator
 from contextlib import nullcontext
 
-from livox_viz.casting.scan import LidarScanner
+import numpy as np
+
+from livox_viz.casting.scan import LidarScanner, ScanFrame
 from livox_viz.config.presets import DEFAULT_PRESET, load_preset
 from livox_viz.config.sensor import load_config
 from livox_viz.core.workload import check_points
 from livox_viz.files.export import FORMATS, PointCloudWriter
-from livox_viz.wire.received import ReceivedFrame
+from livox_viz.wire.received import RECORDING_FIELDS, RECORDING_TABLE_COLUMNS, RecordingClock
 from livox_viz.wire.rflysim import REQUEST_PORT_BASE, parse_host_port, send_protocol_destination, sensor_request
-from livox_viz.wire.transport import ShmReceiver, ShmSender, UdpReceiver, UdpSender, print_status, publish, status_line
+from livox_viz.wire.transport import (
+    ShmReceiver,
+    ShmSender,
+    UdpReceiver,
+    UdpSender,
+    drops_text,
+    print_status,
+    publish,
+    status_line,
+)
 
 from .common import (
+    PROG,
     Command,
     UsageError,
     add_config_arguments,
@@ -33,6 +47,7 @@ from .common import (
     trajectory_from_args,
     whole_number,
 )
+from .signals import StopRequests, signal_name, signal_status
 
 SPEED_RANGE = (0.01, 1000.0)
 
@@ -66,6 +81,19 @@ class _Every:
 
 
 # publish -------------------------------------------------------------------------------------
+def endless_frames(scanner: LidarScanner, chunk_frames: int = 600) -> Iterator[ScanFrame]:
+    """Frames without end (``--seconds forever``), asked of the scanner ``chunk_frames`` at a time.
+
+    Each chunk ends half a point before a frame boundary, so rounding its end
+    to whole points never cuts a frame, however long the run.
+    """
+    per_frame, rate = scanner.config.points_per_frame, scanner.config.point_rate
+    end = 0
+    while True:
+        end += chunk_frames * per_frame
+        yield from scanner.frames((end - 0.5) / rate)
+
+
 def cmd_publish(args: argparse.Namespace) -> int:
     cfg = config_from_args(args)
     if args.seconds is not None:
@@ -87,11 +115,15 @@ def cmd_publish(args: argparse.Namespace) -> int:
             sender = ShmSender(cfg, args.shm_dir)
             where = f"shared memory {sender.link.path} (SendProtocol[0] = 0)"
     scanner = LidarScanner(cfg, caster, pose, seed=args.seed, trajectory=trajectory)
-    seconds = args.seconds if args.seconds is not None else (trajectory.span[1] if trajectory else float("inf"))
-    frames = scanner.frames(seconds)
+    if args.seconds is not None:
+        frames, until = scanner.frames(args.seconds), f"for {args.seconds:g} s"
+    elif trajectory is not None:
+        frames, until = scanner.frames(trajectory.span[1]), f"to the trajectory's end at {trajectory.span[1]:g} s"
+    else:
+        frames, until = endless_frames(scanner), "until stopped (Ctrl-C)"
     speed = None if args.unpaced else args.speed
     print(f"publishing {cfg.points_per_frame:,}-ray frames at {cfg.data_check_freq} Hz "
-          f"({'unpaced' if speed is None else f'{speed:g}x real time'}) to {where}", file=sys.stderr)
+          f"({'unpaced' if speed is None else f'{speed:g}x real time'}) to {where}, {until}", file=sys.stderr)
     every = _Every(1.0)
 
     def progress(report) -> None:
@@ -100,16 +132,22 @@ def cmd_publish(args: argparse.Namespace) -> int:
             print(f"  {report.frames} frames, {report.points:,} points, scan t = {report.scan_seconds:.1f} s"
                   f"{error}", file=sys.stderr)
 
-    try:
-        report = publish(frames, sender, speed, progress)
-    finally:
-        sender.close()
+    # A signal ends publishing after the frame being sent: the summary is printed, the sender closed.
+    with StopRequests() as stop:
+        try:
+            report = publish(frames, sender, speed, progress, stop=lambda: stop.requested)
+        finally:
+            sender.close()
     error = f", {report.send_errors} send errors (last: {sender.last_error})" if report.send_errors else ""
     print(f"sent {report.frames} frames, {report.points:,} points in {report.wall_seconds:.2f} s: "
           f"{report.frames / max(report.wall_seconds, 1e-9):.1f} frames/s = "
           f"{report.scan_seconds / max(report.wall_seconds, 1e-9):.1f} x real time{error}")
     if report.frames and report.datagrams == 0:
         raise UsageError(f"nothing could be sent to {where} ({sender.last_error or 'every send failed'})")
+    if stop.signum is not None:
+        print(f"{PROG}: stopped by {signal_name(stop.signum)} after scan t = {report.scan_seconds:.1f} s",
+              file=sys.stderr)
+        return signal_status(stop.signum)
     return 0
 
 
@@ -147,14 +185,16 @@ def add_receiver_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 class _Listening:
-    """When ``listen`` stops: after ``--frames`` frames, ``--seconds`` of wall time, or ``--timeout`` of silence.
+    """When ``listen`` stops: after ``--frames`` frames, ``--seconds`` of wall time, ``--timeout`` of silence,
+    or a signal (Ctrl-C, SIGTERM, SIGHUP).
 
     It also prints the live status line once a second.
     """
 
-    def __init__(self, args: argparse.Namespace, receiver: UdpReceiver | ShmReceiver) -> None:
+    def __init__(self, args: argparse.Namespace, receiver: UdpReceiver | ShmReceiver, signals: StopRequests) -> None:
         self.args = args
         self.receiver = receiver
+        self.signals = signals
         self.start = self.last_data = time.monotonic()
         self.every = _Every(1.0)
 
@@ -165,6 +205,8 @@ class _Listening:
         args, now = self.args, time.monotonic()
         if self.every.due():
             print_status(status_line(self.receiver.report, self.receiver.assembler, now - self.start))
+        if self.signals.requested:
+            return True
         if args.frames is not None and self.receiver.report.frames >= args.frames:
             return True
         if args.seconds is not None and now - self.start >= args.seconds:
@@ -175,27 +217,43 @@ class _Listening:
 def cmd_listen(args: argparse.Namespace) -> int:
     cfg = load_config(args.config, seq_id=args.seq_id) if args.config else load_preset(DEFAULT_PRESET)
     out = check_output_path(args.record, FORMATS) if args.record else None
-    interrupted = False
+    clock = RecordingClock(cfg.range_max, cfg.data_check_freq)
+    # A recording is the user's data: Ctrl-C, SIGTERM and SIGHUP end listening after the frame in hand, and the
+    # file is closed properly (the signals stay noted, not raised, until it is in place).
     # The recording's temporary is made first: a folder we cannot write in fails before a port is taken.
-    with PointCloudWriter(out) if out is not None else nullcontext() as writer:
+    with StopRequests() as signals, \
+            PointCloudWriter(out, extra_fields=RECORDING_FIELDS) if out is not None else nullcontext() as writer:
         receiver, where = open_receiver(args, cfg)
-        stop = _Listening(args, receiver)
+        stop = _Listening(args, receiver, signals)
         print(f"listening on {where} (range {cfg.range_max:g} m); Ctrl-C to stop", file=sys.stderr, flush=True)
         try:
             for frame in receiver.frames(stop):
                 stop.heard()
+                numbered = clock.number(frame, time.monotonic() - stop.start)
                 if writer is not None:
-                    writer.write(ReceivedFrame(frame, cfg.range_max, cfg.data_check_freq))
-        except KeyboardInterrupt:
-            interrupted = True  # Ctrl-C ends listening; what was received is kept
+                    writer.write(numbered, {"sender_frame": numbered.sender_index,
+                                            "sender_time": numbered.sender_time, "session": numbered.session})
         finally:
             receiver.close()
+            if writer is not None:
+                writer.npz_arrays = {"received_frames": clock.table_array(),
+                                     "received_frames_columns": np.array(RECORDING_TABLE_COLUMNS),
+                                     "session_source": np.array(clock.sessions, dtype=str)}
     report = receiver.report
     print_status(status_line(report, receiver.assembler, time.monotonic() - stop.start))
     cpu = report.cpu_seconds / report.frames * 1e3 if report.frames else 0.0
-    print(f"received {report.frames} frames, {report.points:,} points; receiver CPU {cpu:.2f} ms per frame"
-          + (f"; recorded to {out}" if writer is not None else "") + (" (interrupted)" if interrupted else ""))
-    return 0
+    sessions = len(clock.sessions)
+    restarts = (f"; {sessions} sender sessions (new senders {sessions - 1 - clock.restarts}, restarts "
+                f"{clock.restarts})" if sessions > 1 else "")
+    dropped = drops_text(receiver.assembler.drops)
+    print(f"received {report.frames} frames, {report.points:,} points{restarts}" + (f"; {dropped}" if dropped else "")
+          + f"; receiver CPU {cpu:.2f} ms per frame" + (f"; recorded to {out}" if writer is not None else ""))
+    if signals.signum is None:
+        return 0
+    kept = f"; the recording {out} was kept ({report.frames} frames)" if writer is not None else ""
+    print(f"{PROG}: stopped by {signal_name(signals.signum)}{kept}", file=sys.stderr)
+    # Ctrl-C is how listening is meant to end (it says so); SIGTERM and SIGHUP give the shell's status.
+    return 0 if signals.signum == signal.SIGINT else signal_status(signals.signum)
 
 
 def _listen_arguments(parser: argparse.ArgumentParser) -> None:

@@ -1,0 +1,101 @@
+"""How ``livox-viz`` stops on Ctrl-C, SIGTERM and SIGHUP.
+
+By default a command unwinds on any of them (SIGTERM and SIGHUP raise
+:class:`Terminated`, Ctrl-C raises :class:`KeyboardInterrupt`), so every writer
+removes its temporary files and the destination is left as it was. A command
+whose partial result is the user's data (a recording, a live publisher, the
+window) asks instead to be *told*: inside :class:`StopRequests` a signal is
+only noted, the command finishes its current step, closes its files properly
+and returns :func:`signal_status`.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Callable
+from types import FrameType, TracebackType
+
+#: The signals a command stops on.
+STOP_SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP arrived: unwind like Ctrl-C, so writers remove their temporary files.
+
+    A :class:`BaseException`, as :class:`KeyboardInterrupt` is, so no ``except Exception`` swallows it.
+
+    Parameters
+    ----------
+    signum : int
+        The signal's number.
+    """
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = int(signum)
+
+
+def signal_status(signum: int) -> int:
+    """The shell's exit status for a process stopped by ``signum``: 128 + its number (SIGTERM 143)."""
+    return 128 + int(signum)
+
+
+def signal_name(signum: int) -> str:
+    """``SIGTERM``; SIGINT is called Ctrl-C, as the user pressed it."""
+    return "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+
+
+def raise_terminated(signum: int, _frame: FrameType | None) -> None:
+    """The default handler of SIGTERM and SIGHUP."""
+    raise Terminated(signum)
+
+
+def in_main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+class StopRequests:
+    """Inside this context Ctrl-C, SIGTERM and SIGHUP are noted instead of raised.
+
+    Only the main thread can take signals; elsewhere (a test running a command
+    in a thread) the context does nothing and :attr:`signum` stays None.
+
+    Parameters
+    ----------
+    on_request : callable, optional
+        Called with the signal number when the first one arrives (from the main
+        thread, between two Python steps: it must not block).
+
+    Attributes
+    ----------
+    signum : int or None
+        The first signal that arrived.
+    """
+
+    def __init__(self, on_request: Callable[[int], None] | None = None) -> None:
+        self.on_request = on_request
+        self.signum: int | None = None
+        self._previous: dict[int, object] = {}
+
+    @property
+    def requested(self) -> bool:
+        """Whether a signal asked to stop."""
+        return self.signum is not None
+
+    def _note(self, signum: int, _frame: FrameType | None) -> None:
+        if self.signum is None:
+            self.signum = signum
+            if self.on_request is not None:
+                self.on_request(signum)
+
+    def __enter__(self) -> StopRequests:
+        if in_main_thread():
+            self._previous = {sig: signal.signal(sig, self._note) for sig in STOP_SIGNALS}
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)  # type: ignore[arg-type]
+        self._previous = {}
