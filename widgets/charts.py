@@ -106,4 +106,8 @@ class CurveCharts:
         bottom = min(positive) / 1e6 if positive else 1e-3
         right = max(float(c.density_alpha_deg[-1]) for c in curves) * 1.04
         self.density.x_axis.range = [0.0, right]
-        self.density.y_axis.range = [bottom / 1.5, max(top * 1.5, bottom * 10)]
+        # Once VTK has drawn a log axis it keeps its range in log10 units, and SetRange (pyvista's range) is
+        # read in those units: 0.02-9.8 became 10^0.02-10^9.8. The unscaled range is always in data units.
+        y_axis = self.density.y_axis
+        y_axis.behavior = "fixed"
+        y_axis.SetUnscaledRange(bottom / 1.5, max(top * 1.5, bottom * 10))
