@@ -9,9 +9,14 @@ table in :mod:`livox_viz.widgets.keys`.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import math
 import os
+import sys
+import threading
 import time
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -353,14 +358,22 @@ class LivoxVizApp:
             self.hud.fps = instant if self.hud.fps == 0 else 0.8 * self.hud.fps + 0.2 * instant
         self._last_render = now
 
-    def show(self) -> None:
-        """Open the window and play until it is closed."""
+    def show(self, stop: Callable[[], bool] | None = None) -> None:
+        """Open the window and play until it is closed, or until ``stop()`` is true (checked every tick).
+
+        A signal must not raise inside VTK's event loop (VTK swallows the
+        exception and the window plays on): the caller notes it and ``stop``
+        reports it, so the window closes on the next tick.
+        """
         iren = self.plotter.iren
-        iren.add_observer("TimerEvent", lambda *_: self._on_timer())
+        iren.add_observer("TimerEvent", lambda *_: self._on_timer(stop))
         iren.create_timer(TIMER_MS, repeating=True)
         self.plotter.show(auto_close=True)
 
-    def _on_timer(self) -> None:
+    def _on_timer(self, stop: Callable[[], bool] | None = None) -> None:
+        if stop is not None and stop():
+            self.plotter.iren.terminate_app()
+            return
         try:
             self.tick()
         except LivoxVizError as exc:
@@ -394,6 +407,63 @@ def render_offscreen(session: Session, seconds: float, path: Path, views: str = 
     return path
 
 
+def display_problem(environ: Mapping[str, str] | None = None, timeout: float = 3.0) -> str | None:
+    """Why no window can be opened here, in words; None when one can.
+
+    VTK's window on Linux is an X11 window: it needs a ``DISPLAY`` whose X
+    server answers (a Wayland session offers one through XWayland). The
+    server is asked once, as VTK would ask it, in a thread given ``timeout``
+    seconds (a forwarded display whose tunnel is gone may never answer).
+
+    Parameters
+    ----------
+    environ : mapping, optional
+        The environment to read (default ``os.environ``).
+    timeout : float
+        Seconds to wait for the X server.
+    """
+    environ = os.environ if environ is None else environ
+    if sys.platform in ("win32", "darwin"):
+        return None  # VTK opens native windows there
+    display = environ.get("DISPLAY", "")
+    if not display:
+        wayland = environ.get("WAYLAND_DISPLAY")
+        if wayland:
+            return (f"only WAYLAND_DISPLAY={wayland} is set, and the window needs X11: run it under XWayland "
+                    "with DISPLAY set")
+        return "DISPLAY is not set"
+    return _x11_problem(display, timeout)
+
+
+def _x11_problem(display: str, timeout: float) -> str | None:
+    name = ctypes.util.find_library("X11")
+    if name is None:
+        return None  # cannot ask: let VTK try
+    try:
+        xlib = ctypes.CDLL(name)
+    except OSError:
+        return None
+    xlib.XOpenDisplay.restype = ctypes.c_void_p
+    xlib.XOpenDisplay.argtypes = [ctypes.c_char_p]
+    xlib.XCloseDisplay.argtypes = [ctypes.c_void_p]
+    answer: list[bool] = []
+
+    def ask() -> None:
+        connection = xlib.XOpenDisplay(display.encode())
+        if connection:
+            xlib.XCloseDisplay(connection)
+        answer.append(bool(connection))
+
+    asking = threading.Thread(target=ask, daemon=True, name="x11-display-check")
+    asking.start()
+    asking.join(timeout)
+    if not answer:
+        return f"cannot open the display {display}: its X server did not answer within {timeout:g} s"
+    if not answer[0]:
+        return f"cannot open the display {display}: no X server answers there, or it refused us"
+    return None
+
+
 def has_display() -> bool:
-    """Whether a window can be opened (X11 or Wayland)."""
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    """Whether a window can be opened (see :func:`display_problem`)."""
+    return display_problem() is None

@@ -8,7 +8,7 @@ the window only when they run, so the model's commands stay light.
 from __future__ import annotations
 
 import argparse
-from datetime import datetime
+import sys
 from pathlib import Path
 
 from livox_viz.cli.common import (
@@ -26,6 +26,7 @@ from livox_viz.cli.common import (
     scene_from_args,
     trajectory_from_args,
 )
+from livox_viz.cli.signals import StopRequests, signal_name, signal_status
 from livox_viz.cli.wire_commands import add_receiver_arguments, open_receiver
 
 
@@ -68,24 +69,35 @@ def _size(text: str) -> tuple[int, int]:
     return width, height
 
 
+#: Where ``gui`` without a display puts its pictures (one set, overwritten by the next run).
+OFFSCREEN_DIR = Path("offscreen")
+
+
+def _check_covered(session, seconds: float) -> None:
+    """Refuse a picture after ``seconds`` when the trajectory ends before (it would show its end)."""
+    if session.trajectory is not None:
+        session.trajectory.check_covers(0.0, seconds)
+
+
 def cmd_gui(args: argparse.Namespace) -> int:
-    from .app import LivoxVizApp, has_display, render_offscreen
+    from .app import LivoxVizApp, display_problem, render_offscreen
 
     size = _size(args.size)
-    if args.listen and not has_display():
-        raise UsageError("gui --listen needs a display (DISPLAY is not set); record with 'listen --record' instead")
-    if not has_display():
-        folder = Path("screenshots")
+    problem = display_problem()
+    if args.listen and problem:
+        raise UsageError(f"gui --listen needs a display ({problem}); record with 'listen --record' instead")
+    if problem:
+        session = _session(args)
+        _check_covered(session, args.seconds)
+        folder = Path(args.offscreen_dir)
         try:
             folder.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise UsageError(f"no display, and the folder {folder.resolve()} for off-screen pictures cannot be "
                              f"made ({exc.strerror})") from None
-        session = _session(args)
-        stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
-        print(f"{PROG}: no display (DISPLAY is not set): rendering the views off-screen into {folder}/ instead")
+        print(f"{PROG}: no display ({problem}): rendering the views off-screen into {folder}/ instead")
         for views in ("both", "pattern", "scene"):
-            path = folder / f"offscreen-{stamp}-{views}.png"
+            path = folder / f"{views}.png"
             session.restart()
             square = (min(size),) * 2
             render_offscreen(session, args.seconds, path, views=views, size=size if views == "both" else square)
@@ -98,11 +110,16 @@ def cmd_gui(args: argparse.Namespace) -> int:
         session.source = receiver
         session.preset_name = "received"
         session.message = f"listening on {where}"
-    try:
-        LivoxVizApp(session, window_size=size).show()
-    finally:
-        if receiver is not None:
-            receiver.close()
+    # Ctrl-C, SIGTERM and SIGHUP close the window on its next tick (raised inside VTK's loop, they were lost).
+    with StopRequests() as stop:
+        try:
+            LivoxVizApp(session, window_size=size).show(stop=lambda: stop.requested)
+        finally:
+            if receiver is not None:
+                receiver.close()
+    if stop.signum is not None:
+        print(f"{PROG}: stopped by {signal_name(stop.signum)}", file=sys.stderr)
+        return signal_status(stop.signum)
     return 0
 
 
@@ -112,6 +129,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     out = check_output_path(args.out, (".png",))
     size = _size(args.size)
     session = _session(args)
+    _check_covered(session, args.seconds)
     render_offscreen(session, args.seconds, out, views=args.view, size=size)
     print(f"rendered {args.view} after {args.seconds:g} s of scan time to {out} ({size[0]}x{size[1]})")
     return 0
@@ -133,6 +151,9 @@ def _gui_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--size", default="1600x900", help="window size WIDTHxHEIGHT (default 1600x900)")
     parser.add_argument("--seconds", type=positive_float, default=1.0,
                         help="scan time of the off-screen pictures when there is no display (default 1)")
+    parser.add_argument("--offscreen-dir", default=str(OFFSCREEN_DIR),
+                        help="where the off-screen pictures go when there is no display: both.png, pattern.png and "
+                             f"scene.png, replaced on every run (default {OFFSCREEN_DIR}/)")
     parser.add_argument("--listen", action="store_true",
                         help="show the frames received on --port (RflySim or 'livox-viz publish') instead of the "
                              "model; with --shm, those in shared memory")

@@ -1,0 +1,210 @@
+"""The window and its command under signals, without a usable display, and its charts' axes (issue 15)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pv = pytest.importorskip("pyvista")
+
+from livox_viz.widgets.app import LivoxVizApp  # noqa: E402
+from livox_viz.widgets.session import Session  # noqa: E402
+
+from livox_viz import load_preset  # noqa: E402
+from livox_viz.cli import main  # noqa: E402
+from livox_viz.scene.scenes import open_scene  # noqa: E402
+
+
+def _tools() -> tuple[str, str]:
+    xvfb, xdotool = shutil.which("Xvfb"), shutil.which("xdotool")
+    if not (xvfb and xdotool):
+        if os.environ.get("CI"):
+            pytest.fail("CI must install xvfb and xdotool (see .ci/run)")
+        pytest.skip("Xvfb and xdotool are not installed")
+    return xvfb, xdotool
+
+
+@pytest.fixture(scope="module")
+def x_display():
+    """A private X server for this module's windows; yields its DISPLAY."""
+    xvfb, _ = _tools()
+    number = 150 + os.getpid() % 100
+    server = subprocess.Popen([xvfb, f":{number}", "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    socket_path = Path(f"/tmp/.X11-unix/X{number}")
+    deadline = time.monotonic() + 20
+    while not socket_path.exists() and server.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert server.poll() is None, "Xvfb did not start"
+    yield f":{number}"
+    server.terminate()
+    server.wait(10)
+
+
+# 6. The window ends on SIGTERM, SIGINT and SIGHUP ------------------------------------------------
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP])
+def test_the_window_closes_on_a_signal(x_display: str, tmp_path: Path, signum: int) -> None:
+    _, xdotool = _tools()
+    env = {**os.environ, "DISPLAY": x_display, "LIVOX_VIZ_PRESETS": str(tmp_path / "presets")}
+    env.pop("WAYLAND_DISPLAY", None)
+    gui = subprocess.Popen([sys.executable, "-m", "livox_viz", "gui", "--size", "640x400"], cwd=tmp_path,
+                           env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        window = subprocess.run([xdotool, "search", "--sync", "--onlyvisible", "--name", "livox-viz"], env=env,
+                                capture_output=True, text=True, timeout=60).stdout.split()
+        assert window, "the livox-viz window did not appear"
+        time.sleep(1.0)
+        assert gui.poll() is None
+        gui.send_signal(signum)
+        sent = time.monotonic()
+        _, err = gui.communicate(timeout=20)
+        took = time.monotonic() - sent
+    finally:
+        if gui.poll() is None:
+            gui.kill()
+            gui.communicate()
+    assert gui.returncode == 128 + signum, err
+    assert took < 5.0
+    name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+    assert f"stopped by {name}" in err and "Traceback" not in err
+    gone = subprocess.run([xdotool, "search", "--onlyvisible", "--name", "livox-viz"], env=env,
+                          capture_output=True, text=True, timeout=20).stdout.split()
+    assert gone == []
+
+
+# 7. A DISPLAY that cannot be reached, or Wayland only ---------------------------------------------
+def _unused_display() -> str:
+    number = 600 + os.getpid() % 300
+    while Path(f"/tmp/.X11-unix/X{number}").exists():
+        number += 1
+    return f":{number}"
+
+
+@pytest.mark.parametrize("variables", [{"DISPLAY": "unused"}, {"WAYLAND_DISPLAY": "wayland-0"},
+                                       {"DISPLAY": "localhost:4000"}])
+def test_an_unusable_display_falls_back_to_offscreen(tmp_path: Path, variables: dict[str, str]) -> None:
+    env = {key: value for key, value in os.environ.items() if key not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env.update({key: _unused_display() if value == "unused" else value for key, value in variables.items()})
+    env["XDG_RUNTIME_DIR"] = str(tmp_path)  # no Wayland socket there either
+    result = subprocess.run([sys.executable, "-m", "livox_viz", "gui", "--seconds", "0.05", "--size", "320x200",
+                             "--scene", "open_field"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                            timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert "rendering the views off-screen" in result.stdout
+    said = result.stdout.splitlines()[0]
+    assert (env.get("DISPLAY") or "WAYLAND_DISPLAY") in said
+    assert "vtk" not in result.stderr.lower() and "Traceback" not in result.stderr
+    assert sorted(p.name for p in (tmp_path / "offscreen").iterdir()) == ["both.png", "pattern.png", "scene.png"]
+
+
+def test_gui_listen_with_an_unreachable_display_is_a_one_line_error(tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setenv("DISPLAY", _unused_display())
+    monkeypatch.chdir(tmp_path)
+    assert main(["gui", "--listen", "--port", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot open the display" in err
+
+
+def test_a_tcp_display_that_never_answers_is_given_up_quickly(tmp_path: Path) -> None:
+    """A forwarded X display whose tunnel is gone: the port accepts nothing; the check must not hang."""
+    from livox_viz.widgets.app import display_problem
+
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as silent:
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(1)  # accepts the connection, never answers the X handshake
+        number = silent.getsockname()[1] - 6000
+        if number < 0:
+            pytest.skip("the free port is below 6000")
+        start = time.monotonic()
+        problem = display_problem({"DISPLAY": f"127.0.0.1:{number}"}, timeout=1.0)
+        assert time.monotonic() - start < 5.0
+    assert problem is not None and f"127.0.0.1:{number}" in problem
+
+
+# 9. Headless runs write one set of pictures, away from the README's images ---------------------------
+def test_headless_runs_overwrite_one_set_outside_screenshots(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    argv = ["gui", "--seconds", "0.05", "--size", "320x200", "--scene", "open_field"]
+    assert main(argv) == 0
+    first = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "offscreen").iterdir()}
+    time.sleep(0.05)
+    assert main([*argv, "--preset", "livox_mid40"]) == 0
+    out = capsys.readouterr().out
+    second = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "offscreen").iterdir()}
+    assert sorted(second) == ["both.png", "pattern.png", "scene.png"] == sorted(first)
+    assert all(second[name] > first[name] for name in first)  # overwritten, not added
+    assert not (tmp_path / "screenshots").exists()
+    assert "offscreen/both.png" in out
+    chosen = tmp_path / "pictures"
+    assert main([*argv, "--offscreen-dir", str(chosen)]) == 0
+    assert sorted(p.name for p in chosen.iterdir()) == ["both.png", "pattern.png", "scene.png"]
+
+
+# 10. A render past the trajectory's end --------------------------------------------------------------
+@pytest.mark.parametrize("command", [["render", "--out", "short.png"], ["gui"]])
+def test_render_past_a_short_trajectory_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                   capsys: pytest.CaptureFixture[str], command: list[str]) -> None:
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    rows = [f"{t:.2f} {2 * t:.3f} 0 -2 0 0 0 1" for t in np.linspace(0.0, 0.5, 6)]
+    (tmp_path / "short.txt").write_text("\n".join(rows) + "\n")
+    code = main([*command, "--trajectory", "short.txt", "--seconds", "2", "--size", "320x200",
+                 "--scene", "open_field"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "0.5 s" in err and "2 s" in err
+    assert not (tmp_path / "short.png").exists() and not (tmp_path / "offscreen").exists()
+
+
+# 8. The density chart's log axis stays on its curves ----------------------------------------------------
+@pytest.fixture
+def small_app(tmp_path: Path):
+    session = Session(load_preset("livox_mid70"), open_scene("open_field"), seed=0, preset_name="livox_mid70")
+    application = LivoxVizApp(session, off_screen=True, window_size=(900, 520), screenshot_dir=tmp_path)
+    yield application
+    application.close()
+
+
+def _density_axis(app: LivoxVizApp) -> tuple[float, float]:
+    """The y axis's range in the data's units (M points / sr / s), whether VTK holds it in log10 or not."""
+    axis = app.charts.density.y_axis
+    return axis.GetUnscaledMinimum(), axis.GetUnscaledMaximum()
+
+
+def _curves_span(app: LivoxVizApp) -> tuple[float, float]:
+    curves = [c for c in (app.charts.ours, app.charts.reference) if c is not None]
+    values = np.concatenate([c.density for c in curves]) / 1e6
+    return float(values[values > 0].min()), float(values.max())
+
+
+@pytest.mark.parametrize("change", ["slider", "preset", "reference"])
+def test_density_axis_follows_the_curves_after_a_change(small_app: LivoxVizApp, tmp_path: Path, change: str) -> None:
+    app = small_app
+    app.render()  # VTK turns the log axis on at the first render: every later range must survive it
+    if change == "slider":
+        app.on_param("jitter_max_deg", 8.0)
+    elif change == "preset":
+        app.next_preset()
+    else:
+        app.cycle_reference()
+    app.refresh()
+    app.render()
+    bottom, top = _density_axis(app)
+    low, high = _curves_span(app)
+    # The curves inside the chart, with a margin that is small on a log axis (under a factor of 2 each end).
+    assert bottom < low < 2 * bottom and high < top < 2 * high, (bottom, top, low, high)
