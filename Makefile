@@ -18,6 +18,7 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	@touch $(STAMP)
 
+# Without a display the GUI renders its views into offscreen/ (one set, replaced each run), never screenshots/.
 run: venv
 	$(BIN)/livox-viz gui
 
