@@ -463,7 +463,3 @@ def _x11_problem(display: str, timeout: float) -> str | None:
         return f"cannot open the display {display}: no X server answers there, or it refused us"
     return None
 
-
-def has_display() -> bool:
-    """Whether a window can be opened (see :func:`display_problem`)."""
-    return display_problem() is None
