@@ -4,6 +4,7 @@ restarted senders, two senders at once (issue 15)."""
 from __future__ import annotations
 
 import math
+import shutil
 import signal
 import socket
 import subprocess
@@ -171,7 +172,7 @@ def _three_frames() -> list[tuple[float, np.ndarray, np.ndarray]]:
 
 
 @pytest.mark.parametrize(("signum", "suffix"), [(signal.SIGTERM, ".npz"), (signal.SIGHUP, ".las"),
-                                                (signal.SIGTERM, ".pcd")])
+                                                (signal.SIGTERM, ".pcd"), (signal.SIGINT, ".npz")])
 def test_a_recording_is_kept_on_terminate_and_hang_up(tmp_path: Path, signum: int, suffix: str) -> None:
     port = free_udp_port()
     out = tmp_path / f"rec{suffix}"
@@ -191,8 +192,10 @@ def test_a_recording_is_kept_on_terminate_and_hang_up(tmp_path: Path, signum: in
     finally:
         _end(process)
     err = "".join(lines)
-    assert process.returncode == 128 + signum, err
-    assert f"stopped by {signal.Signals(signum).name}" in err and f"{out} was kept" in err
+    # Ctrl-C is listen's documented way to stop (exit 0); SIGTERM and SIGHUP give the shell's 128 + signal.
+    assert process.returncode == (0 if signum == signal.SIGINT else 128 + signum), err
+    name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+    assert f"stopped by {name}" in err and f"{out} was kept" in err
     assert "removed" not in err and "Traceback" not in err
     assert "received 3 frames" in stdout
     assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]  # no temporaries left
@@ -210,6 +213,33 @@ def test_a_recording_is_kept_on_terminate_and_hang_up(tmp_path: Path, signum: in
     else:
         fields = read_pcd(out)
         np.testing.assert_allclose(np.column_stack([fields["x"], fields["y"], fields["z"]]), expected, atol=1e-4)
+
+
+def test_a_recording_under_nohup_outlives_the_hang_up(tmp_path: Path) -> None:
+    nohup = shutil.which("nohup")
+    assert nohup, "coreutils' nohup is missing"
+    port = free_udp_port()
+    out = tmp_path / "rec.npz"
+    process = subprocess.Popen([nohup, sys.executable, "-m", "livox_viz", "listen", "--host", "127.0.0.1", "--port",
+                                str(port), "--record", str(out)], cwd=tmp_path, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        lines, pump = _stderr_lines(process)
+        _wait_for(lambda: any("listening on" in line for line in lines), 60)
+        frames = _three_frames()
+        _send_frames(port, frames[:2])
+        process.send_signal(signal.SIGHUP)  # the terminal went away: nohup said to ignore it
+        time.sleep(0.5)
+        assert process.poll() is None
+        _send_frames(port, frames[2:])
+        _wait_for(lambda: any(line.startswith("3 frames") for line in lines), 20)
+        process.send_signal(signal.SIGTERM)
+        process.wait(timeout=30)
+        pump.join(10)
+    finally:
+        _end(process)
+    assert process.returncode == 128 + signal.SIGTERM, "".join(lines)
+    np.testing.assert_array_equal(np.load(out)["frame_pose"][:, 0], [0, 1, 2])
 
 
 # 3. A datagram whose posAng is NaN or inf --------------------------------------------------------

@@ -19,7 +19,7 @@ from livox_viz.core.errors import LivoxVizError
 
 from . import fit_commands, pattern_commands, scan_commands, wire_commands
 from .common import PROG, Command, UsageError
-from .signals import Terminated, in_main_thread, raise_terminated, signal_status
+from .signals import Terminated, raise_terminated, signal_status, take_signals
 
 ENTRY_POINT_GROUP = "livox_viz.commands"
 MODEL_COMMANDS: tuple[Command, ...] = (
@@ -91,8 +91,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     # A command that must keep what it has (listen --record, publish, the window) takes the signals
     # itself for a while (signals.StopRequests); everything else unwinds and removes its temporaries.
-    previous = {sig: signal.signal(sig, raise_terminated) for sig in (signal.SIGTERM, signal.SIGHUP)
-                if in_main_thread()}
+    previous = take_signals(raise_terminated, (signal.SIGTERM, signal.SIGHUP))
     try:
         return int(args.handler(args) or 0)
     except LivoxVizError as exc:

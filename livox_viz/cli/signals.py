@@ -55,11 +55,25 @@ def in_main_thread() -> bool:
     return threading.current_thread() is threading.main_thread()
 
 
+def take_signals(handler: Callable[[int, FrameType | None], None],
+                 signals: tuple[signal.Signals, ...] = STOP_SIGNALS) -> dict[int, object]:
+    """Install ``handler`` for each of ``signals`` not ignored; returns the handlers it replaced.
+
+    A signal the process was started ignoring stays ignored: ``nohup livox-viz listen ...`` must outlive
+    the terminal's hang-up, and a background job of a non-interactive shell ignores Ctrl-C. Only the main
+    thread can take signals: elsewhere nothing is installed.
+    """
+    if not in_main_thread():
+        return {}
+    return {sig: signal.signal(sig, handler) for sig in signals if signal.getsignal(sig) is not signal.SIG_IGN}
+
+
 class StopRequests:
     """Inside this context Ctrl-C, SIGTERM and SIGHUP are noted instead of raised.
 
     Only the main thread can take signals; elsewhere (a test running a command
-    in a thread) the context does nothing and :attr:`signum` stays None.
+    in a thread) the context does nothing and :attr:`signum` stays None. A
+    signal the process ignores (``nohup``) stays ignored.
 
     Parameters
     ----------
@@ -90,8 +104,7 @@ class StopRequests:
                 self.on_request(signum)
 
     def __enter__(self) -> StopRequests:
-        if in_main_thread():
-            self._previous = {sig: signal.signal(sig, self._note) for sig in STOP_SIGNALS}
+        self._previous = take_signals(self._note)
         return self
 
     def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
