@@ -35,8 +35,9 @@ def run(seconds: float, speed: str, folder: Path) -> tuple[float, str]:
     listener = subprocess.Popen(
         [sys.executable, "-m", "livox_viz", "listen", "--host", "127.0.0.1", "--port", str(port),
          "--frames", str(frames), "--timeout", "30", "--record", str(record)],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    time.sleep(1.5)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # Start sending once it listens (a fixed pause lost every frame when start-up took longer on a busy machine).
+    assert "listening on" in listener.stderr.readline()
     start = time.perf_counter()
     extra = ["--unpaced"] if speed == "unpaced" else ["--speed", speed]
     cli(["publish", "--to", f"127.0.0.1:{port}", "--seconds", str(seconds), *extra])
