@@ -112,7 +112,7 @@ class PointCloudWriter:
         self.abort_error = ""
         try:
             self._open()
-        except Exception:
+        except BaseException:  # also Ctrl-C and SIGTERM (cli.signals.Terminated): no work folder is left
             self.abort()
             raise
 
