@@ -57,14 +57,13 @@ def bag_speed() -> None:
     from livox_viz.config.mount import sensor_mount
     from livox_viz.files.export import PointCloudWriter
     from livox_viz.files.rosbag import RosbagWriter
-    from livox_viz.motion.imu import TrajectoryMotion, synthesize_imu
+    from livox_viz.motion.imu import synthesize_imu
 
     cfg = load_preset("livox_mid70")
     urban = open_scene("urban")
     flight = builtin_trajectory("line", 5.0, urban.vehicle_pose, SECONDS + 0.5)
     frames = list(LidarScanner(cfg, EmbreeCaster(urban.mesh), urban.vehicle_pose, trajectory=flight).frames(SECONDS))
     imu = synthesize_imu(flight, 200.0, start=0.0, stop=SECONDS)
-    motion = TrajectoryMotion(flight)
     with tempfile.TemporaryDirectory() as tmp:
         def bag() -> None:
             folder = Path(tmp) / f"bag{time.perf_counter_ns()}"
@@ -72,7 +71,7 @@ def bag_speed() -> None:
                 for frame in frames:
                     writer.write_frame(frame)
                 writer.write_imu(imu)
-                writer.write_motion(motion, imu.t)
+                writer.write_motion(flight, imu.t)
             subprocess.run(["rm", "-rf", str(folder)], check=True)
 
         def npz() -> None:

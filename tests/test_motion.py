@@ -1,4 +1,4 @@
-"""A moving sensor: trajectories, per-point poses, the IMU."""
+"""A moving sensor: the motion model against scipy, per-point poses, TUM files, the built-in flights, the IMU."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.interpolate import CubicSpline
+from scipy.spatial.transform import Rotation
 
 from livox_viz import LivoxVizError, load_preset
 from livox_viz.casting.codec import max_decode_error
@@ -16,7 +17,7 @@ from livox_viz.casting.scan import LidarScanner
 from livox_viz.core.poses import Pose
 from livox_viz.core.rotations import quat_rotate, quat_to_matrix
 from livox_viz.motion.flights import builtin_trajectory
-from livox_viz.motion.imu import GRAVITY, ImuNoise, TrajectoryMotion, synthesize_imu
+from livox_viz.motion.imu import GRAVITY, ImuNoise, ImuStream, synthesize_imu
 from livox_viz.motion.trajectory import Trajectory
 from livox_viz.motion.tum import load_tum, save_tum
 
@@ -66,16 +67,34 @@ def test_a_fixed_pose_trajectory_gives_the_fixed_scan() -> None:
         np.testing.assert_allclose(a.xyz_world_decoded, b.xyz_world_decoded, atol=1e-9)
 
 
-def test_interpolation_is_linear_and_slerp() -> None:
+def test_the_model_is_scipys_natural_spline_normalised() -> None:
+    """Position: scipy's natural CubicSpline; orientation: the same spline of the quaternions, normalised."""
     rng = np.random.default_rng(4)
     t = np.cumsum(rng.uniform(0.05, 0.3, 40))
-    rotations = Rotation.random(40, random_state=5)
+    rotations = Rotation.from_rotvec(np.cumsum(rng.normal(scale=0.4, size=(40, 3)), axis=0))
     trajectory = Trajectory("random", t, rng.normal(size=(40, 3)), rotations.as_quat())
     query = np.sort(rng.uniform(t[0], t[-1], 5000))
     position, quaternion = trajectory.poses_at(query)
-    np.testing.assert_allclose(quat_to_matrix(quaternion), Slerp(t, rotations)(query).as_matrix(), atol=1e-12)
-    expected = np.column_stack([np.interp(query, t, trajectory.position[:, k]) for k in range(3)])
-    np.testing.assert_allclose(position, expected, atol=1e-12)
+    signs = np.cumprod(np.r_[1.0, np.sign(np.einsum("ij,ij->i", rotations.as_quat()[1:], rotations.as_quat()[:-1]))])
+    reference = CubicSpline(t, np.hstack([trajectory.position, rotations.as_quat() * signs[:, None]]),
+                            bc_type="natural")
+    np.testing.assert_allclose(position, reference(query)[:, :3], atol=1e-12)
+    p = reference(query)[:, 3:]
+    np.testing.assert_allclose(quat_to_matrix(quaternion), Rotation.from_quat(p).as_matrix(), atol=1e-12)
+    np.testing.assert_allclose(trajectory.velocity_at(query), reference(query, 1)[:, :3], atol=1e-10)
+    np.testing.assert_allclose(trajectory.acceleration_at(query), reference(query, 2)[:, :3], atol=1e-9)
+    # Through every pose.
+    np.testing.assert_allclose(quat_to_matrix(trajectory.poses_at(t)[1]), rotations.as_matrix(), atol=1e-12)
+    # Body angular rate and acceleration against finite differences of the orientation (not of the rate).
+    h = 1e-5
+    inner = query[(query > t[0] + 2 * h) & (query < t[-1] - 2 * h)]
+    rotation = [Rotation.from_quat(trajectory.orientation_at(inner + k * h)) for k in (-1, 0, 1)]
+    rate = (rotation[0].inv() * rotation[2]).as_rotvec() / (2 * h)
+    np.testing.assert_allclose(trajectory.angular_velocity_at(inner), rate, atol=1e-6)
+    rate_before = (rotation[0].inv() * rotation[1]).as_rotvec() / h
+    rate_after = (rotation[1].inv() * rotation[2]).as_rotvec() / h
+    np.testing.assert_allclose(trajectory.angular_acceleration_at(inner), (rate_after - rate_before) / h, atol=2e-3)
+    assert np.abs(trajectory.angular_acceleration_at(inner)).max() > 1.0  # non-trivial turns
     vectors = rng.normal(size=(5000, 3))
     np.testing.assert_allclose(quat_rotate(quaternion, vectors),
                                np.einsum("nij,nj->ni", quat_to_matrix(quaternion), vectors), atol=1e-12)
@@ -85,6 +104,38 @@ def test_interpolation_is_linear_and_slerp() -> None:
         np.testing.assert_allclose(pose.origin, position[k], atol=1e-12)
     with pytest.raises(LivoxVizError, match="no extrapolation"):
         trajectory.poses_at(np.array([t[-1] + 0.5]))
+
+
+def test_per_ray_poses_are_the_model_with_the_mount() -> None:
+    """The compiled per-ray kernel against scipy: origin o + R m, direction R R_m d, sorted or not."""
+    from livox_viz.motion.track import SensorTrack
+
+    rng = np.random.default_rng(8)
+    t = np.arange(0.0, 9.0, 1.5)
+    rotations = Rotation.from_euler("ZYX", np.column_stack([np.radians(80) * np.arange(t.size),
+                                                            0.2 * np.sin(t), 0.1 * np.cos(t)]))
+    trajectory = Trajectory("turns", t, rng.normal(scale=5.0, size=(t.size, 3)), rotations.as_quat())
+    mount = Pose((0.3, -0.2, -0.4), 0.2, -0.3, 0.5)
+    track = SensorTrack(trajectory, mount)
+    query = np.sort(rng.uniform(t[0], t[-1], 20000))
+    directions = rng.normal(size=(query.size, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    origin, world = track.rays(query, directions)
+    signs = np.cumprod(np.r_[1.0, np.sign(np.einsum("ij,ij->i", rotations.as_quat()[1:], rotations.as_quat()[:-1]))])
+    reference = CubicSpline(t, np.hstack([trajectory.position, rotations.as_quat() * signs[:, None]]),
+                            bc_type="natural")(query)
+    body = Rotation.from_quat(reference[:, 3:])
+    mount_rotation = Rotation.from_euler("ZYX", [0.5, -0.3, 0.2])
+    np.testing.assert_allclose(origin, reference[:, :3] + body.apply([0.3, -0.2, -0.4]), atol=1e-12)
+    np.testing.assert_allclose(world, (body * mount_rotation).apply(directions), atol=1e-12)
+    shuffled = rng.permutation(query.size)
+    again = track.rays(query[shuffled], directions[shuffled])
+    np.testing.assert_allclose(again[0], origin[shuffled], atol=1e-12)
+    np.testing.assert_allclose(again[1], world[shuffled], atol=1e-12)
+    position, quaternion = track.poses_at(query[:100])
+    np.testing.assert_allclose(position, origin[:100], atol=1e-12)
+    np.testing.assert_allclose(Rotation.from_quat(quaternion).as_matrix(), (body * mount_rotation)[:100].as_matrix(),
+                               atol=1e-12)
 
 
 def test_tum_round_trip_and_errors(tmp_path: Path) -> None:
@@ -103,36 +154,73 @@ def test_tum_round_trip_and_errors(tmp_path: Path) -> None:
             load_tum(path)
 
 
-def test_the_imu_integrates_back_to_the_trajectory() -> None:
-    trajectory = builtin_trajectory("figure8", 5.0, Pose((0.0, 0.0, -10.0), 0.05, -0.03, 0.4), 10.0)
-    rate = 400.0
+def sharp_turns(seconds: float = 12.0, spacing: float = 2.0) -> Trajectory:
+    """A hand-written TUM flight: poses ``spacing`` s apart round a 10 m square, a 90-degree turn at each, rolling
+    and pitching a little (sparse and sharp: the case that showed the rays and /odom apart)."""
+    t = np.arange(0.0, seconds + spacing / 2, spacing)
+    corners = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]])
+    position = np.column_stack([corners[np.arange(t.size) % 4], -3.0 - 0.5 * np.sin(t)])
+    angles = np.column_stack([np.radians(90.0) * np.arange(t.size), 0.15 * np.sin(1.3 * t), 0.1 * np.cos(0.7 * t)])
+    return Trajectory("sharp turns", t, position, Rotation.from_euler("ZYX", angles).as_quat())
+
+
+def test_the_imu_integrates_back_to_the_waypoints() -> None:
+    """Gyro and accelerometer integrated from the first pose reach every later waypoint the user wrote."""
+    trajectory = sharp_turns()
+    rate = 1000.0
     imu = synthesize_imu(trajectory, rate)
-    assert imu.t.size == 4001
-    motion = TrajectoryMotion(trajectory)
+    assert imu.t.size == 12001
     dt = 1.0 / rate
-    # Gyro to attitude: compose each step's rotation (midpoint of the two rates).
-    attitude = motion.rotation(imu.t[:1])
+    attitude = Rotation.from_quat(trajectory.quaternion[0])
     gravity = np.array([0.0, 0.0, GRAVITY])
-    velocity = motion.velocity(imu.t[:1])[0]
-    worst_angle = worst_speed = 0.0
+    position = trajectory.position[0].copy()
+    velocity = trajectory.velocity_at(0.0)[0]  # the one state the poses do not give
+    worst_angle = worst_position = 0.0
+    steps_per_pose = round(2.0 * rate)
     for k in range(imu.t.size - 1):
-        step = Rotation.from_rotvec(0.5 * (imu.angular_velocity[k] + imu.angular_velocity[k + 1]) * dt)
         before = attitude
-        attitude = attitude * step
-        # Specific force plus gravity to velocity (trapezoid, each sample turned into the world).
-        a0 = before.apply(imu.specific_force[k])[0] + gravity
-        a1 = attitude.apply(imu.specific_force[k + 1])[0] + gravity
+        attitude = attitude * Rotation.from_rotvec(0.5 * (imu.angular_velocity[k] + imu.angular_velocity[k + 1]) * dt)
+        a0 = before.apply(imu.specific_force[k]) + gravity
+        a1 = attitude.apply(imu.specific_force[k + 1]) + gravity
+        position = position + velocity * dt + (2 * a0 + a1) / 6 * dt**2
         velocity = velocity + 0.5 * (a0 + a1) * dt
-        if k % 40 == 39:
-            truth = motion.rotation(imu.t[k + 1 : k + 2])
-            worst_angle = max(worst_angle, float((truth.inv() * attitude).magnitude()[0]))
-            worst_speed = max(worst_speed, float(np.linalg.norm(velocity - motion.velocity(imu.t[k + 1 : k + 2])[0])))
-    # Stated tolerance over 10 s of a figure-8 at 5 m/s: 1 mrad of attitude, 2 cm/s of velocity.
-    assert worst_angle < 1e-3 and worst_speed < 0.02
-    assert worst_speed > 0 and worst_angle > 0
+        if (k + 1) % steps_per_pose == 0:
+            pose = (k + 1) // steps_per_pose
+            truth = Rotation.from_quat(trajectory.quaternion[pose])
+            worst_angle = max(worst_angle, float((truth.inv() * attitude).magnitude()))
+            worst_position = max(worst_position, float(np.linalg.norm(position - trajectory.position[pose])))
+    # Stated tolerance over 12 s of 90-degree turns, integrated at 1 kHz: 0.1 mrad and 1 cm.
+    assert worst_angle < 1e-4 and worst_position < 0.01
+    # No step anywhere (the windows and waypoints of before): sample to sample, 1 ms apart.
+    assert np.abs(np.diff(imu.specific_force, axis=0)).max() < 0.05
+    assert np.abs(np.diff(imu.angular_velocity, axis=0)).max() < 0.01
+    assert np.abs(imu.angular_velocity).max() > 0.5  # it does turn
 
 
-def test_imu_at_rest_reads_gravity_and_noise_is_seeded() -> None:
+def test_builtin_flights_start_and_end_at_rest_with_a_smooth_ramp() -> None:
+    start = Pose((1.0, 2.0, -5.0), 0.05, -0.04, 0.7)
+    seconds = 8.0
+    for name in ("line", "circle", "figure8"):
+        flight = builtin_trajectory(name, 6.0, start, seconds)
+        # From the 100 Hz samples themselves (not the spline): speed by finite differences.
+        speed = np.linalg.norm(np.diff(flight.position, axis=0), axis=1) / np.diff(flight.t)
+        assert speed[0] < 1e-3 and speed[-1] < 1e-3, name
+        assert speed.max() == pytest.approx(6.0 if name != "figure8" else speed.max(), rel=0.02)
+        accel = np.diff(speed) / np.diff(flight.t)[1:]
+        assert np.abs(np.diff(accel)).max() < 0.2, name  # no step in the acceleration
+        # The IMU at both ends reads a vehicle at rest: gravity in the tilted body, no rotation.
+        imu = synthesize_imu(flight, 200.0, start=0.0, stop=seconds)
+        at_rest = Rotation.from_euler("ZYX", [0.0, start.pitch, start.roll]).inv().apply([0.0, 0.0, -GRAVITY])
+        for row in (0, -1):
+            np.testing.assert_allclose(imu.angular_velocity[row], 0.0, atol=1e-3)
+            if name != "circle" or row == 0:  # the circle ends turned, gravity still down in the world
+                np.testing.assert_allclose(np.linalg.norm(imu.specific_force[row]), GRAVITY, atol=1e-3)
+        np.testing.assert_allclose(imu.specific_force[0], at_rest, atol=1e-3)
+    hover = builtin_trajectory("hover", 5.0, start, 2.0)
+    assert not hover.moves and builtin_trajectory("line", 5.0, start, 2.0).moves
+
+
+def test_imu_at_rest_reads_gravity_and_noise_is_seeded_and_bounded() -> None:
     level = builtin_trajectory("hover", 0.0, Pose((0.0, 0.0, -1.0)), 2.0)
     imu = synthesize_imu(level, 200.0)
     np.testing.assert_allclose(imu.specific_force, np.tile([0.0, 0.0, -GRAVITY], (imu.t.size, 1)), atol=1e-9)
@@ -142,8 +230,39 @@ def test_imu_at_rest_reads_gravity_and_noise_is_seeded() -> None:
     np.testing.assert_array_equal(a.angular_velocity, b.angular_velocity)
     # White noise of density 1.7e-4 rad/s/sqrt(Hz) at 200 Hz: 2.4e-3 rad/s per sample.
     assert np.std(np.diff(a.angular_velocity[:, 0])) / math.sqrt(2) == pytest.approx(1.7e-4 * math.sqrt(200), rel=0.1)
+    # A stream a stretch at a time: the same times, the bias carried on (a continuous walk).
+    stream = ImuStream(level, 200.0, ImuNoise(0.0, 0.0, 0.0, 0.5), seed=1)
+    parts = [stream.until(0.1 * k) for k in range(1, 11)] + [stream.until(1.0, inclusive=True)]
+    times = np.concatenate([p.t for p in parts])
+    np.testing.assert_allclose(times, np.arange(201) / 200.0, atol=1e-12)
+    force = np.concatenate([p.specific_force for p in parts])
+    assert np.abs(np.diff(force, axis=0)).max() < 6 * 0.5 * math.sqrt(1 / 200)  # steps of the walk only
     with pytest.raises(LivoxVizError, match="allowed: 200 to 10000"):
         synthesize_imu(level, 50.0)
+    for values in ([1e308, 0, 0, 0], [0, 0, 0, 11.0], [0, math.inf, 0, 0], [0, 0, -1e-3, 0]):
+        with pytest.raises(LivoxVizError, match="allowed: 0 to"):
+            ImuNoise(*values)
+
+
+def test_the_imu_in_the_lidar_frame_is_the_lidars_own_motion() -> None:
+    """With the mount: the rate and specific force of the lidar's origin, from finite differences of its track."""
+    from livox_viz.motion.imu import imu_readings
+    from livox_viz.motion.track import SensorTrack
+
+    trajectory = sharp_turns()
+    mount = Pose((0.4, -0.3, -0.5), 0.3, -0.2, 0.6)
+    track = SensorTrack(trajectory, mount)
+    t = np.linspace(1.0, 11.0, 400)
+    omega, force = imu_readings(trajectory, t, mount)
+    h = 1e-4
+    origin = [track.poses_at(t + k * h)[0] for k in (-1, 0, 1)]
+    rotation = [Rotation.from_quat(track.poses_at(t + k * h)[1]) for k in (-1, 0, 1)]
+    acceleration = (origin[0] - 2 * origin[1] + origin[2]) / h**2
+    expected_force = rotation[1].inv().apply(acceleration - [0.0, 0.0, GRAVITY])
+    np.testing.assert_allclose(force, expected_force, atol=2e-4)
+    np.testing.assert_allclose(omega, (rotation[0].inv() * rotation[2]).as_rotvec() / (2 * h), atol=1e-6)
+    body_force = imu_readings(trajectory, t)[1]
+    assert np.abs(force - body_force @ mount.rotation).max() > 0.05  # the lever arm matters here
 
 
 def test_publish_sends_each_frames_own_pose(tmp_path: Path) -> None:
@@ -159,6 +278,9 @@ def test_publish_sends_each_frames_own_pose(tmp_path: Path) -> None:
                  "--trajectory-speed", "10", "--pose=0,0,-2,0,0,0"]) == 0
     listener.join(30)
     poses = np.load(received)["frame_pose"]
-    # posAng (float32 on the wire) moves 1 m north per 0.1 s frame: the pose at each frame's first ray.
-    np.testing.assert_allclose(poses[:, 1], np.arange(5) * 1.0, atol=1e-5)
-    np.testing.assert_allclose(poses[:, 3], -2.3, atol=1e-5)  # the sensor 0.3 m above the body
+    # posAng (float32 on the wire): the sensor's pose at each frame's first ray, on the line flight from rest
+    # (the sensor 0.3 m above the body).
+    flight = builtin_trajectory("line", 10.0, Pose((0.0, 0.0, -2.0)), 0.5)
+    expected = np.array([flight.pose_at(0.1 * k).origin for k in range(5)]) + np.array([0.0, 0.0, -0.3])
+    np.testing.assert_allclose(poses[:, 1:4], expected, atol=1e-5)
+    assert np.all(np.diff(poses[:, 1]) > 0.05)  # each frame its own pose

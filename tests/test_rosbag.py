@@ -130,14 +130,13 @@ def test_packed_imu_and_odometry_read_back_as_written(tmp_path: Path) -> None:
     from livox_viz.core.poses import Pose
     from livox_viz.files.rosbag import RosbagWriter
     from livox_viz.motion.flights import builtin_trajectory
-    from livox_viz.motion.imu import TrajectoryMotion, synthesize_imu
+    from livox_viz.motion.imu import synthesize_imu
 
     flight_ = builtin_trajectory("figure8", 6.0, Pose((1.0, 2.0, -5.0), 0.1, 0.0, 0.3), 2.0)
     imu = synthesize_imu(flight_, 200.0, start=0.0, stop=1.0)
-    motion = TrajectoryMotion(flight_)
     with RosbagWriter(tmp_path / "bag", Pose((0.1, 0.0, -0.2), 0.0, 0.2, 0.0)) as writer:
         writer.write_imu(imu)
-        writer.write_motion(motion, imu.t)
+        writer.write_motion(flight_, imu.t)
     messages = read_bag(tmp_path / "bag")
     got = np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z,
                      m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z]
@@ -150,7 +149,7 @@ def test_packed_imu_and_odometry_read_back_as_written(tmp_path: Path) -> None:
     assert all(m.header.frame_id == "base_link" and m.orientation_covariance[0] == -1 for m in imu_messages)
     odom = [m for _, m in messages["/odom"]]
     np.testing.assert_allclose([[m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z]
-                                for m in odom], enu_from_ned(motion.position(imu.t)), atol=1e-12)
+                                for m in odom], enu_from_ned(flight_.position_at(imu.t)), atol=1e-12)
     assert odom[5].child_frame_id == "base_link" and odom[5].header.frame_id == "odom"
     transform = messages["/tf"][7][1].transforms[0]
     assert transform.child_frame_id == "base_link" and transform.transform.rotation.w == pytest.approx(

@@ -36,7 +36,7 @@ def _session(args: argparse.Namespace):
     config = config_from_args(args)
     scene, pose, caster = scene_from_args(args)
     # The window plays on: a built-in flight lasts two minutes, or the render's seconds.
-    trajectory = trajectory_from_args(args, pose, max(args.seconds, GUI_FLIGHT_SECONDS))
+    trajectory = trajectory_from_args(args, pose, max(args.seconds, GUI_FLIGHT_SECONDS), whole_file=True)
     session = Session(config, scene, seed=args.seed, preset_name=config_label(args), vehicle_pose=pose,
                       caster=caster, trajectory=trajectory)
     if getattr(args, "reference", None):

@@ -24,7 +24,8 @@ from livox_viz.casting.directions import directions_from_xy
 from livox_viz.config.mount import sensor_mount, sensor_world_pose
 from livox_viz.config.sensor import SensorConfig
 from livox_viz.core.poses import Pose, pose_quaternion
-from livox_viz.core.rotations import quat_multiply, quat_rotate
+from livox_viz.core.rotations import quat_rotate
+from livox_viz.motion.track import SensorTrack
 from livox_viz.motion.trajectory import Trajectory
 from livox_viz.patterns.factory import make_pattern
 from livox_viz.patterns.stream import PatternChunk, points_before
@@ -68,10 +69,9 @@ class ScanFrame:
         The int16 scale, metres.
     end_pose : Pose
         The sensor's pose just after the last ray (the same as ``sensor_pose`` for a fixed vehicle).
-    point_origin : (M, 3) float64, optional
-        With a moving vehicle: the sensor's position when each return's ray fired, world NED.
-    point_quaternion : (M, 4) float64, optional
-        With a moving vehicle: the sensor's orientation [x, y, z, w] (sensor FRD -> world NED) then.
+    track : SensorTrack, optional
+        With a moving vehicle: the sensor's track (the one motion model), from which
+        :attr:`point_origin` and :attr:`point_quaternion` follow when asked for.
     """
 
     index: int
@@ -88,11 +88,25 @@ class ScanFrame:
     end_time: float
     range_max: float
     end_pose: Pose
-    point_origin: np.ndarray | None = field(default=None, repr=False)
-    point_quaternion: np.ndarray | None = field(default=None, repr=False)
+    track: SensorTrack | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return int(self.range_m.shape[0])
+
+    @cached_property
+    def _point_poses(self) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+        return self.track.poses_at(self.t) if self.track is not None else (None, None)
+
+    @property
+    def point_origin(self) -> np.ndarray | None:
+        """``(M, 3)`` float64 with a moving vehicle: the sensor's position when each return's ray fired, world NED."""
+        return self._point_poses[0]
+
+    @property
+    def point_quaternion(self) -> np.ndarray | None:
+        """``(M, 4)`` float64 with a moving vehicle: the sensor's orientation [x, y, z, w] (sensor FRD -> world
+        NED) when each return's ray fired."""
+        return self._point_poses[1]
 
     @cached_property
     def xyz_decoded(self) -> np.ndarray:
@@ -133,24 +147,22 @@ class MountedCaster:
             vehicle_pose or Pose())
         self.mount_pose = sensor_mount(config)
         self.sensor_pose = sensor_world_pose(config, self.vehicle_pose)
-        # The sensor's own track: the mount applied at every pose of the vehicle's. Slerp commutes with
-        # the fixed mount rotation; the lever arm's chord between two poses is off by |m| theta^2 / 8
-        # (3e-9 m for a 0.3 m arm turning 0.3 rad/s between 1 kHz poses).
-        self._track = None if trajectory is None else Trajectory(
-            f"{trajectory.name} (sensor)", trajectory.t,
-            trajectory.position + quat_rotate(trajectory.quaternion,
-                                              np.broadcast_to(self.mount_pose.origin, trajectory.position.shape)),
-            quat_multiply(trajectory.quaternion, pose_quaternion(self.mount_pose)))
+        #: The sensor's track: the vehicle's motion model with the mount applied, evaluated exactly per ray.
+        self.track = None if trajectory is None else SensorTrack(trajectory, self.mount_pose)
 
     def sensor_pose_at(self, t: float) -> Pose:
         """The sensor's pose in the world at scan time ``t`` seconds."""
-        if self._track is None:
+        if self.track is None:
             return self.sensor_pose
-        return self._track.pose_at(t)
+        return self.track.pose_at(t)
 
     def sensor_poses_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The sensor's position ``(n, 3)`` and orientation ``(n, 4)`` at times ``t`` ``(n,)``, world NED."""
-        return self._track.poses_at(t)
+        if self.track is None:
+            count = np.asarray(t).size
+            return (np.tile(self.sensor_pose.origin, (count, 1)),
+                    np.tile(pose_quaternion(self.sensor_pose), (count, 1)))
+        return self.track.poses_at(t)
 
     def cast(self, chunk: PatternChunk) -> ScanFrame:
         """The returns of the chunk's rays (each from the sensor's pose at its own time when moving)."""
@@ -161,8 +173,7 @@ class MountedCaster:
             xy = chunk.xy_deg[first : first + CAST_PART]
             directions_sensor = directions_from_xy(xy)
             if moving:
-                origin, quaternion = self.sensor_poses_at(chunk.t[first : first + CAST_PART])
-                directions_world = quat_rotate(quaternion, directions_sensor)
+                origin, directions_world = self.track.rays(chunk.t[first : first + CAST_PART], directions_sensor)
             else:
                 origin = self.sensor_pose.origin
                 directions_world = directions_sensor @ self.sensor_pose.rotation.T
@@ -171,11 +182,9 @@ class MountedCaster:
             range_m = distance[hit]
             start = origin[hit] if moving else origin
             parts.append((first + hit, range_m, directions_sensor[hit] * range_m[:, None],
-                          start + directions_world[hit] * range_m[:, None],
-                          start if moving else None, quaternion[hit] if moving else None))
+                          start + directions_world[hit] * range_m[:, None]))
         columns = [p[0] for p in parts] if len(parts) == 1 else [np.concatenate(c) for c in zip(*parts, strict=True)]
-        rows, range_m, xyz_sensor, xyz_world, point_origin, point_quaternion = columns if len(parts) > 1 else (
-            parts[0])
+        rows, range_m, xyz_sensor, xyz_world = columns if len(parts) > 1 else parts[0]
         return ScanFrame(
             index=chunk.start // config.points_per_frame,
             ray_count=len(chunk),
@@ -191,8 +200,7 @@ class MountedCaster:
             end_time=chunk.stop / config.point_rate,
             range_max=config.range_max,
             end_pose=self.sensor_pose_at(chunk.stop / config.point_rate),
-            point_origin=point_origin,
-            point_quaternion=point_quaternion,
+            track=self.track,
         )
 
 

@@ -147,28 +147,54 @@ def scene_from_args(args: argparse.Namespace):
 
 def add_trajectory_arguments(parser: argparse.ArgumentParser) -> None:
     """``--trajectory FILE|hover|line|circle|figure8 [--trajectory-speed V]``."""
-    parser.add_argument("--trajectory", help="a moving vehicle: a TUM file (t x y z qx qy qz qw, world NED, t from "
-                                             "the scan start) or a built-in flight: hover, line, circle, figure8")
-    parser.add_argument("--trajectory-speed", type=float, default=5.0,
-                        help="speed of a built-in flight, m/s (default 5)")
+    from livox_viz.motion.flights import BUILTIN_TRAJECTORIES, MAX_SPEED, RAMP_SECONDS
+    from livox_viz.motion.tum import MAX_LINE_CHARS, MAX_POSES
+
+    parser.add_argument("--trajectory", help=f"a moving vehicle: a built-in flight ({', '.join(BUILTIN_TRAJECTORIES)}; "
+                                             f"from rest to rest, {RAMP_SECONDS:g} s ramps) or a TUM file (t x y z qx "
+                                             "qy qz qw, world NED, t from the scan start; read only as far as the "
+                                             f"scan needs, at most {MAX_POSES:,} poses, lines of at most "
+                                             f"{MAX_LINE_CHARS} characters)")
+    parser.add_argument("--trajectory-speed", type=float, default=None,
+                        help=f"cruising speed of a built-in flight, 0 to {MAX_SPEED:g} m/s (default "
+                             f"{DEFAULT_TRAJECTORY_SPEED:g})")
 
 
-def trajectory_from_args(args: argparse.Namespace, start: Pose, seconds: float | None):
+DEFAULT_TRAJECTORY_SPEED = 5.0
+
+
+def trajectory_from_args(args: argparse.Namespace, start: Pose, seconds: float | None, whole_file: bool = False):
     """The :class:`~livox_viz.motion.trajectory.Trajectory` ``--trajectory`` names (None without one).
 
-    A built-in flight starts at ``start`` (the scene's vehicle pose or ``--pose``) and lasts ``seconds``.
+    A built-in flight starts at ``start`` (the scene's vehicle pose or ``--pose``) and lasts ``seconds``
+    (at rest at both ends). A TUM file is read as far as a scan of ``seconds`` needs (all of it with
+    ``whole_file`` or no ``seconds``). Options that would be ignored are refused.
     """
     from livox_viz.motion.flights import BUILTIN_TRAJECTORIES, builtin_trajectory
     from livox_viz.motion.tum import load_tum
 
     text = getattr(args, "trajectory", None)
+    speed = getattr(args, "trajectory_speed", None)
     if not text:
+        if speed is not None:
+            raise UsageError("--trajectory-speed without --trajectory; allowed: with a built-in flight "
+                             f"(--trajectory {'|'.join(BUILTIN_TRAJECTORIES)})")
         return None
     if text in BUILTIN_TRAJECTORIES:
-        if seconds is None:
+        if seconds is None or not math.isfinite(seconds):
             raise UsageError("a built-in --trajectory needs a finite --seconds (it is made for the scan's length)")
-        return builtin_trajectory(text, args.trajectory_speed, start, seconds + 0.5)
-    return load_tum(text)
+        return builtin_trajectory(text, DEFAULT_TRAJECTORY_SPEED if speed is None else speed, start, seconds)
+    if not Path(text).exists():
+        raise UsageError(f"--trajectory {text!r}: no such file; allowed: a TUM file or a built-in flight: "
+                         f"{', '.join(BUILTIN_TRAJECTORIES)}")
+    if speed is not None:
+        raise UsageError("--trajectory-speed with a TUM file; allowed: with a built-in flight only (a TUM file "
+                         "gives its own times)")
+    if getattr(args, "pose", None):
+        raise UsageError("--pose with a TUM file; allowed: with a built-in flight or no --trajectory (a TUM file's "
+                         "poses are absolute, in the world NED frame)")
+    stop = None if whole_file or seconds is None or not math.isfinite(seconds) else seconds
+    return load_tum(text, start=None if stop is None else 0.0, stop=stop)
 
 
 def check_output_path(path: str | Path, suffixes: tuple[str, ...]) -> Path:

@@ -3,19 +3,18 @@
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
-import numpy as np
-
 from livox_viz.casting.scan import LidarScanner
+from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.progress import Progress
 from livox_viz.core.workload import check_points
 from livox_viz.files.export import FORMATS, PointCloudWriter
 from livox_viz.motion.flights import builtin_trajectory
-from livox_viz.motion.imu import ImuNoise, ImuSamples
+from livox_viz.motion.imu import IMU_FRAMES, MAX_RATE, MIN_RATE, ImuNoise, ImuStream
+from livox_viz.motion.trajectory import Trajectory
 from livox_viz.patterns.stream import points_before
 from livox_viz.scene.scenes import list_scenes
 
@@ -39,6 +38,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
     cfg = config_from_args(args)
     if not args.out and not args.rosbag:
         raise UsageError("give --out FILE, --rosbag DIR, or both")
+    _check_bag_options(args)
     out = check_output_path(args.out, FORMATS) if args.out else None
     check_points(points_before(args.seconds, cfg.point_rate), f"scan --seconds {args.seconds:g}", force=args.force)
     _, pose, caster = scene_from_args(args)
@@ -64,47 +64,65 @@ def cmd_scan(args: argparse.Namespace) -> int:
         print(f"{PROG}: warning: no ray hit anything within {cfg.range_max:g} m; wrote an empty point cloud",
               file=sys.stderr)
     where = " and ".join(str(p) for p in (out, args.rosbag) if p)
-    moving = f", moving along {trajectory.name}" if trajectory is not None else ""
+    moving = "" if trajectory is None else (f", moving along {trajectory.name}" if trajectory.moves else
+                                            f", not moving ({trajectory.name})")
     print(f"wrote {points:,} points of {frames} frames ({args.seconds:g} s, {args.frame} frame{moving}) to {where}")
     return 0
 
 
-class _BagSink:
-    """Frames into a bag, with the IMU samples and ground truth of the same time written alongside."""
+#: The bag options and their defaults (given without --rosbag they would be ignored: refused instead).
+BAG_OPTIONS = {"imu_rate": 200.0, "imu_noise": None, "imu_frame": "body"}
 
-    def __init__(self, writer, imu, motion) -> None:
+
+def _check_bag_options(args: argparse.Namespace) -> None:
+    given = [f"--{name.replace('_', '-')}" for name in BAG_OPTIONS if getattr(args, name) is not None]
+    if given and not args.rosbag:
+        raise UsageError(f"{', '.join(given)} without --rosbag; allowed: with --rosbag DIR (the IMU is written "
+                         "into the bag only)")
+
+
+class _BagSink:
+    """Frames into a bag, with the IMU samples and the ground truth of the same time written alongside.
+
+    The IMU is made a frame at a time (:class:`~livox_viz.motion.imu.ImuStream`): memory stays flat.
+    """
+
+    def __init__(self, writer, imu: ImuStream, flight: Trajectory) -> None:
         self.writer = writer
         self.imu = imu
-        self.motion = motion
-        self._done = 0
+        self.flight = flight
 
     def write(self, frame) -> None:
         self.writer.write_frame(frame)
-        self.motion_until(int(np.searchsorted(self.imu.t, frame.end_time, side="left")))
+        self.motion_until(frame.end_time)
 
-    def motion_until(self, upto: int) -> None:
-        """IMU and ground-truth samples up to (not including) sample ``upto``."""
-        if upto > self._done:
-            rows = slice(self._done, upto)
-            t = self.imu.t[rows]
-            self.writer.write_imu(ImuSamples(t, self.imu.angular_velocity[rows], self.imu.specific_force[rows]))
-            self.writer.write_motion(self.motion, t)
-            self._done = upto
+    def motion_until(self, stop: float, inclusive: bool = False) -> None:
+        """IMU and ground-truth samples before ``stop`` seconds (and at it, with ``inclusive``)."""
+        samples = self.imu.until(stop, inclusive)
+        if samples.t.size:
+            self.writer.write_imu(samples)
+            self.writer.write_motion(self.flight, samples.t)
 
 
 @contextmanager
 def _open_bag(args, cfg, scanner, trajectory, pose):
     from livox_viz.files.rosbag import RosbagWriter, RosNames
-    from livox_viz.motion.imu import TrajectoryMotion, synthesize_imu
 
-    flight = trajectory if trajectory is not None else builtin_trajectory("hover", 0.0, pose, args.seconds + 0.5)
+    def option(name: str):
+        value = getattr(args, name)
+        return BAG_OPTIONS[name] if value is None else value
+
+    flight = trajectory if trajectory is not None else builtin_trajectory("hover", 0.0, pose, args.seconds)
     noise = ImuNoise(*args.imu_noise) if args.imu_noise else ImuNoise()
-    imu = synthesize_imu(flight, args.imu_rate, noise, seed=args.seed, start=0.0, stop=args.seconds)
+    mount = scanner.mounted.mount_pose
+    imu_frame = option("imu_frame")
+    imu = ImuStream(flight, option("imu_rate"), noise, seed=args.seed, start=0.0,
+                    mount=mount if imu_frame == "lidar" else None)
     names = RosNames.parse(args.ros_names) if args.ros_names else RosNames()
-    with RosbagWriter(args.rosbag, scanner.mounted.mount_pose, names, lasers=cfg.lasers) as writer:
-        sink = _BagSink(writer, imu, TrajectoryMotion(flight))
+    with RosbagWriter(args.rosbag, mount, names, lasers=cfg.lasers, imu_frame=imu_frame) as writer:
+        sink = _BagSink(writer, imu, flight)
         yield sink
-        sink.motion_until(imu.t.size)  # the samples at the scan's very end
+        sink.motion_until(args.seconds, inclusive=True)  # the samples at the scan's very end
 
 
 def _imu_noise(text: str) -> tuple[float, float, float, float]:
@@ -112,11 +130,22 @@ def _imu_noise(text: str) -> tuple[float, float, float, float]:
         values = [float(v) for v in text.split(",")]
     except ValueError:
         values = []
-    if len(values) != 4 or not all(math.isfinite(v) and v >= 0 for v in values):
+    if len(values) != 4:
         raise argparse.ArgumentTypeError(f"{text!r}: allowed: 4 numbers (Kalibr: gyroscope_noise_density, "
                                          "gyroscope_random_walk, accelerometer_noise_density, "
                                          "accelerometer_random_walk)")
+    try:
+        ImuNoise(*values)
+    except LivoxVizError as error:
+        raise argparse.ArgumentTypeError(f"{text!r}: {error}") from None
     return tuple(values)
+
+
+def _imu_rate(text: str) -> float:
+    value = positive_float(text)
+    if not MIN_RATE <= value <= MAX_RATE:
+        raise argparse.ArgumentTypeError(f"{text}: allowed: {MIN_RATE:g} to {MAX_RATE:g} Hz")
+    return value
 
 
 def _scan_arguments(parser: argparse.ArgumentParser) -> None:
@@ -132,10 +161,16 @@ def _scan_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", help="output: .ply .pcd .las .npz or .csv")
     parser.add_argument("--rosbag", help="also (or only) write a ROS 2 bag folder (MCAP): CustomMsg, PointCloud2, "
                                          "Imu, Odometry, /tf")
-    parser.add_argument("--imu-rate", type=positive_float, default=200.0, help="IMU samples per second in the bag "
-                                                                              "(default 200)")
-    parser.add_argument("--imu-noise", type=_imu_noise, help="Kalibr's four IMU noise numbers, comma-separated "
-                                                             "(default: a perfect IMU)")
+    parser.add_argument("--imu-rate", type=_imu_rate, help=f"IMU samples per second in the bag, {MIN_RATE:g} to "
+                                                           f"{MAX_RATE:g} (default 200; needs --rosbag)")
+    parser.add_argument("--imu-noise", type=_imu_noise, help="Kalibr's four IMU noise numbers, comma-separated: "
+                                                             "gyroscope noise density and random walk (0 to 1), "
+                                                             "accelerometer's (0 to 10) (default: a perfect IMU; "
+                                                             "needs --rosbag)")
+    parser.add_argument("--imu-frame", choices=IMU_FRAMES,
+                        help="where the bag's IMU sits: body (base_link, the vehicle's origin and axes; default) or "
+                             "lidar (livox_frame, the lidar's origin and axes, as the Livox driver publishes its "
+                             "IMU; lever-arm effects included); needs --rosbag")
     parser.add_argument("--ros-names", help="topic/frame names, e.g. lidar=/livox/lidar,imu=/livox/imu,"
                                             "lidar_frame=livox_frame (defaults: the Livox ROS driver 2's)")
     parser.add_argument("--force", action="store_true", help="allow more points than the documented budget")

@@ -8,9 +8,17 @@ needed. Topics (the Livox ROS driver 2's names by default, all settable):
   FAST-LIO reads by default);
 * ``/livox/points``: ``sensor_msgs/msg/PointCloud2`` in the driver's layout
   (x, y, z, intensity float32; tag, line uint8; timestamp float64 ns), one per frame;
-* ``/livox/imu``: ``sensor_msgs/msg/Imu`` (no orientation: covariance[0] = -1);
-* ``/odom``: ``nav_msgs/msg/Odometry``, the ground truth of the vehicle, and the
-  same as ``/tf`` (odom -> base_link); ``/tf_static`` holds base_link -> livox_frame.
+* ``/livox/imu``: ``sensor_msgs/msg/Imu`` (no orientation: covariance[0] = -1), in
+  ``base_link`` (the vehicle's body origin and axes) by default, or in
+  ``livox_frame`` (the lidar's origin and axes, lever-arm effects included) as the
+  Livox driver publishes its built-in IMU: ``imu_frame``;
+* ``/odom``: ``nav_msgs/msg/Odometry``, the ground truth of the vehicle (pose in
+  ``odom``; twist in ``base_link``, as REP 105 and nav_msgs say), and the same pose
+  on ``/tf`` (odom -> base_link); ``/tf_static`` holds base_link -> livox_frame.
+
+The IMU, ``/odom`` and ``/tf`` all evaluate the one motion model the points were
+cast with (:mod:`~livox_viz.motion.trajectory`), so points placed with ``/odom``
+(interpolated) and ``/tf_static`` land where they were hit.
 
 **Frames (REP 103/105).** The project is NED/FRD; ROS is ENU/FLU. At this
 boundary, and only here: world NED (x north, y east, z down) -> ENU
@@ -35,7 +43,8 @@ from livox_viz.core.atomic import make_work_dir, remove_dead_leftovers
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.poses import Pose
 from livox_viz.core.rotations import FRD_TO_FLU, enu_flu_from_ned_frd, enu_from_ned, flu_from_frd, quat_from_matrix
-from livox_viz.motion.imu import ImuSamples
+from livox_viz.motion.imu import IMU_FRAMES, ImuSamples
+from livox_viz.motion.trajectory import Trajectory
 
 #: Scan time 0 is this many seconds after the Unix epoch in the bag (a fixed, reproducible date).
 DEFAULT_TIME_BASE = 1_700_000_000.0
@@ -119,10 +128,13 @@ class RosbagWriter:
         Unix seconds of scan time 0.
     lasers : int
         The ``line`` of a point is its laser (0 for one).
+    imu_frame : {"body", "lidar"}
+        The frame the IMU samples given to :meth:`write_imu` are in: the vehicle's (``base_link``) or the
+        lidar's (``livox_frame``, the Livox driver's convention); it names their ``frame_id``.
     """
 
     def __init__(self, path: str | os.PathLike[str], mount: Pose, names: RosNames | None = None,
-                 time_base: float = DEFAULT_TIME_BASE, lasers: int = 1) -> None:
+                 time_base: float = DEFAULT_TIME_BASE, lasers: int = 1, imu_frame: str = "body") -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -132,6 +144,9 @@ class RosbagWriter:
         if not self.path.parent.is_dir():
             raise LivoxVizError(f"{self.path}: the folder {self.path.parent} does not exist")
         self.names = names or RosNames()
+        if imu_frame not in IMU_FRAMES:
+            raise LivoxVizError(f"IMU frame {imu_frame!r}; allowed: {', '.join(IMU_FRAMES)}")
+        self.imu_frame = imu_frame
         self.time_base_ns = round(time_base * 1e9)
         self.lasers = lasers
         self.frames = 0
@@ -212,7 +227,8 @@ class RosbagWriter:
         self.points += len(frame)
 
     def write_imu(self, samples: ImuSamples) -> None:
-        """IMU samples (body FRD) as ``sensor_msgs/Imu`` in the body FLU frame, without orientation."""
+        """IMU samples (FRD of ``imu_frame``) as ``sensor_msgs/Imu`` in its FLU frame, without orientation."""
+        frame_id = self.names.body_frame if self.imu_frame == "body" else self.names.lidar_frame
         if self._imu_layout is None:
             types = self.store.types
             vector = types["geometry_msgs/msg/Vector3"]
@@ -221,7 +237,7 @@ class RosbagWriter:
 
             def build(stamp: int, v: np.ndarray):
                 return types["sensor_msgs/msg/Imu"](
-                    header=self._header(stamp, self.names.body_frame),
+                    header=self._header(stamp, frame_id),
                     orientation=types["geometry_msgs/msg/Quaternion"](0.0, 0.0, 0.0, 1.0),
                     orientation_covariance=no_orientation, angular_velocity=vector(*v[:3]),
                     angular_velocity_covariance=np.zeros(9), linear_acceleration=vector(*v[3:]),
@@ -281,11 +297,10 @@ class RosbagWriter:
         self._write_packed(self._odom, stamps, odometry_bytes)
         self._write_packed(self._tf, stamps, transform_bytes)
 
-    def write_motion(self, motion, t: np.ndarray) -> None:
-        """The ground truth of a :class:`~livox_viz.imu.TrajectoryMotion` at times ``t`` (s), see
-        :meth:`write_ground_truth`."""
-        self.write_ground_truth(t, motion.position(t), motion.rotation(t).as_matrix(), motion.velocity(t),
-                                motion.angular_velocity(t))
+    def write_motion(self, trajectory: Trajectory, t: np.ndarray) -> None:
+        """The ground truth of a trajectory's motion model at times ``t`` (s), see :meth:`write_ground_truth`."""
+        self.write_ground_truth(t, trajectory.position_at(t), trajectory.rotation_at(t).as_matrix(),
+                                trajectory.velocity_at(t), trajectory.angular_velocity_at(t))
 
     def _write_packed(self, connection, stamps: np.ndarray, records: np.ndarray) -> None:
         size = records.dtype.itemsize

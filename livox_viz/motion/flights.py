@@ -1,7 +1,17 @@
 """Built-in flights from the vehicle's start pose: ``hover``, ``line``, ``circle``, ``figure8``.
 
-Sampled at :data:`BUILTIN_RATE` (between samples a 15 m circle at 5 m/s is off its
-chord by 0.02 mm, the turn exact), in the world NED frame of the start pose.
+Every flight starts and ends at rest: the speed along the path rises from 0 with a
+smootherstep ``S(x) = 6x^5 - 15x^4 + 10x^3`` over :data:`RAMP_SECONDS` (or half the
+flight when it is shorter), cruises, and falls back to 0 the same way at the
+flight's end. Speed, acceleration and jerk are continuous and zero at both ends,
+so a lidar-inertial initialiser sees a vehicle at rest (the IMU reads gravity
+only) at the start. The heading follows the path's tangent (a function of the
+path parameter, so it is defined at rest too).
+
+The analytic flight is sampled at :data:`BUILTIN_RATE` into a
+:class:`~livox_viz.motion.trajectory.Trajectory`, whose C2 spline is the motion
+every consumer uses (between 100 Hz samples it is within micrometres of the
+analytic path), in the world NED frame of the start pose.
 """
 
 from __future__ import annotations
@@ -16,60 +26,89 @@ from livox_viz.motion.trajectory import Trajectory
 
 BUILTIN_TRAJECTORIES: tuple[str, ...] = ("hover", "line", "circle", "figure8")
 
-
 BUILTIN_RATE = 100.0
-
 
 CIRCLE_RADIUS = 15.0
 
-
 FIGURE8_SIZE = 20.0
+
+#: Seconds from rest to cruising speed (and back at the end).
+RAMP_SECONDS = 2.0
+
+#: The flights' fastest speed, m/s.
+MAX_SPEED = 100.0
+
+
+def ramp_seconds(seconds: float) -> float:
+    """How long a built-in flight of ``seconds`` takes to reach its speed (and to stop), s."""
+    return min(RAMP_SECONDS, seconds / 2.0)
+
+
+def path_length(t: np.ndarray, speed: float, seconds: float) -> np.ndarray:
+    """``(n,)`` metres along the path at times ``t`` of a flight of ``seconds`` at cruising ``speed`` m/s.
+
+    The speed is ``speed * S(t / ramp)`` while speeding up and ``speed * S((seconds - t) / ramp)`` while
+    stopping; the distance integrates it: ``ramp * speed * I(x)`` with ``I(x) = x^6 - 3x^5 + 5x^4 / 2``.
+    """
+    ramp = ramp_seconds(seconds)
+
+    def integral(x: np.ndarray) -> np.ndarray:
+        return x**6 - 3.0 * x**5 + 2.5 * x**4
+
+    t = np.clip(np.asarray(t, dtype=np.float64), 0.0, seconds)
+    cruise = 0.5 * ramp * speed + speed * (t - ramp)
+    rising = ramp * speed * integral(np.clip(t / ramp, 0.0, 1.0))
+    total = speed * (seconds - ramp)
+    falling = total - ramp * speed * integral(np.clip((seconds - t) / ramp, 0.0, 1.0))
+    return np.where(t < ramp, rising, np.where(t > seconds - ramp, falling, cruise))
 
 
 def builtin_trajectory(name: str, speed: float, start: Pose, seconds: float) -> Trajectory:
-    """A built-in flight from ``start``, ``seconds`` long, sampled at :data:`BUILTIN_RATE`.
+    """A built-in flight from ``start``, ``seconds`` long, from rest to rest, sampled at :data:`BUILTIN_RATE`.
 
     Parameters
     ----------
     name : {"hover", "line", "circle", "figure8"}
-        ``hover`` stays; ``line`` flies straight ahead at ``speed``; ``circle``
-        turns right on a 15 m circle at ``speed`` facing along the path;
-        ``figure8`` flies a 20 m lemniscate at a mean speed of about ``speed``.
+        ``hover`` stays; ``line`` flies straight ahead; ``circle`` turns right on a
+        15 m circle facing along the path; ``figure8`` flies a 20 m lemniscate
+        (Gerono's, at a mean cruising speed of about ``speed``).
     speed : float
-        m/s.
+        Cruising speed, m/s.
     start : Pose
         The vehicle's pose at t = 0 (NED).
     seconds : float
-        How long, s.
+        How long, s; the vehicle is at rest again at its end.
     """
     if name not in BUILTIN_TRAJECTORIES:
-        raise LivoxVizError(f"trajectory {name!r}; allowed: a TUM file or {', '.join(BUILTIN_TRAJECTORIES)}")
-    if not (math.isfinite(speed) and 0 <= speed <= 100):
-        raise LivoxVizError(f"--speed {speed!r}; allowed: 0 to 100 m/s")
+        raise LivoxVizError(f"trajectory {name!r}; allowed: a TUM file or a built-in flight: "
+                            f"{', '.join(BUILTIN_TRAJECTORIES)}")
+    if not (math.isfinite(speed) and 0 <= speed <= MAX_SPEED):
+        raise LivoxVizError(f"--trajectory-speed {speed!r}; allowed: 0 to {MAX_SPEED:g} m/s")
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise LivoxVizError(f"a built-in flight of {seconds!r} s; allowed: a finite time > 0")
     count = max(2, math.ceil(seconds * BUILTIN_RATE) + 1)
-    t = np.arange(count) / BUILTIN_RATE
+    t = np.linspace(0.0, seconds, count)
+    s = path_length(t, speed if name != "hover" else 0.0, seconds)
     heading = start.yaw
     forward = np.array([math.cos(heading), math.sin(heading), 0.0])
     right = np.array([-math.sin(heading), math.cos(heading), 0.0])
     yaw = np.full(count, heading)
-    if name == "hover":
-        local = np.zeros((count, 2))
-    elif name == "line":
-        local = np.column_stack([speed * t, np.zeros(count)])
+    if name in ("hover", "line"):
+        local = np.column_stack([s, np.zeros(count)])
     elif name == "circle":
-        rate = speed / CIRCLE_RADIUS
-        local = CIRCLE_RADIUS * np.column_stack([np.sin(rate * t), 1.0 - np.cos(rate * t)])
-        yaw = heading + rate * t
+        angle = s / CIRCLE_RADIUS
+        local = CIRCLE_RADIUS * np.column_stack([np.sin(angle), 1.0 - np.cos(angle)])
+        yaw = heading + angle
     else:
-        # Gerono's lemniscate x = a sin(wt), y = a sin(wt) cos(wt); its mean speed is about 1.22 a w.
-        rate = speed / (1.22 * FIGURE8_SIZE / 2) if speed > 0 else 0.0
+        # Gerono's lemniscate x = a sin(u), y = a sin(u) cos(u); its mean speed is about 1.22 a du/dt.
         a = FIGURE8_SIZE / 2
-        local = np.column_stack([a * np.sin(rate * t), a * np.sin(rate * t) * np.cos(rate * t)])
-        velocity = np.column_stack([a * rate * np.cos(rate * t), a * rate * np.cos(2 * rate * t)])
-        yaw = heading + np.arctan2(velocity[:, 1], velocity[:, 0])
+        u = s / (1.22 * a)
+        local = np.column_stack([a * np.sin(u), a * np.sin(u) * np.cos(u)])
+        yaw = heading + np.unwrap(np.arctan2(np.cos(2 * u), np.cos(u)))
     position = start.origin + local[:, :1] * forward + local[:, 1:] * right
     from scipy.spatial.transform import Rotation
 
     tilt = Rotation.from_euler("ZYX", [0.0, start.pitch, start.roll])
     orientation = Rotation.from_rotvec(np.outer(yaw, [0.0, 0.0, 1.0])) * tilt
-    return Trajectory(f"{name} at {speed:g} m/s", t, position, orientation.as_quat())
+    label = "hovering" if name == "hover" or speed == 0 else f"{name} at {speed:g} m/s"
+    return Trajectory(label, t, position, orientation.as_quat())

@@ -1,14 +1,36 @@
-"""A moving vehicle: trajectories in the world NED frame, interpolated to every point's own time.
+"""The vehicle's motion: one C2 trajectory through the user's poses for the rays, frame poses, /odom, /tf and IMU.
 
 A trajectory is a time series of vehicle poses (body FRD in world NED, metres;
 orientation as a unit quaternion ``[qx, qy, qz, qw]`` rotating body vectors into
-the world), t in seconds from the scan start. Between two poses the position
-is linear and the orientation spherical-linear (slerp), evaluated for a
-million points at once with numpy quaternions (scipy's ``Slerp`` gives the
-same rotations, and is the tests' reference, but costs about 1.3 us a point).
+the world), t in seconds from the scan start: a dense TUM file from a real flight,
+a sparse hand-written one, or a built-in flight sampled at 100 Hz.
 
-Sources: TUM files (:mod:`~livox_viz.motion.tum`) and the built-in flights
-(:mod:`~livox_viz.motion.flights`).
+**The motion model** (the one every consumer evaluates):
+
+* Position: the natural cubic spline through the poses (C2: position, velocity and
+  acceleration continuous everywhere, zero acceleration at the two ends). Per
+  component, the moments solve a tridiagonal system once (``scipy.linalg.solve_banded``).
+* Orientation: the same natural cubic spline through the four quaternion
+  components (signs made continuous), normalised: ``q(t) = p(t) / |p(t)|``. It
+  passes through every pose, is C2 wherever ``p`` is not zero (the constructor
+  refuses neighbouring poses more than 120 degrees apart, or a spline that dips
+  below half length between them), and its body angular rate is
+  ``omega = 2 vec(p* p') / |p|^2``, its angular acceleration
+  ``2 vec(p* p'') / |p|^2 - omega 2 (p . p') / |p|^2``: both continuous, so an IMU
+  sees no step at a pose or anywhere else.
+* Storage: per segment, the power coefficients of the seven components in the
+  time since the segment's start, ``(n - 1, 4, 7)`` float64 (224 bytes a pose).
+  Nothing else: a flight's memory is its poses', evaluation is local
+  (a segment lookup and Horner), and the result does not depend on how a scan
+  is cut into chunks. A spline's dependence on a distant pose decays by at least
+  half per pose (diagonal dominance), so the poses 64 beyond a window of a long
+  file change nothing inside it (2^-64): :func:`~livox_viz.motion.tum.load_tum`
+  reads only the scan's span plus that margin.
+
+Per-ray poses evaluate this model exactly, in a compiled kernel
+(:mod:`~livox_viz.motion.track`); frame poses, ``/odom``, ``/tf`` and the IMU use
+the numpy evaluation here. Sources: :mod:`~livox_viz.motion.tum`,
+:mod:`~livox_viz.motion.flights`.
 """
 
 from __future__ import annotations
@@ -20,12 +42,53 @@ import numpy as np
 
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.poses import Pose
-from livox_viz.core.rotations import quat_conjugate, quat_multiply
+
+#: Neighbouring orientations at most this far apart, degrees (beyond it the turn's direction is a guess).
+MAX_TURN_DEG = 120.0
+#: The orientation spline ``p`` must keep at least this length between poses (normalising divides by it).
+MIN_QUATERNION_LENGTH = 0.5
+#: Rows evaluated at once by the numpy evaluation (bounds its temporaries).
+_EVALUATION_BLOCK = 1 << 16
+
+
+def natural_spline_coefficients(t: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Power coefficients of the natural cubic spline through ``values`` at ``t``.
+
+    Parameters
+    ----------
+    t : (n,) float64
+        Knots, strictly increasing, n >= 2.
+    values : (n, k) float64
+        k components.
+
+    Returns
+    -------
+    coefficients : (n - 1, 4, k) float64
+        Segment i is ``c0 + c1 u + c2 u^2 + c3 u^3`` with ``u = t - t[i]``.
+    """
+    from scipy.linalg import solve_banded
+
+    n = t.size
+    h = np.diff(t)
+    slope = np.diff(values, axis=0) / h[:, None]
+    moments = np.zeros_like(values)
+    if n > 2:
+        bands = np.zeros((3, n - 2))
+        bands[0, 1:] = h[1:-1]
+        bands[1] = 2.0 * (h[:-1] + h[1:])
+        bands[2, :-1] = h[1:-1]
+        moments[1:-1] = solve_banded((1, 1), bands, 6.0 * np.diff(slope, axis=0), check_finite=False)
+    coefficients = np.empty((n - 1, 4, values.shape[1]))
+    coefficients[:, 0] = values[:-1]
+    coefficients[:, 1] = slope - h[:, None] * (2.0 * moments[:-1] + moments[1:]) / 6.0
+    coefficients[:, 2] = 0.5 * moments[:-1]
+    coefficients[:, 3] = (moments[1:] - moments[:-1]) / (6.0 * h[:, None])
+    return coefficients
 
 
 @dataclass(frozen=True)
 class Trajectory:
-    """Vehicle poses over time, interpolated to any time inside their span.
+    """Vehicle poses over time and the C2 motion through them (see the module docstring).
 
     Parameters
     ----------
@@ -62,35 +125,40 @@ class Trajectory:
             raise LivoxVizError(f"trajectory {self.name}: the quaternion of pose {row + 1} has length "
                                 f"{norm[row]:.3g}; allowed: a unit quaternion qx qy qz qw")
         quaternion = quaternion / norm[:, None]
-        # q and -q are the same rotation: make neighbours agree so slerp takes the short way.
+        # q and -q are the same rotation: make neighbours agree so the spline takes the short way.
         flips = np.cumsum(np.concatenate([[0], np.einsum("ij,ij->i", quaternion[1:], quaternion[:-1]) < 0])) % 2
         quaternion = np.where(flips[:, None] == 1, -quaternion, quaternion)
-        relative = quat_multiply(quat_conjugate(quaternion[:-1]), quaternion[1:])
-        angle = 2.0 * np.arctan2(np.linalg.norm(relative[:, :3], axis=1), np.abs(relative[:, 3]))
-        sign = np.where(relative[:, 3] < 0, -1.0, 1.0)
-        axis = relative[:, :3] * sign[:, None]
-        length = np.linalg.norm(axis, axis=1)
-        axis = np.divide(axis, length[:, None], out=np.zeros_like(axis), where=length[:, None] > 0)
-        for name, value in (("t", t), ("position", position), ("quaternion", quaternion)):
+        cosine = np.clip(np.einsum("ij,ij->i", quaternion[1:], quaternion[:-1]), -1.0, 1.0)
+        turn = np.degrees(2.0 * np.arccos(cosine))
+        if np.any(turn > MAX_TURN_DEG):
+            row = int(np.argmax(turn > MAX_TURN_DEG))
+            raise LivoxVizError(f"trajectory {self.name}: the orientation turns {turn[row]:.0f} degrees between poses "
+                                f"{row + 1} and {row + 2} (t = {t[row]:g} to {t[row + 1]:g} s); allowed: at most "
+                                f"{MAX_TURN_DEG:g} between neighbours (add poses in between)")
+        coefficients = natural_spline_coefficients(t, np.hstack([position, quaternion]))
+        # The orientation spline between poses must stay well away from zero length (checked mid-segment).
+        u = 0.5 * np.diff(t)[:, None]
+        c = coefficients[:, :, 3:]
+        shortest = np.linalg.norm(c[:, 0] + u * (c[:, 1] + u * (c[:, 2] + u * c[:, 3])), axis=1)
+        if np.any(shortest < MIN_QUATERNION_LENGTH):
+            row = int(np.argmax(shortest < MIN_QUATERNION_LENGTH))
+            raise LivoxVizError(f"trajectory {self.name}: the orientation swings too far between poses {row + 1} and "
+                                f"{row + 2} (t = {t[row]:g} to {t[row + 1]:g} s) to interpolate; add poses in between")
+        for name, value in (("t", t), ("position", position), ("quaternion", quaternion),
+                            ("coefficients", coefficients)):
             value.setflags(write=False)
             object.__setattr__(self, name, value)
-        object.__setattr__(self, "_axis", axis)
-        object.__setattr__(self, "_half_angle", 0.5 * angle)
-        # Per segment: the velocity, the half-angle's rate, and the sine part A of the slerp
-        # q0 (u sin h, cos h) = A sin h + q0 cos h, with A = q0 (u, 0).
-        dt = np.diff(t)
-        object.__setattr__(self, "_half_angle_rate", 0.5 * angle / dt)
-        axis_quaternion = np.column_stack([axis, np.zeros(len(axis))])
-        sine_part = quat_multiply(quaternion[:-1], axis_quaternion)
-        for name, table in (("_velocity_by_axis", np.diff(position, axis=0) / dt[:, None]),
-                            ("_position_by_axis", position[:-1]), ("_sine_part_by_axis", sine_part),
-                            ("_quaternion_by_axis", quaternion[:-1])):
-            object.__setattr__(self, name, np.ascontiguousarray(table.T))
 
+    # Span -------------------------------------------------------------------------------------
     @property
     def span(self) -> tuple[float, float]:
         """First and last time, seconds."""
         return float(self.t[0]), float(self.t[-1])
+
+    @property
+    def moves(self) -> bool:
+        """Whether the vehicle moves or turns at all along the trajectory."""
+        return bool(np.ptp(self.position, axis=0).max() > 0 or np.ptp(self.quaternion, axis=0).max() > 0)
 
     def check_covers(self, start: float, stop: float) -> None:
         """Refuse a scan from ``start`` to ``stop`` seconds that leaves the trajectory's span."""
@@ -99,68 +167,91 @@ class Trajectory:
             raise LivoxVizError(f"trajectory {self.name} spans {low:g} to {high:g} s; the scan needs {start:g} to "
                                 f"{stop:g} s (no extrapolation: give a longer trajectory or fewer --seconds)")
 
-    def poses_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Position ``(m, 3)`` and orientation ``(m, 4)`` at times ``t`` ``(m,)`` seconds (linear, slerp).
+    def _times(self, t) -> np.ndarray:
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        if t.size:
+            self.check_covers(float(t.min()), float(t.max()))
+        return t
 
-        Within segment k the slerp is ``q_k (u_k sin h, cos h)`` with h linear in t, so the result is
-        ``A_k sin h + q_k cos h`` with a constant ``A_k`` per segment: two row gathers and two products
-        per point, however the quaternions are written.
-        """
-        t = np.asarray(t, dtype=np.float64)
-        if t.size == 0:
-            return np.zeros((0, 3)), np.zeros((0, 4))
-        sorted_times = t.size < 2 or bool(t[-1] >= t[0] and np.all(t[1:] >= t[:-1]))
-        self.check_covers(*((float(t[0]), float(t[-1])) if sorted_times else (float(t.min()), float(t.max()))))
-        segment = self._segments(t, sorted_times)
-        elapsed = t - self.t[segment]
-        # Component by component (rows of the transposed tables): long loops, where numpy is fast.
-        position = np.take(self._velocity_by_axis, segment, axis=1)
-        position *= elapsed
-        position += np.take(self._position_by_axis, segment, axis=1)
-        half = elapsed * self._half_angle_rate[segment]
-        quaternion = np.take(self._sine_part_by_axis, segment, axis=1)
-        quaternion *= np.sin(half)
-        cosine = np.take(self._quaternion_by_axis, segment, axis=1)
-        cosine *= np.cos(half)
-        quaternion += cosine
-        return np.ascontiguousarray(position.T), np.ascontiguousarray(quaternion.T)
+    # Evaluation -------------------------------------------------------------------------------
+    def _components(self, t: np.ndarray, order: int) -> np.ndarray:
+        """``(m, 7)`` derivative ``order`` (0..2) of the seven spline components at ``t``."""
+        out = np.empty((t.size, 7))
+        for first in range(0, t.size, _EVALUATION_BLOCK):
+            block = t[first : first + _EVALUATION_BLOCK]
+            segment = np.clip(np.searchsorted(self.t, block, side="right") - 1, 0, self.t.size - 2)
+            u = (block - self.t[segment])[:, None]
+            c = self.coefficients[segment]
+            if order == 0:
+                value = c[:, 0] + u * (c[:, 1] + u * (c[:, 2] + u * c[:, 3]))
+            elif order == 1:
+                value = c[:, 1] + u * (2.0 * c[:, 2] + u * 3.0 * c[:, 3])
+            else:
+                value = 2.0 * c[:, 2] + 6.0 * u * c[:, 3]
+            out[first : first + block.size] = value
+        return out
 
-    def _segments(self, t: np.ndarray, sorted_times: bool) -> np.ndarray:
-        """``(m,)`` int64 the segment (pose k to k+1) of each time; fast for sorted times (one run per segment)."""
-        if t.size > 64 and sorted_times:
-            first = max(int(np.searchsorted(self.t, t[0], side="right")) - 1, 0)
-            last = min(int(np.searchsorted(self.t, t[-1], side="right")), self.t.size - 1)
-            edges = np.searchsorted(t, self.t[first + 1 : last], side="left")
-            counts = np.diff(np.concatenate([[0], edges, [t.size]]))
-            return np.repeat(np.arange(first, first + counts.size), counts)
-        return np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, self.t.size - 2)
+    def position_at(self, t) -> np.ndarray:
+        """``(m, 3)`` world NED, metres, at times ``t`` ``(m,)`` seconds."""
+        return self._components(self._times(t), 0)[:, :3]
+
+    def velocity_at(self, t) -> np.ndarray:
+        """``(m, 3)`` world NED, m/s."""
+        return self._components(self._times(t), 1)[:, :3]
+
+    def acceleration_at(self, t) -> np.ndarray:
+        """``(m, 3)`` world NED, m/s^2."""
+        return self._components(self._times(t), 2)[:, :3]
+
+    def orientation_at(self, t) -> np.ndarray:
+        """``(m, 4)`` unit quaternions [x, y, z, w], body FRD -> world NED."""
+        p = self._components(self._times(t), 0)[:, 3:]
+        return p / np.linalg.norm(p, axis=1, keepdims=True)
+
+    def rotation_at(self, t):
+        """The body -> world orientation at ``t``, a scipy ``Rotation`` of m."""
+        from scipy.spatial.transform import Rotation
+
+        return Rotation.from_quat(self.orientation_at(t))
+
+    def angular_velocity_at(self, t) -> np.ndarray:
+        """``(m, 3)`` rad/s in the body FRD frame: ``2 vec(p* p') / |p|^2``."""
+        t = self._times(t)
+        p, dp = self._components(t, 0)[:, 3:], self._components(t, 1)[:, 3:]
+        return 2.0 * _conjugate_product_vector(p, dp) / np.einsum("ij,ij->i", p, p)[:, None]
+
+    def angular_acceleration_at(self, t) -> np.ndarray:
+        """``(m, 3)`` rad/s^2 in the body FRD frame (the derivative of :meth:`angular_velocity_at`)."""
+        t = self._times(t)
+        p, dp, ddp = (self._components(t, k)[:, 3:] for k in range(3))
+        length2 = np.einsum("ij,ij->i", p, p)[:, None]
+        omega = 2.0 * _conjugate_product_vector(p, dp) / length2
+        return 2.0 * _conjugate_product_vector(p, ddp) / length2 - omega * (2.0 * np.einsum("ij,ij->i", p, dp)[:, None]
+                                                                            / length2)
+
+    def poses_at(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """Position ``(m, 3)`` and orientation ``(m, 4)`` [x, y, z, w] at times ``t`` ``(m,)`` seconds."""
+        t = self._times(t)
+        values = self._components(t, 0)
+        return values[:, :3], values[:, 3:] / np.linalg.norm(values[:, 3:], axis=1, keepdims=True)
 
     def pose_at(self, t: float) -> Pose:
-        """The :class:`Pose` at one time (in plain floats: it is asked for twice a frame)."""
-        self.check_covers(t, t)
-        k = min(max(int(np.searchsorted(self.t, t, side="right")) - 1, 0), self.t.size - 2)
-        t0, t1 = float(self.t[k]), float(self.t[k + 1])
-        fraction = (t - t0) / (t1 - t0)
-        half = fraction * float(self._half_angle[k])
-        s = math.sin(half)
-        bx, by, bz = (float(v) * s for v in self._axis[k])
-        bw = math.cos(half)
-        ax, ay, az, aw = (float(v) for v in self.quaternion[k])
-        x = aw * bx + ax * bw + ay * bz - az * by
-        y = aw * by - ax * bz + ay * bw + az * bx
-        z = aw * bz + ax * by - ay * bx + az * bw
-        w = aw * bw - ax * bx - ay * by - az * bz
-        p0, p1 = self.position[k], self.position[k + 1]
-        position = tuple(float(a) + fraction * (float(b) - float(a)) for a, b in zip(p0, p1, strict=True))
-        # Z-Y-X Euler angles of the quaternion (the convention of poses.euler_matrix).
-        roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-        pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-        yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-        return Pose(position, roll, pitch, yaw)
+        """The :class:`Pose` at one time."""
+        position, quaternion = self.poses_at(np.array([float(t)]))
+        return pose_from_quaternion(position[0], quaternion[0])
 
-    def between(self, start: float, stop: float) -> Trajectory:
-        """The poses from the last one at or before ``start`` to the first one at or after ``stop``."""
-        first = max(int(np.searchsorted(self.t, start, side="right")) - 1, 0)
-        last = min(int(np.searchsorted(self.t, stop, side="left")) + 1, self.t.size)
-        last = max(last, first + 2)
-        return Trajectory(self.name, self.t[first:last], self.position[first:last], self.quaternion[first:last])
+
+def _conjugate_product_vector(p: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``(m, 3)`` the vector part of ``p* r`` for ``(m, 4)`` quaternions [x, y, z, w]."""
+    u, w = p[:, :3], p[:, 3:]
+    v, s = r[:, :3], r[:, 3:]
+    return w * v - s * u - np.cross(u, v)
+
+
+def pose_from_quaternion(position: np.ndarray, quaternion: np.ndarray) -> Pose:
+    """A :class:`Pose` from a position ``(3,)`` and a unit quaternion ``(4,)`` [x, y, z, w] (Z-Y-X Euler angles)."""
+    x, y, z, w = (float(v) for v in quaternion)
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return Pose(tuple(float(v) for v in position), roll, pitch, yaw)
