@@ -185,8 +185,8 @@ def trajectory_from_args(args: argparse.Namespace, start: Pose, seconds: float |
             raise UsageError("a built-in --trajectory needs a finite --seconds (it is made for the scan's length)")
         return builtin_trajectory(text, DEFAULT_TRAJECTORY_SPEED if speed is None else speed, start, seconds)
     if not Path(text).exists():
-        raise UsageError(f"--trajectory {text!r}: no such file; allowed: a TUM file or a built-in flight: "
-                         f"{', '.join(BUILTIN_TRAJECTORIES)}")
+        raise UsageError(f"--trajectory {text!r}: no such TUM trajectory file; allowed: a TUM file or a built-in "
+                         f"flight: {', '.join(BUILTIN_TRAJECTORIES)}")
     if speed is not None:
         raise UsageError("--trajectory-speed with a TUM file; allowed: with a built-in flight only (a TUM file "
                          "gives its own times)")

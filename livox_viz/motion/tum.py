@@ -55,7 +55,7 @@ def load_tum(path: str | os.PathLike[str], start: float | None = None, stop: flo
     high = np.inf if stop is None else float(stop)
     before = np.zeros((0, 8))  # the last MARGIN_POSES poses before `low`
     kept: list[np.ndarray] = []
-    kept_rows = after = 0
+    inside = after = 0
     line_number = 0
     rest = b""
     with open(path, "rb") as handle:
@@ -77,13 +77,13 @@ def load_tum(path: str | os.PathLike[str], start: float | None = None, stop: flo
                 before = np.concatenate([before, rows[early]])[-MARGIN_POSES:]
                 rows = rows[~early]
             late = np.flatnonzero(rows[:, 0] > high)
+            inside += late[0] if late.size else rows.shape[0]
             if late.size:
                 take = min(late[0] + MARGIN_POSES - after, rows.shape[0])
                 after += take - late[0]
                 rows = rows[:take]
             kept.append(rows)
-            kept_rows += rows.shape[0]
-            if kept_rows > MAX_POSES + MARGIN_POSES:
+            if inside > MAX_POSES:
                 where = "the file" if start is None else "the scan's span"
                 raise LivoxVizError(f"{path}: more than {MAX_POSES:,} poses in {where}; allowed: at most "
                                     f"{MAX_POSES:,} (thin the file or scan a shorter time)")
