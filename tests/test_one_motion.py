@@ -196,3 +196,31 @@ def test_each_ray_starts_from_the_sensors_track_at_its_own_time() -> None:
     # this much per sample here.
     speed = np.linalg.norm(flight.velocity_at(t), axis=1)
     assert np.median(speed) / cfg.point_rate > 2e-5
+
+
+def test_imu_frame_lidar_is_the_lidars_own_motion_in_livox_frame(tmp_path: Path) -> None:
+    """--imu-frame lidar: the IMU at the lidar's origin and axes (the Livox driver's convention), checked against
+    finite differences of the lidar's pose from the bag's /odom and /tf_static."""
+    save_tum(sharp_turns(), tmp_path / "turns.txt")
+    assert main(["scan", "--config", str(mounted_config(tmp_path)), "--scene", str(room(tmp_path)), "--trajectory",
+                 str(tmp_path / "turns.txt"), "--seconds", "3", "--rosbag", str(tmp_path / "bag"), "--imu-rate",
+                 str(IMU_RATE), "--imu-frame", "lidar"]) == 0
+    bag = read_bag(tmp_path / "bag")
+    imu = [m for _, m in bag["/livox/imu"]]
+    assert {m.header.frame_id for m in imu} == {"livox_frame"}
+    omega = np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z] for m in imu])
+    force = np.array([[m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z] for m in imu])
+    odom = odometry(bag)
+    mount_t, mount_r = static_mount(bag)
+    lidar = odom["rotation"] * mount_r
+    origin = odom["position"] + odom["rotation"].apply(mount_t)
+    dt = 1.0 / IMU_RATE
+    acceleration = (origin[2:] - 2 * origin[1:-1] + origin[:-2]) / dt**2
+    inner = slice(1, -1)
+    np.testing.assert_allclose(force[inner], lidar[inner].inv().apply(acceleration - [0.0, 0.0, -GRAVITY]),
+                               atol=5e-3)
+    np.testing.assert_allclose(omega[inner], (lidar[:-2].inv() * lidar[2:]).as_rotvec() / (2 * dt), atol=1e-3)
+    # Not the body's readings merely turned: the lever arm shows.
+    body_force = odom["rotation"][inner].inv().apply(
+        (odom["position"][2:] - 2 * odom["position"][1:-1] + odom["position"][:-2]) / dt**2 - [0.0, 0.0, -GRAVITY])
+    assert np.abs(force[inner] - mount_r.inv().apply(body_force)).max() > 0.05
