@@ -21,6 +21,8 @@ dependency.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from livox_viz.core.poses import Pose, pose_quaternion
@@ -54,6 +56,7 @@ class SensorTrack:
         coefficients[:, :, 3:] = coefficients[:, :, 3:] @ _right_multiplier(self._mount_quaternion).T
         self._coefficients = np.ascontiguousarray(coefficients)
         self._lever = np.ascontiguousarray(mount.rotation.T @ mount.origin)
+        self._last_pose: tuple[float, Pose] | None = None
 
     @property
     def span(self) -> tuple[float, float]:
@@ -67,9 +70,30 @@ class SensorTrack:
         return origin, quat_multiply(quaternion, self._mount_quaternion)
 
     def pose_at(self, t: float) -> Pose:
-        """The sensor's :class:`Pose` in the world at time ``t`` seconds."""
-        origin, quaternion = self.poses_at(np.array([float(t)]))
-        return pose_from_quaternion(origin[0], quaternion[0])
+        """The sensor's :class:`Pose` in the world at time ``t`` seconds.
+
+        In plain floats, and the last answer kept: a frame asks for its start and its end, and the next frame
+        starts where it ended.
+        """
+        t = float(t)
+        if self._last_pose is not None and self._last_pose[0] == t:
+            return self._last_pose[1]
+        self.trajectory.check_covers(t, t)
+        knots = self.trajectory.t
+        k = min(max(int(np.searchsorted(knots, t, side="right")) - 1, 0), knots.size - 2)
+        u = t - float(knots[k])
+        c0, c1, c2, c3 = self._coefficients[k].tolist()
+        ox, oy, oz, x, y, z, w = (a + u * (b + u * (c + u * d)) for a, b, c, d in zip(c0, c1, c2, c3, strict=True))
+        length = math.sqrt(x * x + y * y + z * z + w * w)
+        x, y, z, w = x / length, y / length, z / length, w / length
+        # The lever arm (sensor frame) into the world: m' + 2w (u x m') + 2 u x (u x m').
+        lx, ly, lz = self._lever.tolist()
+        tx, ty, tz = 2 * (y * lz - z * ly), 2 * (z * lx - x * lz), 2 * (x * ly - y * lx)
+        origin = (ox + lx + w * tx + (y * tz - z * ty), oy + ly + w * ty + (z * tx - x * tz),
+                  oz + lz + w * tz + (x * ty - y * tx))
+        pose = pose_from_quaternion(np.array(origin), np.array([x, y, z, w]))
+        self._last_pose = (t, pose)
+        return pose
 
     def rays(self, t: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each ray's origin and world direction from the sensor's pose at its own time.
@@ -107,15 +131,22 @@ def _ray_kernel():
     if _KERNEL is None:
         import numba
 
-        _KERNEL = numba.njit(cache=True, nogil=True)(_rays)
+        segments = numba.njit(cache=True, nogil=True)(_segments)
+        body = numba.njit(cache=True, nogil=True, fastmath=True)(_ray_poses)
+
+        def kernel(t, knots, coefficients, lever, directions, origins, directions_world):
+            segment = np.empty(t.shape[0], dtype=np.int64)
+            segments(t, knots, segment)
+            body(t, knots, segment, coefficients, lever, directions, origins, directions_world)
+
+        _KERNEL = kernel
     return _KERNEL
 
 
-def _rays(t, knots, coefficients, lever, directions, origins, directions_world):  # pragma: no cover - compiled
-    """See :meth:`SensorTrack.rays`; ``coefficients`` ``(segments, 4, 7)``: position, then the sensor's p(t)."""
+def _segments(t, knots, segment):  # pragma: no cover - compiled
+    """``segment[i]``: the spline segment of ``t[i]`` (a walk for sorted times, a binary search otherwise)."""
     last = knots.shape[0] - 2
     k = 0
-    lx, ly, lz = lever[0], lever[1], lever[2]
     for i in range(t.shape[0]):
         ti = t[i]
         if ti < knots[k] or (k < last and ti >= knots[k + 1]):
@@ -130,7 +161,19 @@ def _rays(t, knots, coefficients, lever, directions, origins, directions_world):
                     else:
                         high = middle - 1
                 k = low
-        u = ti - knots[k]
+        segment[i] = k
+
+
+def _ray_poses(t, knots, segment, coefficients, lever, directions, origins, directions_world):  # pragma: no cover
+    """See :meth:`SensorTrack.rays`; ``coefficients`` ``(segments, 4, 7)``: position, then the sensor's p(t).
+
+    Compiled with ``fastmath`` (reassociation and vector instructions; no NaN or infinity can arise here: the
+    times are inside the span and ``|p|`` >= 0.5).
+    """
+    lx, ly, lz = lever[0], lever[1], lever[2]
+    for i in range(t.shape[0]):
+        k = segment[i]
+        u = t[i] - knots[k]
         c = coefficients[k]
         ox = c[0, 0] + u * (c[1, 0] + u * (c[2, 0] + u * c[3, 0]))
         oy = c[0, 1] + u * (c[1, 1] + u * (c[2, 1] + u * c[3, 1]))
