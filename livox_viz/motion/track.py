@@ -10,13 +10,13 @@ the one C2 motion model) composed with the fixed mount ``(m, R_m)``:
   the lever arm in the sensor frame.
 
 Per ray this is evaluated exactly, not interpolated: a compiled kernel (numba,
-``nogil``) finds the segment (walking forward through sorted times, a binary
-search otherwise), evaluates the seven cubics by Horner, and rotates the lever arm
-and the ray's sensor-frame direction with the homogeneous quaternion formula
-``(w^2 - |u|^2) v + 2 (u.v) u + 2 w (u x v)`` divided by ``|p|^2`` (no
-square root). About 15 ns a ray, a few percent of the ray's cast; numpy would
-need some 50 passes over the rays (measured 5x slower), which is why numba is a
-dependency.
+``nogil``) takes the rays a segment at a time (a binary search per run of rays;
+sorted times make runs of hundreds), evaluates the seven cubics by Horner, and
+rotates the lever arm and the ray's sensor-frame direction with the homogeneous
+quaternion formula ``(w^2 - |u|^2) v + 2 (u.v) u + 2 w (u x v)`` divided by
+``|p|^2`` (no square root). About 12 ns a ray, a few percent of the ray's cast;
+numpy would need some 50 passes over the rays (measured 5x slower), which is
+why numba is a dependency.
 """
 
 from __future__ import annotations
@@ -131,68 +131,64 @@ def _ray_kernel():
     if _KERNEL is None:
         import numba
 
-        segments = numba.njit(cache=True, nogil=True)(_segments)
-        body = numba.njit(cache=True, nogil=True, fastmath=True)(_ray_poses)
-
-        def kernel(t, knots, coefficients, lever, directions, origins, directions_world):
-            segment = np.empty(t.shape[0], dtype=np.int64)
-            segments(t, knots, segment)
-            body(t, knots, segment, coefficients, lever, directions, origins, directions_world)
-
-        _KERNEL = kernel
+        _KERNEL = numba.njit(cache=True, nogil=True, fastmath=True)(_rays)
     return _KERNEL
 
 
-def _segments(t, knots, segment):  # pragma: no cover - compiled
-    """``segment[i]``: the spline segment of ``t[i]`` (a walk for sorted times, a binary search otherwise)."""
-    last = knots.shape[0] - 2
-    k = 0
-    for i in range(t.shape[0]):
-        ti = t[i]
-        if ti < knots[k] or (k < last and ti >= knots[k + 1]):
-            if k < last and ti >= knots[k + 1] and (k + 1 == last or ti < knots[k + 2]):
-                k += 1
-            else:
-                low, high = 0, last
-                while low < high:
-                    middle = (low + high + 1) // 2
-                    if knots[middle] <= ti:
-                        low = middle
-                    else:
-                        high = middle - 1
-                k = low
-        segment[i] = k
-
-
-def _ray_poses(t, knots, segment, coefficients, lever, directions, origins, directions_world):  # pragma: no cover
+def _rays(t, knots, coefficients, lever, directions, origins, directions_world):  # pragma: no cover - compiled
     """See :meth:`SensorTrack.rays`; ``coefficients`` ``(segments, 4, 7)``: position, then the sensor's p(t).
 
-    Compiled with ``fastmath`` (reassociation and vector instructions; no NaN or infinity can arise here: the
-    times are inside the span and ``|p|`` >= 0.5).
+    Run by run: the rays of one spline segment (a binary search finds it; sorted times make long runs) share its
+    28 coefficients, so the inner loop has no gathers and vectorises. Compiled with ``fastmath``: no NaN or
+    infinity can arise (the times are inside the span, ``|p|`` >= 0.5 there).
     """
+    count = t.shape[0]
+    last = knots.shape[0] - 2
     lx, ly, lz = lever[0], lever[1], lever[2]
-    for i in range(t.shape[0]):
-        k = segment[i]
-        u = t[i] - knots[k]
+    i = 0
+    while i < count:
+        low, high = 0, last
+        while low < high:
+            middle = (low + high + 1) // 2
+            if knots[middle] <= t[i]:
+                low = middle
+            else:
+                high = middle - 1
+        k = low
+        start = knots[k]
+        end = knots[k + 1] if k < last else np.inf
+        stop = i + 1
+        while stop < count and start <= t[stop] < end:
+            stop += 1
         c = coefficients[k]
-        ox = c[0, 0] + u * (c[1, 0] + u * (c[2, 0] + u * c[3, 0]))
-        oy = c[0, 1] + u * (c[1, 1] + u * (c[2, 1] + u * c[3, 1]))
-        oz = c[0, 2] + u * (c[1, 2] + u * (c[2, 2] + u * c[3, 2]))
-        qx = c[0, 3] + u * (c[1, 3] + u * (c[2, 3] + u * c[3, 3]))
-        qy = c[0, 4] + u * (c[1, 4] + u * (c[2, 4] + u * c[3, 4]))
-        qz = c[0, 5] + u * (c[1, 5] + u * (c[2, 5] + u * c[3, 5]))
-        qw = c[0, 6] + u * (c[1, 6] + u * (c[2, 6] + u * c[3, 6]))
-        vector2 = qx * qx + qy * qy + qz * qz
-        inverse = 1.0 / (vector2 + qw * qw)
-        scale = (qw * qw - vector2) * inverse
-        twice_w = 2.0 * qw * inverse
-        # The lever arm (sensor frame) into the world.
-        along = 2.0 * (qx * lx + qy * ly + qz * lz) * inverse
-        origins[i, 0] = ox + scale * lx + along * qx + twice_w * (qy * lz - qz * ly)
-        origins[i, 1] = oy + scale * ly + along * qy + twice_w * (qz * lx - qx * lz)
-        origins[i, 2] = oz + scale * lz + along * qz + twice_w * (qx * ly - qy * lx)
-        vx, vy, vz = directions[i, 0], directions[i, 1], directions[i, 2]
-        along = 2.0 * (qx * vx + qy * vy + qz * vz) * inverse
-        directions_world[i, 0] = scale * vx + along * qx + twice_w * (qy * vz - qz * vy)
-        directions_world[i, 1] = scale * vy + along * qy + twice_w * (qz * vx - qx * vz)
-        directions_world[i, 2] = scale * vz + along * qz + twice_w * (qx * vy - qy * vx)
+        c00, c10, c20, c30 = c[0, 0], c[1, 0], c[2, 0], c[3, 0]
+        c01, c11, c21, c31 = c[0, 1], c[1, 1], c[2, 1], c[3, 1]
+        c02, c12, c22, c32 = c[0, 2], c[1, 2], c[2, 2], c[3, 2]
+        c03, c13, c23, c33 = c[0, 3], c[1, 3], c[2, 3], c[3, 3]
+        c04, c14, c24, c34 = c[0, 4], c[1, 4], c[2, 4], c[3, 4]
+        c05, c15, c25, c35 = c[0, 5], c[1, 5], c[2, 5], c[3, 5]
+        c06, c16, c26, c36 = c[0, 6], c[1, 6], c[2, 6], c[3, 6]
+        for r in range(i, stop):
+            u = t[r] - start
+            ox = c00 + u * (c10 + u * (c20 + u * c30))
+            oy = c01 + u * (c11 + u * (c21 + u * c31))
+            oz = c02 + u * (c12 + u * (c22 + u * c32))
+            qx = c03 + u * (c13 + u * (c23 + u * c33))
+            qy = c04 + u * (c14 + u * (c24 + u * c34))
+            qz = c05 + u * (c15 + u * (c25 + u * c35))
+            qw = c06 + u * (c16 + u * (c26 + u * c36))
+            vector2 = qx * qx + qy * qy + qz * qz
+            inverse = 1.0 / (vector2 + qw * qw)
+            scale = (qw * qw - vector2) * inverse
+            twice_w = 2.0 * qw * inverse
+            # The lever arm (sensor frame) into the world.
+            along = 2.0 * (qx * lx + qy * ly + qz * lz) * inverse
+            origins[r, 0] = ox + scale * lx + along * qx + twice_w * (qy * lz - qz * ly)
+            origins[r, 1] = oy + scale * ly + along * qy + twice_w * (qz * lx - qx * lz)
+            origins[r, 2] = oz + scale * lz + along * qz + twice_w * (qx * ly - qy * lx)
+            vx, vy, vz = directions[r, 0], directions[r, 1], directions[r, 2]
+            along = 2.0 * (qx * vx + qy * vy + qz * vz) * inverse
+            directions_world[r, 0] = scale * vx + along * qx + twice_w * (qy * vz - qz * vy)
+            directions_world[r, 1] = scale * vy + along * qy + twice_w * (qz * vx - qx * vz)
+            directions_world[r, 2] = scale * vz + along * qz + twice_w * (qx * vy - qy * vx)
+        i = stop
