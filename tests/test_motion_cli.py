@@ -27,6 +27,8 @@ MISUSES: list[tuple[list[str], str]] = [
      "--pose with a TUM file"),
     (["publish", "--seconds", "0.1", "--trajectory", "turns.txt", "--pose=1,2,-3,0,0,0", "--to", "127.0.0.1:9"],
      "--pose with a TUM file"),
+    (["scan", "--seconds", "0.1", "--trajectory", "hover", "--trajectory-speed", "5", "--out", "c.npz"],
+     "--trajectory-speed with hover"),
     (["scan", "--seconds", "0.1", "--trajectory", "spiral", "--out", "c.npz"],
      "allowed: a TUM file or a built-in flight: hover, line, circle, figure8"),
     (["scan", "--seconds", "0.1", "--imu-noise", "1e308,0,0,0", "--rosbag", "bag"], "allowed: 0 to 1"),

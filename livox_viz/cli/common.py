@@ -183,6 +183,8 @@ def trajectory_from_args(args: argparse.Namespace, start: Pose, seconds: float |
     if text in BUILTIN_TRAJECTORIES:
         if seconds is None or not math.isfinite(seconds):
             raise UsageError("a built-in --trajectory needs a finite --seconds (it is made for the scan's length)")
+        if text == "hover" and speed is not None:
+            raise UsageError("--trajectory-speed with hover; allowed: with a flight that moves (line, circle, figure8)")
         return builtin_trajectory(text, DEFAULT_TRAJECTORY_SPEED if speed is None else speed, start, seconds)
     if not Path(text).exists():
         raise UsageError(f"--trajectory {text!r}: no such TUM trajectory file; allowed: a TUM file or a built-in "
