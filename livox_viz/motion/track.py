@@ -131,7 +131,10 @@ def _ray_kernel():
     if _KERNEL is None:
         import numba
 
-        _KERNEL = numba.njit(cache=True, nogil=True, fastmath=True)(_rays)
+        try:
+            _KERNEL = numba.njit(cache=True, nogil=True, fastmath=True)(_rays)
+        except RuntimeError:  # no writable cache folder (a read-only install and home): compile in each process
+            _KERNEL = numba.njit(nogil=True, fastmath=True)(_rays)
     return _KERNEL
 
 
