@@ -76,8 +76,9 @@ class SensorTrack:
         starts where it ended.
         """
         t = float(t)
-        if self._last_pose is not None and self._last_pose[0] == t:
-            return self._last_pose[1]
+        last = self._last_pose  # one read: another thread may replace it
+        if last is not None and last[0] == t:
+            return last[1]
         self.trajectory.check_covers(t, t)
         knots = self.trajectory.t
         k = min(max(int(np.searchsorted(knots, t, side="right")) - 1, 0), knots.size - 2)
