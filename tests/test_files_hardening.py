@@ -32,3 +32,132 @@ def test_a_frame_of_more_rays_than_one_cast_part_is_cast_in_parts(tmp_path: Path
     assert len(split["t"]) > 100_000
     for name in ("xyz_int16", "t", "xyz_world", "frame"):
         np.testing.assert_array_equal(split[name], whole_data[name])
+
+
+def one_line_error(err: str, *words: str) -> str:
+    """The single ``livox-viz: error:`` line of ``err``, which must name each of ``words``."""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("livox-viz: error: ") and "Traceback" not in err, err
+    for word in words:
+        assert word in lines[0], (word, lines[0])
+    return lines[0]
+
+
+def no_work(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fail the test if ``scan`` starts casting (its outputs must be checked before any work)."""
+    from livox_viz.cli import scan_commands
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the scene was loaded before the output paths were checked")
+
+    monkeypatch.setattr(scan_commands, "scene_from_args", refuse)
+
+
+# 2. Every output path is checked before any work ---------------------------------------------------
+def test_a_bag_at_a_dangling_link_is_refused_before_any_work(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "target").mkdir()
+    (tmp_path / "bag").symlink_to(tmp_path / "target" / "bag")  # dangling, into a folder that exists
+    no_work(monkeypatch)
+    assert main(["scan", "--seconds", "0.2", "--out", str(tmp_path / "a.ply"), "--rosbag", str(tmp_path / "bag")]) == 2
+    one_line_error(capsys.readouterr().err, "bag", "symbolic link")
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["bag", "target"]
+
+
+@pytest.mark.parametrize("same", ["cloud.ply", "./cloud.ply", "link.ply"])
+def test_a_bag_at_the_same_path_as_out_is_refused_before_any_work(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], same: str) -> None:
+    monkeypatch.chdir(tmp_path)
+    Path("link.ply").symlink_to(tmp_path / "cloud.ply")  # the bag through a link to where --out writes
+    no_work(monkeypatch)
+    assert main(["scan", "--seconds", "0.2", "--out", "cloud.ply", "--rosbag", same]) == 2
+    one_line_error(capsys.readouterr().err, same)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.ply"]
+
+
+def test_a_symlink_loop_as_out_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    loop = tmp_path / "loop.ply"
+    loop.symlink_to(loop)
+    no_work(monkeypatch)
+    assert main(["scan", "--seconds", "0.2", "--out", str(loop)]) == 2
+    one_line_error(capsys.readouterr().err, "loop.ply", "loop of symbolic links")
+
+
+# 4. A read-only file is never replaced -------------------------------------------------------------
+def test_a_file_with_no_write_bit_is_refused_even_for_root(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "cloud.ply"
+    out.write_bytes(b"the user's protected file")
+    out.chmod(0o444)
+    assert main(["scan", "--seconds", "0.1", "--out", str(out)]) == 2
+    one_line_error(capsys.readouterr().err, "cloud.ply", "read-only")
+    assert out.read_bytes() == b"the user's protected file" and sorted(tmp_path.iterdir()) == [out]
+
+
+def test_a_file_the_user_may_not_write_is_refused_in_a_folder_they_may() -> None:
+    """As a user other than the file's owner (root runs this as nobody): ``echo >`` would refuse, so must we,
+    although the folder lets us rename over it."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="livox-viz-shared-"))  # pytest's own folder is closed to others
+    try:
+        folder.chmod(0o777)  # anyone may make and rename files here (no sticky bit)
+        out = folder / "cloud.ply"
+        out.write_bytes(b"someone else's file")
+        out.chmod(0o644)
+        command = [sys.executable, "-m", "livox_viz", "scan", "--seconds", "0.1", "--out", str(out)]
+        as_nobody = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
+        if os.geteuid() == 0 and shutil.which("setpriv") and subprocess.run(
+                [*as_nobody, sys.executable, "-c", "import livox_viz.cli"], cwd=folder, capture_output=True,
+                env={**os.environ, "HOME": str(folder)}).returncode == 0:
+            command = [*as_nobody, *command]
+            assert subprocess.run([*as_nobody, "sh", "-c", f"echo x > {out}"], capture_output=True).returncode != 0
+        else:  # not root, or nobody cannot reach this interpreter: we own the file, so take our write bit away
+            out.chmod(0o444)
+        result = subprocess.run(command, capture_output=True, text=True, cwd=folder,
+                                env={**os.environ, "HOME": str(folder), "LIVOX_VIZ_PRESETS": str(folder)})
+        assert result.returncode == 2, result.stderr
+        one_line_error(result.stderr, "cloud.ply", "read-only")
+        assert out.read_bytes() == b"someone else's file" and sorted(folder.iterdir()) == [out]
+    finally:
+        shutil.rmtree(folder)
+
+
+def test_a_pipe_behind_a_link_is_never_replaced(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A named pipe (a device would do the same; a test must not risk the machine's own /dev/null)."""
+    import os
+    import stat
+
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    link = tmp_path / "cloud.ply"
+    link.symlink_to(pipe)
+    assert main(["scan", "--seconds", "0.1", "--out", str(link)]) == 2
+    one_line_error(capsys.readouterr().err, "pipe", "not a regular file")
+    assert stat.S_ISFIFO(pipe.stat().st_mode) and sorted(p.name for p in tmp_path.iterdir()) == ["cloud.ply", "pipe"]
+
+
+# 6. Inputs are read no further than their limit ----------------------------------------------------
+ENDLESS_SCRIPT = """
+import resource, sys
+resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))  # a regression fails here, not the machine
+from livox_viz.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("argv", [["info", "--config", "/dev/zero"], ["info", "--preset", "/dev/zero"],
+                                  ["fit", "--to", "/dev/zero", "--out", "f.json"]])
+def test_an_endless_config_is_refused_at_its_size_limit(tmp_path: Path, argv: list[str]) -> None:
+    import subprocess
+    import sys
+
+    result = subprocess.run([sys.executable, "-c", ENDLESS_SCRIPT, *argv], cwd=tmp_path, capture_output=True,
+                            text=True, timeout=120)
+    assert result.returncode == 2, result.stderr[-2000:]
+    one_line_error(result.stderr, "/dev/zero", "at most 64 MiB")
+    assert list(tmp_path.iterdir()) == []

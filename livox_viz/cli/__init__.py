@@ -15,6 +15,7 @@ import sys
 from collections.abc import Iterable, Sequence
 from importlib.metadata import entry_points
 
+from livox_viz.core.atomic import remove_unfinished
 from livox_viz.core.errors import LivoxVizError
 
 from . import fit_commands, pattern_commands, scan_commands, wire_commands
@@ -102,9 +103,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{PROG}: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
+        remove_unfinished()  # what a signal between a temporary's creation and its writer's knowing of it left
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
     except Terminated as exc:
+        remove_unfinished()
         print(f"{PROG}: stopped by {exc}; unfinished files were removed", file=sys.stderr)
         return signal_status(exc.signum)
     finally:

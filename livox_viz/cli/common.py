@@ -200,7 +200,8 @@ def trajectory_from_args(args: argparse.Namespace, start: Pose, seconds: float |
 
 
 def check_output_path(path: str | Path, suffixes: tuple[str, ...]) -> Path:
-    """Refuse an output path before any work: wrong suffix, an existing folder, a missing folder.
+    """Refuse an output path before any work: wrong suffix, a folder, a missing or unwritable folder,
+    a read-only or special file, a loop of symbolic links.
 
     Parameters
     ----------
@@ -214,8 +215,26 @@ def check_output_path(path: str | Path, suffixes: tuple[str, ...]) -> Path:
         raise UsageError(f"{out}: is a folder; allowed: a file name ending in {', '.join(suffixes)}")
     if out.suffix.lower() not in suffixes:
         raise UsageError(f"{out}: unknown format {out.suffix or '(none)'}; allowed: {', '.join(suffixes)}")
-    resolve_destination(out)
-    folder = out.resolve().parent
+    folder = resolve_destination(out).parent
     if not os.access(folder, os.W_OK):
-        raise UsageError(f"{out}: the folder {folder} is not writable")
+        raise UsageError(f"{out}: the folder {folder.absolute()} is not writable")
     return out
+
+
+def check_bag_path(path: str | Path, *others: str | Path | None) -> Path:
+    """Refuse a ``--rosbag`` folder before any work: it must be a new name (not even a dangling link) in a
+    writable folder, and not the same path as another output of the command (``others``)."""
+    bag = Path(path)
+    if os.path.lexists(bag):
+        what = "a symbolic link" if bag.is_symlink() else "a folder" if bag.is_dir() else "a file"
+        raise UsageError(f"--rosbag {path}: exists ({what}); allowed: a new folder name (nothing is replaced)")
+    folder = bag.absolute().parent
+    if not folder.is_dir():
+        raise UsageError(f"--rosbag {path}: the folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise UsageError(f"--rosbag {path}: the folder {folder} is not writable")
+    for other in filter(None, others):
+        if os.path.realpath(other) == os.path.realpath(bag):
+            raise UsageError(f"--rosbag {path}: the same path as the output {other}; allowed: a bag folder name "
+                             "of its own")
+    return bag

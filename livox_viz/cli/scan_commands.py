@@ -26,6 +26,7 @@ from .common import (
     add_scene_arguments,
     add_seed_argument,
     add_trajectory_arguments,
+    check_bag_path,
     check_output_path,
     config_from_args,
     positive_float,
@@ -40,6 +41,11 @@ def cmd_scan(args: argparse.Namespace) -> int:
         raise UsageError("give --out FILE, --rosbag DIR, or both")
     _check_bag_options(args)
     out = check_output_path(args.out, FORMATS) if args.out else None
+    if args.rosbag:  # every output and name is checked before any work
+        from livox_viz.files.rosbag import RosNames
+
+        check_bag_path(args.rosbag, out)
+        RosNames.parse(args.ros_names or "")
     check_points(points_before(args.seconds, cfg.point_rate), f"scan --seconds {args.seconds:g}", force=args.force)
     _, pose, caster = scene_from_args(args)
     trajectory = trajectory_from_args(args, pose, args.seconds)

@@ -1,8 +1,10 @@
 """A JSON reader that turns every failure into one line naming the file and what is wrong.
 
 NaN and Infinity (which Python's parser accepts but JSON does not) are refused
-with the key that holds them; so are files over :data:`MAX_JSON_BYTES` and
-nesting too deep to parse.
+with the key that holds them; so is nesting too deep to parse. At most
+:data:`MAX_JSON_BYTES` (64 MiB) is ever read: the file is read to one byte past
+the limit, so an endless source (``/dev/zero``, a pipe that never closes its
+end, which ``stat`` calls empty) is refused as soon as it passes the limit.
 """
 
 from __future__ import annotations
@@ -28,16 +30,21 @@ def read_json_file(path: str | os.PathLike[str]) -> Any:
     """Parse a JSON file, turning every failure into a one-line :class:`ConfigError`.
 
     NaN and Infinity (which Python's parser accepts but JSON does not) are
-    refused with the key that holds them; so are files over 64 MiB and
-    nesting too deep to parse.
+    refused with the key that holds them; so are inputs over 64 MiB (read no
+    further than that, whatever ``stat`` says) and nesting too deep to parse.
     """
     path = Path(path)
+    too_big = f"{path}: more than {MAX_JSON_BYTES:,} bytes; allowed: a JSON file of at most {MAX_JSON_BYTES >> 20} MiB"
     try:
         if path.is_dir():
             raise ConfigError(f"{path}: is a folder, expected a JSON file")
         if path.is_file() and path.stat().st_size > MAX_JSON_BYTES:
-            raise ConfigError(f"{path}: {path.stat().st_size:,} bytes; allowed: at most {MAX_JSON_BYTES:,}")
-        text = path.read_text(encoding="utf-8-sig")
+            raise ConfigError(too_big)
+        with open(path, "rb") as handle:
+            data = handle.read(MAX_JSON_BYTES + 1)
+        if len(data) > MAX_JSON_BYTES:
+            raise ConfigError(too_big)
+        text = data.decode("utf-8-sig")
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
