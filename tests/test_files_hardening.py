@@ -84,6 +84,29 @@ def test_a_symlink_loop_as_out_is_one_line(tmp_path: Path, monkeypatch: pytest.M
     one_line_error(capsys.readouterr().err, "loop.ply", "loop of symbolic links")
 
 
+def test_a_bag_that_cannot_be_moved_into_place_leaves_nothing(tmp_path: Path, frames_and_mount) -> None:
+    """Something appears at the bag's path while it is written: refused in one line, nothing kept."""
+    from livox_viz.core.errors import LivoxVizError
+    from livox_viz.files.rosbag import RosbagWriter
+
+    frames, mount = frames_and_mount
+    with pytest.raises(LivoxVizError, match="appeared while writing"), RosbagWriter(tmp_path / "bag", mount) as bag:
+        bag.write_frame(frames[0])
+        (tmp_path / "bag").symlink_to(tmp_path / "elsewhere")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bag"]
+
+
+@pytest.fixture(scope="module")
+def frames_and_mount():
+    from livox_viz import load_preset
+    from livox_viz.casting.scan import LidarScanner
+    from livox_viz.scene.scenes import open_scene
+
+    scene = open_scene("urban")
+    scanner = LidarScanner(load_preset("livox_mid70"), scene.mesh, scene.vehicle_pose, seed=1)
+    return list(scanner.frames(0.2)), scanner.mounted.mount_pose
+
+
 # 4. A read-only file is never replaced -------------------------------------------------------------
 def test_a_file_with_no_write_bit_is_refused_even_for_root(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "cloud.ply"
@@ -160,4 +183,151 @@ def test_an_endless_config_is_refused_at_its_size_limit(tmp_path: Path, argv: li
                             text=True, timeout=120)
     assert result.returncode == 2, result.stderr[-2000:]
     one_line_error(result.stderr, "/dev/zero", "at most 64 MiB")
+    assert list(tmp_path.iterdir()) == []
+
+
+# 7. ROS names as ROS 2 validates them ---------------------------------------------------------------
+BAD_ROS_NAMES = [
+    ("lidar=/tf", "the bag's own transform topic"),
+    ("odom=/tf_static", "the bag's own transform topic"),
+    ("points=/livox/lidar", "collide"),
+    ("imu=/odom", "collide"),
+    ("lidar=livox/lidar", "must be absolute"),
+    ("lidar=/livox/lidar/", "must not end with"),
+    ("imu=/livox//imu", "repeated '/'"),
+    ("imu=/livox/9imu", "must not start with a number"),
+    ("imu=/livox/imu-raw", "must not contain '-'"),
+    ("imu=/" + "i" * 300, "longer than 247"),
+    ("lidar=/~/lidar", "must not contain '~'"),
+    ("body_frame=odom", "collide"),
+    ("lidar_frame=base_link", "collide"),
+    ("world_frame=/odom", "cannot start with a '/'"),
+    ("lidar_frame=livox frame", "spaces"),
+    ("tf=/x", "allowed: NAME=VALUE"),
+]
+
+
+@pytest.mark.parametrize(("names", "message"), BAD_ROS_NAMES, ids=[n[:30] for n, _ in BAD_ROS_NAMES])
+def test_invalid_or_colliding_ros_names_are_one_line_before_any_work(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], names: str,
+        message: str) -> None:
+    no_work(monkeypatch)
+    assert main(["scan", "--seconds", "0.2", "--rosbag", str(tmp_path / "bag"), "--ros-names", names]) == 2
+    one_line_error(capsys.readouterr().err, message)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_valid_ros_names_reach_the_bag(tmp_path: Path) -> None:
+    from rosbags.rosbag2 import Reader
+
+    bag = tmp_path / "bag"
+    names = "lidar=/drone_1/lidar,points=/drone_1/points,imu=/drone_1/imu_0,odom=/ground_truth/odom,"\
+            "lidar_frame=drone_1/livox,body_frame=drone_1/base_link,world_frame=map"
+    assert main(["scan", "--seconds", "0.2", "--rosbag", str(bag), "--ros-names", names]) == 0
+    with Reader(bag) as reader:
+        topics = {c.topic for c in reader.connections}
+    assert topics == {"/drone_1/lidar", "/drone_1/points", "/drone_1/imu_0", "/ground_truth/odom", "/tf", "/tf_static"}
+
+
+# 9. A signal at any moment of a writer's set-up leaves nothing ------------------------------------------
+class Interrupted(BaseException):
+    """Stands in for the exception a SIGTERM handler raises (the CLI's Terminated) or Ctrl-C."""
+
+
+def interrupt_at(step: int, files: tuple[str, ...]):
+    """A trace function raising :class:`Interrupted` at the ``step``-th bytecode run in ``files``: where a signal
+    handler's exception can surface (and more: every opcode). Returns the tracer and a one-item list counting
+    the steps seen."""
+    seen = [0]
+
+    def local(frame, event, arg):
+        if event == "opcode":
+            seen[0] += 1
+            if seen[0] == step:
+                raise Interrupted(step)
+        return local
+
+    def tracer(frame, event, arg):
+        if frame.f_code.co_filename.endswith(files):
+            frame.f_trace_opcodes = True
+            return local
+        return None
+
+    return tracer, seen
+
+
+def set_up_interrupted_everywhere(make, folder: Path, files: tuple[str, ...]) -> int:
+    """Run ``make()`` interrupted at its 1st, 2nd, ... bytecode in ``files`` until it runs whole; after each
+    interruption the CLI's own clean-up (:func:`remove_unfinished`) runs and ``folder`` must be empty.
+    Returns how many points were tried."""
+    import sys
+
+    from livox_viz.core.atomic import remove_unfinished
+
+    step = 1
+    while True:
+        tracer, seen = interrupt_at(step, files)
+        sys.settrace(tracer)
+        try:
+            writer = make()
+        except Interrupted:
+            writer = None
+        finally:
+            sys.settrace(None)
+        if writer is not None:
+            assert seen[0] < step  # ran whole: every step was tried
+            writer.abort()
+            assert list(folder.iterdir()) == []
+            return step - 1
+        remove_unfinished()  # what main() does when a signal stops it
+        assert list(folder.iterdir()) == [], f"interrupted at step {step} of the set-up"
+        step += 1
+
+
+# A handle opened just before an interruption and not yet stored is closed by the garbage collector (with a
+# ResourceWarning): harmless for a process that is stopping. What these tests look for is files left on disk.
+SIGNAL_WARNINGS = [pytest.mark.filterwarnings("ignore::ResourceWarning"),
+                   pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")]
+
+
+@SIGNAL_WARNINGS[0]
+@SIGNAL_WARNINGS[1]
+def test_a_signal_anywhere_in_a_bag_writers_set_up_leaves_nothing(tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every bytecode of the bag writer's constructor and of atomic.py; the rosbags part of the set-up (a
+    quarter second a time) is stood in for by a file in the work folder, and interrupted for real below."""
+    from livox_viz.core.poses import Pose
+    from livox_viz.files.rosbag import RosbagWriter
+
+    def open_light(self, mount) -> None:
+        (self._work.path / "bag").mkdir()
+        (self._work.path / "bag" / "metadata.yaml").write_text("stand-in")
+
+    monkeypatch.setattr(RosbagWriter, "_open", open_light)
+
+    def make():
+        return RosbagWriter(tmp_path / "bag", Pose((0.1, 0.0, -0.2), 0.0, 0.2, 0.0))
+
+    make().abort()
+    assert set_up_interrupted_everywhere(make, tmp_path, ("livox_viz/core/atomic.py",
+                                                          "livox_viz/files/rosbag.py")) > 100
+
+
+def test_a_signal_in_the_bags_rosbags_set_up_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """SIGTERM while rosbags opens the bag (the last connection): one line, exit 143, nothing left."""
+    from rosbags.rosbag2 import Writer
+
+    from livox_viz.cli import Terminated
+
+    add_connection = Writer.add_connection
+
+    def terminated_at_tf_static(self, topic, *args, **kwargs):
+        if topic == "/tf_static":
+            raise Terminated("SIGTERM")
+        return add_connection(self, topic, *args, **kwargs)
+
+    monkeypatch.setattr(Writer, "add_connection", terminated_at_tf_static)
+    assert main(["scan", "--seconds", "0.2", "--rosbag", str(tmp_path / "bag")]) == 143
+    assert "stopped by SIGTERM" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []

@@ -27,22 +27,30 @@ boundary, and only here: world NED (x north, y east, z down) -> ENU
 ``R_ENU_FLU = C_NED_ENU R C_FRD_FLU``. Points are in the sensor's FLU frame at
 their own time (what the driver gives); times are ``time_base`` plus the scan
 time.
+
+**What ROS reads.** Messages are written in log-time order (each call's messages
+wait until no earlier one can come). Every topic records the QoS its publisher
+would offer, as ``ros2 bag record`` writes it (metadata version 8, which Humble
+and Jazzy both read): reliable and volatile, and ``/tf_static`` reliable and
+transient local, so that ``ros2 bag play`` latches it for RViz.
 """
 
 from __future__ import annotations
 
+import heapq
+import itertools
 import os
-import shutil
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
 
 from livox_viz.casting.scan import ScanFrame
-from livox_viz.core.atomic import make_work_dir, remove_dead_leftovers
+from livox_viz.core.atomic import WorkDir, remove_dead_leftovers
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.poses import Pose
 from livox_viz.core.rotations import FRD_TO_FLU, enu_flu_from_ned_frd, enu_from_ned, flu_from_frd, quat_from_matrix
+from livox_viz.files.ros_names import check_ros_names
 from livox_viz.motion.imu import IMU_FRAMES, ImuSamples
 from livox_viz.motion.trajectory import Trajectory
 
@@ -97,6 +105,13 @@ class RosNames:
     body_frame: str = "base_link"
     world_frame: str = "odom"
 
+    def __post_init__(self) -> None:
+        """Valid as ROS 2 names them, and no two colliding (see :mod:`livox_viz.files.ros_names`)."""
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        check_ros_names({k: v for k, v in values.items() if not k.endswith("_frame")},
+                        {k: v for k, v in values.items() if k.endswith("_frame")},
+                        ("world_frame", "body_frame", "lidar_frame"))
+
     @classmethod
     def parse(cls, text: str) -> RosNames:
         """``lidar=/x,imu=/y,...`` as given to ``--ros-names``."""
@@ -135,14 +150,11 @@ class RosbagWriter:
 
     def __init__(self, path: str | os.PathLike[str], mount: Pose, names: RosNames | None = None,
                  time_base: float = DEFAULT_TIME_BASE, lasers: int = 1, imu_frame: str = "body") -> None:
-        from rosbags.rosbag2 import StoragePlugin, Writer
-        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
         self.path = Path(path)
-        if self.path.exists():
+        if os.path.lexists(self.path):  # a dangling symbolic link too: the bag would be renamed onto it
             raise LivoxVizError(f"{self.path}: exists; allowed: a new folder name for the bag (nothing is replaced)")
-        if not self.path.parent.is_dir():
-            raise LivoxVizError(f"{self.path}: the folder {self.path.parent} does not exist")
+        if not self.path.absolute().parent.is_dir():
+            raise LivoxVizError(f"{self.path}: the folder {self.path.absolute().parent} does not exist")
         self.names = names or RosNames()
         if imu_frame not in IMU_FRAMES:
             raise LivoxVizError(f"IMU frame {imu_frame!r}; allowed: {', '.join(IMU_FRAMES)}")
@@ -153,7 +165,25 @@ class RosbagWriter:
         self.points = 0
         #: Why closing the bag failed during an abort, if it did.
         self.abort_error = ""
-        self._work = make_work_dir(self.path)
+        self._closed = False
+        self._bag = None
+        # Messages wait here, (stamp ns, order, connection, bytes), until no earlier one can come.
+        self._pending: list[tuple[int, int, object, bytes | memoryview]] = []
+        self._order = itertools.count()
+        self._latest: dict[int, int] = {}
+        # Named before it exists and created inside the try, so no signal can leave it behind.
+        self._work = WorkDir(self.path.absolute().parent / self.path.name)
+        try:
+            self._work.create()
+            self._open(mount)
+        except BaseException:
+            self.abort()
+            raise
+
+    def _open(self, mount: Pose) -> None:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
         store = get_typestore(Stores.ROS2_HUMBLE)
         types = get_types_from_msg(CUSTOM_POINT_MSG, "livox_ros_driver2/msg/CustomPoint")
         types.update(get_types_from_msg(CUSTOM_MSG, "livox_ros_driver2/msg/CustomMsg"))
@@ -162,16 +192,19 @@ class RosbagWriter:
         self._imu_layout: FixedLayout | None = None
         self._odom_layout: FixedLayout | None = None
         self._tf_layout: FixedLayout | None = None
-        self._bag = Writer(self._work / "bag", version=8, storage_plugin=StoragePlugin.MCAP)
-        self._bag.open()
-        self._closed = False
-        connect = self._bag.add_connection
-        self._lidar = connect(self.names.lidar, "livox_ros_driver2/msg/CustomMsg", typestore=store)
-        self._points = connect(self.names.points, "sensor_msgs/msg/PointCloud2", typestore=store)
-        self._imu = connect(self.names.imu, "sensor_msgs/msg/Imu", typestore=store)
-        self._odom = connect(self.names.odom, "nav_msgs/msg/Odometry", typestore=store)
-        self._tf = connect("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
-        self._tf_static = connect("/tf_static", "tf2_msgs/msg/TFMessage", typestore=store)
+        bag = Writer(self._work.path / "bag", version=8, storage_plugin=StoragePlugin.MCAP)
+        bag.open()
+        self._bag = bag
+
+        def connect(topic: str, msgtype: str, latched: bool = False):
+            return bag.add_connection(topic, msgtype, typestore=store, offered_qos_profiles=[offered_qos(latched)])
+
+        self._lidar = connect(self.names.lidar, "livox_ros_driver2/msg/CustomMsg")
+        self._points = connect(self.names.points, "sensor_msgs/msg/PointCloud2")
+        self._imu = connect(self.names.imu, "sensor_msgs/msg/Imu")
+        self._odom = connect(self.names.odom, "nav_msgs/msg/Odometry")
+        self._tf = connect("/tf", "tf2_msgs/msg/TFMessage")
+        self._tf_static = connect("/tf_static", "tf2_msgs/msg/TFMessage", latched=True)
         # The mount between two FLU frames: both sides of the FRD rotation turned into FLU.
         mount_flu = FRD_TO_FLU @ mount.rotation @ FRD_TO_FLU
         self._write(self._tf_static, self.time_base_ns, self._tf_message(
@@ -190,7 +223,30 @@ class RosbagWriter:
         return self.time_base_ns + round(seconds * 1e9)
 
     def _write(self, connection, nanoseconds: int, message) -> None:
-        self._bag.write(connection, nanoseconds, self.store.serialize_cdr(message, connection.msgtype))
+        self._emit(connection, [nanoseconds], [self.store.serialize_cdr(message, connection.msgtype)])
+
+    def _emit(self, connection, stamps, messages) -> None:
+        """Queue messages of one connection (stamps non-decreasing, ns) and write whatever is now in order."""
+        for stamp, data in zip(stamps, messages, strict=True):
+            heapq.heappush(self._pending, (stamp, next(self._order), connection, data))
+            if connection is not self._tf_static:  # written once: it must not hold the others back
+                self._latest[connection.id] = stamp
+        self._release(min(self._latest.values(), default=-1))
+
+    def _release(self, upto: int) -> None:
+        """Write the queued messages stamped ``upto`` ns or earlier, in stamp order.
+
+        Each connection's stamps only grow, so none earlier than the latest stamp of every
+        connection can still come.
+        """
+        pending = self._pending
+        try:
+            while pending and pending[0][0] <= upto:
+                stamp, _, connection, data = heapq.heappop(pending)
+                self._bag.write(connection, stamp, data)
+        except OSError as exc:  # a full disk: say which file
+            raise LivoxVizError(f"{self.path}: cannot write the bag ({exc.strerror or exc}); nothing is kept") \
+                from exc
 
     def _tf_message(self, transforms):
         """``transforms``: (stamp ns, parent, child, translation (3,), quaternion [x, y, z, w])."""
@@ -210,7 +266,7 @@ class RosbagWriter:
         xyz = flu_from_frd(frame.xyz_decoded).astype(np.float32)
         offset = np.round((frame.t - frame.timestamp) * 1e9).astype(np.int64)
         line = (frame.stream_index % self.lasers).astype(np.uint8)
-        self._bag.write(self._lidar, stamp, custom_msg_cdr(stamp, self.names.lidar_frame, xyz, offset, line))
+        self._emit(self._lidar, [stamp], [custom_msg_cdr(stamp, self.names.lidar_frame, xyz, offset, line)])
         cloud = np.zeros(len(frame), dtype=_PC2_DTYPE)
         cloud["x"], cloud["y"], cloud["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
         cloud["line"] = line
@@ -305,33 +361,48 @@ class RosbagWriter:
     def _write_packed(self, connection, stamps: np.ndarray, records: np.ndarray) -> None:
         size = records.dtype.itemsize
         view = memoryview(records.tobytes())
-        for k, stamp in enumerate(stamps.tolist()):
-            self._bag.write(connection, stamp, view[k * size : (k + 1) * size])
+        self._emit(connection, stamps.tolist(), [view[k * size : (k + 1) * size] for k in range(len(stamps))])
 
     # Files ------------------------------------------------------------------------------------
     def close(self) -> Path:
-        """Finish the bag and move the folder into place; returns its path."""
+        """Finish the bag and move the folder into place; returns its path.
+
+        Raises
+        ------
+        LivoxVizError
+            Naming the bag, if it cannot be finished or moved (nothing is left behind then).
+        """
         if self._closed:
             return self.path
-        self._bag.close()
-        self._closed = True
-        if self.path.exists():
+        try:
+            self._release(2**63)
+            self._bag.close()
+            self._closed = True
+            if os.path.lexists(self.path):
+                raise LivoxVizError(f"{self.path}: appeared while writing; the bag was not moved over it")
+            os.rename(self._work.path / "bag", self.path)
+        except OSError as exc:
             self.abort()
-            raise LivoxVizError(f"{self.path}: appeared while writing; the bag was not moved over it")
-        os.replace(self._work / "bag", self.path)
-        shutil.rmtree(self._work, ignore_errors=True)
-        remove_dead_leftovers(self.path.parent)
+            raise LivoxVizError(f"{self.path}: cannot write the bag ({exc.strerror or exc}); nothing was kept") \
+                from exc
+        except BaseException:
+            self.abort()
+            raise
+        self._work.remove()
+        remove_dead_leftovers(self.path.absolute().parent)
         return self.path
 
     def abort(self) -> None:
         """Drop the bag; nothing is left behind."""
         if not self._closed:
             self._closed = True
+            self._pending.clear()
             try:
-                self._bag.close()
-            except (OSError, ValueError, RuntimeError) as exc:  # the half-written bag is removed below anyway
+                if self._bag is not None:
+                    self._bag.close()
+            except Exception as exc:  # the half-written bag is removed below anyway
                 self.abort_error = str(exc)
-        shutil.rmtree(self._work, ignore_errors=True)
+        self._work.remove()
 
     def __enter__(self) -> RosbagWriter:
         return self
@@ -341,6 +412,21 @@ class RosbagWriter:
             self.close()
         else:
             self.abort()
+
+
+def offered_qos(latched: bool = False):
+    """The QoS a publisher offers, as ``ros2 bag record`` stores it (history unknown, depth 0, durations infinite).
+
+    Reliable and volatile, as the Livox driver and tf2's broadcaster publish; ``latched`` (``/tf_static``):
+    reliable and transient local, as tf2's static broadcaster publishes, so ``ros2 bag play`` offers it
+    latched and a late subscriber (RViz) still receives it.
+    """
+    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+
+    infinite = QosTime(9_223_372_036, 854_775_807)  # RMW_DURATION_INFINITE, as Humble and Jazzy record it
+    return Qos(QosHistory.UNKNOWN, 0, QosReliability.RELIABLE,
+               QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
+               infinite, infinite, QosLiveliness.AUTOMATIC, infinite, False)
 
 
 class FixedLayout:
