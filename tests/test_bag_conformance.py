@@ -4,6 +4,7 @@ plyfile and pypcd4 for PLY and PCD (issue 15, section 4)."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -87,3 +88,66 @@ def test_messages_are_in_log_time_order_and_decode(bag: Path) -> None:
     assert (steps >= 0).all(), f"{(steps < 0).sum()} steps back in time"
     assert counts == {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
     assert counts["/livox/lidar"] == counts["/livox/points"] == 6 and counts["/livox/imu"] >= 120
+
+
+# LAS --------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module", params=["world", "sensor"])
+def las_file(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
+    path = tmp_path_factory.mktemp("las") / f"{request.param}.las"
+    assert main(["scan", "--seconds", "0.3", "--frame", request.param, "--out", str(path)]) == 0
+    return request.param, path
+
+
+def test_las_returns_and_wkt_bit_follow_the_spec(las_file: tuple[str, Path]) -> None:
+    """LAS 1.4 R15: return_number and number_of_returns are at least 1; point formats 6-10 set the WKT bit of
+    the global encoding (bit 4 of the uint16 at byte 6, read from the raw header) and give their CRS in WKT."""
+    import laspy
+    import pyproj
+
+    _, path = las_file
+    las = laspy.read(path)
+    assert las.header.point_format.id == 6 and len(las.points) > 1000
+    returns, of = np.asarray(las.return_number), np.asarray(las.number_of_returns)
+    assert returns.min() >= 1 and (returns <= of).all()
+    global_encoding = int.from_bytes(path.read_bytes()[6:8], "little")
+    assert global_encoding & 0x10
+    wkt = next(v for v in las.header.vlrs if v.user_id == "LASF_Projection" and v.record_id == 2112)
+    crs = pyproj.CRS.from_wkt(wkt.string)
+    assert not crs.is_geographic and [a.direction for a in crs.axis_info][2] == "up"
+
+
+def test_las_is_z_up_and_says_so(las_file: tuple[str, Path]) -> None:
+    """The urban scene's ground is below the sensor (1.5 m up): in a z-up LAS the lowest points have the lowest
+    z, whether the world is ENU (sensor at z = +1.5 m) or the sensor FLU (ground at z < 0)."""
+    import laspy
+
+    frame, path = las_file
+    las = laspy.read(path)
+    record = json.loads(next(v for v in las.header.vlrs if v.user_id == "livox-viz").record_data)
+    assert "z up" in record["description"] and ("ENU" if frame == "world" else "FLU") in record["description"]
+    sensor_height = 1.5 + 0.3 if frame == "world" else 0.0  # the scene's vehicle 1.5 m up, the sensor 0.3 m above
+    ground = np.asarray(las.z) < sensor_height - 1.0
+    assert ground.mean() > 0.2  # most of what a forward sensor sees below it is the ground
+    assert np.median(np.asarray(las.z)[ground]) == pytest.approx(sensor_height - 1.8, abs=0.3)
+
+
+# One rule, stated in every file ----------------------------------------------------------------------
+@pytest.mark.parametrize("suffix", [".ply", ".pcd", ".las", ".csv", ".npz"])
+def test_every_file_states_which_points_it_holds(tmp_path: Path, suffix: str) -> None:
+    import laspy
+    from plyfile import PlyData
+
+    from livox_viz.files.export import NPZ_RULE, POINTS_RULE
+
+    out = tmp_path / f"cloud{suffix}"
+    assert main(["scan", "--seconds", "0.1", "--frame", "world", "--out", str(out)]) == 0
+    if suffix == ".ply":
+        stated = " ".join(PlyData.read(str(out)).comments)
+    elif suffix == ".las":
+        stated = next(v for v in laspy.read(out).header.vlrs if v.user_id == "livox-viz").record_data.decode()
+    elif suffix == ".npz":
+        stated = str(np.load(out)["frame_of_reference"])
+        assert NPZ_RULE in json.loads(stated)["points"]
+    else:
+        stated = out.read_bytes()[:400].decode("ascii", "replace")
+    assert POINTS_RULE in stated or suffix == ".npz"

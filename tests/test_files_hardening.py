@@ -107,6 +107,88 @@ def frames_and_mount():
     return list(scanner.frames(0.2)), scanner.mounted.mount_pose
 
 
+# 3. A world 2000 km out keeps its coordinates -------------------------------------------------------------
+FAR_NORTH = 2_000_000.0  # metres from the world origin (NED x): LAS int32 at 0.1 mm holds +-214 km only
+
+
+@pytest.fixture(scope="module")
+def far_scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A wall and a floor 2000 km north of the origin, with the vehicle in front of the wall."""
+    scene = tmp_path_factory.mktemp("far") / "far.json"
+    scene.write_text(json.dumps({"objects": [
+        {"type": "box", "center": [FAR_NORTH + 30, 0, 0], "size": [1, 200, 200]},
+        {"type": "box", "center": [FAR_NORTH, 0, 2.5], "size": [200, 200, 1]},
+    ], "vehicle_pose": [FAR_NORTH, 0.0, 0.0, 0.0, 0.2, 0.1]}))
+    return scene
+
+
+@pytest.fixture(scope="module")
+def far_frames(far_scene: Path) -> list:
+    from livox_viz import load_preset
+    from livox_viz.casting.scan import LidarScanner
+    from livox_viz.scene.scenes import open_scene
+
+    scene = open_scene(str(far_scene))
+    return list(LidarScanner(load_preset("livox_mid70"), scene.mesh, scene.vehicle_pose, seed=4).frames(0.2))
+
+
+def test_a_world_las_far_from_the_origin_is_written_with_offsets_from_the_data(
+        tmp_path: Path, far_scene: Path, far_frames: list, capsys: pytest.CaptureFixture[str]) -> None:
+    import laspy
+
+    from livox_viz.core.rotations import enu_from_ned
+
+    out = tmp_path / "far.las"
+    assert main(["scan", "--scene", str(far_scene), "--seconds", "0.2", "--seed", "4", "--frame", "world",
+                 "--out", str(out)]) == 0, capsys.readouterr().err
+    las = laspy.read(out)
+    expected = enu_from_ned(np.concatenate([f.xyz_world_decoded for f in far_frames]))
+    assert len(expected) > 5000 and abs(las.header.offsets[1] - FAR_NORTH) < 100  # ENU y is north
+    np.testing.assert_allclose(np.column_stack([las.x, las.y, las.z]), expected, rtol=0,
+                               atol=0.5 * las.header.scales.max() + 1e-9)
+    assert las.header.scales.max() == pytest.approx(1e-4)
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".pcd", ".csv"])
+def test_world_ply_pcd_csv_keep_far_coordinates_exact(tmp_path: Path, far_frames: list, suffix: str) -> None:
+    """Read back by plyfile, pypcd4 and numpy: float64 (or 1 um text) world coordinates, not float32's 0.25 m."""
+    from livox_viz.files.export import PointCloudWriter
+
+    out = tmp_path / f"far{suffix}"
+    with PointCloudWriter(out, "world") as writer:
+        for frame in far_frames:
+            writer.write(frame)
+    expected = np.concatenate([f.xyz_world_decoded for f in far_frames])
+    if suffix == ".ply":
+        from plyfile import PlyData
+
+        vertex = PlyData.read(str(out))["vertex"]
+        assert vertex["x"].dtype == np.float64
+        xyz = np.column_stack([vertex["x"], vertex["y"], vertex["z"]])
+    elif suffix == ".pcd":
+        from pypcd4 import PointCloud
+
+        cloud = PointCloud.from_path(out)
+        assert cloud.types[:3] == (np.float64,) * 3
+        xyz = cloud.numpy(("x", "y", "z"))
+    else:
+        xyz = np.loadtxt(out, delimiter=",", comments="#", skiprows=2)[:, :3]
+    assert np.ptp(xyz[:, 0]) > 0.5
+    np.testing.assert_allclose(xyz, expected, rtol=0, atol=1e-6 if suffix == ".csv" else 1e-9)
+
+
+def test_las_offset_and_scale_hold_any_extent() -> None:
+    from livox_viz.files.export import las_offset_and_scale
+
+    offset, scale = las_offset_and_scale(np.array([-1e3, 2e6 - 5, -10.0]), np.array([1e3, 2e6 + 5, 90.0]))
+    np.testing.assert_array_equal(offset, [0, 2e6, 40])
+    np.testing.assert_array_equal(scale, [1e-4] * 3)
+    offset, scale = las_offset_and_scale(np.array([-6e6, 0, 0]), np.array([6e6, 1, 1]))  # 12,000 km wide
+    assert 6e6 / scale[0] < 2**31 and scale[0] == pytest.approx(1e-2) and scale[1] == 1e-4
+    offset, scale = las_offset_and_scale(np.full(3, np.inf), np.full(3, -np.inf))  # no point at all
+    np.testing.assert_array_equal(offset, 0)
+
+
 # 4. A read-only file is never replaced -------------------------------------------------------------
 def test_a_file_with_no_write_bit_is_refused_even_for_root(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "cloud.ply"
@@ -162,6 +244,43 @@ def test_a_pipe_behind_a_link_is_never_replaced(tmp_path: Path, capsys: pytest.C
     assert main(["scan", "--seconds", "0.1", "--out", str(link)]) == 2
     one_line_error(capsys.readouterr().err, "pipe", "not a regular file")
     assert stat.S_ISFIFO(pipe.stat().st_mode) and sorted(p.name for p in tmp_path.iterdir()) == ["cloud.ply", "pipe"]
+
+
+# 5. A full disk: one line naming the file, nothing left ------------------------------------------------
+FULL_DISK_SCRIPT = """
+import contextlib, io, json, resource, signal, sys
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG, as a full disk's ENOSPC
+from livox_viz.cli import main
+results = []
+for limit, argv in json.loads(sys.argv[1]):
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.RLIM_INFINITY))
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = main(argv)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (resource.RLIM_INFINITY, resource.RLIM_INFINITY))
+    results.append((code, err.getvalue()))
+print(json.dumps(results))
+"""
+
+
+def test_a_full_disk_names_the_file_and_leaves_nothing(tmp_path: Path) -> None:
+    """Every format and the bag, the disk filling at several points of the writing (a file size limit stands in
+    for the full disk: the same failed writes, and buffered data that cannot be flushed when closing)."""
+    import subprocess
+    import sys
+
+    runs = []
+    for limit in (20_000, 200_000, 700_000):
+        for name in ("cloud.ply", "cloud.pcd", "cloud.las", "cloud.npz", "cloud.csv"):
+            runs.append((limit, ["scan", "--seconds", "0.4", "--out", name]))
+        runs.append((limit, ["scan", "--seconds", "0.4", "--rosbag", "bag"]))
+    result = subprocess.run([sys.executable, "-c", FULL_DISK_SCRIPT, json.dumps(runs)], cwd=tmp_path,
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    for (limit, argv), (code, err) in zip(runs, json.loads(result.stdout.splitlines()[-1]), strict=True):
+        assert code == 2, (limit, argv, err)
+        one_line_error(err, argv[-1])
+    assert list(tmp_path.iterdir()) == []
 
 
 # 6. Inputs are read no further than their limit ----------------------------------------------------
@@ -288,6 +407,21 @@ def set_up_interrupted_everywhere(make, folder: Path, files: tuple[str, ...]) ->
 # ResourceWarning): harmless for a process that is stopping. What these tests look for is files left on disk.
 SIGNAL_WARNINGS = [pytest.mark.filterwarnings("ignore::ResourceWarning"),
                    pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")]
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".las", ".npz"])
+@SIGNAL_WARNINGS[0]
+@SIGNAL_WARNINGS[1]
+def test_a_signal_anywhere_in_a_file_writers_set_up_leaves_nothing(tmp_path: Path, suffix: str) -> None:
+    from livox_viz.files.export import PointCloudWriter
+
+    def make():
+        return PointCloudWriter(tmp_path / f"cloud{suffix}")
+
+    make().abort()  # imports warmed: every step below is the set-up itself
+    tried = set_up_interrupted_everywhere(make, tmp_path, ("livox_viz/core/atomic.py", "livox_viz/files/export.py",
+                                                          "livox_viz/files/npzstream.py"))
+    assert tried > 100
 
 
 @SIGNAL_WARNINGS[0]

@@ -19,7 +19,7 @@ from livox_viz.casting.scan import LidarScanner
 from livox_viz.cli import main
 from livox_viz.config.mount import sensor_world_pose
 from livox_viz.core.poses import Pose
-from livox_viz.core.rotations import euler_matrix
+from livox_viz.core.rotations import enu_from_ned, euler_matrix
 from livox_viz.files.export import PointCloudWriter
 from livox_viz.scene.raycast import EmbreeCaster, TrimeshCaster
 from livox_viz.scene.scenes import default_scene, load_mesh_file, load_scene, open_scene
@@ -193,7 +193,8 @@ def frames(mid70: SensorConfig) -> list:
 
 
 def expected_points(frames: list, coordinates: str) -> np.ndarray:
-    return np.concatenate([f.xyz_decoded if coordinates == "sensor" else f.xyz_world for f in frames])
+    """What every point-cloud format holds: the decoded points, in the sensor or placed in the world."""
+    return np.concatenate([f.xyz_decoded if coordinates == "sensor" else f.xyz_world_decoded for f in frames])
 
 
 @pytest.mark.parametrize("ascii_mode", [False, True])
@@ -230,7 +231,7 @@ def test_las_round_trip(tmp_path: Path, frames: list) -> None:
     las = laspy.read(path)
     assert las.header.version.minor == 4
     xyz = np.column_stack([las.x, las.y, las.z])
-    np.testing.assert_allclose(xyz, expected_points(frames, "world"), atol=1e-4)
+    np.testing.assert_allclose(xyz, enu_from_ned(expected_points(frames, "world")), atol=1e-4)  # z up
     np.testing.assert_allclose(las.gps_time, np.concatenate([f.t for f in frames]), atol=1e-9)
     record = next(v for v in las.header.vlrs if v.user_id == "livox-viz")
     assert json.loads(record.record_data)["frame"] == "world"
@@ -246,7 +247,7 @@ def test_npz_and_csv_round_trip(tmp_path: Path, frames: list) -> None:
     assert np.array_equal(data["xyz_int16"], np.concatenate([f.xyz_int16 for f in frames]))
     assert data["xyz_int16"].dtype == np.int16
     np.testing.assert_array_equal(data["xyz_sensor"], expected_points(frames, "sensor"))
-    np.testing.assert_array_equal(data["xyz_world"], expected_points(frames, "world"))
+    np.testing.assert_array_equal(data["xyz_world"], np.concatenate([f.xyz_world for f in frames]))  # exact
     assert "sensor FRD" in str(data["frame_of_reference"])
     table = np.loadtxt(csv, delimiter=",", comments="#", skiprows=2)
     np.testing.assert_allclose(table[:, :3], expected_points(frames, "sensor"), atol=1e-5)

@@ -1,11 +1,27 @@
 """Point-cloud files: PLY and PCD (binary or ASCII), LAS 1.4, NPZ and CSV, streamed frame by frame.
 
 Every writer takes frames one at a time (memory stays flat however long the
-scan), writes into temporary files next to the destination and renames the
-finished file over it on :meth:`PointCloudWriter.close`; on failure nothing is
-left behind. Each file states its frame of reference (``sensor`` = the
-decoded int16 points a RflySim client sees, sensor FRD metres; ``world`` =
-world NED metres) in its header or metadata.
+scan), writes into a work folder next to the destination and renames the
+finished file over it on :meth:`PointCloudWriter.close`; on any failure (a full
+disk included) the work folder is removed, the message names the file, and
+the old file, if any, is kept. An existing read-only file is refused.
+
+**Which points.** PLY, PCD, LAS and CSV hold what a RflySim client receives:
+each point decoded from the int16 wire (steps of ``range / 32767``), in the
+sensor frame at its own time (``sensor``) or placed in the world with the
+sensor's pose at its own time (``world``); ``range`` is the decoded point's
+distance. The NPZ, the full record, holds the wire's ``xyz_int16``, those
+points decoded (``xyz_sensor``) and, only there, the exact hits (``xyz_world``,
+``range``). Every file says so in its header.
+
+**Frames and precision.** PLY, PCD and CSV are in the project's frames (sensor
+FRD, world NED); world coordinates are float64 (float32 would round them to
+6 cm a thousand kilometres out), sensor ones float32 (exact to 1e-7 of the
+range, far below the int16 step). LAS is z-up, as every LAS viewer and GIS
+expects: world ENU (x east, y north, z up), sensor FLU (x forward, y left, z
+up), said in a WKT coordinate system (a local one) and in a livox-viz record;
+its offset and scale are chosen from the data (0.1 mm wherever the cloud's
+extent allows).
 """
 
 from __future__ import annotations
@@ -21,19 +37,43 @@ from typing import BinaryIO
 import numpy as np
 
 from livox_viz.casting.point_frame import PointFrame
-from livox_viz.core.atomic import atomic_path, make_work_dir, resolve_destination
+from livox_viz.core.atomic import WorkDir, atomic_path
 from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.rotations import enu_from_ned, flu_from_frd
 from livox_viz.files.npzstream import NpzColumns
 
 FORMATS = (".ply", ".pcd", ".las", ".npz", ".csv")
 FRAMES = ("sensor", "world")
 FRAME_DESCRIPTION = {
-    "sensor": "sensor FRD (x forward, y right, z down), metres, decoded from RflySim int16",
+    "sensor": "sensor FRD (x forward, y right, z down), metres, at each point's own time",
     "world": "world NED (x north, y east, z down), metres",
 }
-#: Per-point fields of PLY, PCD and CSV, with their numpy types.
-POINT_FIELDS: tuple[tuple[str, str], ...] = (
-    ("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("range", "<f4"), ("time", "<f8"), ("frame", "<u4"),
+#: LAS is z-up: the same frames turned as ROS turns them (REP 103).
+LAS_FRAME_DESCRIPTION = {
+    "sensor": "sensor FLU (x forward, y left, z up), metres, at each point's own time",
+    "world": "world ENU (x east, y north, z up), metres; east = the scene's NED y, north = its x, up = -z",
+}
+#: The one rule for the points of PLY, PCD, LAS and CSV (stated in every file).
+POINTS_RULE = ("points as a RflySim client decodes them from the int16 wire (range/32767 steps); world: each "
+               "placed with the sensor pose at its own time; range: the decoded point's distance")
+NPZ_RULE = ("xyz_int16: the wire (sensor FRD); xyz_sensor: those points decoded (xyz_int16 * range_max / 32767), "
+            "as every other format holds them; xyz_world and range: the exact hits, which only the NPZ keeps")
+#: LAS coordinates are stored to this step (metres) unless the cloud is too wide for int32 at it.
+LAS_SCALE = 1e-4
+
+
+def point_fields(coordinates: str) -> tuple[tuple[str, str], ...]:
+    """Per-point fields of PLY, PCD and CSV with their numpy types; world x, y, z are float64."""
+    xyz = "<f8" if coordinates == "world" else "<f4"
+    return (("x", xyz), ("y", xyz), ("z", xyz), ("range", "<f4"), ("time", "<f8"), ("frame", "<u4"))
+
+
+#: The sensor-frame fields (see :func:`point_fields`).
+POINT_FIELDS = point_fields("sensor")
+#: The LAS body, kept as raw records until the file's offset and scale are known: x y z in the LAS frame.
+_LAS_BODY: tuple[tuple[str, str], ...] = (
+    ("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("gps_time", "<f8"), ("range", "<f4"), ("frame", "<u4"),
+    ("return_number", "u1"), ("number_of_returns", "u1"),
 )
 #: NPZ columns, one row per point; ``frame_pose`` holds one row per frame: index, then the sensor's
 #: posAng (x, y, z, roll, pitch, yaw) at the frame's first ray and just after its last.
@@ -47,13 +87,18 @@ _NPZ_ARRAYS: dict[str, tuple[str, tuple[int, ...]]] = {
 }
 
 
+def frame_points(frame: PointFrame, coordinates: str) -> np.ndarray:
+    """``(M, 3)`` float64 the decoded points of the frame in ``coordinates`` (FRD or NED), metres."""
+    return frame.xyz_decoded if coordinates == "sensor" else frame.xyz_world_decoded
+
+
 def frame_records(frame: PointFrame, coordinates: str, extra_fields: Sequence[tuple[str, str]] = (),
                   extra: Mapping[str, np.ndarray | float] | None = None) -> np.ndarray:
-    """The frame's points as a structured array of :data:`POINT_FIELDS` and ``extra_fields``, ``(M,)``."""
-    xyz = frame.xyz_decoded if coordinates == "sensor" else frame.xyz_world
-    records = np.empty(len(frame), dtype=[*POINT_FIELDS, *extra_fields])
+    """The frame's points as a structured array of :func:`point_fields` and ``extra_fields``, ``(M,)``."""
+    xyz = frame_points(frame, coordinates)
+    records = np.empty(len(frame), dtype=[*point_fields(coordinates), *extra_fields])
     records["x"], records["y"], records["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
-    records["range"] = frame.range_m
+    records["range"] = np.linalg.norm(frame.xyz_decoded, axis=1)
     records["time"] = frame.t
     records["frame"] = frame.index
     for name, _ in extra_fields:
@@ -73,7 +118,7 @@ class PointCloudWriter:
     ascii : bool
         ASCII instead of binary PLY/PCD.
     extra_fields : sequence of (name, numpy type)
-        Per-point fields after :data:`POINT_FIELDS` (an NPZ column, a LAS extra dimension), e.g. a received
+        Per-point fields after :func:`point_fields` (an NPZ column, a LAS extra dimension), e.g. a received
         frame's ``("sender_time", "<f8")``; :meth:`write` is given their values. Types: ``<f8``, ``<i4``, ``<u4``.
 
     Attributes
@@ -96,47 +141,64 @@ class PointCloudWriter:
             raise LivoxVizError(f"{self.path}: unknown format {self.format or '(none)'}; allowed: {', '.join(FORMATS)}")
         if coordinates not in FRAMES:
             raise LivoxVizError(f"coordinates {coordinates!r}; allowed: {' or '.join(FRAMES)}")
-        resolve_destination(self.path)
         self.coordinates = coordinates
         self.ascii = ascii
         self.extra_fields = tuple(extra_fields)
         self.npz_arrays: dict[str, np.ndarray] = {}
         self.count = 0
-        self._work = make_work_dir(self.path)
         self._body: BinaryIO | None = None
         self._npz: NpzColumns | None = None
         self._npz_poses: list[np.ndarray] = []
-        self._las = None
+        self._low = np.full(3, np.inf)
+        self._high = np.full(3, -np.inf)
         self._closed = False
-        #: Why closing the LAS writer failed during an abort, if it did.
+        #: Why closing a part failed during an abort, if it did.
         self.abort_error = ""
+        # Named (and the destination checked) before anything exists; made inside the try, so a signal
+        # arriving at any moment leaves nothing behind.
+        self._work = WorkDir(self.path)
         try:
+            self._work.create()
             self._open()
-        except BaseException:  # also Ctrl-C and SIGTERM (cli.signals.Terminated): no work folder is left
+        except BaseException:
             self.abort()
             raise
 
     def _open(self) -> None:
+        work = self._work.path
         if self.format == ".npz":
-            self._npz = NpzColumns(self._work, {**_NPZ_ARRAYS, **{name: (t, ()) for name, t in self.extra_fields}})
-        elif self.format == ".las":
-            self._las = _open_las(self._work / "points.las", self.coordinates, self.extra_fields)
-        else:
-            self._body = open(self._work / "body", "wb")
-            if self.format == ".csv":
-                self._body.write(f"# livox-viz scan; coordinates: {FRAME_DESCRIPTION[self.coordinates]}\n".encode())
-                self._body.write((",".join(name for name, _ in self._fields) + "\n").encode())
+            self._npz = NpzColumns(work, {**_NPZ_ARRAYS, **{name: (t, ()) for name, t in self.extra_fields}})
+            return
+        self._body = open(work / "body", "wb")
+        if self.format == ".csv":
+            self._body.write(f"# livox-viz scan; coordinates: {FRAME_DESCRIPTION[self.coordinates]}; "
+                             f"{POINTS_RULE}\n".encode())
+            self._body.write((",".join(name for name, _ in self._fields) + "\n").encode())
 
     @property
     def _fields(self) -> tuple[tuple[str, str], ...]:
-        return (*POINT_FIELDS, *self.extra_fields)
+        return (*point_fields(self.coordinates), *self.extra_fields)
 
     def write(self, frame: PointFrame, extra: Mapping[str, np.ndarray | float] | None = None) -> None:
-        """Append one frame's returns; ``extra`` holds the values of ``extra_fields`` (per point, or one per frame)."""
+        """Append one frame's returns; ``extra`` holds the values of ``extra_fields`` (per point, or one per frame).
+
+        Raises
+        ------
+        LivoxVizError
+            If the writer is closed, or writing fails (a full disk): the message names the file.
+        """
         if self._closed:
             raise LivoxVizError(f"{self.path}: the writer is closed")
-        extra = {name: np.broadcast_to(np.asarray((extra or {})[name], dtype=t), (len(frame),))
-                 for name, t in self.extra_fields}
+        values = {name: np.broadcast_to(np.asarray((extra or {})[name], dtype=t), (len(frame),))
+                  for name, t in self.extra_fields}
+        try:
+            self._write(frame, values)
+        except OSError as exc:
+            raise LivoxVizError(f"{self.path}: cannot write ({_reason(exc)}); the old file, if any, is kept") \
+                from exc
+        self.count += len(frame)
+
+    def _write(self, frame: PointFrame, extra: dict[str, np.ndarray]) -> None:
         if self._npz is not None:
             self._npz.append({
                 "xyz_sensor": frame.xyz_decoded, "xyz_world": frame.xyz_world, "xyz_int16": frame.xyz_int16,
@@ -144,22 +206,32 @@ class PointCloudWriter:
             })
             self._npz_poses.append(np.concatenate([[frame.index], frame.sensor_pose.as_array(),
                                                    frame.end_pose.as_array()]))
-        elif self.format == ".las":
-            _write_las(self._las, frame, self.coordinates, extra)
+            return
+        assert self._body is not None
+        if self.format == ".las":
+            records = _las_records(frame, self.coordinates, self.extra_fields, extra)
+            if len(records):
+                xyz = np.column_stack([records["x"], records["y"], records["z"]])
+                self._low = np.minimum(self._low, xyz.min(axis=0))
+                self._high = np.maximum(self._high, xyz.max(axis=0))
+            self._body.write(records.tobytes())
+            return
+        records = frame_records(frame, self.coordinates, self.extra_fields, extra)
+        if self.format == ".csv" or self.ascii:
+            formats = ["%.6f"] * 4 + ["%.9f", "%d"] + ["%.9f" if t[1] == "f" else "%d" for _, t in self.extra_fields]
+            np.savetxt(self._body, _records_as_columns(records), fmt=formats,
+                       delimiter="," if self.format == ".csv" else " ")
         else:
-            records = frame_records(frame, self.coordinates, self.extra_fields, extra)
-            assert self._body is not None
-            if self.format == ".csv" or self.ascii:
-                formats = ["%.6f"] * 4 + ["%.9f", "%d"] + ["%.9f" if t[1] == "f" else "%d"
-                                                            for _, t in self.extra_fields]
-                np.savetxt(self._body, _records_as_columns(records), fmt=formats,
-                           delimiter="," if self.format == ".csv" else " ")
-            else:
-                self._body.write(records.tobytes())
-        self.count += len(frame)
+            self._body.write(records.tobytes())
 
     def close(self) -> Path:
-        """Finish the file and move it into place; returns its path."""
+        """Finish the file and move it into place; returns its path.
+
+        Raises
+        ------
+        LivoxVizError
+            Naming the file, if it cannot be finished (the work folder is removed, the old file kept).
+        """
         if self._closed:
             return self.path
         try:
@@ -167,37 +239,35 @@ class PointCloudWriter:
                 if self._npz is not None:
                     poses = np.array(self._npz_poses).reshape(-1, 13)
                     self._npz.finish(tmp, {**self.npz_arrays, "frame_pose": poses, "frame_of_reference": np.array(
-                        json.dumps({**FRAME_DESCRIPTION, "frame_pose": "index, then the sensor's pose at the "
-                                    "frame's first ray and just after its last: x y z (m, world NED) roll pitch "
-                                    "yaw (rad) each"}))})
-                elif self.format == ".las":
-                    self._las.close()
-                    self._las = None
-                    shutil.move(self._work / "points.las", tmp)
+                        json.dumps({**FRAME_DESCRIPTION, "points": NPZ_RULE,
+                                    "frame_pose": "index, then the sensor's pose at the frame's first ray and "
+                                    "just after its last: x y z (m, world NED) roll pitch yaw (rad) each"}))})
                 else:
                     assert self._body is not None
                     self._body.close()
-                    with open(tmp, "wb") as out, open(self._work / "body", "rb") as body:
-                        out.write(self._header())
-                        shutil.copyfileobj(body, out, 1 << 20)
+                    if self.format == ".las":
+                        self._finish_las(tmp)
+                    else:
+                        with open(tmp, "wb") as out, open(self._work.path / "body", "rb") as body:
+                            out.write(self._header())
+                            shutil.copyfileobj(body, out, 1 << 20)
         finally:
             self.abort()
         return self.path
 
     def abort(self) -> None:
-        """Drop everything written so far; the destination is left as it was."""
+        """Drop everything written so far; the destination is left as it was, the work folder removed."""
         self._closed = True
-        if self._body is not None and not self._body.closed:
-            self._body.close()
-        if self._npz is not None:
-            self._npz.close()
-        if self._las is not None:
-            las, self._las = self._las, None
-            try:
-                las.close()
-            except (OSError, ValueError) as exc:  # a half-written LAS is removed below anyway
-                self.abort_error = str(exc)
-        shutil.rmtree(self._work, ignore_errors=True)
+        try:
+            if self._body is not None and not self._body.closed:
+                try:
+                    self._body.close()
+                except OSError as exc:  # its unwritten buffer: a full disk; the folder goes anyway
+                    self.abort_error = _reason(exc)
+            if self._npz is not None:
+                self._npz.discard()
+        finally:
+            self._work.remove()
 
     def __enter__(self) -> PointCloudWriter:
         return self
@@ -212,23 +282,25 @@ class PointCloudWriter:
     def _header(self) -> bytes:
         if self.format == ".csv":
             return b""
+        fields = self._fields
+        frame = f"frame {self.coordinates}: {FRAME_DESCRIPTION[self.coordinates]}"
         if self.format == ".ply":
             encoding = "ascii" if self.ascii else "binary_little_endian"
             types = {"<f4": "float", "<f8": "double", "<u4": "uint", "<i4": "int"}
-            lines = ["ply", f"format {encoding} 1.0", "comment livox-viz scan",
-                     f"comment frame {self.coordinates}: {FRAME_DESCRIPTION[self.coordinates]}",
-                     f"element vertex {self.count}"]
-            lines += [f"property {types[t]} {name}" for name, t in self._fields]
+            lines = ["ply", f"format {encoding} 1.0", "comment livox-viz scan", f"comment {frame}",
+                     f"comment {POINTS_RULE}", f"element vertex {self.count}"]
+            lines += [f"property {types[t]} {name}" for name, t in fields]
             lines.append("end_header")
             return ("\n".join(lines) + "\n").encode()
         sizes = {"<f4": ("4", "F"), "<f8": ("8", "F"), "<u4": ("4", "U"), "<i4": ("4", "I")}
         lines = [
-            f"# .PCD v0.7 - livox-viz scan; frame {self.coordinates}: {FRAME_DESCRIPTION[self.coordinates]}",
+            f"# .PCD v0.7 - livox-viz scan; {frame}",
+            f"# {POINTS_RULE}",
             "VERSION 0.7",
-            "FIELDS " + " ".join(name for name, _ in self._fields),
-            "SIZE " + " ".join(sizes[t][0] for _, t in self._fields),
-            "TYPE " + " ".join(sizes[t][1] for _, t in self._fields),
-            "COUNT " + " ".join("1" for _ in self._fields),
+            "FIELDS " + " ".join(name for name, _ in fields),
+            "SIZE " + " ".join(sizes[t][0] for _, t in fields),
+            "TYPE " + " ".join(sizes[t][1] for _, t in fields),
+            "COUNT " + " ".join("1" for _ in fields),
             f"WIDTH {self.count}",
             "HEIGHT 1",
             "VIEWPOINT 0 0 0 1 0 0 0",
@@ -237,37 +309,94 @@ class PointCloudWriter:
         ]
         return ("\n".join(lines) + "\n").encode()
 
+    def _finish_las(self, tmp: Path) -> None:
+        """The LAS file from the raw body, with an offset and scale that hold every point."""
+        import laspy
+
+        offset, scale = las_offset_and_scale(self._low, self._high)
+        header = _las_header(self.coordinates, offset, scale, self.extra_fields)
+        body_dtype = np.dtype([*_LAS_BODY, *self.extra_fields])
+        block = 1 << 20
+        with laspy.open(tmp, mode="w", header=header) as writer, open(self._work.path / "body", "rb") as body:
+            while True:
+                records = np.fromfile(body, dtype=body_dtype, count=block)
+                if not len(records):
+                    break
+                points = laspy.ScaleAwarePointRecord.zeros(len(records), header=writer.header)
+                points.x, points.y, points.z = records["x"], records["y"], records["z"]
+                for name in ("gps_time", "range", "frame", "return_number", "number_of_returns",
+                             *(name for name, _ in self.extra_fields)):
+                    points[name] = records[name]
+                writer.write_points(points)
+
+
+def _reason(exc: OSError) -> str:
+    """An OSError in words; numpy's short writes carry no errno."""
+    return exc.strerror or f"{exc}: is the disk full?"
+
+
 def _records_as_columns(records: np.ndarray) -> np.ndarray:
     return np.column_stack([records[name].astype(np.float64) for name in records.dtype.names])
 
 
-def _open_las(path: Path, coordinates: str, extra_fields: Sequence[tuple[str, str]] = ()):
+def las_offset_and_scale(low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A LAS offset (whole metres, the middle of the data) and scale (:data:`LAS_SCALE`, coarser only where the
+    extent does not fit int32 at it) for points within ``low``..``high`` ``(3,)`` metres; zeros if empty."""
+    if not np.all(np.isfinite(low)):
+        return np.zeros(3), np.full(3, LAS_SCALE)
+    offset = np.round((low + high) / 2)
+    half = np.maximum(np.abs(high - offset), np.abs(low - offset))
+    limit = 2**31 - 2**20  # a margin under int32 for rounding
+    scale = np.full(3, LAS_SCALE)
+    too_wide = half / scale > limit
+    scale[too_wide] = 10.0 ** np.ceil(np.log10(half[too_wide] / limit))
+    return offset, scale
+
+
+def _las_wkt(coordinates: str) -> str:
+    """A local (engineering) WKT coordinate system naming the LAS frame's axes."""
+    if coordinates == "world":
+        name, axes = "livox-viz world ENU (east, north, up)", ("EAST", "NORTH", "UP")
+    else:
+        name, axes = "livox-viz sensor FLU (forward, left, up)", ("FORWARD", "LEFT", "UP")
+    # WKT1 axis directions are NORTH/SOUTH/EAST/WEST/UP/DOWN/OTHER: forward and left are OTHER.
+    direction = {"FORWARD": "OTHER", "LEFT": "OTHER"}
+    listed = ",".join(f'AXIS["{label}",{direction.get(label, label)}]' for label in axes)
+    return f'LOCAL_CS["{name}",LOCAL_DATUM["livox-viz scene origin",0],UNIT["metre",1],{listed}]'
+
+
+def _las_header(coordinates: str, offset: np.ndarray, scale: np.ndarray,
+                extra_fields: Sequence[tuple[str, str]] = ()):
     import laspy
+    from laspy.vlrs.known import WktCoordinateSystemVlr
 
     header = laspy.LasHeader(point_format=6, version="1.4")
-    header.scales = np.array([1e-4, 1e-4, 1e-4])
-    header.offsets = np.zeros(3)
+    header.offsets = offset
+    header.scales = scale
+    header.global_encoding.wkt = True  # required for point formats 6-10 (LAS 1.4 R15)
     header.add_extra_dims([laspy.ExtraBytesParams("range", np.float32, description="range m"),
                            laspy.ExtraBytesParams("frame", np.uint32, description="frame index"),
                            *(laspy.ExtraBytesParams(name, np.dtype(t).newbyteorder("=")) for name, t in extra_fields)])
     header.generating_software = "livox-viz"
     header.system_identifier = f"livox-viz {coordinates}"[:32]
-    metadata = {"frame": coordinates, "description": FRAME_DESCRIPTION[coordinates]}
+    header.vlrs.append(WktCoordinateSystemVlr(_las_wkt(coordinates)))
+    metadata = {"frame": coordinates, "description": LAS_FRAME_DESCRIPTION[coordinates], "points": POINTS_RULE,
+                "gps_time": "seconds since the scan start"}
     header.vlrs.append(laspy.VLR("livox-viz", 1, f"frame: {coordinates}"[:32], json.dumps(metadata).encode()))
-    return laspy.open(path, mode="w", header=header)
+    return header
 
 
-def _write_las(writer, frame: PointFrame, coordinates: str, extra: Mapping[str, np.ndarray] | None = None) -> None:
-    import laspy
-
-    if not len(frame):
-        return
-    xyz = frame.xyz_decoded if coordinates == "sensor" else frame.xyz_world
-    points = laspy.ScaleAwarePointRecord.zeros(len(frame), header=writer.header)
-    points.x, points.y, points.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
-    points.gps_time = frame.t
-    points.range = frame.range_m.astype(np.float32)
-    points.frame = np.full(len(frame), frame.index, dtype=np.uint32)
-    for name, values in (extra or {}).items():
-        points[name] = values
-    writer.write_points(points)
+def _las_records(frame: PointFrame, coordinates: str, extra_fields: Sequence[tuple[str, str]] = (),
+                 extra: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
+    """The frame's LAS body records: decoded points turned z-up (world ENU, sensor FLU), then ``extra_fields``."""
+    xyz = frame_points(frame, coordinates)
+    xyz = enu_from_ned(xyz) if coordinates == "world" else flu_from_frd(xyz)
+    records = np.zeros(len(frame), dtype=[*_LAS_BODY, *extra_fields])
+    for name, _ in extra_fields:
+        records[name] = (extra or {})[name]
+    records["x"], records["y"], records["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    records["gps_time"] = frame.t
+    records["range"] = np.linalg.norm(frame.xyz_decoded, axis=1)
+    records["frame"] = frame.index
+    records["return_number"] = records["number_of_returns"] = 1  # every return is the pulse's only one
+    return records

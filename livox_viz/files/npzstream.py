@@ -62,7 +62,15 @@ class NpzColumns:
                     np.save(member, np.asarray(value), allow_pickle=False)
 
     def close(self) -> None:
-        """Close the raw files (the archive is not written)."""
+        """Close the raw files (the archive is not written); a failure to flush one (a full disk) is raised."""
         for handle in self._files.values():
             if not handle.closed:
                 handle.close()
+
+    def discard(self) -> None:
+        """Close every raw file whatever fails (the caller removes them): for giving up after an error."""
+        for handle in self._files.values():
+            try:
+                handle.close()
+            except OSError:  # the unwritten rest of its buffer, on a full disk: it is being thrown away
+                pass
