@@ -348,6 +348,25 @@ def test_valid_ros_names_reach_the_bag(tmp_path: Path) -> None:
     assert topics == {"/drone_1/lidar", "/drone_1/points", "/drone_1/imu_0", "/ground_truth/odom", "/tf", "/tf_static"}
 
 
+# 8. No RuntimeWarning reaches stderr (pytest turns every warning into an error) ------------------------
+def test_a_fov_narrower_than_a_coverage_cell_has_a_coverage(tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    from livox_viz.patterns.metrics import LIVOX_CELL_DEG, coverage_curve
+
+    xy = np.random.default_rng(0).uniform(-1e-4, 1e-4, (1000, 2))
+    fraction = coverage_curve(xy, [0, 1, 1000], 5e-4, LIVOX_CELL_DEG)
+    assert fraction[0] == 0 and 0 < fraction[1] <= fraction[2] <= 1  # the cells that meet at the boresight
+    config = tmp_path / "narrow.json"
+    config.write_text(json.dumps({**SEED_JSON, "CameraFOV": 0.001}))
+    assert main(["compare", "--config", str(config), "livox_mid40"]) == 0, capsys.readouterr().err
+
+
+def test_a_pose_beyond_any_local_frame_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["scan", "--seconds", "0.1", "--pose", "1e300,0,0,0,0,0", "--out", str(tmp_path / "x.npz")]) == 2
+    one_line_error(capsys.readouterr().err, "1e+07 m")
+    assert list(tmp_path.iterdir()) == []
+
+
 # 9. A signal at any moment of a writer's set-up leaves nothing ------------------------------------------
 class Interrupted(BaseException):
     """Stands in for the exception a SIGTERM handler raises (the CLI's Terminated) or Ctrl-C."""

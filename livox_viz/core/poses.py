@@ -14,6 +14,9 @@ import numpy as np
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.rotations import euler_matrix, matrix_to_euler, quat_from_matrix
 
+#: The farthest a ``--pose`` may place the vehicle from the world origin, metres (beyond the Earth's radius).
+MAX_POSITION_M = 1e7
+
 
 @dataclass(frozen=True)
 class Pose:
@@ -78,6 +81,9 @@ class Pose:
             ) from None
         if len(values) != 6:
             raise LivoxVizError(f"pose {text!r} has {len(values)} numbers; allowed: x,y,z,roll,pitch,yaw (6)")
+        if not all(abs(v) <= MAX_POSITION_M for v in values[:3]):  # 1e300 would overflow the float32 ray casts
+            raise LivoxVizError(f"pose {text!r}: a position beyond {MAX_POSITION_M:g} m; allowed: |x|, |y|, |z| "
+                                f"<= {MAX_POSITION_M:g} m (a local NED frame)")
         return cls(tuple(values[:3]), *values[3:])  # type: ignore[arg-type]
 
 

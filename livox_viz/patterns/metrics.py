@@ -57,10 +57,13 @@ class CoverageGrid:
 
     @cached_property
     def inside_mask(self) -> np.ndarray:
-        """``(2M, 2M)`` bool: which cells have their centre inside the FOV circle (M = cells per side)."""
+        """``(2M, 2M)`` bool: which cells have their centre inside the FOV circle (M = cells per side); never none."""
         half = self.cells_per_side
         centres = (np.arange(-half, half) + 0.5) * self.cell_deg
-        return np.hypot(centres[:, None], centres[None, :]) <= self.radius_deg
+        inside = np.hypot(centres[:, None], centres[None, :]) <= self.radius_deg
+        if not inside.any():  # a FOV narrower than a cell: the four cells that meet at the boresight
+            inside[half - 1 : half + 1, half - 1 : half + 1] = True
+        return inside
 
     @property
     def cell_count(self) -> int:
