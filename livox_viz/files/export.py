@@ -211,9 +211,8 @@ class PointCloudWriter:
         if self.format == ".las":
             records = _las_records(frame, self.coordinates, self.extra_fields, extra)
             if len(records):
-                xyz = np.column_stack([records["x"], records["y"], records["z"]])
-                self._low = np.minimum(self._low, xyz.min(axis=0))
-                self._high = np.maximum(self._high, xyz.max(axis=0))
+                self._low = np.minimum(self._low, [records[axis].min() for axis in "xyz"])
+                self._high = np.maximum(self._high, [records[axis].max() for axis in "xyz"])
             self._body.write(records.tobytes())
             return
         records = frame_records(frame, self.coordinates, self.extra_fields, extra)
@@ -316,14 +315,14 @@ class PointCloudWriter:
         offset, scale = las_offset_and_scale(self._low, self._high)
         header = _las_header(self.coordinates, offset, scale, self.extra_fields)
         body_dtype = np.dtype([*_LAS_BODY, *self.extra_fields])
-        block = 1 << 20
+        block = bytearray(body_dtype.itemsize << 19)
         with laspy.open(tmp, mode="w", header=header) as writer, open(self._work.path / "body", "rb") as body:
-            while True:
-                records = np.fromfile(body, dtype=body_dtype, count=block)
-                if not len(records):
-                    break
+            while size := body.readinto(block):
+                records = np.frombuffer(block, dtype=body_dtype, count=size // body_dtype.itemsize)
                 points = laspy.ScaleAwarePointRecord.zeros(len(records), header=writer.header)
-                points.x, points.y, points.z = records["x"], records["y"], records["z"]
+                # The integers themselves: offset and scale were chosen so that every point fits.
+                points.X, points.Y, points.Z = (np.round((records[axis] - offset[k]) / scale[k]).astype(np.int32)
+                                                for k, axis in enumerate("xyz"))
                 for name in ("gps_time", "range", "frame", "return_number", "number_of_returns",
                              *(name for name, _ in self.extra_fields)):
                     points[name] = records[name]
