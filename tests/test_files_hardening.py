@@ -469,6 +469,8 @@ def test_a_signal_anywhere_in_a_bag_writers_set_up_leaves_nothing(tmp_path: Path
 def test_a_signal_in_the_bags_rosbags_set_up_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                              capsys: pytest.CaptureFixture[str]) -> None:
     """SIGTERM while rosbags opens the bag (the last connection): one line, exit 143, nothing left."""
+    import signal
+
     from rosbags.rosbag2 import Writer
 
     from livox_viz.cli import Terminated
@@ -477,7 +479,7 @@ def test_a_signal_in_the_bags_rosbags_set_up_leaves_nothing(tmp_path: Path, monk
 
     def terminated_at_tf_static(self, topic, *args, **kwargs):
         if topic == "/tf_static":
-            raise Terminated("SIGTERM")
+            raise Terminated(signal.SIGTERM)
         return add_connection(self, topic, *args, **kwargs)
 
     monkeypatch.setattr(Writer, "add_connection", terminated_at_tf_static)

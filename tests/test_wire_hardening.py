@@ -19,6 +19,7 @@ import pytest
 
 from livox_viz.cli import main
 from livox_viz.config.presets import load_preset
+from livox_viz.core.rotations import flu_from_frd
 from livox_viz.wire.rflysim import (
     Reassembler,
     SharedMemoryLink,
@@ -209,7 +210,7 @@ def test_a_recording_is_kept_on_terminate_and_hang_up(tmp_path: Path, signum: in
     elif suffix == ".las":
         las = laspy.read(out)
         got = np.column_stack([las.x, las.y, las.z])
-        np.testing.assert_allclose(got, expected, atol=1e-4)
+        np.testing.assert_allclose(got, flu_from_frd(expected), atol=1e-4)  # a LAS is z-up: sensor FLU
     else:
         fields = read_pcd(out)
         np.testing.assert_allclose(np.column_stack([fields["x"], fields["y"], fields["z"]]), expected, atol=1e-4)
