@@ -15,9 +15,13 @@ points decoded (``xyz_sensor``) and, only there, the exact hits (``xyz_world``,
 ``range``). Every file says so in its header.
 
 **Frames and precision.** PLY, PCD and CSV are in the project's frames (sensor
-FRD, world NED); world coordinates are float64 (float32 would round them to
-6 cm a thousand kilometres out), sensor ones float32 (exact to 1e-7 of the
-range, far below the int16 step). LAS is z-up, as every LAS viewer and GIS
+FRD, world NED). World coordinates stay exact far from the origin (float32
+would round them to 12 cm 2000 km out): float64 in PLY (which CloudCompare,
+PDAL and Open3D read) and CSV; PCD keeps float32, because PCL and Open3D read
+no binary float64 coordinates, relative to a whole-kilometre offset taken from
+the first points and stated in its header (zero within 500 m of the origin).
+Sensor coordinates are float32 (exact to 1e-7 of the range, far below the
+int16 step). LAS is z-up, as every LAS viewer and GIS
 expects: world ENU (x east, y north, z up), sensor FLU (x forward, y left, z
 up), said in a WKT coordinate system (a local one) and in a livox-viz record;
 its offset and scale are chosen from the data (0.1 mm wherever the cloud's
@@ -62,9 +66,9 @@ NPZ_RULE = ("xyz_int16: the wire (sensor FRD); xyz_sensor: those points decoded 
 LAS_SCALE = 1e-4
 
 
-def point_fields(coordinates: str) -> tuple[tuple[str, str], ...]:
-    """Per-point fields of PLY, PCD and CSV with their numpy types; world x, y, z are float64."""
-    xyz = "<f8" if coordinates == "world" else "<f4"
+def point_fields(coordinates: str, file_format: str = ".ply") -> tuple[tuple[str, str], ...]:
+    """Per-point fields of PLY, PCD and CSV with their numpy types; world x, y, z are float64 but in a PCD."""
+    xyz = "<f8" if coordinates == "world" and file_format != ".pcd" else "<f4"
     return (("x", xyz), ("y", xyz), ("z", xyz), ("range", "<f4"), ("time", "<f8"), ("frame", "<u4"))
 
 
@@ -93,10 +97,12 @@ def frame_points(frame: PointFrame, coordinates: str) -> np.ndarray:
 
 
 def frame_records(frame: PointFrame, coordinates: str, extra_fields: Sequence[tuple[str, str]] = (),
-                  extra: Mapping[str, np.ndarray | float] | None = None) -> np.ndarray:
-    """The frame's points as a structured array of :func:`point_fields` and ``extra_fields``, ``(M,)``."""
-    xyz = frame_points(frame, coordinates)
-    records = np.empty(len(frame), dtype=[*point_fields(coordinates), *extra_fields])
+                  extra: Mapping[str, np.ndarray | float] | None = None, file_format: str = ".ply",
+                  offset: np.ndarray | None = None) -> np.ndarray:
+    """The frame's points as a structured array of :func:`point_fields` and ``extra_fields``, ``(M,)``;
+    ``offset`` ``(3,)`` metres is taken off x, y, z."""
+    xyz = frame_points(frame, coordinates) - (0.0 if offset is None else offset)
+    records = np.empty(len(frame), dtype=[*point_fields(coordinates, file_format), *extra_fields])
     records["x"], records["y"], records["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
     records["range"] = np.linalg.norm(frame.xyz_decoded, axis=1)
     records["time"] = frame.t
@@ -149,6 +155,8 @@ class PointCloudWriter:
         self._body: BinaryIO | None = None
         self._npz: NpzColumns | None = None
         self._npz_poses: list[np.ndarray] = []
+        #: World PCD: metres taken off every point (whole kilometres, from the first points; stated in the header).
+        self.offset: np.ndarray | None = None
         self._low = np.full(3, np.inf)
         self._high = np.full(3, -np.inf)
         self._closed = False
@@ -177,7 +185,7 @@ class PointCloudWriter:
 
     @property
     def _fields(self) -> tuple[tuple[str, str], ...]:
-        return (*point_fields(self.coordinates), *self.extra_fields)
+        return (*point_fields(self.coordinates, self.format), *self.extra_fields)
 
     def write(self, frame: PointFrame, extra: Mapping[str, np.ndarray | float] | None = None) -> None:
         """Append one frame's returns; ``extra`` holds the values of ``extra_fields`` (per point, or one per frame).
@@ -215,7 +223,9 @@ class PointCloudWriter:
                 self._high = np.maximum(self._high, [records[axis].max() for axis in "xyz"])
             self._body.write(records.tobytes())
             return
-        records = frame_records(frame, self.coordinates, self.extra_fields, extra)
+        if self.format == ".pcd" and self.coordinates == "world" and self.offset is None and len(frame):
+            self.offset = np.round(np.median(frame_points(frame, "world"), axis=0) / 1000.0) * 1000.0 + 0.0  # no -0
+        records = frame_records(frame, self.coordinates, self.extra_fields, extra, self.format, self.offset)
         if self.format == ".csv" or self.ascii:
             formats = ["%.6f"] * 4 + ["%.9f", "%d"] + ["%.9f" if t[1] == "f" else "%d" for _, t in self.extra_fields]
             np.savetxt(self._body, _records_as_columns(records), fmt=formats,
@@ -292,9 +302,12 @@ class PointCloudWriter:
             lines.append("end_header")
             return ("\n".join(lines) + "\n").encode()
         sizes = {"<f4": ("4", "F"), "<f8": ("8", "F"), "<u4": ("4", "U"), "<i4": ("4", "I")}
+        offset = np.zeros(3) if self.offset is None else self.offset
         lines = [
             f"# .PCD v0.7 - livox-viz scan; {frame}",
             f"# {POINTS_RULE}",
+            *([f"# offset: the point is (x, y, z) + ({offset[0]:.0f}, {offset[1]:.0f}, {offset[2]:.0f}) m in the world"]
+              if self.coordinates == "world" else []),
             "VERSION 0.7",
             "FIELDS " + " ".join(name for name, _ in fields),
             "SIZE " + " ".join(sizes[t][0] for _, t in fields),
