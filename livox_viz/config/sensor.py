@@ -13,6 +13,7 @@ not the default ``"flower"``."""
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -21,7 +22,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
+from livox_viz.config.fov import FOV_KEY, FieldOfView
 from livox_viz.config.risley_params import RisleyParams
+from livox_viz.config.track_params import TRACK_KEY, TrackParams
 from livox_viz.core.atomic import write_text_atomic
 from livox_viz.core.errors import ConfigError
 from livox_viz.core.jsonfile import read_json_file
@@ -50,8 +53,13 @@ PATTERN_MODEL_KEY = "LivoxVizPatternModel"
 RISLEY_KEY = "LivoxVizRisley"
 
 
-#: The pattern models: RflySim's petal rosette (scan-model.md) and the real sensors' Risley track (risley.md).
-PATTERN_MODELS: tuple[str, ...] = ("rflysim", "risley")
+#: The pattern models: RflySim's petal rosette (scan-model.md), the real sensors' Risley track (risley.md) and
+#: the general track of any Livox head (two base frequencies, any orders; :mod:`~livox_viz.config.track_params`).
+PATTERN_MODELS: tuple[str, ...] = ("rflysim", "risley", "track")
+
+
+#: The models whose stream is a deterministic series track (sample k is the series at t = k / rate).
+SERIES_MODELS: tuple[str, ...] = ("risley", "track")
 
 
 DEFAULT_SEND_PROTOCOL: tuple[int, ...] = (0, 127, 0, 0, 1, 9999, 0, 0)
@@ -213,11 +221,16 @@ class SensorConfig:
         [1..4] IPv4 bytes, [5] port, [6..7] unused.
     jitter_scope : {"flower", "figure"}
         When the random rotation is added to the running offset.
-    pattern_model : {"rflysim", "risley"}
-        Which pattern the sensor scans: RflySim's rosette from ``otherParams``
-        or the Risley-prism track of :attr:`risley`.
+    pattern_model : {"rflysim", "risley", "track"}
+        Which pattern the sensor scans: RflySim's rosette from ``otherParams``,
+        the Risley-prism track of :attr:`risley` or the general track of :attr:`track`.
     risley : RisleyParams, optional
         The Risley track (``LivoxVizRisley``); needed when ``pattern_model`` is ``"risley"``.
+    track : TrackParams, optional
+        The general track (``LivoxVizTrack``); needed when ``pattern_model`` is ``"track"``.
+    fov : FieldOfView, optional
+        The real sensor's field of view (``LivoxVizFieldOfView``) for its track; default (and always for
+        the rosette) the cone of half-angle CameraFOV / 2. See :attr:`field_of_view`.
     source : dict
         The JSON object as it was read (key order and unknown keys are kept
         for saving); empty for a configuration made from scratch.
@@ -240,6 +253,8 @@ class SensorConfig:
     jitter_scope: str = "flower"
     pattern_model: str = "rflysim"
     risley: RisleyParams | None = None
+    track: TrackParams | None = None
+    fov: FieldOfView | None = None
     source: Mapping[str, Any] = field(default_factory=dict, compare=False, repr=False)
     euler_key: str = field(default=EULER_KEY_RFLYSIM, compare=False, repr=False)
 
@@ -282,6 +297,11 @@ class SensorConfig:
             )
         if self.pattern_model == "risley" and self.risley is None:
             raise ConfigError(f"{PATTERN_MODEL_KEY} is 'risley' but there is no {RISLEY_KEY} object")
+        if self.pattern_model == "track" and self.track is None:
+            raise ConfigError(f"{PATTERN_MODEL_KEY} is 'track' but there is no {TRACK_KEY} object")
+        if self.track is not None and self.track.form == "spin" and (self.fov is None or self.fov.plane != "panorama"):
+            raise ConfigError(f"a spin track ({TRACK_KEY}.form 'spin') turns all the way round; it needs a "
+                              f'{FOV_KEY} band (e.g. {{"shape": "band", "elevation_deg": [-7, 52]}})')
         if self.euler_key not in (EULER_KEY_RFLYSIM, EULER_KEY_DOCUMENT):
             raise ConfigError(
                 f"euler_key = {self.euler_key!r}; allowed: {EULER_KEY_RFLYSIM} or {EULER_KEY_DOCUMENT}"
@@ -334,7 +354,31 @@ class SensorConfig:
     @property
     def lasers(self) -> int:
         """K, lasers firing in turn in the pattern in use (1 for the rosette)."""
-        return self.risley.lasers if self.pattern_model == "risley" else 1
+        return self.series.lasers if self.pattern_model in SERIES_MODELS else 1
+
+    @property
+    def series(self) -> RisleyParams | TrackParams:
+        """The series the stream evaluates: :attr:`risley` or :attr:`track`, by the pattern model."""
+        params = self.track if self.pattern_model == "track" else self.risley
+        if params is None:
+            raise ConfigError(f"the {self.pattern_model} model has no series parameters")
+        return params
+
+    @property
+    def field_of_view(self) -> FieldOfView:
+        """Where the pattern in use looks: the track's own field of view, or the cone of CameraFOV / 2.
+
+        The rosette always scans the cone (RflySim's model); a Risley or track configuration without a
+        ``LivoxVizFieldOfView`` does too.
+        """
+        if self.pattern_model in SERIES_MODELS and self.fov is not None:
+            return self.fov
+        return _cone(self.camera_fov)
+
+    @property
+    def pattern_plane(self) -> str:
+        """``"boresight"`` or ``"panorama"``: the plane the pattern's angles are in (see :mod:`~livox_viz.config.fov`)."""
+        return self.field_of_view.plane
 
     @property
     def points_per_frame(self) -> int:
@@ -367,7 +411,7 @@ class SensorConfig:
 
         The Risley track has no petal structure: its only unit is the frame.
         """
-        if self.pattern_model == "risley":
+        if self.pattern_model in SERIES_MODELS:
             return {"frame": self.points_per_frame}
         return {
             "arc": self.data_width,
@@ -433,7 +477,7 @@ class SensorConfig:
         return self.risley
 
     def with_pattern_model(self, model: str) -> SensorConfig:
-        """A copy that scans with ``model`` ("rflysim" or "risley")."""
+        """A copy that scans with ``model`` (a name of :data:`PATTERN_MODELS`)."""
         return replace(self, pattern_model=model)
 
     # JSON ---------------------------------------------------------------------------
@@ -461,10 +505,11 @@ class SensorConfig:
             out[JITTER_SCOPE_KEY] = self.jitter_scope
         if self.pattern_model != "rflysim" or PATTERN_MODEL_KEY in out:
             out[PATTERN_MODEL_KEY] = self.pattern_model
-        if self.risley is not None:
-            out[RISLEY_KEY] = self.risley.to_json()
-        else:
-            out.pop(RISLEY_KEY, None)
+        for key, params in ((RISLEY_KEY, self.risley), (TRACK_KEY, self.track), (FOV_KEY, self.fov)):
+            if params is not None:
+                out[key] = params.to_json()
+            else:
+                out.pop(key, None)
         return out
 
     @classmethod
@@ -510,6 +555,8 @@ class SensorConfig:
         _check_finite("CameraFOV", camera_fov)
         scope = data.get(JITTER_SCOPE_KEY, "flower")
         risley = RisleyParams.from_json(data[RISLEY_KEY]) if RISLEY_KEY in data else None
+        track = TrackParams.from_json(data[TRACK_KEY]) if TRACK_KEY in data else None
+        fov = FieldOfView.from_json(data[FOV_KEY]) if FOV_KEY in data else None
         return cls(
             data_width=ints["DataWidth"],
             data_height=ints["DataHeight"],
@@ -526,6 +573,8 @@ class SensorConfig:
             jitter_scope=scope,
             pattern_model=data.get(PATTERN_MODEL_KEY, "rflysim"),
             risley=risley,
+            track=track,
+            fov=fov,
             source=dict(data),
             euler_key=euler_key,
         )
@@ -542,6 +591,11 @@ def _risley_with(risley: RisleyParams, name: str, value: float) -> RisleyParams:
         deflection[name.endswith("_b")] = value
         return replace(risley, deflection_deg=tuple(deflection))
     return replace(risley, laser_spacing=value)
+
+
+@functools.lru_cache(maxsize=64)
+def _cone(camera_fov: float) -> FieldOfView:
+    return FieldOfView.cone(camera_fov / 2.0)
 
 
 def _is_int(value: Any) -> bool:

@@ -3,8 +3,15 @@
 Both forms give, row by row in firing order, a ray as azimuth and elevation
 (``.npy``: ``[theta, phi]`` radians, x forward, y left, z up) or azimuth and
 zenith (CSV: ``Time/s,Azimuth/deg,Zenith/deg``, degrees). They are turned into
-pattern x (right), y (up) in degrees, with the angle off the boresight as the
-polar radius, exactly as :mod:`livox_viz.directions` maps our own pattern.
+FRD rays and then into pattern x (right), y (up) in degrees of one of the two
+pattern planes (:mod:`livox_viz.patterns.planes`): the boresight plane (angle
+off the boresight as the polar radius), or, for a table whose rays go all
+around the sensor (more than 1 % of them behind it, e.g. the Mid-360), the
+panorama plane (azimuth, elevation).
+
+Limits: a table holds at most :data:`MAX_TABLE_ROWS` rows (a ``.npy``'s shape
+is read before its data), a CSV is at most :data:`MAX_CSV_BYTES`; a CSV's
+``Time/s`` column, when it holds times, gives the rows' rate.
 """
 
 from __future__ import annotations
@@ -15,15 +22,24 @@ import math
 import os
 import re
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from livox_viz.config.fov import FieldOfView
 from livox_viz.config.presets import shipped_preset_dir
 from livox_viz.core.errors import LivoxVizError, require_file
+from livox_viz.patterns.planes import frd_from_zup, xy_from_directions
 
 DEFAULT_RATE = 100_000.0
+#: Most rows a table may hold (100 s at 100 000 rows/s; a fit of this many rows stays within about 2 GB).
+MAX_TABLE_ROWS = 10_000_000
+#: Largest Livox CSV read (a CSV row is about 30 bytes: some 8 million rows).
+MAX_CSV_BYTES = 256 * 1024 * 1024
+#: A table is in the panorama plane when more than this fraction of its rays point behind the sensor.
+PANORAMA_FRACTION = 0.01
 
 
 @dataclass(frozen=True)
@@ -39,12 +55,15 @@ class ReferencePattern:
         Firing time of each row, seconds (row / rate).
     rate : float
         Points per second.
+    plane : {"boresight", "panorama"}
+        The pattern plane of ``xy_deg``.
     """
 
     name: str
     xy_deg: np.ndarray
     t: np.ndarray
     rate: float
+    plane: str = "boresight"
 
     @property
     def alpha_deg(self) -> np.ndarray:
@@ -56,19 +75,31 @@ class ReferencePattern:
         """Duration of the table."""
         return len(self.t) / self.rate
 
+    @cached_property
+    def field_of_view(self) -> FieldOfView:
+        """What the table's rays fill: a cone when round, else their outline; a band in the panorama plane."""
+        return FieldOfView.of_points(self.xy_deg, self.plane)
 
-def xy_from_zup(azimuth: np.ndarray, elevation: np.ndarray) -> np.ndarray:
+
+def xy_from_zup(azimuth: np.ndarray, elevation: np.ndarray, plane: str | None = None) -> tuple[np.ndarray, str]:
     """Pattern angles from azimuth about +z and elevation (radians; x forward, y left, z up).
+
+    Parameters
+    ----------
+    azimuth, elevation : (n,) float64
+        Radians.
+    plane : {"boresight", "panorama"}, optional
+        Default: the panorama plane when more than 1 % of the rays point behind the sensor.
 
     Returns
     -------
     xy_deg : (n, 2) float64
+    plane : str
     """
-    d = np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)], 1)
-    alpha = np.degrees(np.arccos(np.clip(d[:, 0], -1.0, 1.0)))
-    lateral = np.hypot(d[:, 1], d[:, 2])
-    scale = np.divide(alpha, lateral, out=np.zeros_like(alpha), where=lateral > 0)
-    return np.column_stack([-d[:, 1] * scale, d[:, 2] * scale])
+    d = frd_from_zup(azimuth, elevation)
+    if plane is None:
+        plane = "panorama" if np.mean(d[:, 0] < 0) > PANORAMA_FRACTION else "boresight"
+    return xy_from_directions(d, plane), plane
 
 
 def shipped_table_dir() -> Path:
@@ -98,8 +129,9 @@ def load_reference(source: str | os.PathLike[str], rate: float | None = None) ->
     source : str or path-like
         A name from :func:`shipped_tables` or a file.
     rate : float, optional
-        Rows per second. Default: a shipped table's own rate, else 100 000. A rate that contradicts a
-        shipped table's own is refused rather than replayed at the wrong times.
+        Rows per second. Default: a shipped table's own rate, a CSV's ``Time/s`` column, else 100 000. A
+        rate that contradicts a shipped table's own or a CSV's time column is refused rather than replayed
+        at the wrong times.
 
     Raises
     ------
@@ -113,36 +145,50 @@ def load_reference(source: str | os.PathLike[str], rate: float | None = None) ->
             raise LivoxVizError(f"{source} is a {own:g} rows/s table; --rate {rate:g} contradicts it "
                                 "(leave --rate out)")
         return _load_file(shipped_table_dir() / f"{source}.npy", own, str(source))
-    return _load_file(Path(source), DEFAULT_RATE if rate is None else rate, Path(source).stem)
+    return _load_file(Path(source), rate, Path(source).stem)
 
 
-def _load_file(path: Path, rate: float, name: str) -> ReferencePattern:
-    """A table file at ``rate`` rows/s, named ``name``."""
-    if not math.isfinite(rate) or rate <= 0:
+def _load_file(path: Path, rate: float | None, name: str) -> ReferencePattern:
+    """A table file at ``rate`` rows/s (default: a CSV's time column, else :data:`DEFAULT_RATE`), named ``name``."""
+    if rate is not None and (not math.isfinite(rate) or rate <= 0):
         raise LivoxVizError(f"rate {rate!r}; allowed: points per second > 0")
     require_file(path, "scan table (.npy or Livox CSV)")
     if path.suffix.lower() == ".npy":
-        try:
-            table = np.load(path, allow_pickle=False)
-        except (ValueError, OSError, EOFError) as exc:
-            raise LivoxVizError(f"{path}: not a NumPy .npy array ({exc})") from None
-        if table.ndim != 2 or table.shape[1] != 2:
-            raise LivoxVizError(f"{path}: shape {table.shape}; allowed: (n, 2) columns [theta, phi] in radians")
-        table = table.astype(np.float64)
-        _check_finite(path, table)
-        if np.abs(table).max() > 2 * math.pi + 1e-6:
-            raise LivoxVizError(
-                f"{path}: angles up to {np.abs(table).max():.4g} look like degrees; the .npy form is radians"
-            )
-        xy = xy_from_zup(table[:, 0], table[:, 1])
+        table = _read_npy(path)
+        xy, plane = xy_from_zup(table[:, 0], table[:, 1])
     elif path.suffix.lower() == ".csv":
-        xy = _read_csv(path)
+        xy, plane, rate = _read_csv(path, rate)
     else:
         raise LivoxVizError(f"{path}: unknown format {path.suffix or '(none)'}; allowed: .npy or .csv")
     if xy.shape[0] < 16:
-        raise LivoxVizError(f"{path}: {xy.shape[0]} rows; allowed: at least a petal's worth")
+        raise LivoxVizError(f"{path}: {xy.shape[0]} rows; allowed: at least a petal's worth (16 rows)")
+    rate = DEFAULT_RATE if rate is None else rate
     t = np.arange(xy.shape[0], dtype=np.float64) / rate
-    return ReferencePattern(name, xy, t, float(rate))
+    return ReferencePattern(name, xy, t, float(rate), plane)
+
+
+def _read_npy(path: Path) -> np.ndarray:
+    """The ``(n, 2)`` float64 radians of a ``.npy`` table, its shape and size checked before its data is read."""
+    try:
+        mapped = np.load(path, allow_pickle=False, mmap_mode="r")
+    except (ValueError, OSError, EOFError) as exc:
+        raise LivoxVizError(f"{path}: not a NumPy .npy array ({exc})") from None
+    if mapped.ndim != 2 or mapped.shape[1] != 2:
+        raise LivoxVizError(f"{path}: shape {mapped.shape}; allowed: (n, 2) columns [theta, phi] in radians")
+    if mapped.shape[0] < 16:
+        raise LivoxVizError(f"{path}: {mapped.shape[0]} rows; allowed: at least a petal's worth (16 rows)")
+    if mapped.shape[0] > MAX_TABLE_ROWS:
+        raise LivoxVizError(f"{path}: {mapped.shape[0]:,} rows; allowed: at most {MAX_TABLE_ROWS:,} (cut the table: "
+                            "a few seconds are enough to fit a track)")
+    try:
+        table = np.array(mapped, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise LivoxVizError(f"{path}: not numeric angles ({exc})") from None
+    _check_finite(path, table)
+    if np.abs(table).max() > 2 * math.pi + 1e-6:
+        raise LivoxVizError(f"{path}: angles up to {np.abs(table).max():.4g} look like degrees; the .npy form is "
+                            "radians")
+    return table
 
 
 def _check_finite(path: Path, table: np.ndarray, first_line: int | None = None) -> None:
@@ -155,8 +201,16 @@ def _check_finite(path: Path, table: np.ndarray, first_line: int | None = None) 
                             "allowed: finite angles")
 
 
-def _read_csv(path: Path) -> np.ndarray:
-    """Azimuth and zenith columns of a Livox CSV, degrees, as pattern x, y; errors name the file's line."""
+def _read_csv(path: Path, rate: float | None) -> tuple[np.ndarray, str, float | None]:
+    """Azimuth and zenith columns of a Livox CSV, degrees, as pattern x, y, their plane, and the rows' rate.
+
+    The rate is the one given, else the one the ``Time/s`` column says (when it holds times rather than a
+    row index), else None; a given rate that contradicts the time column is refused. Errors name the line.
+    """
+    size = path.stat().st_size
+    if size > MAX_CSV_BYTES:
+        raise LivoxVizError(f"{path}: {size / 2**20:.0f} MiB; allowed: a CSV of at most {MAX_CSV_BYTES // 2**20} MiB "
+                            "(cut the table, or save it as .npy)")
     raw = path.read_bytes()
     try:
         text = raw.decode("utf-8-sig")
@@ -177,18 +231,45 @@ def _read_csv(path: Path) -> np.ndarray:
     rows = lines[1:]
     if not any(row.strip() for row in rows):
         raise LivoxVizError(f"{path}: has a header but no data rows")
+    time_col = next((i for i, n in enumerate(names) if n.startswith("time")), None)
+    columns = (azimuth_col, zenith_col) if time_col is None else (azimuth_col, zenith_col, time_col)
+    if len(rows) > MAX_TABLE_ROWS:
+        raise LivoxVizError(f"{path}: {len(rows):,} rows; allowed: at most {MAX_TABLE_ROWS:,}")
     try:
-        table = np.loadtxt(rows, delimiter=",", usecols=(azimuth_col, zenith_col), ndmin=2)
+        table = np.loadtxt(rows, delimiter=",", usecols=columns, ndmin=2)
     except ValueError as exc:
         message = re.sub(r"at row (\d+)", lambda m: f"at line {int(m.group(1)) + 2}", str(exc).splitlines()[0])
         raise LivoxVizError(f"{path}: not numeric ({message})") from None
     _check_finite(path, table, first_line=2)
+    if time_col is not None:
+        rate = _rate_from_times(path, table[:, 2], rate)
+        table = table[:, :2]
     if np.abs(table).max() <= 2 * math.pi and np.abs(table[:, 1]).max() < 3.2:
         raise LivoxVizError(f"{path}: angles at most {np.abs(table).max():.3g} look like radians; "
                             "the CSV form is degrees (Azimuth/deg, Zenith/deg)")
     azimuth = np.radians(table[:, 0])
     elevation = np.radians(90.0 - table[:, 1])
-    return xy_from_zup(azimuth, elevation)
+    xy, plane = xy_from_zup(azimuth, elevation)
+    return xy, plane, rate
+
+
+def _rate_from_times(path: Path, times: np.ndarray, rate: float | None) -> float | None:
+    """The rate a ``Time/s`` column says (rows per second), checked against a given ``rate``.
+
+    A column counting rows (0, 1, 2, ...) or holding one value says nothing. Times printed with few
+    decimals step unevenly, so the rate is the mean step over the whole column.
+    """
+    steps = np.diff(times)
+    if times.size < 2 or np.all(steps == 0) or np.allclose(steps, 1.0):
+        return rate
+    if np.any(steps < 0):
+        row = int(np.flatnonzero(steps < 0)[0]) + 3
+        raise LivoxVizError(f"{path}: Time/s goes back at line {row}; allowed: rows in firing order")
+    said = (times.size - 1) / float(times[-1] - times[0])
+    if rate is not None and abs(rate - said) > 1e-3 * said:
+        raise LivoxVizError(f"{path}: its Time/s column says {said:,.6g} rows/s; --rate {rate:g} contradicts it "
+                            "(leave --rate out)")
+    return said if rate is None else rate
 
 
 def pattern_table(config, name: str, seconds: float = 4.0, seed: int = 0) -> ReferencePattern:
@@ -208,7 +289,8 @@ def pattern_table(config, name: str, seconds: float = 4.0, seed: int = 0) -> Ref
     count = points_before(seconds, config.point_rate)
     check_points(count, f"{seconds:g} s of {name}")
     chunk = make_pattern(config, seed).take(count)
-    return ReferencePattern(name, chunk.xy_deg.copy(), chunk.t.copy(), float(config.point_rate))
+    return ReferencePattern(name, chunk.xy_deg.copy(), chunk.t.copy(), float(config.point_rate),
+                            config.pattern_plane)
 
 
 def load_table_or_preset(text: str, rate: float | None = None, seconds: float = 4.0,

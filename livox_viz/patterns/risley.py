@@ -39,11 +39,11 @@ class RisleyPattern(PatternStream):
     """
 
     def __init__(self, config: SensorConfig, seed: int = 0) -> None:
-        if config.risley is None:
+        params = config.track if config.pattern_model == "track" else config.risley
+        if params is None:
             raise ConfigError("the Risley pattern needs LivoxVizRisley parameters (e.g. preset livox_mid70_risley)")
         self.config = config
         self.seed = int(seed)
-        params = config.risley
         self._lasers = params.lasers
         self._cycles_per_sample = params.term_hz / config.point_rate
         self._phase0 = params.term_phase

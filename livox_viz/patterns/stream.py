@@ -18,7 +18,7 @@ from functools import cached_property
 
 import numpy as np
 
-from livox_viz.config.sensor import SensorConfig
+from livox_viz.config.sensor import SERIES_MODELS, SensorConfig
 
 
 def points_before(seconds, rate: float):
@@ -136,7 +136,7 @@ class PatternChunk:
         """All integer labels by name (frame first, then the units smallest first), each ``(n,)`` int64."""
         names = ["frame", *(unit for unit in self.config.unit_points if unit != "frame")]
         labels = {name: self.unit_number(name) for name in names}
-        if self.config.pattern_model == "risley":
+        if self.config.pattern_model in SERIES_MODELS:
             labels["laser"] = self.laser
         return labels
 

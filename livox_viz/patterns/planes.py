@@ -1,0 +1,110 @@
+"""The two pattern planes and their rays: boresight-polar angles, or azimuth and elevation.
+
+``"boresight"`` (scan-model.md section 5): a sample (x, y) in degrees is a
+direction ``alpha = hypot(x, y)`` off the boresight, rolled by
+``beta = atan2(y, x)`` about it, so ``d = (cos a, sin a cos b, -sin a sin b)``.
+
+``"panorama"`` (heads that see all around, :mod:`~livox_viz.config.fov`): x is
+the azimuth, positive to the right (about the FRD z axis, which points down),
+y the elevation, positive up: ``d = (cos y cos x, cos y sin x, -sin y)``.
+
+Both give unit rays in the sensor frame FRD (x forward along the boresight,
+y right, z down). A scan table's rows (``[theta, phi]``: azimuth about +z and
+elevation in a frame with x forward, y left, z up) are the FRD ray
+``(cos phi cos theta, -cos phi sin theta, -sin phi)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+PLANES: tuple[str, ...] = ("boresight", "panorama")
+
+
+def directions_from_xy(xy_deg: np.ndarray, plane: str = "boresight") -> np.ndarray:
+    """Unit ray directions in the sensor FRD frame.
+
+    Parameters
+    ----------
+    xy_deg : (n, 2) float64
+        Pattern x, y in ``plane``, degrees.
+    plane : {"boresight", "panorama"}
+
+    Returns
+    -------
+    d : (n, 3) float64
+        Unit vectors, x forward, y right, z down.
+    """
+    xy = np.radians(np.asarray(xy_deg, dtype=np.float64))
+    d = np.empty((xy.shape[0], 3), dtype=np.float64)
+    if plane == "panorama":
+        cos_elevation = np.cos(xy[:, 1])
+        d[:, 0] = cos_elevation * np.cos(xy[:, 0])
+        d[:, 1] = cos_elevation * np.sin(xy[:, 0])
+        d[:, 2] = -np.sin(xy[:, 1])
+        return d
+    _check_plane(plane)
+    alpha = np.hypot(xy[:, 0], xy[:, 1])
+    # sin(alpha)/alpha, which tends to 1 on the boresight.
+    ratio = np.sinc(alpha / np.pi)
+    d[:, 0] = np.cos(alpha)
+    d[:, 1] = ratio * xy[:, 0]
+    d[:, 2] = -ratio * xy[:, 1]
+    return d
+
+
+def xy_from_directions(d: np.ndarray, plane: str = "boresight") -> np.ndarray:
+    """The inverse of :func:`directions_from_xy` (boresight: rays within 180 degrees of the boresight).
+
+    Parameters
+    ----------
+    d : (n, 3) float64
+        Directions in the sensor FRD frame (need not be unit length).
+    plane : {"boresight", "panorama"}
+
+    Returns
+    -------
+    xy_deg : (n, 2) float64
+        Panorama azimuths in [-180, 180].
+    """
+    d = np.asarray(d, dtype=np.float64)
+    if plane == "panorama":
+        return np.column_stack([np.degrees(np.arctan2(d[:, 1], d[:, 0])),
+                                np.degrees(np.arctan2(-d[:, 2], np.hypot(d[:, 0], d[:, 1])))])
+    _check_plane(plane)
+    lateral = np.hypot(d[:, 1], d[:, 2])
+    alpha = np.arctan2(lateral, d[:, 0])
+    scale = np.divide(np.degrees(alpha), lateral, out=np.zeros_like(alpha), where=lateral > 0)
+    return np.stack([d[:, 1] * scale, -d[:, 2] * scale], axis=-1)
+
+
+def frd_from_zup(theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """FRD unit rays of scan-table rows: azimuth ``theta`` about +z and elevation ``phi`` (radians; x forward,
+    y left, z up).
+
+    Returns
+    -------
+    d : (n, 3) float64
+    """
+    theta = np.asarray(theta, dtype=np.float64)
+    phi = np.asarray(phi, dtype=np.float64)
+    cos_phi = np.cos(phi)
+    return np.column_stack([cos_phi * np.cos(theta), -cos_phi * np.sin(theta), -np.sin(phi)])
+
+
+def angle_between_deg(xy_a: np.ndarray, xy_b: np.ndarray, plane: str = "boresight") -> np.ndarray:
+    """``(n,)`` the angle between the rays of two samples, degrees (exact for small and large angles).
+
+    Parameters
+    ----------
+    xy_a, xy_b : (n, 2) float64
+        Pattern angles in ``plane``.
+    plane : {"boresight", "panorama"}
+    """
+    chord = np.linalg.norm(directions_from_xy(xy_a, plane) - directions_from_xy(xy_b, plane), axis=1)
+    return np.degrees(2.0 * np.arcsin(np.minimum(chord / 2.0, 1.0)))
+
+
+def _check_plane(plane: str) -> None:
+    if plane != "boresight":
+        raise ValueError(f"pattern plane {plane!r}; allowed: {' or '.join(PLANES)}")
