@@ -8,14 +8,16 @@ from dataclasses import replace
 
 import numpy as np
 
+from livox_viz.config.fov import FieldOfView
 from livox_viz.config.presets import DESCRIPTION_KEY
-from livox_viz.config.sensor import SensorConfig
+from livox_viz.config.sensor import SensorConfig, frame_layout
 from livox_viz.core.atomic import write_text_atomic
 from livox_viz.fitting.compare import compare
 from livox_viz.fitting.plot import plot_comparison
 from livox_viz.fitting.reference import ReferencePattern, is_table, load_table_or_preset
 from livox_viz.fitting.risley_fit import fit_risley
 from livox_viz.fitting.rosette_fit import fit_reference
+from livox_viz.fitting.track_fit import DEFAULT_TOLERANCE_DEG, TrackFit, fit_track
 
 from .common import (
     Command,
@@ -50,11 +52,15 @@ def _write_preset(args: argparse.Namespace, config: SensorConfig, description: s
 def cmd_fit(args: argparse.Namespace) -> int:
     if args.out:
         check_output_path(args.out, (".json",))
+    if args.tolerance is not None and args.model != "track":
+        raise UsageError("--tolerance goes with --model track")
+    if args.beams is not None and args.model == "rflysim":
+        raise UsageError("--beams goes with --model risley or track (the rosette has one laser)")
     reference = _reference(args)
     if args.model == "risley":
         return _fit_risley(args, reference)
-    if args.beams is not None:
-        raise UsageError("--beams goes with --model risley (the rosette has one laser)")
+    if args.model == "track":
+        return _fit_track(args, reference)
     result = fit_reference(reference, base=_base(args).with_pattern_model("rflysim"))
     cfg, shape, structure = result.config, result.shape, result.structure
     print(f"{reference.name}: {len(reference.t):,} points, {reference.seconds:g} s, {shape.petals} petals")
@@ -85,11 +91,30 @@ def _base(args: argparse.Namespace) -> SensorConfig:
     return config_from_args(args)
 
 
+def _at_table_rate(base: SensorConfig, reference: ReferencePattern, lasers: int) -> SensorConfig:
+    """The base configuration with W x H x F equal to the table's rows per second (about 10 frames/s).
+
+    The base's own layout is kept when it already makes the rate; otherwise W stays nearest the base's.
+    """
+    if base.point_rate == reference.rate and base.points_per_frame % lasers == 0:
+        return base
+    width, height, freq = frame_layout(reference.rate, lasers, width=base.data_width)
+    return replace(base, data_width=width, data_height=height, data_check_freq=freq)
+
+
+def _with_field_of_view(config: SensorConfig, fov: FieldOfView) -> SensorConfig:
+    """A round field of view is also the rosette's CameraFOV; any other travels in its own key."""
+    if fov.shape == "cone":
+        return replace(config, camera_fov=round(2 * fov.half_angle_deg, 4), fov=fov)
+    return replace(config, fov=fov)
+
+
 def _fit_risley(args: argparse.Namespace, reference: ReferencePattern) -> int:
     fit = fit_risley(reference, beams=args.beams)
     params = fit.params
     half_fov = float(np.hypot(reference.xy_deg[:, 0], reference.xy_deg[:, 1]).max())
-    config = replace(_base(args), risley=params, pattern_model="risley", camera_fov=round(2 * half_fov, 4))
+    base = _at_table_rate(_base(args), reference, params.lasers)
+    config = replace(base, risley=params, pattern_model="risley", camera_fov=round(2 * half_fov, 4))
     rate = config.point_rate
     forced = "" if args.beams is None else f" (forced; the step pattern says {fit.lasers_found})"
     print(f"{reference.name}: {len(reference.t):,} rows, {reference.seconds:g} s at {reference.rate:g} rows/s")
@@ -104,9 +129,8 @@ def _fit_risley(args: argparse.Namespace, reference: ReferencePattern) -> int:
     if params.lasers > 1:
         print("  per laser rms    " + " ".join(f"{v:.6f}" for v in fit.rms_per_laser_deg) + " deg")
     print(f"  fitted in        {fit.seconds:.1f} s")
-    if abs(rate - reference.rate) > 1e-6 * reference.rate:
-        print(f"  note: the preset's W x H x F = {rate:,} pts/s differs from the table's {reference.rate:g} rows/s; "
-              "its samples fall at other times than the table's rows")
+    print(f"  plays at         {config.data_width} x {config.data_height} x {config.data_check_freq} = {rate:,} "
+          "pts/s, the table's rate")
     if args.out:
         _write_preset(args, config, f"Risley track fitted to {reference.name} ({reference.seconds:g} s, "
                                     f"{params.lasers} laser{'s' if params.lasers > 1 else ''}): track residual rms "
@@ -115,16 +139,67 @@ def _fit_risley(args: argparse.Namespace, reference: ReferencePattern) -> int:
     return 0
 
 
+def _fit_track(args: argparse.Namespace, reference: ReferencePattern) -> int:
+    tolerance = DEFAULT_TOLERANCE_DEG if args.tolerance is None else args.tolerance
+    fit = fit_track(reference, beams=args.beams, tolerance_deg=tolerance)
+    params = fit.params
+    base = _at_table_rate(_base(args), reference, params.lasers)
+    config = _with_field_of_view(replace(base, track=params, pattern_model="track"), fit.field_of_view)
+    print(_track_report(reference, fit, args.beams is not None))
+    print(f"  plays at         {config.data_width} x {config.data_height} x {config.data_check_freq} = "
+          f"{config.point_rate:,} pts/s, the table's rate")
+    if fit.rms_deg > 0.01:
+        print(f"  warning: the track follows the table only to {fit.rms_deg:.3g} deg rms (more than 0.01 deg): "
+              "is the table noisy, or its rows out of order?")
+    if args.out:
+        lasers = f"{params.lasers} laser{'s' if params.lasers > 1 else ''}"
+        _write_preset(args, config, f"Track fitted to {reference.name} ({reference.seconds:g} s, {lasers}, "
+                                    f"{len(params.terms)} terms, {params.form} form): residual rms "
+                                    f"{fit.rms_deg:.2g} deg, p95 {fit.p95_deg:.2g} deg, max {fit.max_deg:.2g} deg "
+                                    f"between rays; field of view {fit.field_of_view.describe()}")
+    return 0
+
+
+def _track_report(reference: ReferencePattern, fit: TrackFit, forced: bool) -> str:
+    """What ``fit --model track`` prints: the track found and how well it replays the table."""
+    params = fit.params
+    orders_a = max(abs(m) for m, _ in params.terms)
+    orders_b = max(abs(n) for _, n in params.terms)
+    lines = [f"{reference.name}: {len(reference.t):,} rows, {reference.seconds:g} s at {reference.rate:g} rows/s, "
+             f"{reference.plane} plane",
+             f"  lasers           {params.lasers}" + (f" (forced; the step pattern says {fit.lasers_found})"
+                                                    if forced else ""),
+             f"  form             {params.form}" + (" (azimuth = A(t) + series, elevation = series)"
+                                                    if params.form == "spin" else ""),
+             f"  base A           {params.base_hz[0]:+.6f} Hz = {params.base_rpm[0]:+.3f} rpm",
+             f"  base B           {params.base_hz[1]:+.6f} Hz = {params.base_rpm[1]:+.3f} rpm",
+             f"  series           {len(params.terms)} terms, |m| <= {orders_a}, |l| <= {orders_b}",
+             f"  residual         rms {fit.rms_deg:.6f} deg, p95 {fit.p95_deg:.6f} deg, max {fit.max_deg:.6f} deg "
+             "(angle between each row's ray and the model's)"]
+    if params.lasers > 1:
+        lines.append("  per laser rms    " + " ".join(f"{v:.6f}" for v in fit.rms_per_laser_deg) + " deg")
+    lines += [f"  field of view    {fit.field_of_view.describe()}",
+              f"  fitted in        {fit.seconds:.1f} s"]
+    return "\n".join(lines)
+
+
 def _fit_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("reference", nargs="?", help="scan table: a shipped one by name (mid40, mid70), a .npy "
-                                                     "[theta, phi] in radians or a Livox CSV (degrees)")
+    parser.add_argument("reference", nargs="?", help="scan table: a shipped one by name (mid40, mid70, horizon, "
+                                                     "mid360), a .npy [theta, phi] in radians or a Livox CSV "
+                                                     "(degrees)")
     parser.add_argument("--to", help="fit to a preset's own track instead of a table, e.g. livox_mid70_risley")
-    parser.add_argument("--model", choices=("rflysim", "risley"), default="rflysim",
-                        help="rflysim: RflySim's rosette parameters (default); risley: the prism track")
-    parser.add_argument("--beams", type=whole_number(1, 16), help="with --model risley: the number of lasers "
-                                                                  "(default: read off the table's step pattern)")
+    parser.add_argument("--model", choices=("rflysim", "risley", "track"), default="rflysim",
+                        help="rflysim: RflySim's rosette parameters (default); risley: the two-prism track; "
+                             "track: any head's track (oscillating or turning parts, 360-degree heads)")
+    parser.add_argument("--beams", type=whole_number(1, 16), help="with --model risley or track: the number of "
+                                                                  "lasers (default: read off the table's step "
+                                                                  "pattern)")
+    parser.add_argument("--tolerance", type=positive_float,
+                        help=f"with --model track: the residual, deg rms, the series may leave when it prunes its "
+                             f"terms (default {DEFAULT_TOLERANCE_DEG:g}; fewer terms stream faster)")
     parser.add_argument("--rate", type=positive_float,
-                        help="rows per second of a table (default: a shipped table's own rate, else 100000)")
+                        help="rows per second of a table (default: a shipped table's own rate, a CSV's Time/s "
+                             "column, else 100000)")
     parser.add_argument("--seconds", type=positive_float, default=4.0,
                         help="with --to: how much of the preset's track to fit (default 4)")
     add_seed_argument(parser)
@@ -170,7 +245,7 @@ def _compare_arguments(parser: argparse.ArgumentParser) -> None:
 
 COMMANDS: tuple[Command, ...] = (
     Command("fit", cmd_fit, "fit a pattern model's parameters to a measured table or a preset's track",
-            "livox-viz fit --model risley mid70 --preset livox_mid70 --out mine.json",
+            "livox-viz fit --model track horizon --preset livox_horizon --out mine.json",
             _fit_arguments),
     Command("compare", cmd_compare, "coverage, radial density and track residual of a preset against a table or "
                                     "another preset",

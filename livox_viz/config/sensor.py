@@ -377,7 +377,7 @@ class SensorConfig:
 
     @property
     def pattern_plane(self) -> str:
-        """``"boresight"`` or ``"panorama"``: the plane the pattern's angles are in (see :mod:`~livox_viz.config.fov`)."""
+        """``"boresight"`` or ``"panorama"``: the plane of the pattern's angles (:mod:`~livox_viz.config.fov`)."""
         return self.field_of_view.plane
 
     @property
@@ -591,6 +591,57 @@ def _risley_with(risley: RisleyParams, name: str, value: float) -> RisleyParams:
         deflection[name.endswith("_b")] = value
         return replace(risley, deflection_deg=tuple(deflection))
     return replace(risley, laser_spacing=value)
+
+
+def frame_layout(rate: float, lasers: int = 1, width: int | None = None) -> tuple[int, int, int]:
+    """DataWidth, DataHeight and DataCheckFreq whose product is ``rate`` points per second, about 10 frames/s.
+
+    The frame rate F is the divisor of the rate nearest 10 frames per second
+    (1 to 1000) whose frame holds a whole number of firing groups of
+    ``lasers`` (so every frame starts with laser 0) where one does; the frame
+    is then split into W x H with W nearest ``width`` (default: 40 rows,
+    H = 40, as the shipped presets have).
+
+    Parameters
+    ----------
+    rate : float
+        Points per second; must be a whole number RflySim's three integers can make.
+    lasers : int
+    width : int, optional
+        The DataWidth wanted (e.g. a fitted rosette's points per arc).
+
+    Raises
+    ------
+    ConfigError
+        If no W <= 5000, H <= 2000, F <= 1000 make the rate exactly.
+    """
+    whole = round(rate)
+    if not math.isfinite(rate) or whole < 1 or abs(rate - whole) > 1e-6 * rate:
+        raise ConfigError(f"a rate of {rate!r} points/s; RflySim's DataWidth x DataHeight x DataCheckFreq makes "
+                          "whole numbers of points per second only")
+    limits = (PARAM_RANGES["data_width"].high, PARAM_RANGES["data_height"].high, PARAM_RANGES["data_check_freq"].high)
+    best: tuple[tuple[float, ...], tuple[int, int, int]] | None = None
+    for freq in range(1, int(limits[2]) + 1):
+        frame, rest = divmod(whole, freq)
+        if rest or frame > limits[0] * limits[1]:
+            continue
+        target = width or max(1, frame // 40)
+        widths = [w for w in _divisors(frame) if w <= limits[0] and frame // w <= limits[1]]
+        if not widths:
+            continue
+        w = min(widths, key=lambda w: (abs(w - target), w))
+        key = (frame % lasers != 0, abs(math.log(freq / 10.0)), abs(w - target))
+        if best is None or key < best[0]:
+            best = (key, (w, frame // w, freq))
+    if best is None:
+        raise ConfigError(f"{whole:,} points/s cannot be made as DataWidth x DataHeight x DataCheckFreq within "
+                          f"{int(limits[0])} x {int(limits[1])} x {int(limits[2])}")
+    return best[1]
+
+
+def _divisors(number: int) -> list[int]:
+    small = [d for d in range(1, math.isqrt(number) + 1) if number % d == 0]
+    return sorted(set(small + [number // d for d in small]))
 
 
 @functools.lru_cache(maxsize=64)

@@ -93,7 +93,8 @@ class TrackParams:
         if any(max(abs(m), abs(n)) > MAX_ORDER for m, n in terms):
             raise ConfigError(f"{TRACK_KEY}.terms; allowed: |m|, |l| <= {MAX_ORDER}")
         coefficients = np.array(self.coefficients, dtype=np.complex128)
-        if coefficients.ndim != 2 or coefficients.shape[1] != len(terms) or not 1 <= coefficients.shape[0] <= MAX_LASERS:
+        shape_ok = coefficients.ndim == 2 and coefficients.shape[1] == len(terms)
+        if not shape_ok or not 1 <= coefficients.shape[0] <= MAX_LASERS:
             raise ConfigError(f"{TRACK_KEY}.coefficients_deg has shape {coefficients.shape}; allowed: "
                               f"(lasers 1..{MAX_LASERS}, {len(terms)} terms)")
         if not np.all(np.isfinite(coefficients)):

@@ -35,6 +35,10 @@ import numpy as np
 from livox_viz.config.risley_params import RisleyParams
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.fitting.reference import ReferencePattern
+from livox_viz.fitting.series_lsq import LaserRows
+from livox_viz.fitting.track_fit import NO_TRACK_FRACTION, find_lasers, spectral_peaks
+
+__all__ = ["RisleyFit", "find_lasers", "fit_risley", "series_terms", "track_residual"]
 
 MAX_LASERS = 16
 #: Largest |m| of the rotation-equivariant family (m, 1 - m).
@@ -71,46 +75,6 @@ class RisleyFit:
     seconds: float
 
 
-def find_lasers(z: np.ndarray, max_lasers: int = MAX_LASERS) -> int:
-    """K, the number of lasers firing in turn, from the period of the row-to-row steps.
-
-    Parameters
-    ----------
-    z : (n,) complex128
-        The table's points, degrees (x + iy).
-    """
-    steps = np.diff(z)
-    scores = []
-    for k in range(1, min(max_lasers, steps.size // 8) + 1):
-        scores.append(float(np.mean(np.abs(steps[k:] - steps[:-k]))))
-    if not scores:
-        return 1
-    best = min(scores)
-    return next(k for k, score in enumerate(scores, start=1) if score <= 1.5 * best)
-
-
-def _spectral_peaks(z: np.ndarray, rate: float, count: int = 2) -> list[tuple[float, float]]:
-    """The ``count`` strongest lines of a signal's spectrum away from 0 Hz: (frequency Hz, amplitude)."""
-    n = z.size
-    window = np.hanning(n)
-    size = 1 << (math.ceil(math.log2(n)) + 2)
-    spectrum = np.abs(np.fft.fft((z - z.mean()) * window, size))
-    freqs = np.fft.fftfreq(size, 1.0 / rate)
-    resolution = rate / n
-    peaks: list[tuple[float, float]] = []
-    spectrum[np.abs(freqs) < 2 * resolution] = 0.0
-    for _ in range(count):
-        i = int(np.argmax(spectrum))
-        if spectrum[i] <= 0:
-            break
-        left, right = spectrum[i - 1], spectrum[(i + 1) % size]
-        denominator = left - 2 * spectrum[i] + right
-        shift = 0.5 * (left - right) / denominator if denominator != 0 else 0.0
-        peaks.append((float(freqs[i] + shift * rate / size), float(spectrum[i] * 2 / window.sum())))
-        spectrum[np.abs(freqs - freqs[i]) < 4 * resolution] = 0.0
-    return peaks
-
-
 def series_terms(lasers: int) -> tuple[tuple[int, int], ...]:
     """The (m, l) terms fitted: the equivariant family, plus the offset families for several lasers."""
     terms = [(1, 0), (0, 1)]
@@ -124,24 +88,24 @@ def series_terms(lasers: int) -> tuple[tuple[int, int], ...]:
     return tuple(terms)
 
 
-def _design(t: np.ndarray, hz: tuple[float, float], terms: tuple[tuple[int, int], ...]) -> np.ndarray:
-    """``(n, J)`` complex128 exp(i 2 pi (m f_A + l f_B) t)."""
-    omega = np.array([m * hz[0] + n * hz[1] for m, n in terms])
-    phase = np.mod(np.outer(t, omega), 1.0)
-    return np.exp(2j * np.pi * phase)
-
-
 def _solve(z: np.ndarray, t: np.ndarray, laser: np.ndarray, lasers: int, hz: tuple[float, float],
            terms: tuple[tuple[int, int], ...]) -> tuple[np.ndarray, np.ndarray]:
-    """Coefficients ``(K, J)`` and residuals ``(n,)`` complex for given frequencies."""
+    """Coefficients ``(K, J)`` and residuals ``(n,)`` complex for given frequencies.
+
+    Each laser's rows are evenly spaced in time (every K-th row, or every K-th of evenly spaced firing
+    groups), which is what :class:`~livox_viz.fitting.series_lsq.LaserRows` needs: no ``(n, J)`` design
+    matrix is made, so memory does not grow with rows x terms.
+    """
+    omega = np.array([m * hz[0] + n * hz[1] for m, n in terms])
     coefficients = np.zeros((lasers, len(terms)), dtype=np.complex128)
     residual = np.empty_like(z)
     for k in range(lasers):
-        rows = laser == k
-        design = _design(t[rows], hz, terms)
-        solution, *_ = np.linalg.lstsq(design, z[rows], rcond=None)
+        rows = np.flatnonzero(laser == k)
+        times = t[rows]
+        step = float(times[1] - times[0]) if times.size > 1 else 1.0
+        solution, part = LaserRows(z[rows], float(times[0]), step).solve(omega)
         coefficients[k] = solution
-        residual[rows] = z[rows] - design @ solution
+        residual[rows] = part
     return coefficients, residual
 
 
@@ -174,6 +138,9 @@ def fit_risley(table: ReferencePattern, beams: int | None = None) -> RisleyFit:
         For a table too short to tell the prisms apart, or a bad ``beams``.
     """
     start = time.perf_counter()
+    if table.plane != "boresight":
+        raise LivoxVizError(f"{table.name}: its rays go all around the sensor; a two-prism head looks one way "
+                            "(fit it with --model track)")
     z = table.xy_deg[:, 0] + 1j * table.xy_deg[:, 1]
     if z.size < 1000:
         raise LivoxVizError(f"{table.name}: {z.size} rows; allowed: at least 1000 (two turns of the slower prism)")
@@ -187,15 +154,22 @@ def fit_risley(table: ReferencePattern, beams: int | None = None) -> RisleyFit:
     t = np.arange(z.size, dtype=np.float64) / rate
     laser = np.arange(z.size) % lasers
     first = z[laser == 0]
-    peaks = _spectral_peaks(first, rate / lasers, 2)
+    peaks = spectral_peaks(first, rate / lasers, 2)
     if len(peaks) < 2:
         raise LivoxVizError(f"{table.name}: found fewer than two rotating lines; is it a Risley scan?")
     (f1, a1), (f2, a2) = peaks
+    swings = abs(f1 + f2) < 4.0 / table.seconds
+    if swings and table.seconds * min(abs(f1), abs(f2)) >= 4.0:
+        raise LivoxVizError(f"{table.name}: its strongest lines are at +{abs(f1):.4g} and -{abs(f1):.4g} Hz, a part "
+                            "that swings rather than two prisms that turn; fit it with --model track")
+    if swings:
+        raise LivoxVizError(f"{table.name}: {table.seconds:.4g} s of data; allowed: at least two periods of the slower "
+                            "beat (the spectrum's two strongest lines are not yet apart)")
     if (f1 > 0) == (f2 > 0):
         hz = (f1, f2) if a1 >= a2 else (f2, f1)
     else:
         hz = (f1, f2) if f1 > 0 else (f2, f1)
-    slowest = min(abs(hz[0]), abs(hz[1]), abs(hz[0] + hz[1]) or math.inf)
+    slowest = min(abs(hz[0]), abs(hz[1]), abs(hz[0] + hz[1]))
     if table.seconds < 2.0 / slowest:
         raise LivoxVizError(f"{table.name}: {table.seconds:.4g} s of data; allowed: at least two periods of the "
                             f"slower beat ({2.0 / slowest:.4g} s at {slowest:.4g} Hz)")
@@ -217,6 +191,13 @@ def fit_risley(table: ReferencePattern, beams: int | None = None) -> RisleyFit:
     shift = np.exp(-1j * np.array([m * a0 + n * b0 for m, n in terms]))
     params = RisleyParams(prism_hz=hz, phase_rad=(a0, b0), terms=terms, base_coefficients=coefficients * shift)
     distance = np.abs(residual)
+    means = np.array([z[laser == k].mean() for k in range(lasers)])
+    spread = math.sqrt(float(np.mean(np.abs(z - means[laser]) ** 2)))
+    error = math.sqrt(float(np.mean(distance**2)))
+    if error > NO_TRACK_FRACTION * spread:
+        raise LivoxVizError(f"{table.name}: the best two-prism track leaves {error:.3g} "
+                            f"deg rms of the table's {spread:.3g} deg spread: it is not a two-prism track (noise, rows "
+                            "out of order, or another head: try --model track)")
     per_laser = np.array([math.sqrt(float(np.mean(distance[laser == k] ** 2))) for k in range(lasers)])
     return RisleyFit(params, found, math.sqrt(float(np.mean(distance**2))), float(np.percentile(distance, 95)),
                      float(distance.max()), per_laser, time.perf_counter() - start)

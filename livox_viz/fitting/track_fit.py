@@ -224,10 +224,10 @@ def choose_base(peaks: list[tuple[float, float]], resolution: float, spin_hz: fl
     for a, b in pairs:
         if _degenerate(a, b, tolerance):
             continue
-        m, l, explained = _explain(freqs, a, b, tolerance)
+        order_a, order_b, explained = _explain(freqs, a, b, tolerance)
         share = float(amps[explained].sum()) / total
-        cost = float(np.sum(amps[explained] * (np.abs(m) + np.abs(l))[explained])) / total
-        choice = BaseChoice((float(a), float(b)), tuple(zip(m[explained].tolist(), l[explained].tolist(),
+        cost = float(np.sum(amps[explained] * (np.abs(order_a) + np.abs(order_b))[explained])) / total
+        choice = BaseChoice((float(a), float(b)), tuple(zip(order_a[explained].tolist(), order_b[explained].tolist(),
                                                             strict=True)), share)
         key = (share - 0.02 * cost, -cost)
         if best is None or key > best[:2]:
@@ -236,7 +236,7 @@ def choose_base(peaks: list[tuple[float, float]], resolution: float, spin_hz: fl
         share = 0.0 if best is None else best[2].explained
         raise LivoxVizError(f"the strongest lines of the spectrum are not combinations of two frequencies (at most "
                             f"{100 * share:.0f} % explained): no periodic scan track in this table")
-    return _normalise(best[2])
+    return best[2] if spin_hz is not None else _normalise(best[2])
 
 
 def _normalise(choice: BaseChoice) -> BaseChoice:
@@ -386,7 +386,8 @@ def fit_track(table: ReferencePattern, beams: int | None = None,
         error = rms(np.concatenate(residuals))
         if error > 0.3 * spread:
             _no_track(table, error, spread)
-        if error <= tolerance_deg / 2 or error > FLOOR_GAIN * previous or time.perf_counter() - started > GROWTH_BUDGET_S:
+        out_of_time = time.perf_counter() - started > GROWTH_BUDGET_S
+        if error <= tolerance_deg / 2 or error > FLOOR_GAIN * previous or out_of_time:
             break
         previous = error
         energy = np.mean(np.abs(coefficients) ** 2, axis=0)
