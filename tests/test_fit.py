@@ -98,8 +98,11 @@ def test_compare_identical_and_shifted(mid70: SensorConfig) -> None:
     np.testing.assert_array_equal(same.density_ours, same.density_reference)
     shifted = ReferencePattern("shifted", reference.xy_deg + np.array([3.0, 0.0]), reference.t, reference.rate)
     moved = compare(mid70, shifted, seed=0, seconds=(0.1, 0.5, 1.0))
-    assert np.abs(moved.coverage_ours - moved.coverage_reference).max() > 0.005
-    assert np.abs(moved.density_ours - moved.density_reference).max() > 0
+    # Each is counted in its own field of view (the shifted one's outline is its disk, moved): the same
+    # pattern covers it alike, but its density off the boresight is not ours.
+    assert shifted.field_of_view.shape == "outline"
+    assert np.abs(moved.coverage_ours - moved.coverage_reference).max() < 0.005
+    assert np.abs(moved.density_ours - moved.density_reference).max() > 0.1 * moved.density_ours.max()
 
 
 def test_window_coverage_of_a_repeating_pattern() -> None:

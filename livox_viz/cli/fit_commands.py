@@ -11,6 +11,7 @@ import numpy as np
 from livox_viz.config.fov import FieldOfView
 from livox_viz.config.presets import DESCRIPTION_KEY
 from livox_viz.config.sensor import SensorConfig, frame_layout
+from livox_viz.config.track_params import TrackParams
 from livox_viz.core.atomic import write_text_atomic
 from livox_viz.fitting.compare import compare
 from livox_viz.fitting.plot import plot_comparison
@@ -102,11 +103,12 @@ def _at_table_rate(base: SensorConfig, reference: ReferencePattern, lasers: int)
     return replace(base, data_width=width, data_height=height, data_check_freq=freq)
 
 
-def _with_field_of_view(config: SensorConfig, fov: FieldOfView) -> SensorConfig:
-    """A round field of view is also the rosette's CameraFOV; any other travels in its own key."""
+def _with_track(config: SensorConfig, track: TrackParams, fov: FieldOfView) -> SensorConfig:
+    """The track and its field of view; a round field of view is also the rosette's CameraFOV."""
     if fov.shape == "cone":
-        return replace(config, camera_fov=round(2 * fov.half_angle_deg, 4), fov=fov)
-    return replace(config, fov=fov)
+        return replace(config, track=track, pattern_model="track", fov=fov,
+                       camera_fov=round(2 * fov.half_angle_deg, 4))
+    return replace(config, track=track, pattern_model="track", fov=fov)
 
 
 def _fit_risley(args: argparse.Namespace, reference: ReferencePattern) -> int:
@@ -144,7 +146,7 @@ def _fit_track(args: argparse.Namespace, reference: ReferencePattern) -> int:
     fit = fit_track(reference, beams=args.beams, tolerance_deg=tolerance)
     params = fit.params
     base = _at_table_rate(_base(args), reference, params.lasers)
-    config = _with_field_of_view(replace(base, track=params, pattern_model="track"), fit.field_of_view)
+    config = _with_track(base, params, fit.field_of_view)
     print(_track_report(reference, fit, args.beams is not None))
     print(f"  plays at         {config.data_width} x {config.data_height} x {config.data_check_freq} = "
           f"{config.point_rate:,} pts/s, the table's rate")
@@ -208,24 +210,27 @@ def _fit_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
+    if args.plot:
+        check_output_path(args.plot, (".png",))
     cfg = config_from_args(args)
     reference = load_table_or_preset(args.reference, rate=args.rate, seconds=args.seconds, seed=args.seed)
     result = compare(cfg, reference, seed=args.seed)
-    print(f"{config_label(args)} against {reference.name} ({reference.seconds:g} s)")
+    span = "" if result.span_seconds >= reference.seconds else f", its first {result.span_seconds:g} s compared"
+    print(f"{config_label(args)} against {reference.name} ({reference.seconds:g} s{span})")
     print("  integration s   reference %   ours %   difference pp")
     for t, ref, ours in zip(result.seconds, result.coverage_reference, result.coverage_ours, strict=True):
         print(f"  {t:13g}   {100 * ref:11.2f}   {100 * ours:6.2f}   {100 * (ours - ref):+13.2f}")
-    print("  radial density, million points per sr per s")
-    print("  alpha deg      reference      ours")
+    print(f"  density along the {result.profile_label.split(',')[0]}, million points per sr per s")
+    print("  deg            reference      ours")
     edges = result.density_edges_deg
     for k in range(0, len(result.density_ours), max(1, len(result.density_ours) // 10)):
         print(f"  {edges[k]:5.1f}-{edges[k + 1]:<5.1f}  {result.density_reference[k] / 1e6:9.3f}  "
               f"{result.density_ours[k] / 1e6:9.3f}")
     if result.track_residual is not None:
         rms, p95, worst = result.track_residual
-        print(f"  track residual   rms {rms:.6f} deg, p95 {p95:.6f} deg, max {worst:.6f} deg (sample for sample)")
+        print(f"  track residual   rms {rms:.6f} deg, p95 {p95:.6f} deg, max {worst:.6f} deg (angle between rays, "
+              "sample for sample)")
     if args.plot:
-        check_output_path(args.plot, (".png",))
         plot_comparison(result, args.plot, f"{config_label(args)} vs {reference.name}")
         print(f"wrote {args.plot}")
     return 0

@@ -1,4 +1,9 @@
-"""Comparing a configuration's pattern with a reference: coverage, radial density, track residual.
+"""Comparing a configuration's pattern with a reference: coverage, density, track residual.
+
+Each pattern's coverage counts the cells of its own field of view (a cone, an
+outline, a band); both densities run over the union of the two profiles.
+Memory is bounded: at most :data:`COMPARE_MAX_SECONDS` of each are compared,
+and our side is checked against the work budget first.
 """
 
 from __future__ import annotations
@@ -7,19 +12,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from livox_viz.config.sensor import SensorConfig
+from livox_viz.config.sensor import SERIES_MODELS, SensorConfig
 from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.workload import check_points
 from livox_viz.fitting.reference import ReferencePattern
 from livox_viz.patterns.factory import make_pattern
-from livox_viz.patterns.metrics import window_coverage
+from livox_viz.patterns.metrics import radial_density, window_coverage
 from livox_viz.patterns.stream import points_before
 
 COMPARE_TIMES = (0.05, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0)
+#: The longest span compared, seconds (a longer reference is compared over its first minute).
+COMPARE_MAX_SECONDS = 60.0
 
 
 @dataclass(frozen=True)
 class Comparison:
-    """Ours against a reference: coverage against integration time and radial density."""
+    """Ours against a reference: coverage against integration time and density along the FOV's profile."""
 
     seconds: np.ndarray
     coverage_ours: np.ndarray
@@ -27,31 +35,42 @@ class Comparison:
     density_edges_deg: np.ndarray
     density_ours: np.ndarray
     density_reference: np.ndarray
-    #: (rms, p95, max) degrees sample for sample, when ours is a deterministic track at the reference's rate.
+    #: (rms, p95, max) degrees between rays sample for sample, when ours is a deterministic track at the
+    #: reference's rate.
     track_residual: tuple[float, float, float] | None = None
+    #: Seconds of each that were compared.
+    span_seconds: float = 0.0
+    #: What the density runs along ("angle off the boresight, deg" or "elevation, deg").
+    profile_label: str = "angle off the boresight, deg"
 
 
 def compare(config: SensorConfig, reference: ReferencePattern, seed: int = 0,
             seconds: tuple[float, ...] = COMPARE_TIMES, bins: int = 30) -> Comparison:
-    """Coverage (each pattern in its own FOV) and radial density (points per sr per second) of both."""
-    from livox_viz.patterns.metrics import radial_density
-
-    usable = tuple(t for t in seconds if t * reference.rate <= len(reference.t)
-                   and t * config.point_rate <= 50_000_000)
-    if not usable:
+    """Coverage (each pattern in its own FOV) and density (points per sr per second) of both."""
+    if config.pattern_plane != reference.plane:
+        raise LivoxVizError(f"{reference.name} is a {reference.plane} pattern and the configuration a "
+                            f"{config.pattern_plane} one; allowed: two patterns in the same plane")
+    duration = min(reference.seconds, COMPARE_MAX_SECONDS)
+    rows = min(len(reference.t), points_before(duration, reference.rate))
+    usable = tuple(t for t in seconds if points_before(t, reference.rate) <= rows
+                   and points_before(t, config.point_rate) <= points_before(duration, config.point_rate))
+    if not usable or rows < 2:
         raise LivoxVizError(f"the reference holds {reference.seconds:.3g} s; allowed: at least {min(seconds):g} s")
-    duration = reference.seconds
-    ours = make_pattern(config, seed=seed).take(points_before(duration, config.point_rate)).xy_deg
-    ref_radius = float(reference.alpha_deg.max())
-    ours_cov = window_coverage(ours, config.point_rate, usable, config.half_fov_deg)
-    ref_cov = window_coverage(reference.xy_deg, reference.rate, usable, ref_radius)
-    radius = max(config.half_fov_deg, ref_radius)
-    edges, ours_density = radial_density(ours, radius, bins)
-    _, ref_density = radial_density(reference.xy_deg, radius, bins)
+    count = points_before(duration, config.point_rate)
+    check_points(count, f"comparing {duration:g} s of a {config.point_rate:,} pts/s pattern")
+    ours = make_pattern(config, seed=seed).take(count).xy_deg
+    reference_xy = reference.xy_deg[:rows]
+    ours_fov, reference_fov = config.field_of_view, reference.field_of_view
+    ours_cov = window_coverage(ours, config.point_rate, usable, ours_fov)
+    ref_cov = window_coverage(reference_xy, reference.rate, usable, reference_fov)
+    low = min(ours_fov.profile_range[0], reference_fov.profile_range[0])
+    high = max(ours_fov.profile_range[1], reference_fov.profile_range[1])
+    edges, ours_density = radial_density(ours, ours_fov, bins, (low, high))
+    _, ref_density = radial_density(reference_xy, reference_fov, bins, (low, high))
     residual = None
-    if config.pattern_model == "risley" and config.point_rate == reference.rate and len(ours) == len(reference.t):
+    if config.pattern_model in SERIES_MODELS and config.point_rate == reference.rate and len(ours) == rows:
         from livox_viz.fitting.risley_fit import track_residual
 
-        residual = track_residual(ours, reference.xy_deg)
+        residual = track_residual(ours, reference_xy, config.pattern_plane)
     return Comparison(np.array(usable), ours_cov, ref_cov, edges, ours_density / duration,
-                      ref_density / duration, residual)
+                      ref_density / duration, residual, duration, ours_fov.profile_label)

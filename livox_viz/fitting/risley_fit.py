@@ -37,6 +37,7 @@ from livox_viz.core.errors import LivoxVizError
 from livox_viz.fitting.reference import ReferencePattern
 from livox_viz.fitting.series_lsq import LaserRows
 from livox_viz.fitting.track_fit import NO_TRACK_FRACTION, find_lasers, spectral_peaks
+from livox_viz.patterns.planes import angle_between_deg
 
 __all__ = ["RisleyFit", "find_lasers", "fit_risley", "series_terms", "track_residual"]
 
@@ -203,7 +204,15 @@ def fit_risley(table: ReferencePattern, beams: int | None = None) -> RisleyFit:
                      float(distance.max()), per_laser, time.perf_counter() - start)
 
 
-def track_residual(xy_a: np.ndarray, xy_b: np.ndarray) -> tuple[float, float, float]:
-    """Sample-for-sample distance of two tracks of the same length: (rms, p95, max) degrees."""
-    distance = np.hypot(*(np.asarray(xy_a) - np.asarray(xy_b)).T)
+def track_residual(xy_a: np.ndarray, xy_b: np.ndarray, plane: str = "boresight") -> tuple[float, float, float]:
+    """Sample-for-sample angle between the rays of two tracks of the same length: (rms, p95, max) degrees.
+
+    Parameters
+    ----------
+    xy_a, xy_b : (n, 2) float64
+        Pattern angles in ``plane``.
+    plane : {"boresight", "panorama"}
+    """
+    distance = np.concatenate([angle_between_deg(xy_a[s : s + 200_000], xy_b[s : s + 200_000], plane)
+                               for s in range(0, len(xy_a), 200_000)]) if len(xy_a) else np.zeros(1)
     return (math.sqrt(float(np.mean(distance**2))), float(np.percentile(distance, 95)), float(distance.max()))

@@ -31,6 +31,8 @@ from livox_viz.patterns.metrics import coverage_curve, window_coverage
 from livox_viz.patterns.rosette import ScanPattern, arc_xy
 from livox_viz.patterns.stream import points_before
 
+#: A petal residual over this fraction of the half-angle means the points are no rosette (noise, say).
+NO_ROSETTE_FRACTION = 0.2
 #: Integration times the structure fit matches, seconds.
 FIT_TIMES = (0.1, 0.2, 0.5, 1.0)
 
@@ -146,19 +148,28 @@ def fit_shape(xy_deg: np.ndarray, max_petals: int = 40) -> ShapeFit:
     h0 = max(float(np.abs(local[:, 1]).max()) * 0.9, 1e-3)
 
     def residual(params: np.ndarray) -> np.ndarray:
-        return (model_points(place, *params) - local).ravel()
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (model_points(place, *params) - local).ravel()
 
+    start = [min(half_fov0, 89.0), min(h0, half_fov0 / 2, 45.0), 1.3, 1.1]
+    if not np.all(np.isfinite(residual(np.array(start)))):
+        raise LivoxVizError("the points do not form rosette petals (centre -> tip -> centre arcs); no rosette fits")
     solution = least_squares(
-        residual, x0=[half_fov0, min(h0, half_fov0 / 2), 1.3, 1.1],
-        bounds=([half_fov0 * 0.8, 1e-3, 0.05, 0.05], [min(half_fov0 * 1.2, 89.9), 45.0, 10.0, 10.0]),
+        residual, x0=start,
+        bounds=([start[0] * 0.8, 1e-3, 0.05, 0.05], [min(start[0] * 1.2, 89.9), 45.0, 10.0, 10.0]),
         x_scale="jac", method="trf",
     )
     half_fov, h, p, q = (float(v) for v in solution.x)
     every, _ = petal_frames(xy_deg, petals)
-    distance = perpendicular_distance(every, half_fov, h, p, q)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        distance = perpendicular_distance(every, half_fov, h, p, q)
+    rms_deg = float(np.sqrt(np.mean(distance**2)))
+    if not math.isfinite(rms_deg) or rms_deg > NO_ROSETTE_FRACTION * half_fov:
+        raise LivoxVizError(f"the points do not form rosette petals: the best petal is {rms_deg:.3g} deg rms off them "
+                            f"({100 * rms_deg / half_fov:.0f} % of the {half_fov:.3g} deg half-angle); no rosette fits")
     return ShapeFit(
         camera_fov=2 * half_fov, petal_height=h, spacing_exponent=p, tip_exponent=q,
-        rms_deg=float(np.sqrt(np.mean(distance**2))), p95_deg=float(np.percentile(distance, 95)),
+        rms_deg=rms_deg, p95_deg=float(np.percentile(distance, 95)),
         points_per_arc=float(np.mean(petals.tip - petals.start)), petals=len(petals),
     )
 
@@ -271,6 +282,9 @@ class FitResult:
 def fit_reference(reference: ReferencePattern, base: SensorConfig | None = None) -> FitResult:
     """Fit every model parameter to a measured pattern and build a valid configuration."""
     base = base or SensorConfig()
+    if reference.plane != "boresight":
+        raise LivoxVizError(f"{reference.name}: its rays go all around the sensor; RflySim's rosette looks one way "
+                            "(no rosette fits a 360-degree head)")
     seconds = tuple(t for t in FIT_TIMES if t * reference.rate <= len(reference.t))
     if not seconds:
         raise LivoxVizError(f"{reference.name}: {reference.seconds:.4g} s of data; allowed: at least "

@@ -1,14 +1,22 @@
-"""Measures of a scan pattern: FOV coverage against integration time, radial density.
+"""Measures of a scan pattern: FOV coverage against integration time, density along the FOV's profile.
 
 Coverage (scan-model.md section 7): a square grid of cell size ``cell_deg``
 (edges at multiples of it, so the boresight is a cell corner) is laid over the
-angular plane; of the cells whose centre lies inside the FOV circle, the
-fraction holding at least one point. Livox's own figure uses 5 mrad cells
-(0.2865 degrees), the default here.
+pattern plane; of the cells whose centre lies inside the field of view (the
+cone of CameraFOV / 2, or a sensor's own outline or band:
+:class:`~livox_viz.config.fov.FieldOfView`), the fraction holding at least one
+point. Livox's own figure uses 5 mrad cells (0.2865 degrees), the default here.
+In the panorama plane (azimuth, elevation) the cells are 5 mrad of azimuth by
+5 mrad of elevation (the azimuth's step rounded so whole cells go round).
+
+Density is points per steradian against the angle off the boresight (or, for a
+panorama, against the elevation), each ring's solid angle counted inside the
+field of view only.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -16,6 +24,7 @@ from functools import cached_property
 
 import numpy as np
 
+from livox_viz.config.fov import FieldOfView
 from livox_viz.config.sensor import SensorConfig
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.patterns.factory import make_pattern
@@ -23,52 +32,106 @@ from livox_viz.patterns.stream import points_before
 
 LIVOX_CELL_DEG = math.degrees(0.005)
 
+#: A field of view, or the half-angle of a cone around the boresight, degrees.
+FovLike = FieldOfView | float
+
+
+def as_fov(fov: FovLike) -> FieldOfView:
+    """A :class:`FieldOfView` from a field of view or a cone's half-angle (degrees)."""
+    if isinstance(fov, FieldOfView):
+        return fov
+    radius = float(fov)
+    if not (math.isfinite(radius) and 0 < radius < 90):
+        raise LivoxVizError(f"FOV radius = {fov!r} deg; allowed: a number in (0, 90)")
+    return FieldOfView.cone(radius)
+
 
 @dataclass(frozen=True)
 class CoverageGrid:
-    """The cells of the FOV disk.
+    """The cells of a field of view.
 
     Parameters
     ----------
-    radius_deg : float
-        FOV half-angle, degrees.
+    fov : FieldOfView or float
+        The field of view, or a cone's half-angle in degrees.
     cell_deg : float
         Cell size, degrees.
     """
 
-    radius_deg: float
+    fov: FovLike
     cell_deg: float
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.cell_deg) and self.cell_deg > 0):
             raise LivoxVizError(f"cell size = {self.cell_deg!r} deg; allowed: a number > 0")
-        if not (math.isfinite(self.radius_deg) and self.radius_deg > 0):
-            raise LivoxVizError(f"FOV radius = {self.radius_deg!r} deg; allowed: a number > 0")
-        if (2 * self.radius_deg / self.cell_deg) ** 2 > 4e8:
+        object.__setattr__(self, "fov", as_fov(self.fov))
+        x0, x1, y0, y1 = self.fov.bounds
+        if ((x1 - x0) / self.cell_deg) * ((y1 - y0) / self.cell_deg) > 4e8:
             raise LivoxVizError(
-                f"cell size {self.cell_deg:g} deg gives too many cells for a {self.radius_deg:g} deg FOV; "
-                f"allowed: >= {2 * self.radius_deg / 2e4:g} deg"
+                f"cell size {self.cell_deg:g} deg gives too many cells for a {self.fov.describe()}; "
+                f"allowed: >= {max(x1 - x0, y1 - y0) / 2e4:g} deg"
             )
 
     @property
+    def radius_deg(self) -> float:
+        """The field of view's largest angle off the boresight (a cone's half-angle)."""
+        return self.fov.reach_deg
+
+    @cached_property
+    def _axes(self) -> tuple[float, int, float, int, float, float]:
+        """(x0, nx, y0, ny, cell_x, cell_y): the grid's first edges, cells per axis and cell sizes."""
+        x_min, x_max, y_min, y_max = self.fov.bounds
+        cell = self.cell_deg
+        if self.fov.plane == "panorama":
+            across = max(1, round(360.0 / cell))
+            cell_x = 360.0 / across
+            return (-180.0, across, math.floor(y_min / cell) * cell, math.ceil(y_max / cell)
+                    - math.floor(y_min / cell), cell_x, cell)
+        low_x, high_x = math.floor(x_min / cell), math.ceil(x_max / cell)
+        low_y, high_y = math.floor(y_min / cell), math.ceil(y_max / cell)
+        return (low_x * cell, high_x - low_x, low_y * cell, high_y - low_y, cell, cell)
+
+    @property
     def cells_per_side(self) -> int:
-        """Cells along each axis on each side of the boresight."""
+        """Cells from the boresight to the cone's edge along an axis (a cone's grid is 2M x 2M)."""
         return math.ceil(self.radius_deg / self.cell_deg)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Cells along x and along y."""
+        _, nx, _, ny, _, _ = self._axes
+        return (nx, ny)
+
+    @cached_property
+    def centres(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(nx,)`` and ``(ny,)`` float64 the cells' centres along x and y, degrees."""
+        x0, nx, y0, ny, cell_x, cell_y = self._axes
+        return (x0 + (np.arange(nx) + 0.5) * cell_x, y0 + (np.arange(ny) + 0.5) * cell_y)
 
     @cached_property
     def inside_mask(self) -> np.ndarray:
-        """``(2M, 2M)`` bool: which cells have their centre inside the FOV circle (M = cells per side); never none."""
-        half = self.cells_per_side
-        centres = (np.arange(-half, half) + 0.5) * self.cell_deg
-        inside = np.hypot(centres[:, None], centres[None, :]) <= self.radius_deg
-        if not inside.any():  # a FOV narrower than a cell: the four cells that meet at the boresight
-            inside[half - 1 : half + 1, half - 1 : half + 1] = True
+        """``(nx, ny)`` bool: which cells have their centre inside the field of view; never none."""
+        inside = self.fov.grid_inside(*self.centres)
+        if not inside.any():
+            # A field of view narrower than a cell: the cells that meet at its middle (the boresight's four).
+            x0, x1, y0, y1 = self.fov.bounds
+            _, _, _, _, cell_x, cell_y = self._axes
+            near_x = np.abs(self.centres[0] - (x0 + x1) / 2) <= cell_x / 2 + 1e-12
+            near_y = np.abs(self.centres[1] - (y0 + y1) / 2) <= cell_y / 2 + 1e-12
+            inside[np.ix_(near_x, near_y)] = True
         return inside
 
     @property
     def cell_count(self) -> int:
         """How many cells the FOV holds (the denominator of coverage)."""
         return int(self.inside_mask.sum())
+
+    @cached_property
+    def cell_solid_angle(self) -> np.ndarray:
+        """``(nx, ny)`` float64 each cell's solid angle, steradians."""
+        _, _, _, _, cell_x, cell_y = self._axes
+        gx, gy = np.meshgrid(*self.centres, indexing="ij")
+        return self.fov.cell_solid_angle(gx, gy, cell_x, cell_y)
 
     def cell_index(self, xy_deg: np.ndarray) -> np.ndarray:
         """Flat cell number of each point, -1 for points in no FOV cell.
@@ -81,37 +144,37 @@ class CoverageGrid:
         -------
         cell : (n,) int64
         """
-        half = self.cells_per_side
-        position = np.asarray(xy_deg, dtype=np.float64) * (1.0 / self.cell_deg)
-        position += half
-        # Inside [0, 2 half) truncation is the floor; anything outside is no cell.
-        valid = np.all((position >= 0) & (position < 2 * half), axis=1)
-        index = position.astype(np.int64)
-        candidate = index[:, 0] * (2 * half) + index[:, 1]
+        x0, nx, y0, ny, cell_x, cell_y = self._axes
+        xy = np.asarray(xy_deg, dtype=np.float64)
+        column = (xy[:, 0] - x0) * (1.0 / cell_x)
+        row = (xy[:, 1] - y0) * (1.0 / cell_y)
+        # Inside [0, n) truncation is the floor; anything outside is no cell.
+        valid = (column >= 0) & (column < nx) & (row >= 0) & (row < ny)
+        candidate = column.astype(np.int64) * ny + row.astype(np.int64)
         candidate[~valid] = 0
         inside = self.inside_mask.ravel()[candidate] & valid
         return np.where(inside, candidate, -1)
 
 
-def coverage(xy_deg: np.ndarray, radius_deg: float, cell_deg: float = LIVOX_CELL_DEG) -> float:
+def coverage(xy_deg: np.ndarray, fov: FovLike, cell_deg: float = LIVOX_CELL_DEG) -> float:
     """Fraction of the FOV's cells that hold at least one of the points.
 
     Parameters
     ----------
     xy_deg : (n, 2) float64
         Pattern angles, degrees.
-    radius_deg : float
-        FOV half-angle, degrees.
+    fov : FieldOfView or float
+        The field of view, or a cone's half-angle, degrees.
     cell_deg : float
         Cell size, degrees.
     """
-    return float(coverage_curve(xy_deg, [len(xy_deg)], radius_deg, cell_deg)[0])
+    return float(coverage_curve(xy_deg, [len(xy_deg)], fov, cell_deg)[0])
 
 
 def coverage_curve(
     xy_deg: np.ndarray,
     counts: Sequence[int] | np.ndarray,
-    radius_deg: float,
+    fov: FovLike,
     cell_deg: float = LIVOX_CELL_DEG,
 ) -> np.ndarray:
     """Coverage of each prefix of the points (the first ``counts[k]`` of them), in one pass.
@@ -122,15 +185,17 @@ def coverage_curve(
         Pattern angles in emission order, degrees.
     counts : (k,) int
         Prefix lengths.
-    radius_deg, cell_deg : float
-        FOV half-angle and cell size, degrees.
+    fov : FieldOfView or float
+        The field of view, or a cone's half-angle, degrees.
+    cell_deg : float
+        Cell size, degrees.
 
     Returns
     -------
     fraction : (k,) float64
         In [0, 1].
     """
-    grid = CoverageGrid(radius_deg, cell_deg)
+    grid = _grid(as_fov(fov), cell_deg)
     cells = grid.cell_index(xy_deg)
     hit = np.flatnonzero(cells >= 0)
     first = np.full(grid.inside_mask.size, np.iinfo(np.int64).max, dtype=np.int64)
@@ -167,7 +232,7 @@ def pattern_coverage(
     counts = points_before(times, config.point_rate)
     if counts.max() > 200_000_000:
         raise LivoxVizError(f"{times.max():g} s is {counts.max()} points; allowed: at most 200 million")
-    grid = CoverageGrid(config.half_fov_deg, cell_deg)
+    grid = _grid(config.field_of_view, cell_deg)
     pattern = make_pattern(config, seed)
     seen = np.zeros(grid.inside_mask.size, dtype=bool)
     covered_at = np.zeros(counts.size, dtype=np.int64)
@@ -189,34 +254,68 @@ def pattern_coverage(
 
 def radial_density(
     xy_deg: np.ndarray,
-    radius_deg: float,
+    fov: FovLike,
     bins: int = 35,
+    profile_range: tuple[float, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Points per steradian against the angle off the boresight.
+    """Points per steradian along the field of view's profile: the angle off the boresight, or the elevation.
 
     Parameters
     ----------
     xy_deg : (n, 2) float64
         Pattern angles, degrees.
-    radius_deg : float
-        FOV half-angle, degrees; the bins span [0, radius].
+    fov : FieldOfView or float
+        The field of view (a cone's half-angle, degrees): the rings' solid angle is counted inside it.
     bins : int
         Number of equal-width rings.
+    profile_range : tuple of 2 float, optional
+        The rings' span, degrees (default the field of view's own, e.g. [0, half-angle]).
 
     Returns
     -------
     edges_deg : (bins + 1,) float64
-        Ring edges, degrees off the boresight.
+        Ring edges, degrees off the boresight (or of elevation).
     density : (bins,) float64
-        Points per steradian in each ring.
+        Points per steradian in each ring (0 where the ring holds no solid angle of the field of view).
     """
     if bins < 1:
         raise LivoxVizError(f"bins = {bins}; allowed: an integer >= 1")
-    alpha = np.hypot(xy_deg[:, 0], xy_deg[:, 1])
-    edges = np.linspace(0.0, radius_deg, bins + 1)
-    counts, _ = np.histogram(alpha, bins=edges)
-    solid_angle = 2.0 * np.pi * -np.diff(np.cos(np.radians(edges)))
-    return edges, counts / solid_angle
+    field = as_fov(fov)
+    low, high = profile_range if profile_range is not None else field.profile_range
+    edges = np.linspace(low, high, bins + 1)
+    counts, _ = np.histogram(field.profile(xy_deg), bins=edges)
+    solid_angle = ring_solid_angles(field, edges)
+    density = np.divide(counts, solid_angle, out=np.zeros(bins), where=solid_angle > 0)
+    return edges, density
+
+
+def ring_solid_angles(fov: FieldOfView, edges_deg: np.ndarray) -> np.ndarray:
+    """``(bins,)`` the solid angle of each ring of the profile inside the field of view, steradians.
+
+    Exact for a cone (2 pi (cos a - cos b), clipped at its edge) and a band (2 pi (sin b - sin a));
+    summed over fine cells otherwise.
+    """
+    edges = np.asarray(edges_deg, dtype=np.float64)
+    if fov.shape == "cone":
+        clipped = np.radians(np.clip(edges, 0.0, fov.half_angle_deg))
+        return 2.0 * np.pi * -np.diff(np.cos(clipped))
+    if fov.shape == "band":
+        low, high = fov.elevation_deg
+        clipped = np.radians(np.clip(edges, low, high))
+        return 2.0 * np.pi * np.diff(np.sin(clipped))
+    x0, x1, y0, y1 = fov.bounds
+    grid = _grid(fov, max(x1 - x0, y1 - y0) / 600)
+    gx, gy = np.meshgrid(*grid.centres, indexing="ij")
+    inside = grid.inside_mask
+    profile = fov.profile(np.column_stack([gx[inside], gy[inside]]))
+    solid, _ = np.histogram(profile, bins=edges, weights=grid.cell_solid_angle[inside])
+    return solid
+
+
+@functools.lru_cache(maxsize=32)
+def _grid(fov: FieldOfView, cell_deg: float) -> CoverageGrid:
+    """The coverage grid of a field of view (kept: its inside mask costs a pass over every cell)."""
+    return CoverageGrid(fov, cell_deg)
 
 
 #: Integration times of the coverage chart, seconds.
@@ -236,7 +335,7 @@ class PatternCurves:
     coverage : (k,) float64
         Fraction of the FOV's 5 mrad cells hit in [0, T).
     density_alpha_deg : (b,) float64
-        Ring centres, degrees off the boresight.
+        Ring centres, degrees off the boresight (elevation, for a panorama).
     density : (b,) float64
         Points per steradian per second over the whole stream.
     """
@@ -247,7 +346,7 @@ class PatternCurves:
     density: np.ndarray
 
 
-def stream_curves(xy_deg: np.ndarray, rate: float, radius_deg: float,
+def stream_curves(xy_deg: np.ndarray, rate: float, fov: FovLike,
                   seconds: Sequence[float] = CURVE_SECONDS, bins: int = 30) -> PatternCurves:
     """:class:`PatternCurves` of the points ``xy_deg`` (in firing order at ``rate`` points/s).
 
@@ -255,15 +354,15 @@ def stream_curves(xy_deg: np.ndarray, rate: float, radius_deg: float,
     ----------
     xy_deg : (n, 2) float64
     rate : float
-    radius_deg : float
-        FOV half-angle for coverage and the density's outer edge.
+    fov : FieldOfView or float
+        The field of view (or a cone's half-angle, degrees) for coverage and the density's span.
     seconds : (k,) float
     bins : int
     """
     usable = np.array([s for s in seconds if points_before(s, rate) <= xy_deg.shape[0]], dtype=np.float64)
     counts = points_before(usable, rate)
-    fraction = coverage_curve(xy_deg, counts, radius_deg) if usable.size else np.zeros(0)
-    edges, density = radial_density(xy_deg, radius_deg, bins)
+    fraction = coverage_curve(xy_deg, counts, fov) if usable.size else np.zeros(0)
+    edges, density = radial_density(xy_deg, fov, bins)
     duration = xy_deg.shape[0] / rate
     return PatternCurves(usable, fraction, 0.5 * (edges[1:] + edges[:-1]), density / max(duration, 1e-12))
 
@@ -272,10 +371,10 @@ def config_curves(config: SensorConfig, seed: int = 0, seconds: Sequence[float] 
     """:class:`PatternCurves` of a configuration's pattern over ``max(seconds)`` (at most :data:`CURVE_POINTS`)."""
     count = min(points_before(max(seconds), config.point_rate), CURVE_POINTS)
     xy = make_pattern(config, seed).take(count).xy_deg
-    return stream_curves(xy, config.point_rate, config.half_fov_deg, seconds)
+    return stream_curves(xy, config.point_rate, config.field_of_view, seconds)
 
 
-def window_coverage(xy_deg: np.ndarray, rate: float, seconds: tuple[float, ...] | list[float], radius_deg: float,
+def window_coverage(xy_deg: np.ndarray, rate: float, seconds: tuple[float, ...] | list[float], fov: FovLike,
                     cell_deg: float = LIVOX_CELL_DEG, starts: int = 6) -> np.ndarray:
     """Coverage at each integration time, the mean over ``starts`` windows spread over the stream.
 
@@ -285,7 +384,9 @@ def window_coverage(xy_deg: np.ndarray, rate: float, seconds: tuple[float, ...] 
     rate : float
         Points per second.
     seconds : (k,) float
-    radius_deg, cell_deg : float
+    fov : FieldOfView or float
+        The field of view, or a cone's half-angle, degrees.
+    cell_deg : float
     starts : int
 
     Returns
@@ -300,6 +401,6 @@ def window_coverage(xy_deg: np.ndarray, rate: float, seconds: tuple[float, ...] 
     for k, count in enumerate(counts):
         span = total - count
         offsets = np.linspace(0, span, starts).astype(int) if span > 0 else np.zeros(1, dtype=int)
-        values = [coverage_curve(xy_deg[o : o + count], [count], radius_deg, cell_deg)[0] for o in offsets]
+        values = [coverage_curve(xy_deg[o : o + count], [count], fov, cell_deg)[0] for o in offsets]
         result[k] = float(np.mean(values))
     return result
