@@ -28,7 +28,7 @@ def reference_curves(source: TableSource | PresetSource) -> PatternCurves:
     if isinstance(source, PresetSource):
         return config_curves(source.config, source.seed)
     count = min(points_before(max(CURVE_SECONDS), source.rate), CURVE_POINTS, source.table.xy_deg.shape[0])
-    return stream_curves(source.table.xy_deg[:count], source.rate, source.half_fov_deg)
+    return stream_curves(source.table.xy_deg[:count], source.rate, source.fov)
 
 
 def _chart(loc: tuple[float, float], x_label: str, y_label: str) -> pv.Chart2D:
@@ -56,7 +56,7 @@ class CurveCharts:
         self.coverage.x_axis.log_scale = True
         self.coverage.x_axis.range = [min(CURVE_SECONDS), max(CURVE_SECONDS)]
         self.coverage.y_axis.range = [0.0, 100.0]
-        self.density = _chart((0.02, 0.015), "angle off the boresight, deg", "M points / sr / s (log)")
+        self.density = _chart((0.02, 0.015), session.config.field_of_view.profile_label, "M points / sr / s (log)")
         self.density.y_axis.log_scale = True
         placeholder = ([0.05, 4.0], [0.0, 0.0])
         self.ours_coverage = self.coverage.line(*placeholder, color=OURS_COLOUR, width=2.5, label="ours")
@@ -79,6 +79,7 @@ class CurveCharts:
 
     def refresh_ours(self) -> None:
         """Recompute and redraw our two curves from the session's configuration."""
+        self.density.x_label = self.session.config.field_of_view.profile_label
         self.ours = config_curves(self.session.config, self.session.seed)
         self.ours_coverage.update(self.ours.seconds, 100.0 * self.ours.coverage)
         self.ours_density.update(self.ours.density_alpha_deg, self.ours.density / 1e6)
@@ -104,8 +105,9 @@ class CurveCharts:
         top = max(float(np.max(c.density)) for c in curves) / 1e6
         positive = [float(np.min(c.density[c.density > 0])) for c in curves if np.any(c.density > 0)]
         bottom = min(positive) / 1e6 if positive else 1e-3
-        right = max(float(c.density_alpha_deg[-1]) for c in curves) * 1.04
-        self.density.x_axis.range = [0.0, right]
+        left = min(min(float(c.density_alpha_deg[0]) for c in curves), 0.0)
+        right = max(float(c.density_alpha_deg[-1]) for c in curves)
+        self.density.x_axis.range = [left - 0.04 * abs(left), right + 0.04 * abs(right)]
         # Once VTK has drawn a log axis it keeps its range in log10 units, and SetRange (pyvista's range) is
         # read in those units: 0.02-9.8 became 10^0.02-10^9.8. The unscaled range is always in data units.
         y_axis = self.density.y_axis

@@ -46,7 +46,7 @@ class TableSource:
         self.table = table
         self.name = table.name
         self.rate = table.rate
-        self.half_fov_deg = float(table.alpha_deg.max())
+        self.fov = table.field_of_view
 
     def xy(self, first: int, stop: int) -> np.ndarray:
         """``(stop-first, 2)`` float64 degrees of samples ``first .. stop-1``."""
@@ -67,7 +67,7 @@ class PresetSource:
         self.config = config
         self.name = name
         self.rate = float(config.point_rate)
-        self.half_fov_deg = config.half_fov_deg
+        self.fov = config.field_of_view
         self.seed = seed
         self._stream = make_pattern(config, seed)
 
@@ -151,4 +151,4 @@ class ReferenceOverlay:
         if self.source is None or self.ring.count == 0:
             return None
         live = self.ring.positions[self.ring.live_slots(), :2].astype(np.float64)
-        return coverage(live, self.source.half_fov_deg)
+        return coverage(live, self.source.fov)

@@ -152,18 +152,18 @@ class CellCounts:
 
 
 class CoverageCounts(CellCounts):
-    """Points per 5 mrad coverage cell of the FOV (see :class:`livox_viz.metrics.CoverageGrid`).
+    """Points per 5 mrad coverage cell of the FOV (see :class:`livox_viz.patterns.metrics.CoverageGrid`).
 
     Parameters
     ----------
-    radius_deg : float
-        FOV half-angle.
+    fov : FieldOfView or float
+        The field of view (or a cone's half-angle, degrees).
     """
 
-    def __init__(self, radius_deg: float) -> None:
+    def __init__(self, fov) -> None:
         from livox_viz.patterns.metrics import LIVOX_CELL_DEG, CoverageGrid
 
-        self.grid = CoverageGrid(radius_deg, LIVOX_CELL_DEG)
+        self.grid = CoverageGrid(fov, LIVOX_CELL_DEG)
         super().__init__(self.grid.inside_mask.size)
         self._cell_count = self.grid.cell_count
 
@@ -176,30 +176,47 @@ class CoverageCounts(CellCounts):
 
 
 class DensityGrid(CellCounts):
-    """Points per cell of a square grid over the FOV, for the density image.
+    """Points per cell of a grid of square cells over the field of view's bounding box, for the density image.
 
     Parameters
     ----------
-    radius_deg : float
-        Half-width of the grid, degrees.
+    bounds : tuple of 4 float, or float
+        (x_min, x_max, y_min, y_max) degrees, or the half-width of a square around the boresight.
     cells : int
-        Cells per side.
+        Cells along the longer side.
     """
 
-    def __init__(self, radius_deg: float, cells: int = 512) -> None:
-        self.radius = float(radius_deg)
-        self.side = int(cells)
-        super().__init__(self.side * self.side)
-        #: ``(side, side)`` counts, [row = y, column = x]: a view of :attr:`flat`.
-        self.counts = self.flat.reshape(self.side, self.side)
-        #: ``(side * side,)`` float32 log(1 + count), what the view shows.
-        self.display = np.zeros(self.side * self.side, dtype=np.float32)
+    def __init__(self, bounds: tuple[float, float, float, float] | float, cells: int = 512) -> None:
+        if np.ndim(bounds) == 0:
+            bounds = (-float(bounds), float(bounds), -float(bounds), float(bounds))
+        self.bounds = tuple(float(v) for v in bounds)
+        x0, x1, y0, y1 = self.bounds
+        self.cell = max(x1 - x0, y1 - y0) / int(cells)
+        self.nx = max(1, round((x1 - x0) / self.cell))
+        self.ny = max(1, round((y1 - y0) / self.cell))
+        super().__init__(self.nx * self.ny)
+        #: ``(ny, nx)`` counts, [row = y, column = x]: a view of :attr:`flat`.
+        self.counts = self.flat.reshape(self.ny, self.nx)
+        #: ``(ny * nx,)`` float32 log(1 + count), what the view shows.
+        self.display = np.zeros(self.nx * self.ny, dtype=np.float32)
+
+    @property
+    def side(self) -> int:
+        """Cells along the longer side."""
+        return max(self.nx, self.ny)
+
+    @property
+    def radius(self) -> float:
+        """Half the longer side, degrees."""
+        x0, x1, y0, y1 = self.bounds
+        return max(x1 - x0, y1 - y0) / 2
 
     def cells(self, positions: np.ndarray) -> np.ndarray:
-        scale = self.side / (2.0 * self.radius)
-        ix = np.clip(((positions[:, 0] + self.radius) * scale).astype(np.int64), 0, self.side - 1)
-        iy = np.clip(((positions[:, 1] + self.radius) * scale).astype(np.int64), 0, self.side - 1)
-        return iy * self.side + ix
+        x0, _, y0, _ = self.bounds
+        scale = 1.0 / self.cell
+        ix = np.clip(((positions[:, 0] - x0) * scale).astype(np.int64), 0, self.nx - 1)
+        iy = np.clip(((positions[:, 1] - y0) * scale).astype(np.int64), 0, self.ny - 1)
+        return iy * self.nx + ix
 
     def refresh_display(self) -> np.ndarray:
         """Update and return :attr:`display`, log(1 + count)."""

@@ -157,7 +157,7 @@ class Session:
         """
         check_points(window_capacity(self.window, config.point_rate),
                      f"a {config.point_rate:,} pts/s pattern in the integration window", WINDOW_BUDGET)
-        resize = config.point_rate != self.config.point_rate or config.half_fov_deg != self.config.half_fov_deg
+        resize = config.point_rate != self.config.point_rate or config.field_of_view != self.config.field_of_view
         self.config = config
         if preset_name is not None:
             self.preset_name = preset_name
@@ -246,8 +246,9 @@ class Session:
         capacity = window_capacity(self.window, self.config.point_rate)
         self.pattern_ring = PointRing(capacity)
         self.scene_ring = PointRing(capacity)
-        self.density = DensityGrid(self.config.half_fov_deg)
-        self.coverage_counts = CoverageCounts(self.config.half_fov_deg)
+        fov = self.config.field_of_view
+        self.density = DensityGrid(fov.bounds)
+        self.coverage_counts = CoverageCounts(fov)
         self.pattern_ring.on_evict = self._count_out
 
     def _clear_rings(self) -> None:
@@ -274,7 +275,8 @@ class Session:
         if self.source is not None:
             if self.playback.paused:
                 return 0
-            received = [ReceivedFrame(f, self.config.range_max, self.config.data_check_freq)
+            received = [ReceivedFrame(f, self.config.range_max, self.config.data_check_freq,
+                                      plane=self.config.pattern_plane)
                         for f in self.source.poll()]
             return sum(self.add_received(frame) for frame in received)
         return self.advance_to(self.scan_time + self.playback.elapsed(now))

@@ -114,7 +114,7 @@ class PatternView(_View):
         self.scalar_bar = add_scalar_bar(plotter, PATTERN_UNITS[session.display.pattern_colour], self.actor.mapper)
         self._density_grid = None
         self.density_actor = None
-        self._guides_radius: float | None = None
+        self._guides_fov = None
         self._make_density_image()
         self.draw_guides()
         self.reset_camera()
@@ -122,7 +122,7 @@ class PatternView(_View):
 
     def _on_change(self, what: str) -> None:
         # The guides are drawn from the FOV alone: redrawn (and the camera refitted) when it changed.
-        if what == "config" and self._guides_radius != self.session.config.half_fov_deg:
+        if what == "config" and self._guides_fov != self.session.config.field_of_view:
             self.draw_guides()
             self.reset_camera()
 
@@ -133,7 +133,7 @@ class PatternView(_View):
             return
         self._density_grid = grid
         # A texture on one quad: software GL draws it far faster than a cell per pixel.
-        image = pv.ImageData(dimensions=(grid.side, grid.side, 1))
+        image = pv.ImageData(dimensions=(grid.nx, grid.ny, 1))
         image.point_data.set_array(grid.display, "density")
         image.point_data.active_scalars_name = "density"
         self.density_image = image
@@ -150,8 +150,9 @@ class PatternView(_View):
         texture.InterpolateOn()
         texture.MipmapOn()
         self.density_texture = texture
-        quad = pv.Plane(center=(0.0, 0.0, -0.01), direction=(0, 0, 1), i_size=2 * grid.radius,
-                        j_size=2 * grid.radius, i_resolution=1, j_resolution=1)
+        x0, x1, y0, y1 = grid.bounds
+        quad = pv.Plane(center=((x0 + x1) / 2, (y0 + y1) / 2, -0.01), direction=(0, 0, 1),
+                        i_size=grid.nx * grid.cell, j_size=grid.ny * grid.cell, i_resolution=1, j_resolution=1)
         self.plotter.subplot(*self.subplot)
         self.density_actor = self.plotter.add_mesh(quad, texture=texture, name="density", reset_camera=False,
                                                    lighting=False, show_scalar_bar=False)
@@ -166,53 +167,57 @@ class PatternView(_View):
         return self.session.pattern_ring.count > max(width * height, 1)
 
     def draw_guides(self) -> None:
-        """FOV circle, 10-degree rings with labels, cross hairs, and the axis names."""
+        """The field of view's outline, a degree grid, cross hairs, and the axis names.
+
+        The boresight plane gets rings of equal angle off the boresight (kept to the field of view's box);
+        the panorama plane gets lines of azimuth and elevation.
+        """
         plotter = self.plotter
         plotter.subplot(*self.subplot)
         for name in self._guides:
             plotter.remove_actor(name, render=False)
         self._guides = []
-        radius = self.session.config.half_fov_deg
-        self._guides_radius = radius
-        step = _ring_step(radius)
-        rings = [*np.arange(step, radius, step), radius]
-        for k, ring_radius in enumerate(rings):
-            circle = pv.Circle(radius=ring_radius, resolution=180).extract_feature_edges(
-                boundary_edges=True, feature_edges=False, manifold_edges=False)
-            is_fov = k == len(rings) - 1
-            name = f"ring-{k}"
-            plotter.add_mesh(circle, color="#f2c14e" if is_fov else "#3a4454", line_width=2 if is_fov else 1,
-                             name=name, reset_camera=False, lighting=False, pickable=False)
+        fov = self.session.config.field_of_view
+        self._guides_fov = fov
+        grid_lines, labels, positions = (_panorama_grid(fov) if fov.plane == "panorama" else _boresight_grid(fov))
+        for k, line in enumerate(grid_lines):
+            name = f"grid-{k}"
+            plotter.add_mesh(line, color="#3a4454", line_width=1, name=name, reset_camera=False, lighting=False,
+                             pickable=False)
             self._guides.append(name)
-        for k, (a, b) in enumerate((((-radius, 0, 0), (radius, 0, 0)), ((0, -radius, 0), (0, radius, 0)))):
-            name = f"axis-{k}"
-            plotter.add_mesh(pv.Line(a, b), color="#3a4454", name=name, reset_camera=False, lighting=False)
-            self._guides.append(name)
-        labels = [f"{r:g}°" for r in rings]
-        positions = [(r * math.cos(math.radians(60)), r * math.sin(math.radians(60)), 0) for r in rings]
+        outline = pv.lines_from_points(np.column_stack([fov.boundary(), np.zeros(len(fov.boundary()))]))
+        plotter.add_mesh(outline, color="#f2c14e", line_width=2, name="fov-outline", reset_camera=False,
+                         lighting=False, pickable=False)
+        self._guides.append("fov-outline")
+        if labels:
+            plotter.add_point_labels(positions, labels, font_size=11, text_color="#8a96a8", shape=None,
+                                     show_points=False, name="grid-labels", always_visible=True, reset_camera=False)
+            self._guides.append("grid-labels")
+        x0, x1, y0, y1 = fov.bounds
+        names = ["azimuth, right", "elevation"] if fov.plane == "panorama" else ["x right", "y up"]
+        centre_x = 0.0 if x0 < 0 < x1 else (x0 + x1) / 2
+        centre_y = 0.0 if y0 < 0 < y1 and fov.plane == "boresight" else y0
         plotter.add_point_labels(
-            positions, labels, font_size=11, text_color="#8a96a8", shape=None, show_points=False,
-            name="ring-labels", always_visible=True, reset_camera=False,
-        )
-        self._guides.append("ring-labels")
-        plotter.add_point_labels(
-            [(radius * 1.02, -radius * 0.08, 0), (radius * 0.02, radius * 1.04, 0)], ["x right", "y up"],
-            font_size=11, text_color="#8a96a8", shape=None, show_points=False, name="axis-labels",
+            [(x1 + 0.01 * (x1 - x0), centre_y - 0.04 * (y1 - y0), 0),
+             (centre_x + 0.01 * (x1 - x0), y1 + 0.02 * (y1 - y0), 0)],
+            names, font_size=11, text_color="#8a96a8", shape=None, show_points=False, name="axis-labels",
             always_visible=True, reset_camera=False,
         )
         self._guides.append("axis-labels")
 
     def reset_camera(self) -> None:
-        """Look straight at the angular plane, orthographic, FOV filling the view."""
-        radius = self.session.config.half_fov_deg
+        """Look straight at the pattern plane, orthographic, the field of view filling the view."""
+        x0, x1, y0, y1 = self.session.config.field_of_view.bounds
+        half_width, half_height = (x1 - x0) / 2, (y1 - y0) / 2
         width, height = self.renderer.GetSize()
         camera = self.renderer.camera
         camera.enable_parallel_projection()
         # The FOV and its labels fit across as well as up, with the colour bar's strip on the right free.
-        camera.focal_point = (radius * 0.12, radius * 0.03, 0)
-        camera.position = (radius * 0.12, radius * 0.03, radius * 10)
+        centre = ((x0 + x1) / 2 + half_width * 0.12, (y0 + y1) / 2 + half_height * 0.03)
+        camera.focal_point = (*centre, 0)
+        camera.position = (*centre, max(half_width, half_height) * 10)
         camera.up = (0, 1, 0)
-        camera.parallel_scale = radius * max(1.18, 1.32 * height / max(width, 1))
+        camera.parallel_scale = max(half_height * 1.18, half_width * 1.32 * height / max(width, 1))
         self.renderer.ResetCameraClippingRange()
 
     def update(self) -> None:
@@ -256,6 +261,52 @@ def _ring_step(radius: float) -> float:
     return 10 * magnitude
 
 
+def _boresight_grid(fov) -> tuple[list[pv.PolyData], list[str], list[tuple[float, float, float]]]:
+    """Rings of equal angle off the boresight, kept inside the field of view's box, with their labels."""
+    x0, x1, y0, y1 = fov.bounds
+    reach = fov.reach_deg
+    step = _ring_step(reach)
+    margin = 0.04 * max(x1 - x0, y1 - y0)
+    lines, labels, positions = [], [], []
+    for ring_radius in np.arange(step, reach + 1e-9, step):
+        angle = np.linspace(0.0, 2 * math.pi, 361)
+        points = np.column_stack([ring_radius * np.cos(angle), ring_radius * np.sin(angle), np.zeros(angle.size)])
+        inside = ((points[:, 0] >= x0 - margin) & (points[:, 0] <= x1 + margin)
+                  & (points[:, 1] >= y0 - margin) & (points[:, 1] <= y1 + margin))
+        for run in _runs(inside):
+            if run.size > 1:
+                lines.append(pv.lines_from_points(points[run]))
+        label_at = (ring_radius * math.cos(math.radians(60)), ring_radius * math.sin(math.radians(60)), 0.0)
+        if x0 <= label_at[0] <= x1 and y0 <= label_at[1] <= y1:
+            labels.append(f"{ring_radius:g}°")
+            positions.append(label_at)
+    lines += [pv.Line((x0, 0, 0), (x1, 0, 0)), pv.Line((0, y0, 0), (0, y1, 0))]
+    return lines, labels, positions
+
+
+def _panorama_grid(fov) -> tuple[list[pv.PolyData], list[str], list[tuple[float, float, float]]]:
+    """Lines of azimuth every 30 degrees and of elevation every 10 across the band, with their labels."""
+    _, _, low, high = fov.bounds
+    lines, labels, positions = [], [], []
+    for azimuth in range(-150, 181, 30):
+        lines.append(pv.Line((azimuth, low, 0), (azimuth, high, 0)))
+        if azimuth % 90 == 0:
+            labels.append(f"{azimuth}°")
+            positions.append((azimuth + 2.0, low - 0.12 * (high - low), 0.0))
+    step = _ring_step((high - low) * 1.5)
+    for elevation in np.arange(math.ceil(low / step) * step, high + 1e-9, step):
+        lines.append(pv.Line((-180, elevation, 0), (180, elevation, 0)))
+        labels.append(f"{elevation:g}°")
+        positions.append((-178.0, elevation + 0.02 * (high - low), 0.0))
+    return lines, labels, positions
+
+
+def _runs(mask: np.ndarray) -> list[np.ndarray]:
+    """Index runs where ``mask`` holds."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return [np.arange(a, b) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
 def quadrotor_mesh(size: float = 0.5) -> pv.PolyData:
     """A small quadrotor in its body FRD frame (metres): body, four arms, four rotor discs."""
     parts = [pv.Box(bounds=(-0.12 * size, 0.12 * size, -0.08 * size, 0.08 * size, -0.05 * size, 0.05 * size))]
@@ -271,16 +322,32 @@ def quadrotor_mesh(size: float = 0.5) -> pv.PolyData:
     return merged
 
 
-def fov_cone(half_angle_deg: float, length: float = 1.6) -> pv.PolyData:
-    """The FOV as a wire cone in the sensor frame (x the boresight): a rim and eight rays from the apex.
+def fov_wire(fov, length: float = 1.6) -> pv.PolyData:
+    """The field of view as a wire in the sensor frame FRD: its outline's rays at ``length`` and spokes.
 
+    A boresight field of view is its outline's rim with eight rays from the apex; a panoramic band is
+    its two rims (lowest and highest elevation) joined by eight meridians, with eight rays to the top rim.
     A translucent surface would hide the cloud behind it and push VTK into its slower translucent pass.
     """
-    radius = length * math.tan(math.radians(half_angle_deg))
-    angles = np.linspace(0.0, 2 * math.pi, 97)
-    rim = np.column_stack([np.full(angles.size, length), radius * np.cos(angles), radius * np.sin(angles)])
+    from livox_viz.patterns.planes import directions_from_xy
+
+    if fov.plane == "panorama":
+        low, high = fov.elevation_deg
+        azimuth = np.linspace(-180.0, 180.0, 145)
+        wire = None
+        for elevation in (low, high):
+            rim = directions_from_xy(np.column_stack([azimuth, np.full(azimuth.size, elevation)]), "panorama")
+            part = pv.lines_from_points(rim * length)
+            wire = part if wire is None else wire.merge(part)
+        for spoke in np.arange(-180.0, 180.0, 45.0):
+            meridian = np.column_stack([np.full(20, spoke), np.linspace(low, high, 20)])
+            arc = directions_from_xy(meridian, "panorama") * length
+            wire = wire.merge(pv.lines_from_points(arc)).merge(pv.Line((0.0, 0.0, 0.0), arc[-1]))
+        return wire
+    boundary = fov.boundary(96)
+    rim = directions_from_xy(boundary, "boresight") * length
     wire = pv.lines_from_points(rim)
-    for k in range(0, 96, 12):
+    for k in np.linspace(0, len(rim) - 1, 9)[:-1].astype(int):
         wire = wire.merge(pv.Line((0.0, 0.0, 0.0), rim[k]))
     return wire
 
@@ -335,10 +402,10 @@ class SceneView(_View):
         if "vehicle" not in plotter.actors:
             plotter.add_mesh(quadrotor_mesh(), color="#e8eef5", name="vehicle", reset_camera=False)
             plotter.add_mesh(pv.Sphere(radius=0.06), color="#f2c14e", name="sensor", reset_camera=False)
-        half = min(self.session.config.half_fov_deg, 80.0)
-        if getattr(self, "_cone_half_deg", None) != half:
-            self._cone_half_deg = half
-            plotter.add_mesh(fov_cone(half), color="#f2c14e", line_width=2, name="fov-cone", reset_camera=False,
+        fov = self.session.config.field_of_view
+        if getattr(self, "_cone_fov", None) != fov:
+            self._cone_fov = fov
+            plotter.add_mesh(fov_wire(fov), color="#f2c14e", line_width=2, name="fov-cone", reset_camera=False,
                              lighting=False)
         self.place_vehicle()
         self.draw_path()

@@ -171,7 +171,7 @@ class MountedCaster:
         parts = []
         for first in range(0, max(len(chunk), 1), CAST_PART):
             xy = chunk.xy_deg[first : first + CAST_PART]
-            directions_sensor = directions_from_xy(xy)
+            directions_sensor = directions_from_xy(xy, config.pattern_plane)
             if moving:
                 origin, directions_world = self.track.rays(chunk.t[first : first + CAST_PART], directions_sensor)
             else:

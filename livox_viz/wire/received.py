@@ -43,6 +43,8 @@ class ReceivedFrame:
         The frame's time in a recording, seconds; None: the sender's timestamp.
     session : int
         Which sender run of the recording it belongs to (a new one for each sender and each restart).
+    plane : {"boresight", "panorama"}
+        The sensor's pattern plane, for :attr:`xy_deg` (a Mid-360's points are azimuth and elevation).
     """
 
     wire: LivoxFrame
@@ -51,6 +53,7 @@ class ReceivedFrame:
     number: int | None = None
     recording_time: float | None = None
     session: int = 0
+    plane: str = "boresight"
 
     def __len__(self) -> int:
         return int(self.wire.xyz_int16.shape[0])
@@ -108,7 +111,7 @@ class ReceivedFrame:
     @cached_property
     def xy_deg(self) -> np.ndarray:
         """``(M, 2)`` float64 pattern angles recovered from the decoded points (quantised by the int16 step)."""
-        return xy_from_directions(self.xyz_decoded)
+        return xy_from_directions(self.xyz_decoded, self.plane)
 
     @cached_property
     def xyz_world_decoded(self) -> np.ndarray:
