@@ -337,7 +337,7 @@ def test_real_window_under_xvfb(tmp_path: Path) -> None:
         shots = list((tmp_path / "screenshots").glob("livox-viz-*.png"))
         assert len(shots) == 1 and shots[0].with_suffix(".json").exists()
         sidecar = json.loads(shots[0].with_suffix(".json").read_text())
-        assert sidecar["reference"] == "livox_mid40_risley"  # e picked the first Risley preset
+        assert sidecar["reference"] == "livox_avia"  # e picked the first preset with a track (in the same plane)
         assert len(list((tmp_path / "presets").glob("*.json"))) == 1
     finally:
         for process in (locals().get("gui"), server):
@@ -482,8 +482,11 @@ def test_charts_follow_the_sliders_and_the_reference(app: LivoxVizApp) -> None:
     app.cycle_reference()
     app.refresh()
     source = session.overlay.source
-    assert isinstance(source, PresetSource) and source.name == "livox_mid40_risley"
-    expected = config_curves(load_preset("livox_mid40_risley"))
+    first = app.reference_choices()[0]
+    assert isinstance(source, PresetSource) and source.name == first
+    assert {"livox_mid40_risley", "livox_horizon", "livox_avia"} <= set(app.reference_choices())
+    assert "livox_mid360" not in app.reference_choices()  # another plane: its angles are not ours
+    expected = config_curves(load_preset(first))
     np.testing.assert_allclose(charts.reference_coverage.y, 100 * expected.coverage)
     np.testing.assert_allclose(charts.reference_density.y, expected.density / 1e6)
     assert charts.reference_coverage.visible

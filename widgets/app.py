@@ -197,12 +197,17 @@ class LivoxVizApp:
         self.session.set_jitter_scope("figure" if self.session.config.jitter_scope == "flower" else "flower")
 
     def toggle_pattern_model(self) -> None:
-        """Switch between RflySim's rosette and the Risley track of the same configuration."""
+        """Switch between RflySim's rosette and the track (Risley or general) of the same configuration."""
         config = self.session.config
-        model = "rflysim" if config.pattern_model == "risley" else "risley"
-        if model == "risley" and config.risley is None:
+        if config.pattern_model != "rflysim":
+            model = "rflysim"
+        elif config.track is not None:
+            model = "track"
+        elif config.risley is not None:
+            model = "risley"
+        else:
             raise LivoxVizError("this configuration has no Risley track; load one with n/b "
-                                "(e.g. livox_mid70_risley) or --preset")
+                                "(e.g. livox_mid70_risley or livox_horizon) or --preset")
         self.session.set_config(config.with_pattern_model(model))
         self.session.message = f"pattern model {model}"
 
@@ -250,8 +255,19 @@ class LivoxVizApp:
         overlay.set_window((overlay.window_index + 1) % len(WINDOWS), self.session.scan_time)
 
     def reference_choices(self) -> list[str]:
-        """What ``e`` cycles through: the shipped and user presets with a Risley track."""
-        return [info.name for info in list_presets() if "risley" in info.name]
+        """What ``e`` cycles through: the shipped and user presets with a track, in the pattern's plane."""
+        from livox_viz import load_preset
+
+        plane = self.session.config.pattern_plane
+        choices = []
+        for info in list_presets():
+            try:
+                config = load_preset(info.path)
+            except LivoxVizError:
+                continue
+            if config.pattern_model != "rflysim" and config.pattern_plane == plane:
+                choices.append(info.name)
+        return choices
 
     def cycle_reference(self) -> None:
         """The next reference: each preset with a Risley track in turn, then none."""

@@ -40,6 +40,11 @@ PATTERN_SLIDERS: dict[str, tuple[tuple[str, str], ...]] = {
         ("camera_fov", "FOV, deg"),
         ("range_max", "[0] range, m"),
     ),
+    "track": (
+        ("base_rpm_a", "base A, rpm"),
+        ("base_rpm_b", "base B, rpm"),
+        ("range_max", "[0] range, m"),
+    ),
 }
 #: Sliders under the scene view: the frame structure, which sets the point rate W x H x F.
 SENSOR_SLIDERS: tuple[tuple[str, str], ...] = (
@@ -174,4 +179,6 @@ def _available(config: SensorConfig) -> set[str]:
     names = set(PARAM_RANGES)
     if config.risley is None:
         names -= {name for name, _ in PATTERN_SLIDERS["risley"]} - {"camera_fov", "range_max"}
+    if config.track is None:
+        names -= {name for name, _ in PATTERN_SLIDERS["track"]} - {"range_max"}
     return names

@@ -67,9 +67,12 @@ class HeadsUp:
             value = self._reference_coverage
             reference = (f"reference {overlay.source.name}{shown}, window {window_label(overlay.window)} (l): "
                          f"coverage {'-' if value is None else f'{100 * value:.1f} %'}\n")
-        model = "Risley track" if cfg.pattern_model == "risley" else "RflySim rosette"
+        model = {"risley": "Risley track", "track": "track"}.get(cfg.pattern_model, "RflySim rosette")
+        lasers = f"   {cfg.lasers} lasers" if cfg.lasers > 1 else ""
+        fov = cfg.field_of_view
+        fov_text = f"FOV {cfg.camera_fov:g} deg" if fov.shape == "cone" else f"FOV {fov.describe()}"
         text = (
-            f"{session.preset_name or 'custom'}   {model}   {cfg.point_rate:,} pts/s   FOV {cfg.camera_fov:g} deg\n"
+            f"{session.preset_name or 'custom'}   {model}{lasers}   {cfg.point_rate:,} pts/s   {fov_text}\n"
             f"t = {session.scan_time:8.3f} s   frame {max(session.frame_index, 0)}   {state}\n"
             f"window {window_label(session.window)}: {session.pattern_ring.count:,} pts, "
             f"coverage {100 * session.visible_coverage():.1f} %\n"

@@ -22,6 +22,7 @@ import numpy as np
 from livox_viz import LivoxVizError, SensorConfig
 from livox_viz.casting.point_frame import PointFrame
 from livox_viz.casting.scan import MountedCaster
+from livox_viz.config.sensor import SERIES_MODELS
 from livox_viz.core.poses import Pose
 from livox_viz.core.workload import WINDOW_BUDGET, check_points
 from livox_viz.motion.trajectory import Trajectory
@@ -85,7 +86,7 @@ def step_units(config: SensorConfig) -> tuple[str, ...]:
 
 def pattern_colours(config: SensorConfig) -> tuple[str, ...]:
     """The pattern colour modes that mean something for the configuration's pattern."""
-    if config.pattern_model == "risley":
+    if config.pattern_model in SERIES_MODELS:
         return ("time", "laser")
     return tuple(name for name in PATTERN_COLOURS if name != "laser")
 

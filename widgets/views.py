@@ -196,9 +196,9 @@ class PatternView(_View):
         x0, x1, y0, y1 = fov.bounds
         names = ["azimuth, right", "elevation"] if fov.plane == "panorama" else ["x right", "y up"]
         centre_x = 0.0 if x0 < 0 < x1 else (x0 + x1) / 2
-        centre_y = 0.0 if y0 < 0 < y1 and fov.plane == "boresight" else y0
+        below = y0 - 0.3 * (y1 - y0) if fov.plane == "panorama" else (0.0 if y0 < 0 < y1 else y0) - 0.04 * (y1 - y0)
         plotter.add_point_labels(
-            [(x1 + 0.01 * (x1 - x0), centre_y - 0.04 * (y1 - y0), 0),
+            [(x1 - (0.2 if fov.plane == "panorama" else -0.01) * (x1 - x0), below, 0),
              (centre_x + 0.01 * (x1 - x0), y1 + 0.02 * (y1 - y0), 0)],
             names, font_size=11, text_color="#8a96a8", shape=None, show_points=False, name="axis-labels",
             always_visible=True, reset_camera=False,

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from dataclasses import replace
 
 import numpy as np
@@ -13,6 +12,7 @@ from livox_viz.config.presets import DESCRIPTION_KEY
 from livox_viz.config.sensor import SensorConfig, frame_layout
 from livox_viz.config.track_params import TrackParams
 from livox_viz.core.atomic import write_text_atomic
+from livox_viz.core.jsonfile import dumps_readable
 from livox_viz.fitting.compare import compare
 from livox_viz.fitting.plot import plot_comparison
 from livox_viz.fitting.reference import ReferencePattern, is_table, load_table_or_preset
@@ -46,7 +46,7 @@ def _reference(args: argparse.Namespace) -> ReferencePattern:
 def _write_preset(args: argparse.Namespace, config: SensorConfig, description: str) -> None:
     data = config.to_json_dict()
     data[DESCRIPTION_KEY] = description
-    write_text_atomic(args.out, json.dumps(data, indent=2) + "\n")
+    write_text_atomic(args.out, dumps_readable(data))
     print(f"wrote {args.out}")
 
 

@@ -14,7 +14,6 @@ not the default ``"flower"``."""
 from __future__ import annotations
 
 import functools
-import json
 import math
 import os
 from collections.abc import Mapping
@@ -27,7 +26,7 @@ from livox_viz.config.risley_params import RisleyParams
 from livox_viz.config.track_params import TRACK_KEY, TrackParams
 from livox_viz.core.atomic import write_text_atomic
 from livox_viz.core.errors import ConfigError
-from livox_viz.core.jsonfile import read_json_file
+from livox_viz.core.jsonfile import dumps_readable, read_json_file
 
 JitterScope = Literal["flower", "figure"]
 
@@ -148,11 +147,17 @@ PARAM_RANGES: dict[str, ParamRange] = {
     "deflection_a": ParamRange("LivoxVizRisley deflection A", "prism A deflection, deg", 0, 45, low_open=True),
     "deflection_b": ParamRange("LivoxVizRisley deflection B", "prism B deflection, deg", 0, 45, low_open=True),
     "laser_spacing": ParamRange("LivoxVizRisley laser_spacing", "lasers' spacing, x fitted", 0, 10),
+    "base_rpm_a": ParamRange("LivoxVizTrack base A", "base A speed, rpm", -300000, 300000),
+    "base_rpm_b": ParamRange("LivoxVizTrack base B", "base B speed, rpm", -300000, 300000),
 }
 
 
 #: The tunable fields of the Risley model (they need ``LivoxVizRisley`` parameters).
 RISLEY_PARAMS: tuple[str, ...] = ("prism_rpm_a", "prism_rpm_b", "deflection_a", "deflection_b", "laser_spacing")
+
+
+#: The tunable fields of the track model (they need ``LivoxVizTrack`` parameters): its two base speeds.
+TRACK_PARAMS: tuple[str, ...] = ("base_rpm_a", "base_rpm_b")
 
 
 _INTEGER_KEYS = {
@@ -455,6 +460,11 @@ class SensorConfig:
             value = int(value)
         if name in RISLEY_PARAMS:
             return replace(self, risley=_risley_with(self._require_risley(), name, value))
+        if name in TRACK_PARAMS:
+            track = self._require_track()
+            hz = list(track.base_hz)
+            hz[name.endswith("_b")] = value / 60.0
+            return replace(self, track=replace(track, base_hz=tuple(hz)))
         if name in _OTHER_PARAM_FIELDS:
             params = list(self.other_params)
             params[_OTHER_PARAM_FIELDS.index(name)] = value
@@ -468,7 +478,15 @@ class SensorConfig:
             return {"prism_rpm_a": risley.prism_rpm[0], "prism_rpm_b": risley.prism_rpm[1],
                     "deflection_a": risley.deflection_deg[0], "deflection_b": risley.deflection_deg[1],
                     "laser_spacing": risley.laser_spacing}[name]
+        if name in TRACK_PARAMS:
+            return self._require_track().base_rpm[name.endswith("_b")]
         return float(getattr(self, name))
+
+    def _require_track(self) -> TrackParams:
+        if self.track is None:
+            raise ConfigError(f"this configuration has no {TRACK_KEY} parameters; load a track preset "
+                              "(e.g. livox_horizon)")
+        return self.track
 
     def _require_risley(self) -> RisleyParams:
         if self.risley is None:
@@ -725,4 +743,4 @@ def load_config(path: str | os.PathLike[str], seq_id: int | None = None) -> Sens
 
 def save_config(config: SensorConfig, path: str | os.PathLike[str]) -> None:
     """Save a configuration as a single RflySim sensor object, atomically."""
-    write_text_atomic(path, json.dumps(config.to_json_dict(), indent=2) + "\n")
+    write_text_atomic(path, dumps_readable(config.to_json_dict()))

@@ -87,3 +87,26 @@ def _find_non_finite(value: Any, where: str, depth: int = 0) -> tuple[str, str] 
         if found is not None:
             return found
     return None
+
+
+# Writing ----------------------------------------------------------------------------
+def dumps_readable(data: Any, indent: int = 2) -> str:
+    """JSON with objects indented but lists of plain values on one line each.
+
+    A track preset holds hundreds of coefficient pairs: one number per line (``json.dumps(indent=2)``)
+    makes files thousands of lines long; this keeps ``[re, im]`` pairs and short lists on a line.
+    """
+    return _dump(data, indent, 0) + "\n"
+
+
+def _dump(value: Any, indent: int, level: int) -> str:
+    pad, inner = " " * (indent * level), " " * (indent * (level + 1))
+    if isinstance(value, dict):
+        if not value:
+            return "{}"
+        items = [f"{inner}{json.dumps(str(key))}: {_dump(item, indent, level + 1)}" for key, item in value.items()]
+        return "{\n" + ",\n".join(items) + "\n" + pad + "}"
+    if isinstance(value, list) and any(isinstance(item, (dict, list)) for item in value):
+        items = [f"{inner}{_dump(item, indent, level + 1)}" for item in value]
+        return "[\n" + ",\n".join(items) + "\n" + pad + "]"
+    return json.dumps(value, allow_nan=False)
