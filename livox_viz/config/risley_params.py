@@ -41,6 +41,10 @@ from livox_viz.core.errors import ConfigError
 MAX_LASERS = 64
 MAX_TERMS = 64
 MAX_PRISM_HZ = 1000.0
+#: The smallest prism deflection a Risley track may be fitted with (its sliders divide by it), degrees.
+MIN_DEFLECTION_DEG = 1e-3
+#: The furthest a Risley track may reach from the boresight, degrees (the boresight plane ends at 180).
+MAX_REACH_DEG = 180.0
 
 
 def _finite(name: str, value: Any) -> float:
@@ -101,8 +105,9 @@ class RisleyParams:
         if (1, 0) not in terms or (0, 1) not in terms:
             raise ConfigError("LivoxVizRisley.terms must hold the prism terms [1, 0] and [0, 1]")
         base = self.base_deflection_deg(coefficients, terms)
-        if min(base) <= 0:
-            raise ConfigError("LivoxVizRisley: laser 0's prism terms [1, 0] and [0, 1] must be non-zero")
+        if not all(MIN_DEFLECTION_DEG <= v <= 45 for v in base):
+            raise ConfigError(f"LivoxVizRisley: laser 0's prism terms [1, 0] and [0, 1] are {base[0]:.4g} and "
+                              f"{base[1]:.4g} deg; allowed: deflections in [{MIN_DEFLECTION_DEG:g}, 45] deg")
         deflection = base if self.deflection_deg is None else tuple(
             _finite("deflection_deg", v) for v in self.deflection_deg)
         if len(deflection) != 2 or not all(0 < v <= 45 for v in deflection):
@@ -119,6 +124,12 @@ class RisleyParams:
         object.__setattr__(self, "laser_spacing", spacing)
         # Equality and hashing by value, coefficients included.
         object.__setattr__(self, "_key", coefficients.tobytes())
+        # The series as the sliders scale it must stay a direction: finite, within 180 deg of the boresight.
+        reach = np.abs(self.coefficients).sum(axis=1)
+        if not np.all(np.isfinite(reach)) or reach.max() > MAX_REACH_DEG:
+            laser = int(np.argmax(np.nan_to_num(reach, nan=np.inf)))
+            raise ConfigError(f"LivoxVizRisley: laser {laser}'s terms add up to {reach[laser]:.4g} deg; allowed: at "
+                              f"most {MAX_REACH_DEG:g} deg off the boresight")
 
     @staticmethod
     def base_deflection_deg(coefficients: np.ndarray, terms: tuple[tuple[int, int], ...]) -> tuple[float, float]:
@@ -142,10 +153,13 @@ class RisleyParams:
         fitted = self.base_deflection_deg(base, self.terms)
         scale_a = self.deflection_deg[0] / fitted[0]
         scale_b = self.deflection_deg[1] / fitted[1]
-        powers = np.array([scale_a ** abs(m) * scale_b ** abs(n) for m, n in self.terms])
+        orders = np.array(self.terms, dtype=np.float64).reshape(-1, 2)
         mean = base.mean(axis=0, keepdims=True)
         spread = mean + self.laser_spacing * (base - mean)
-        result = spread * powers[None, :]
+        # Extreme values overflow to inf here; validation refuses them with the reach they give.
+        with np.errstate(over="ignore", invalid="ignore"):
+            powers = np.power(scale_a, np.abs(orders[:, 0])) * np.power(scale_b, np.abs(orders[:, 1]))
+            result = spread * powers[None, :]
         result.setflags(write=False)
         return result
 
