@@ -137,8 +137,10 @@ def two_prism(base_preset: str, rosette_preset: str, width_deg: float, height_de
     ratio = width_deg / rosette.camera_fov
     config = replace(rosette, data_width=600, data_height=40, data_check_freq=10, camera_fov=round(width_deg, 4),
                      other_params=(range_m, round(rosette.petal_height * ratio, 4), *rosette.other_params[2:]),
-                     risley=params, pattern_model="risley", fov=FieldOfView.ellipse(width_deg, height_deg))
+                     risley=params, pattern_model="risley")
     xy = make_pattern(config).take(960_000).xy_deg
+    # The field of view is the track's own outline: six offset circles make no ellipse.
+    config = replace(config, fov=FieldOfView.of_points(xy))
     span = (np.ptp(xy[:, 0]), np.ptp(xy[:, 1]))
     write(config, f"Livox {sensor}: 6 lasers, 240 000 pts/s, {width_deg:g} x {height_deg:g} deg, {range_m:g} m; NOT "
                   f"fitted to a table: the fitted {pair} prism pair scaled to "

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from livox_viz.config.risley_params import RisleyParams
+from livox_viz.config.risley_params import MAX_PRISM_HZ, RisleyParams
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.fitting.reference import ReferencePattern
 from livox_viz.fitting.series_lsq import LaserRows
@@ -187,18 +187,18 @@ def fit_risley(table: ReferencePattern, beams: int | None = None) -> RisleyFit:
     keep[:2] = True
     terms = tuple(term for term, kept in zip(terms, keep, strict=True) if kept)
     coefficients, residual = _solve(z, t, laser, lasers, hz, terms)
-    # Phases that make laser 0's prism terms real and positive.
-    a0, b0 = float(np.angle(coefficients[0, 0])), float(np.angle(coefficients[0, 1]))
-    shift = np.exp(-1j * np.array([m * a0 + n * b0 for m, n in terms]))
-    params = RisleyParams(prism_hz=hz, phase_rad=(a0, b0), terms=terms, base_coefficients=coefficients * shift)
     distance = np.abs(residual)
     means = np.array([z[laser == k].mean() for k in range(lasers)])
     spread = math.sqrt(float(np.mean(np.abs(z - means[laser]) ** 2)))
     error = math.sqrt(float(np.mean(distance**2)))
-    if error > NO_TRACK_FRACTION * spread:
-        raise LivoxVizError(f"{table.name}: the best two-prism track leaves {error:.3g} "
-                            f"deg rms of the table's {spread:.3g} deg spread: it is not a two-prism track (noise, rows "
-                            "out of order, or another head: try --model track)")
+    if error > NO_TRACK_FRACTION * spread or max(abs(hz[0]), abs(hz[1])) > MAX_PRISM_HZ:
+        raise LivoxVizError(f"{table.name}: the best two-prism track leaves {error:.3g} deg rms of the table's "
+                            f"{spread:.3g} deg spread: there is no periodic scan track of two prisms in it (noise, "
+                            "rows out of order, or another head: try --model track)")
+    # Phases that make laser 0's prism terms real and positive.
+    a0, b0 = float(np.angle(coefficients[0, 0])), float(np.angle(coefficients[0, 1]))
+    shift = np.exp(-1j * np.array([m * a0 + n * b0 for m, n in terms]))
+    params = RisleyParams(prism_hz=hz, phase_rad=(a0, b0), terms=terms, base_coefficients=coefficients * shift)
     per_laser = np.array([math.sqrt(float(np.mean(distance[laser == k] ** 2))) for k in range(lasers)])
     return RisleyFit(params, found, math.sqrt(float(np.mean(distance**2))), float(np.percentile(distance, 95)),
                      float(distance.max()), per_laser, time.perf_counter() - start)

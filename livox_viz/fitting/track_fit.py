@@ -53,6 +53,8 @@ DEFAULT_TOLERANCE_DEG = 1e-3
 PEAKS = 16
 #: Largest |m|, |l| a line may need to count as explained by a base pair.
 LINE_ORDER = 8
+#: Two candidate frequencies related by integers this small span a line rather than a lattice.
+DEGENERATE_ORDER = 4
 #: Largest order the term box grows to along each axis.
 MAX_BOX = 24
 #: Rows (all lasers) the refinement and the box growth use at most, evenly strided.
@@ -177,12 +179,16 @@ def _explain(freqs: np.ndarray, a: float, b: float, tolerance: float) -> tuple[n
 
 
 def _degenerate(a: float, b: float, tolerance: float) -> bool:
-    """Whether p a + q b = 0 for small integers (the pair spans a line, not a lattice)."""
+    """Whether p a + q b = 0 for small integers, |p|, |q| <= 4: the pair spans a line, not a lattice (f and 2f).
+
+    Relations of higher order (the Mid-360's 182.4 Hz is 18.24 x 10 Hz) leave a true lattice whose lines are
+    told apart by their lowest orders.
+    """
     if b == 0:
         return a == 0
-    p = np.arange(-2 * LINE_ORDER, 2 * LINE_ORDER + 1)
+    p = np.arange(-DEGENERATE_ORDER, DEGENERATE_ORDER + 1)
     q = np.round(-p * a / b)
-    close = (np.abs(p * a + q * b) <= 2 * tolerance) & (np.abs(q) <= 2 * LINE_ORDER) & ((p != 0) | (q != 0))
+    close = (np.abs(p * a + q * b) <= 2 * tolerance) & (np.abs(q) <= DEGENERATE_ORDER) & ((p != 0) | (q != 0))
     return bool(np.any(close))
 
 
