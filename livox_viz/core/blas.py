@@ -1,0 +1,78 @@
+"""One BLAS thread for the duration of a call, then the user's setting back.
+
+numpy's OpenBLAS splits a product over every core once it is large enough,
+and its threads then spin waiting for work: on the 2-core development machine
+the Risley stream ran 10 x slower with two threads than with one, and a
+slider's first frame took 287 ms instead of 120 ms (issue 19). Setting
+``OPENBLAS_NUM_THREADS`` at import would change every other library's products
+in the user's process too, so the limit is scoped instead: :func:`one_blas_thread`
+pins the BLAS libraries numpy loaded (found once through threadpoolctl) to one
+thread on entry and restores their own count on exit. Nested and concurrent
+holders share one pin; the last to leave restores.
+
+The count is process-wide: while a holder is inside, a product another thread
+of the same process starts also gets one thread. The pinned sections are short
+(one chunk of a pattern stream). The OpenBLAS numpy ships (0.3.31) takes a
+count set from the main thread, where the streams run; from another thread,
+once the main thread has set one, it keeps its count, so a pin there does not
+apply, and the user's count is kept all the same.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+_lock = threading.Lock()
+_holders = 0
+_saved: list[tuple[Any, int]] = []
+_libraries: list[Any] | None = None
+
+
+def _blas_libraries() -> list[Any]:
+    """threadpoolctl's controllers of the BLAS libraries loaded now (looked up once; numpy's is loaded)."""
+    global _libraries
+    if _libraries is None:
+        import numpy  # noqa: F401  (its BLAS must be loaded before the lookup)
+        from threadpoolctl import ThreadpoolController
+
+        _libraries = list(ThreadpoolController().select(user_api="blas").lib_controllers)
+    return _libraries
+
+
+class _OneBlasThread:
+    """The context manager :func:`one_blas_thread` returns (a class: a generator-based one costs a microsecond)."""
+
+    def __enter__(self) -> None:
+        global _holders
+        with _lock:
+            if _holders == 0:
+                for library in _blas_libraries():
+                    threads = library.get_num_threads()
+                    if threads != 1:
+                        library.set_num_threads(1)
+                        _saved.append((library, threads))
+            _holders += 1
+
+    def __exit__(self, *exc: object) -> None:
+        global _holders
+        with _lock:
+            _holders -= 1
+            if _holders == 0:
+                for library, threads in _saved:
+                    library.set_num_threads(threads)
+                _saved.clear()
+
+
+_ONE_BLAS_THREAD = _OneBlasThread()
+
+
+def one_blas_thread() -> _OneBlasThread:
+    """A context manager: its body runs with numpy's BLAS on one thread (3-4 us to enter and leave; nested or
+    concurrent holders cost a lock each)."""
+    return _ONE_BLAS_THREAD
+
+
+def blas_threads() -> list[int]:
+    """The thread count of each BLAS library numpy loaded, as it stands now (for tests and benchmarks)."""
+    return [library.get_num_threads() for library in _blas_libraries()]
