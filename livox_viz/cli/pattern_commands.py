@@ -53,7 +53,7 @@ def derived_figures(cfg: SensorConfig) -> dict[str, float | int | str]:
             "petal_length_deg": cfg.half_fov_deg,
             "petal_height_deg": cfg.petal_height,
         })
-    else:
+    elif cfg.pattern_model == "risley":
         risley = cfg.risley
         figures.update({
             "prism_rpm": list(risley.prism_rpm),
@@ -61,7 +61,19 @@ def derived_figures(cfg: SensorConfig) -> dict[str, float | int | str]:
             "lasers": risley.lasers,
             "series_terms": len(risley.terms),
         })
+    else:
+        track = cfg.track
+        figures.update({
+            "track_form": track.form,
+            "base_rpm": list(track.base_rpm),
+            "lasers": track.lasers,
+            "series_terms": len(track.terms),
+        })
+    fov = cfg.field_of_view
     figures.update({
+        "pattern_plane": fov.plane,
+        "fov_shape": fov.shape,
+        "fov_size_deg": list(fov.size_deg),
         "fov_deg": cfg.camera_fov,
         "range_max_m": cfg.range_max,
         "range_step_m": cfg.range_step,
@@ -76,9 +88,14 @@ def cmd_info(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps({"config": config_label(args), **figures}, indent=2))
         return 0
-    model = "Risley track" if cfg.pattern_model == "risley" else "rosette"
+    model = {"risley": "Risley track", "track": "track"}.get(cfg.pattern_model, "rosette")
     print(f"{config_label(args)}: Livox {model} (RflySim TypeID {cfg.type_id}), SeqID {cfg.seq_id}")
-    print(f"  field of view      {cfg.camera_fov:g} deg (cone of half-angle {cfg.half_fov_deg:g} deg)")
+    fov = cfg.field_of_view
+    if fov.shape == "cone":
+        print(f"  field of view      {cfg.camera_fov:g} deg (cone of half-angle {cfg.half_fov_deg:g} deg)")
+    else:
+        print(f"  field of view      {fov.describe()} ({fov.plane} plane); the rosette's CameraFOV "
+              f"{cfg.camera_fov:g} deg")
     print(f"  point rate         {cfg.point_rate:,} pts/s = "
           f"{cfg.data_width} x {cfg.data_height} x {cfg.data_check_freq} Hz")
     for unit, points in cfg.unit_points.items():
@@ -89,11 +106,16 @@ def cmd_info(args: argparse.Namespace) -> int:
               f"+ U(0,1) x {cfg.jitter_max_deg:g} deg after each {cfg.jitter_scope}")
         print(f"  petal              length {cfg.half_fov_deg:g} deg, half-width {cfg.petal_height:g} deg, "
               f"p = {cfg.spacing_exponent:g}, q = {cfg.tip_exponent:g}")
-    else:
+    elif cfg.pattern_model == "risley":
         risley = cfg.risley
         print(f"  prisms             {risley.prism_rpm[0]:+.1f} / {risley.prism_rpm[1]:+.1f} rpm, deflections "
               f"{risley.deflection_deg[0]:.3f} / {risley.deflection_deg[1]:.3f} deg")
         print(f"  series             {len(risley.terms)} terms, {risley.lasers} laser(s)")
+    else:
+        track = cfg.track
+        print(f"  base speeds        {track.base_rpm[0]:+.1f} / {track.base_rpm[1]:+.1f} rpm"
+              + (" (the first turns the azimuth)" if track.form == "spin" else ""))
+        print(f"  series             {len(track.terms)} terms, {track.lasers} laser(s), {track.form} form")
     print(f"  range              {cfg.range_max:g} m, int16 step {cfg.range_step * 1e3:.3f} mm, "
           f"max decode error {max_decode_error(cfg.range_max) * 1e3:.3f} mm")
     return 0
@@ -175,9 +197,10 @@ def _pattern_arguments(parser: argparse.ArgumentParser) -> None:
 # coverage ------------------------------------------------------------------------------
 def cmd_coverage(args: argparse.Namespace) -> int:
     cfg = config_from_args(args)
-    if args.cell_deg > cfg.half_fov_deg:
-        raise UsageError(f"--cell-deg {args.cell_deg:g} is larger than the FOV's half-angle "
-                         f"{cfg.half_fov_deg:g} deg; allowed: up to {cfg.half_fov_deg:g}")
+    smallest = min(cfg.field_of_view.size_deg) / 2
+    if args.cell_deg > smallest:
+        raise UsageError(f"--cell-deg {args.cell_deg:g} is larger than half the field of view's smaller side "
+                         f"({smallest:g} deg); allowed: up to {smallest:g}")
     fractions = pattern_coverage(cfg, args.seconds, cell_deg=args.cell_deg, seed=args.seed)
     if args.json:
         print(json.dumps({"config": config_label(args), "cell_deg": args.cell_deg, "seed": args.seed,
