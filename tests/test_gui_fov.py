@@ -1,0 +1,108 @@
+"""Issue 18 in the window: the sensor's own field of view in the pattern view, the scene, the counts, the charts."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pv = pytest.importorskip("pyvista")
+
+from livox_viz.widgets.app import LivoxVizApp  # noqa: E402
+from livox_viz.widgets.session import Session  # noqa: E402
+
+from livox_viz import load_preset  # noqa: E402
+from livox_viz.cli import main  # noqa: E402
+from livox_viz.patterns.metrics import coverage  # noqa: E402
+from livox_viz.patterns.planes import xy_from_directions  # noqa: E402
+from livox_viz.scene.scenes import open_scene  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def urban():
+    return open_scene("urban")
+
+
+def make_app(urban, preset: str, tmp_path: Path) -> LivoxVizApp:
+    session = Session(load_preset(preset), urban, seed=0, preset_name=preset)
+    return LivoxVizApp(session, off_screen=True, window_size=(640, 360), screenshot_dir=tmp_path / "shots")
+
+
+@pytest.mark.parametrize("preset", ["livox_horizon", "livox_mid360", "livox_avia"])
+def test_the_views_draw_the_sensors_own_field_of_view(urban, tmp_path: Path, preset: str) -> None:
+    app = make_app(urban, preset, tmp_path)
+    try:
+        session = app.session
+        fov = session.config.field_of_view
+        outline = np.asarray(app.pattern_view.renderer.actors["fov-outline"].GetMapper().GetInput().points)[:, :2]
+        np.testing.assert_allclose(outline, fov.boundary(), atol=1e-5)
+        # The camera holds the whole outline.
+        app.pattern_view.reset_camera()
+        camera = app.pattern_view.renderer.camera
+        x0, x1, y0, y1 = fov.bounds
+        width, height = app.pattern_view.renderer.GetSize()
+        assert camera.parallel_scale >= (y1 - y0) / 2
+        assert camera.parallel_scale * width / height >= (x1 - x0) / 2
+        # The scene's wire is the outline's rays: back in the plane, they lie on the outline's edge.
+        wire = np.asarray(app.scene_view.renderer.actors["fov-cone"].GetMapper().GetInput().points)
+        far = wire[np.linalg.norm(wire, axis=1) > 1.5]
+        xy = xy_from_directions(far, fov.plane)
+        if fov.plane == "panorama":
+            assert set(np.round(xy[:, 1], 3)) >= {round(v, 3) for v in fov.elevation_deg}
+            assert np.ptp(xy[:, 0]) > 300  # all the way round
+        else:
+            from livox_viz.config.fov import _inside_polygon
+
+            grown = fov.boundary() * 1.01
+            shrunk = fov.boundary() * 0.99
+            assert np.all(_inside_polygon(grown, xy[:, 0], xy[:, 1]))
+            assert not np.any(_inside_polygon(shrunk, xy[:, 0], xy[:, 1]))
+        # The counts the window keeps are over the field of view's own cells and box.
+        session.advance_to(0.3)
+        live = session.pattern_ring.ordered(session.pattern_ring.positions)[:, :2].astype(float)
+        assert session.visible_coverage() == pytest.approx(coverage(live, fov))
+        assert session.density.bounds == pytest.approx(fov.bounds)
+        assert session.density.counts.sum() == session.pattern_ring.count
+        # The density chart runs along the field of view's own profile.
+        charts = app.charts
+        assert charts.density.x_label == fov.profile_label
+        low, high = fov.profile_range
+        half_bin = (high - low) / 60
+        x = np.asarray(charts.ours_density.x)
+        assert x[0] == pytest.approx(low + half_bin) and x[-1] == pytest.approx(high - half_bin)
+    finally:
+        app.close()
+
+
+def test_the_pattern_view_of_each_new_preset_renders(urban, tmp_path: Path) -> None:
+    """Every sensor preset draws: points inside the picture, the outline visible, nothing blank."""
+    from PIL import Image
+
+    for preset in ("livox_avia", "livox_horizon", "livox_tele15", "livox_hap", "livox_mid360"):
+        out = tmp_path / f"{preset}.png"
+        assert main(["render", "--preset", preset, "--view", "pattern", "--seconds", "0.3", "--size", "480x360",
+                     "--out", str(out)]) == 0
+        with Image.open(out) as image:
+            pixels = np.asarray(image.convert("RGB")).astype(int)
+        background = np.array([16, 20, 28])
+        lit = np.abs(pixels - background).sum(axis=2) > 60
+        assert 0.05 < lit.mean() < 0.9, f"{preset}: {100 * lit.mean():.1f} % lit"
+        yellow = (pixels[..., 0] > 200) & (pixels[..., 1] > 160) & (pixels[..., 2] < 120)
+        assert yellow.sum() > 100, f"{preset}: no outline drawn"
+
+
+def test_info_and_coverage_take_every_sensor_preset(capsys: pytest.CaptureFixture[str]) -> None:
+    for preset in ("livox_horizon", "livox_mid360"):
+        assert main(["info", "--preset", preset, "--json"]) == 0
+        figures = json.loads(capsys.readouterr().out)
+        assert figures["pattern_model"] == "track" and figures["lasers"] in (4, 6)
+        assert figures["pattern_plane"] == ("panorama" if preset == "livox_mid360" else "boresight")
+        assert main(["coverage", "--preset", preset, "--seconds", "0.1", "--json"]) == 0
+        fraction = json.loads(capsys.readouterr().out)["coverage"][0]["fraction"]
+        config = load_preset(preset)
+        from livox_viz.patterns.factory import make_pattern
+
+        xy = make_pattern(config).take(config.point_rate // 10).xy_deg
+        assert fraction == pytest.approx(coverage(xy, config.field_of_view))
