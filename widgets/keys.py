@@ -39,7 +39,7 @@ KEYS: tuple[KeyRow, ...] = (
     KeyRow("c / k", "pattern colours (time, figure-8, petal, flower, arc; laser for Risley) / scene colours "
            "(range, height, time)", (("c", "cycle_pattern_colour"), ("k", "cycle_scene_colour")), "colours"),
     KeyRow("j", "add the random rotation after each flower / after each figure", (("j", "toggle_jitter_scope"),)),
-    KeyRow("v", "pattern model: RflySim's rosette / the Risley track (a configuration with Risley parameters)",
+    KeyRow("v", "pattern model: RflySim's rosette / the track (a configuration with Risley or track parameters)",
            (("v", "toggle_pattern_model"),), "model"),
     KeyRow("s", "screenshot PNG into `screenshots/` with a JSON sidecar (configuration, seed, scan time, cameras)",
            (("s", "save_screenshot"),), "screenshot"),
@@ -54,7 +54,7 @@ KEYS: tuple[KeyRow, ...] = (
            "to load leaves a message, not a crash)", (("m", "cycle_scene"),)),
     KeyRow("o / l", "reference overlay on/off / its own integration window (its coverage shows beside ours)",
            (("o", "toggle_reference"), ("l", "cycle_reference_window"))),
-    KeyRow("e", "reference: the next preset with a Risley track (or the table of `--reference`)",
+    KeyRow("e", "reference: the next preset with a track in the pattern's plane (or the table of `--reference`)",
            (("e", "cycle_reference"),), "reference"),
     KeyRow("f", "fit the rosette's parameters to the reference and move the sliders there",
            (("f", "fit_to_reference"),), "fit"),
