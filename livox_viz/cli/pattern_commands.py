@@ -199,8 +199,9 @@ def cmd_coverage(args: argparse.Namespace) -> int:
     cfg = config_from_args(args)
     smallest = min(cfg.field_of_view.size_deg) / 2
     if args.cell_deg > smallest:
-        raise UsageError(f"--cell-deg {args.cell_deg:g} is larger than half the field of view's smaller side "
-                         f"({smallest:g} deg); allowed: up to {smallest:g}")
+        what = "the FOV's half-angle" if cfg.field_of_view.shape == "cone" else "half the FOV's smaller side"
+        raise UsageError(f"--cell-deg {args.cell_deg:g} is larger than {what} {smallest:g} deg; allowed: up to "
+                         f"{smallest:g}")
     fractions = pattern_coverage(cfg, args.seconds, cell_deg=args.cell_deg, seed=args.seed)
     if args.json:
         print(json.dumps({"config": config_label(args), "cell_deg": args.cell_deg, "seed": args.seed,

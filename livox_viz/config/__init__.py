@@ -2,7 +2,9 @@
 
 Takes a JSON file or a preset name and gives a :class:`~livox_viz.config.sensor.SensorConfig`
 (W, H, F, FOV, ``otherParams``, the mount, the pattern model and its parameters), the
-Risley/track parameters it may carry (:mod:`~livox_viz.config.risley_params`), the
+Risley and general track parameters it may carry (:mod:`~livox_viz.config.risley_params`,
+:mod:`~livox_viz.config.track_params`), the sensor's own field of view
+(:mod:`~livox_viz.config.fov`), the
 sensor's mount on the vehicle (:mod:`~livox_viz.config.mount`) and the shipped and user
 presets (:mod:`~livox_viz.config.presets`).
 """
