@@ -106,3 +106,21 @@ def test_info_and_coverage_take_every_sensor_preset(capsys: pytest.CaptureFixtur
 
         xy = make_pattern(config).take(config.point_rate // 10).xy_deg
         assert fraction == pytest.approx(coverage(xy, config.field_of_view))
+
+
+def test_a_reference_in_another_plane_is_refused_or_removed(urban, tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["render", "--reference", "mid360", "--seconds", "0.05", "--size", "200x150", "--out",
+                 str(tmp_path / "r.png")]) == 2
+    assert "is a panorama pattern" in capsys.readouterr().err
+    assert not (tmp_path / "r.png").exists()
+    from livox_viz.widgets.overlay import PresetSource
+
+    app = make_app(urban, "livox_horizon", tmp_path)
+    try:
+        session = app.session
+        session.overlay.set_source(PresetSource(load_preset("livox_mid40_risley"), "livox_mid40_risley"), 0.0)
+        session.set_config(load_preset("livox_mid360"), "livox_mid360")
+        assert session.overlay.source is None and "removed" in session.message
+    finally:
+        app.close()

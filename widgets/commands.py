@@ -28,6 +28,7 @@ from livox_viz.cli.common import (
 )
 from livox_viz.cli.signals import StopRequests, signal_name, signal_status
 from livox_viz.cli.wire_commands import add_receiver_arguments, open_receiver
+from livox_viz.core.errors import LivoxVizError
 
 
 def _session(args: argparse.Namespace):
@@ -40,7 +41,12 @@ def _session(args: argparse.Namespace):
     session = Session(config, scene, seed=args.seed, preset_name=config_label(args), vehicle_pose=pose,
                       caster=caster, trajectory=trajectory)
     if getattr(args, "reference", None):
-        session.overlay.set_source(reference_source(args.reference, args.reference_rate, args.seed), 0.0)
+        source = reference_source(args.reference, args.reference_rate, args.seed)
+        if source.plane != config.pattern_plane:
+            raise LivoxVizError(f"--reference {args.reference} is a {source.plane} pattern and "
+                                f"{config_label(args)} a {config.pattern_plane} one; allowed: a reference in the "
+                                "same plane (a 360-degree head's azimuth/elevation is not a boresight pattern)")
+        session.overlay.set_source(source, 0.0)
     return session
 
 

@@ -47,6 +47,7 @@ class TableSource:
         self.name = table.name
         self.rate = table.rate
         self.fov = table.field_of_view
+        self.plane = table.plane
 
     def xy(self, first: int, stop: int) -> np.ndarray:
         """``(stop-first, 2)`` float64 degrees of samples ``first .. stop-1``."""
@@ -68,6 +69,7 @@ class PresetSource:
         self.name = name
         self.rate = float(config.point_rate)
         self.fov = config.field_of_view
+        self.plane = config.pattern_plane
         self.seed = seed
         self._stream = make_pattern(config, seed)
 

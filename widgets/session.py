@@ -164,6 +164,11 @@ class Session:
             self.preset_name = preset_name
         if resize:
             self._make_rings()
+        source = self.overlay.source
+        if source is not None and source.plane != config.pattern_plane:
+            # Another plane's angles would be drawn as if they were ours.
+            self.overlay.set_source(None, 0.0)
+            self.message = f"reference {source.name} removed: it is a {source.plane} pattern"
         self._fit_display()
         self.restart()
         self._changed("config")
