@@ -9,7 +9,8 @@ document does). Files written from scratch use RflySim's spelling, 8
 
 The one option of ours, ``jitter_scope``, travels in an extra key
 (``LivoxVizJitterScope``) that RflySim ignores; it is written only when it is
-not the default ``"flower"``."""
+not the default ``"flower"``. So do the Risley track (``LivoxVizRisley``) and the
+return model (``LivoxVizReturns``, :mod:`~livox_viz.config.returns_params`)."""
 
 from __future__ import annotations
 
@@ -22,6 +23,14 @@ from pathlib import Path
 from typing import Any, Literal
 
 from livox_viz.config.fov import FOV_KEY, FieldOfView
+from livox_viz.config.returns_params import (
+    DATASHEETS,
+    DEFAULT_SHEET,
+    RETURN_MODELS,
+    RETURN_SLIDERS,
+    RETURNS_KEY,
+    ReturnParams,
+)
 from livox_viz.config.risley_params import RisleyParams
 from livox_viz.config.track_params import TRACK_KEY, TrackParams
 from livox_viz.core.atomic import write_text_atomic
@@ -149,11 +158,15 @@ PARAM_RANGES: dict[str, ParamRange] = {
     "laser_spacing": ParamRange("LivoxVizRisley laser_spacing", "lasers' spacing, x fitted", 0, 10),
     "base_rpm_a": ParamRange("LivoxVizTrack base A", "base A speed, rpm", -300000, 300000),
     "base_rpm_b": ParamRange("LivoxVizTrack base B", "base B speed, rpm", -300000, 300000),
+    **{f"returns_{name}": ParamRange(f"{RETURNS_KEY} {name}", label, low, high, low_open=low > 0)
+       for name, (label, low, high) in RETURN_SLIDERS.items()},
 }
 
 
 #: The tunable fields of the Risley model (they need ``LivoxVizRisley`` parameters).
 RISLEY_PARAMS: tuple[str, ...] = ("prism_rpm_a", "prism_rpm_b", "deflection_a", "deflection_b", "laser_spacing")
+#: The tunable fields of the return model (``LivoxVizReturns``; the Mid-70's sheet where a configuration has none).
+RETURNS_PARAMS: tuple[str, ...] = tuple(f"returns_{name}" for name in RETURN_SLIDERS)
 
 
 #: The tunable fields of the track model (they need ``LivoxVizTrack`` parameters): its two base speeds.
@@ -236,6 +249,8 @@ class SensorConfig:
     fov : FieldOfView, optional
         The real sensor's field of view (``LivoxVizFieldOfView``) for its track; default (and always for
         the rosette) the cone of half-angle CameraFOV / 2. See :attr:`field_of_view`.
+    returns : ReturnParams, optional
+        The sensor's return model (``LivoxVizReturns``); None is the ideal model.
     source : dict
         The JSON object as it was read (key order and unknown keys are kept
         for saving); empty for a configuration made from scratch.
@@ -260,6 +275,7 @@ class SensorConfig:
     risley: RisleyParams | None = None
     track: TrackParams | None = None
     fov: FieldOfView | None = None
+    returns: ReturnParams | None = None
     source: Mapping[str, Any] = field(default_factory=dict, compare=False, repr=False)
     euler_key: str = field(default=EULER_KEY_RFLYSIM, compare=False, repr=False)
 
@@ -465,6 +481,8 @@ class SensorConfig:
             hz = list(track.base_hz)
             hz[name.endswith("_b")] = value / 60.0
             return replace(self, track=replace(track, base_hz=tuple(hz)))
+        if name in RETURNS_PARAMS:
+            return replace(self, returns=self.return_params.with_slider(name.removeprefix("returns_"), value))
         if name in _OTHER_PARAM_FIELDS:
             params = list(self.other_params)
             params[_OTHER_PARAM_FIELDS.index(name)] = value
@@ -480,6 +498,8 @@ class SensorConfig:
                     "laser_spacing": risley.laser_spacing}[name]
         if name in TRACK_PARAMS:
             return self._require_track().base_rpm[name.endswith("_b")]
+        if name in RETURNS_PARAMS:
+            return self.return_params.slider_value(name.removeprefix("returns_"))
         return float(getattr(self, name))
 
     def _require_track(self) -> TrackParams:
@@ -497,6 +517,27 @@ class SensorConfig:
     def with_pattern_model(self, model: str) -> SensorConfig:
         """A copy that scans with ``model`` (a name of :data:`PATTERN_MODELS`)."""
         return replace(self, pattern_model=model)
+
+    @property
+    def return_params(self) -> ReturnParams:
+        """The return model in effect: ``LivoxVizReturns``, or the Mid-70's sheet in the ideal model."""
+        if self.returns is not None:
+            return self.returns
+        return replace(DATASHEETS[DEFAULT_SHEET], model="ideal")
+
+    @property
+    def returns_model(self) -> str:
+        """The return model scans use: "ideal" (the exact first hit, as RflySim computes) or "datasheet"."""
+        return self.return_params.model
+
+    def with_returns_model(self, model: str) -> SensorConfig:
+        """A copy whose scans use the ``model`` ("ideal" or "datasheet") return model.
+
+        A configuration without a return model gets the Mid-70's datasheet.
+        """
+        if model not in RETURN_MODELS:
+            raise ConfigError(f"return model {model!r}; allowed: {' or '.join(RETURN_MODELS)}")
+        return replace(self, returns=replace(self.return_params, model=model))
 
     # JSON ---------------------------------------------------------------------------
     def to_json_dict(self) -> dict[str, Any]:
@@ -528,6 +569,10 @@ class SensorConfig:
                 out[key] = params.to_json()
             else:
                 out.pop(key, None)
+        if self.returns is not None:
+            out[RETURNS_KEY] = self.returns.to_json()
+        else:
+            out.pop(RETURNS_KEY, None)
         return out
 
     @classmethod
@@ -575,6 +620,7 @@ class SensorConfig:
         risley = RisleyParams.from_json(data[RISLEY_KEY]) if RISLEY_KEY in data else None
         track = TrackParams.from_json(data[TRACK_KEY]) if TRACK_KEY in data else None
         fov = FieldOfView.from_json(data[FOV_KEY]) if FOV_KEY in data else None
+        returns = ReturnParams.from_json(data[RETURNS_KEY]) if RETURNS_KEY in data else None
         return cls(
             data_width=ints["DataWidth"],
             data_height=ints["DataHeight"],
@@ -593,6 +639,7 @@ class SensorConfig:
             risley=risley,
             track=track,
             fov=fov,
+            returns=returns,
             source=dict(data),
             euler_key=euler_key,
         )

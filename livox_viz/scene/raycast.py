@@ -1,7 +1,9 @@
 """First-hit ray casting against a triangle mesh: Embree, and trimesh's numpy intersector.
 
 Both backends share one interface, :meth:`distances`, with documented shapes;
-a ray that hits nothing within ``max_distance`` gets ``inf``.
+a ray that hits nothing within ``max_distance`` gets ``inf``. :meth:`hits` also
+says which triangle each ray met (the return model needs its material and
+normal); ``face_planes`` holds every triangle's unit normal and offset.
 
 Embree works in float32. The mesh is moved to its own origin (the centre of
 its bounding box) before the conversion, so precision depends on the scene's
@@ -109,6 +111,73 @@ class EmbreeCaster:
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
         # Embree builds its BVH on the first query; do it now, not inside a timed frame.
         self._scene.run(np.zeros((1, 3), np.float32), np.full((1, 3), 0.57735, np.float32), query="INTERSECT")
+
+    @property
+    def face_planes(self) -> np.ndarray:
+        """``(F, 4)`` float64 each triangle's unit normal (world frame) and offset ``n . v0``, metres."""
+        return self._planes
+
+    def hits(self, origins: np.ndarray, directions: np.ndarray,
+             max_distance: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
+        """Distance to each ray's first hit and the triangle it hit.
+
+        Parameters
+        ----------
+        origins : (n, 3) or (3,) float
+            Ray origins, metres, world frame.
+        directions : (n, 3) float
+            Unit ray directions.
+        max_distance : float
+            Hits farther than this are misses, metres.
+
+        Returns
+        -------
+        distance : (n,) float64
+            Metres; ``inf`` for a miss (float32 in the re-centred frame, or float64 from the
+            triangle's plane with ``exact``).
+        triangle : (n,) int32
+            Index of the triangle hit, -1 for a miss.
+        """
+        origins, directions = _check_rays(origins, directions)
+        count = directions.shape[0]
+        distance = np.empty(count, dtype=np.float64)
+        triangle = np.empty(count, dtype=np.int32)
+        if count == 0:
+            return distance, triangle
+        limit = np.float32(min(max_distance, 1e37))
+        local = origins - self.local_origin
+        shared_origin = local.shape[0] == 1
+
+        def run(bounds: tuple[int, int]) -> None:
+            start, stop = bounds
+            rows = stop - start
+            part_origins = np.ascontiguousarray(
+                np.broadcast_to(local[0] if shared_origin else local[start:stop], (rows, 3)), dtype=np.float32)
+            found = self._scene.run(part_origins, np.ascontiguousarray(directions[start:stop], dtype=np.float32),
+                                    dists=np.full(rows, limit, dtype=np.float32), query="INTERSECT", output=1)
+            ids = found["primID"]
+            hit = ids >= 0
+            triangle[start:stop] = np.where(hit, ids, -1)
+            if self.exact:
+                planes = self._planes[np.maximum(ids, 0)]
+                o = origins if shared_origin else origins[start:stop]
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    exact = (planes[:, 3] - np.einsum("ij,ij->i", planes[:, :3], np.broadcast_to(o, (rows, 3)))) / (
+                        np.einsum("ij,ij->i", planes[:, :3], directions[start:stop]))
+                good = np.isfinite(exact) & (exact >= 0)
+                far = np.where(good, exact, found["tfar"])
+            else:
+                far = found["tfar"]
+            distance[start:stop] = np.where(hit & (far <= max_distance), far, np.inf)
+            triangle[start:stop] = np.where(np.isfinite(distance[start:stop]), triangle[start:stop], -1)
+
+        parts = _split(count, self.threads)
+        if self._pool is None or len(parts) == 1:
+            for part in parts:
+                run(part)
+        else:
+            list(self._pool.map(run, parts))
+        return distance, triangle
 
     def triangle_ids(self, origins: np.ndarray, directions: np.ndarray, max_distance: float = np.inf) -> np.ndarray:
         """Index of the first triangle each ray hits, ``(n,)`` int32, -1 for a miss."""
@@ -343,6 +412,31 @@ class TrimeshCaster:
             raise LivoxVizError("the scene has no triangles")
         self.mesh = mesh
         self._intersector = RayMeshIntersector(mesh)
+        normals = np.asarray(mesh.face_normals, dtype=np.float64)
+        self._planes = np.column_stack([normals, np.einsum("ij,ij->i", normals, mesh.triangles[:, 0])])
+
+    @property
+    def face_planes(self) -> np.ndarray:
+        """See :attr:`EmbreeCaster.face_planes`."""
+        return self._planes
+
+    def hits(self, origins: np.ndarray, directions: np.ndarray,
+             max_distance: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
+        """See :meth:`EmbreeCaster.hits`."""
+        origins, directions = _check_rays(origins, directions)
+        origins = np.broadcast_to(origins, directions.shape)
+        distance = np.full(directions.shape[0], np.inf)
+        triangle = np.full(directions.shape[0], -1, dtype=np.int32)
+        if directions.shape[0] == 0:
+            return distance, triangle
+        faces, rays, locations = self._intersector.intersects_id(origins, directions, multiple_hits=False,
+                                                                 return_locations=True)
+        if len(rays):
+            distance[rays] = np.einsum("ij,ij->i", locations - origins[rays], directions[rays])
+            triangle[rays] = faces
+        far = distance > max_distance
+        distance[far], triangle[far] = np.inf, -1
+        return distance, triangle
 
     def distances(self, origins: np.ndarray, directions: np.ndarray, max_distance: float = np.inf) -> np.ndarray:
         """See :meth:`RayCaster.distances`."""

@@ -7,6 +7,10 @@ trimesh reads) are taken in metres with a stated up axis and turned into NED:
 
 * ``up="z"``: x forward, y left, z up (ROS, most CAD) -> NED (x, -y, -z);
 * ``up="y"``: the glTF convention, +y up, +z forward, -x right -> NED (z, -x, -y).
+
+Every triangle carries its material (:mod:`~livox_viz.scene.materials`): a scene
+object's ``"material"``, a mesh file's sidecar or material colours, else the
+``reflectance`` given (``--reflectance``).
 """
 
 from __future__ import annotations
@@ -24,6 +28,16 @@ import trimesh
 from livox_viz.config.presets import DESCRIPTION_KEY, shipped_preset_dir, user_config_dir
 from livox_viz.core.errors import LivoxVizError, require_file
 from livox_viz.core.poses import Pose
+from livox_viz.scene.materials import (
+    DEFAULT_REFLECTANCE,
+    MaterialMap,
+    face_materials,
+    fill_reflectance,
+    parse_material,
+    part_material,
+    read_sidecar,
+    set_face_materials,
+)
 
 DEFAULT_SCENE = "urban"
 UP_AXES = ("z", "y")
@@ -94,7 +108,8 @@ def default_scene() -> trimesh.Trimesh:
     return load_scene_preset(DEFAULT_SCENE).mesh
 
 
-def load_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE, up: str = "z") -> trimesh.Trimesh:
+def load_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE, up: str = "z",
+               reflectance: float = DEFAULT_REFLECTANCE) -> trimesh.Trimesh:
     """The mesh of a scene preset (by name or JSON path) or of a mesh file, in world NED.
 
     Parameters
@@ -103,35 +118,48 @@ def load_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE, up: str = "
         A scene preset name (``livox-viz scenes``), a scene JSON, or a mesh file.
     up : {"z", "y"}
         Up axis of a mesh file.
+    reflectance : float
+        Lambertian reflectance (0-1) of surfaces that have no material of their own.
     """
-    return open_scene(name_or_path, up).mesh
+    return open_scene(name_or_path, up, reflectance).mesh
 
 
-def open_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE, up: str = "z") -> Scene:
+def open_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE, up: str = "z",
+               reflectance: float = DEFAULT_REFLECTANCE) -> Scene:
     """Like :func:`load_scene`, with the scene's name, description and default vehicle pose."""
     text = os.fspath(name_or_path)
     names = [name for name, _ in list_scenes()]
     if text in names:
-        return load_scene_preset(text)
+        return load_scene_preset(text, reflectance)
     path = Path(text)
     if path.suffix.lower() == ".json":
-        return _scene_from_json(path)
+        return _scene_from_json(path, reflectance)
     if not path.exists():
         raise LivoxVizError(f"scene {text!r} is neither a scene preset ({', '.join(names)}) nor an existing file")
-    return Scene(path.name, load_mesh_file(path, up), Pose((0.0, 0.0, -1.5)), f"mesh file {path}")
+    return Scene(path.name, load_mesh_file(path, up, reflectance), Pose((0.0, 0.0, -1.5)), f"mesh file {path}")
 
 
-def load_scene_preset(name: str) -> Scene:
+def load_scene_preset(name: str, reflectance: float = DEFAULT_REFLECTANCE) -> Scene:
     """A shipped scene preset by name."""
     path = scene_dir() / f"{name}.json"
     if not path.is_file():
         names = ", ".join(n for n, _ in list_scenes())
         raise LivoxVizError(f"unknown scene {name!r}; allowed: {names}")
-    return _scene_from_json(path)
+    return _scene_from_json(path, reflectance)
 
 
-def load_mesh_file(path: str | os.PathLike[str], up: str = "z") -> trimesh.Trimesh:
-    """Read a mesh file (metres) and turn it into world NED.
+def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: float | None = DEFAULT_REFLECTANCE,
+                   materials: MaterialMap | None = None) -> trimesh.Trimesh:
+    """Read a mesh file (metres) and turn it into world NED, each part with its material.
+
+    Parameters
+    ----------
+    path : path-like
+    up : {"z", "y"}
+    reflectance : float or None
+        For parts that have no material (no sidecar entry, no colour); None leaves them without one.
+    materials : MaterialMap, optional
+        Names to materials; default the sidecar ``<stem>.materials.json`` beside the file, if any.
 
     Raises
     ------
@@ -143,22 +171,48 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z") -> trimesh.Trime
         raise LivoxVizError(f"up axis {up!r}; allowed: {' or '.join(UP_AXES)}")
     require_file(path, "mesh file")
     try:
-        loaded = trimesh.load(path, force="mesh", process=False)
+        loaded = trimesh.load(path, force="scene", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise LivoxVizError(f"{path}: not a mesh trimesh can read ({type(exc).__name__}: {exc})") from None
-    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+    sidecar = materials if materials is not None else read_sidecar(path)
+    parts = []
+    for node in loaded.graph.nodes_geometry:
+        transform, geometry_name = loaded.graph[node]
+        geometry = loaded.geometry.get(geometry_name)
+        if not isinstance(geometry, trimesh.Trimesh) or len(geometry.faces) == 0:
+            continue
+        material_name = getattr(getattr(geometry.visual, "material", None), "name", None) or ""
+        own, gain = part_material(geometry, (str(node), str(geometry_name), str(material_name)), sidecar)
+        vertices = trimesh.transform_points(np.asarray(geometry.vertices, dtype=np.float64), transform)
+        parts.append(set_face_materials(trimesh.Trimesh(vertices, np.asarray(geometry.faces), process=False),
+                                        own, gain, np.full(len(geometry.faces), len(parts))))
+    if not parts:
         raise LivoxVizError(
             f"{path}: holds no triangles; allowed: a mesh with at least one face (OBJ, STL, PLY, GLB, OFF)"
         )
-    vertices = np.asarray(loaded.vertices, dtype=np.float64)
+    mesh = _join(parts)
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
     if not np.all(np.isfinite(vertices)):
         bad = int((~np.isfinite(vertices)).any(axis=1).sum())
         raise LivoxVizError(f"{path}: {bad} vertices are NaN or infinite; allowed: finite coordinates in metres")
-    return trimesh.Trimesh(vertices @ _TO_NED[up].T, np.asarray(loaded.faces), process=False)
+    mesh.vertices = vertices @ _TO_NED[up].T
+    return mesh if reflectance is None else fill_reflectance(mesh, reflectance)
+
+
+def _join(parts: list[trimesh.Trimesh]) -> trimesh.Trimesh:
+    """One mesh of ``parts`` (no vertex merging), their per-face materials and part numbers kept."""
+    offsets = np.cumsum([0] + [len(p.vertices) for p in parts[:-1]])
+    vertices = np.concatenate([np.asarray(p.vertices, dtype=np.float64) for p in parts])
+    faces = np.concatenate([np.asarray(p.faces, dtype=np.int64) + o for p, o in zip(parts, offsets, strict=True)])
+    joined = trimesh.Trimesh(vertices, faces, process=False)
+    materials = [face_materials(p, np.nan) for p in parts]
+    return set_face_materials(joined, np.concatenate([m[0] for m in materials]),
+                              np.concatenate([m[1] for m in materials]),
+                              np.concatenate([p.face_attributes["part"] for p in parts]))
 
 
 # Scene descriptions ------------------------------------------------------------------
-def _scene_from_json(path: Path) -> Scene:
+def _scene_from_json(path: Path, reflectance: float = DEFAULT_REFLECTANCE) -> Scene:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
@@ -167,13 +221,24 @@ def _scene_from_json(path: Path) -> Scene:
         raise LivoxVizError(f"{path}: not a readable scene JSON ({exc})") from None
     if not isinstance(data, dict) or not isinstance(data.get("objects"), list):
         raise LivoxVizError(f"{path}: a scene JSON needs an 'objects' list")
-    parts = [_primitive(obj, index, path.parent) for index, obj in enumerate(data["objects"])]
+    parts = [_with_material(_primitive(obj, index, path.parent), obj, index)
+             for index, obj in enumerate(data["objects"])]
     if not parts:
         raise LivoxVizError(f"{path}: the scene has no objects")
     pose_values = data.get("vehicle_pose", [0, 0, -1.5, 0, 0, 0])
     pose = Pose.parse(",".join(str(v) for v in pose_values))
-    mesh = trimesh.util.concatenate(parts)
-    return Scene(path.stem, mesh, pose, str(data.get(DESCRIPTION_KEY, "")))
+    return Scene(path.stem, fill_reflectance(_join(parts), reflectance), pose, str(data.get(DESCRIPTION_KEY, "")))
+
+
+def _with_material(mesh: trimesh.Trimesh, obj: dict[str, Any], index: int) -> trimesh.Trimesh:
+    """The object's mesh with its ``"material"`` (a mesh file keeps its own where the object names none)."""
+    faces = len(mesh.faces)
+    if "material" in obj:
+        material = parse_material(obj["material"], f"object {index} ({obj.get('type')})")
+        return set_face_materials(mesh, np.full(faces, material.reflectance), np.full(faces, material.retro_gain),
+                                  np.full(faces, index))
+    own, gain = face_materials(mesh, np.nan)
+    return set_face_materials(mesh, own, gain, np.full(faces, index))
 
 
 def _vector(obj: dict[str, Any], key: str, length: int, where: str) -> np.ndarray:
@@ -201,7 +266,9 @@ def _primitive(obj: Any, index: int, folder: Path) -> trimesh.Trimesh:
     kind = obj.get("type")
     where = f"object {index} ({kind})"
     if kind == "mesh":
-        mesh = load_mesh_file(folder / str(obj.get("path", "")), str(obj.get("up", "z")))
+        names = obj.get("materials")
+        mesh = load_mesh_file(folder / str(obj.get("path", "")), str(obj.get("up", "z")), None,
+                              None if names is None else MaterialMap.from_json(names, f"{where} materials"))
         mesh.apply_translation(_vector(obj, "center", 3, where) if "center" in obj else np.zeros(3))
         return mesh
     center = _vector(obj, "center", 3, where)

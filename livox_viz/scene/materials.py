@@ -1,0 +1,290 @@
+"""Surface materials: what a lidar's beam sees of a triangle, its reflectance and whether it is retroreflective.
+
+A material has a Lambertian **reflectance** (0-1, at the lidar's 905 nm) and a
+**retroreflective gain** (1 for a Lambertian surface; a retroreflective sign
+sends back hundreds of times what a white Lambertian surface of the same
+reflectance would). Every triangle of a scene carries its material in two
+per-face arrays of the trimesh mesh, ``mesh.face_attributes["reflectance"]`` and
+``["retro_gain"]``, so the material travels with the mesh to the ray caster;
+``["part"]`` numbers the object (primitive or mesh part) each triangle belongs to.
+
+Where the materials come from:
+
+* built-in scene objects name one (``"material": "asphalt"``, a number for a
+  Lambertian reflectance, or ``{"reflectance": 0.8, "retroreflective": true}``);
+* a mesh file takes, per part, a sidecar JSON beside it (``city.materials.json``
+  for ``city.glb``) mapping mesh (node) or material names, or glob patterns of
+  them, to a material; else the part's material colour, taken as linear RGB
+  (glTF's ``baseColorFactor``, OBJ's ``Kd``), whose luminance
+  ``0.2126 R + 0.7152 G + 0.0722 B`` is the reflectance;
+* anything else gets ``--reflectance`` (default :data:`DEFAULT_REFLECTANCE`, about
+  dry concrete at 905 nm).
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import trimesh
+
+from livox_viz.core.errors import LivoxVizError
+
+#: Reflectance of a surface that has no material of its own (about dry concrete at 905 nm).
+DEFAULT_REFLECTANCE = 0.3
+#: A retroreflective material's gain over a Lambertian surface of the same reflectance, unless it says.
+DEFAULT_RETRO_GAIN = 300.0
+REFLECTANCE_ATTRIBUTE = "reflectance"
+RETRO_GAIN_ATTRIBUTE = "retro_gain"
+PART_ATTRIBUTE = "part"
+SIDECAR_SUFFIX = ".materials.json"
+
+
+@dataclass(frozen=True)
+class Material:
+    """A surface as the lidar sees it.
+
+    Parameters
+    ----------
+    name : str
+    reflectance : float
+        Lambertian reflectance at 905 nm, 0-1.
+    retro_gain : float
+        1 for a Lambertian surface; a retroreflector's echo is this many times brighter.
+    """
+
+    name: str
+    reflectance: float
+    retro_gain: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.reflectance, (int, float)) and math.isfinite(self.reflectance)
+                and 0.0 <= self.reflectance <= 1.0):
+            raise LivoxVizError(f"material {self.name!r}: reflectance {self.reflectance!r}; allowed: 0 to 1")
+        if not (isinstance(self.retro_gain, (int, float)) and math.isfinite(self.retro_gain)
+                and 1.0 <= self.retro_gain <= 1e5):
+            raise LivoxVizError(f"material {self.name!r}: retro_gain {self.retro_gain!r}; allowed: 1 to 100000")
+
+    @property
+    def retroreflective(self) -> bool:
+        """Whether the surface sends light back where it came from (gain above 1)."""
+        return self.retro_gain > 1.0
+
+
+#: Plausible surfaces at 905 nm (near infrared: vegetation is bright, asphalt dark).
+MATERIALS: dict[str, Material] = {m.name: m for m in (
+    Material("asphalt", 0.12),
+    Material("concrete", 0.35),
+    Material("brick", 0.40),
+    Material("roof_tiles", 0.30),
+    Material("vegetation", 0.50),
+    Material("grass", 0.40),
+    Material("soil", 0.25),
+    Material("bark", 0.30),
+    Material("wood", 0.45),
+    Material("painted_metal", 0.35),
+    Material("white_paint", 0.80),
+    Material("black_rubber", 0.04),
+    Material("retroreflective_sign", 0.80, DEFAULT_RETRO_GAIN),
+)}
+
+
+def parse_material(value: Any, where: str) -> Material:
+    """A material from JSON: a name of :data:`MATERIALS`, a reflectance, or an object.
+
+    Parameters
+    ----------
+    value : str, float or dict
+        ``"asphalt"``, ``0.3``, or ``{"reflectance": 0.8, "retroreflective": true, "retro_gain": 300}``.
+    where : str
+        Named in the error message.
+    """
+    allowed = (f"allowed: a material name ({', '.join(MATERIALS)}), a reflectance 0-1, or "
+               '{"reflectance": R, "retroreflective": true|false, "retro_gain": G}')
+    if isinstance(value, str):
+        if value not in MATERIALS:
+            raise LivoxVizError(f"{where}: unknown material {value!r}; {allowed}")
+        return MATERIALS[value]
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return Material(f"reflectance {value:g}", _reflectance(value, where, allowed))
+    if isinstance(value, Mapping):
+        unknown = sorted(set(value) - {"reflectance", "retroreflective", "retro_gain", "name"})
+        if unknown or "reflectance" not in value:
+            raise LivoxVizError(f"{where}: material {dict(value)!r}; {allowed}")
+        retro = value.get("retroreflective", "retro_gain" in value)
+        if not isinstance(retro, bool):
+            raise LivoxVizError(f"{where}: retroreflective = {retro!r}; allowed: true or false")
+        gain = value.get("retro_gain", DEFAULT_RETRO_GAIN) if retro else 1.0
+        if isinstance(gain, bool) or not isinstance(gain, (int, float)) or not math.isfinite(gain) or not (
+                1 < gain <= 1e5 or not retro):
+            raise LivoxVizError(f"{where}: retro_gain = {gain!r}; allowed: a number in (1, 100000]")
+        name = str(value.get("name", "retroreflective" if retro else "custom"))
+        return Material(name, _reflectance(value["reflectance"], where, allowed), float(gain))
+    raise LivoxVizError(f"{where}: material {value!r}; {allowed}")
+
+
+def _reflectance(value: Any, where: str, allowed: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not (
+            0 <= value <= 1):
+        raise LivoxVizError(f"{where}: reflectance {value!r}; {allowed}")
+    return float(value)
+
+
+def check_reflectance(value: float) -> float:
+    """``--reflectance``: a number in [0, 1], else a one-line error."""
+    return _reflectance(value, "--reflectance", "allowed: a Lambertian reflectance from 0 to 1")
+
+
+def reflectance_from_colour(rgba: Sequence[float]) -> float:
+    """The reflectance a material colour stands for: the luminance of its RGB (0-255, taken as linear).
+
+    Parameters
+    ----------
+    rgba : (3,) or (4,) of 0-255
+    """
+    r, g, b = (float(c) / 255.0 for c in list(rgba)[:3])
+    return float(np.clip(0.2126 * r + 0.7152 * g + 0.0722 * b, 0.0, 1.0))
+
+
+# Per-face arrays ---------------------------------------------------------------------------------
+def set_face_materials(mesh: trimesh.Trimesh, reflectance: np.ndarray, retro_gain: np.ndarray,
+                       part: np.ndarray | None = None) -> trimesh.Trimesh:
+    """Attach per-face materials (and object numbers) to ``mesh``; returns it.
+
+    Parameters
+    ----------
+    reflectance : (F,) float
+        NaN where a face has no material (filled by :func:`fill_reflectance`).
+    retro_gain : (F,) float
+    part : (F,) int, optional
+    """
+    faces = len(mesh.faces)
+    mesh.face_attributes[REFLECTANCE_ATTRIBUTE] = np.asarray(reflectance, dtype=np.float64).reshape(faces)
+    mesh.face_attributes[RETRO_GAIN_ATTRIBUTE] = np.asarray(retro_gain, dtype=np.float64).reshape(faces)
+    if part is not None:
+        mesh.face_attributes[PART_ATTRIBUTE] = np.asarray(part, dtype=np.int32).reshape(faces)
+    return mesh
+
+
+def fill_reflectance(mesh: trimesh.Trimesh, reflectance: float = DEFAULT_REFLECTANCE) -> trimesh.Trimesh:
+    """Give every face without a material the Lambertian ``reflectance``; returns the mesh."""
+    reflectance = check_reflectance(reflectance)
+    own, gain = face_materials(mesh, reflectance)
+    return set_face_materials(mesh, own, gain, mesh.face_attributes.get(PART_ATTRIBUTE))
+
+
+def face_materials(mesh: trimesh.Trimesh, default: float = DEFAULT_REFLECTANCE) -> tuple[np.ndarray, np.ndarray]:
+    """Reflectance and retroreflective gain of every face, ``(F,)`` float64 each.
+
+    Faces without a material (no attribute, or NaN) get the Lambertian ``default``.
+    """
+    faces = len(mesh.faces)
+    reflectance = np.asarray(mesh.face_attributes.get(REFLECTANCE_ATTRIBUTE, np.full(faces, np.nan)),
+                             dtype=np.float64)
+    gain = np.asarray(mesh.face_attributes.get(RETRO_GAIN_ATTRIBUTE, np.ones(faces)), dtype=np.float64)
+    if reflectance.shape != (faces,) or gain.shape != (faces,):
+        raise LivoxVizError(f"the mesh's material arrays have {reflectance.shape}/{gain.shape} entries for "
+                            f"{faces} faces")
+    missing = np.isnan(reflectance)
+    if missing.any():
+        reflectance = np.where(missing, default, reflectance)
+        gain = np.where(missing, 1.0, gain)
+    return reflectance, gain
+
+
+def face_parts(mesh: trimesh.Trimesh) -> np.ndarray:
+    """The object number of every face, ``(F,)`` int32 (all 0 when the mesh does not say)."""
+    part = mesh.face_attributes.get(PART_ATTRIBUTE)
+    return np.zeros(len(mesh.faces), np.int32) if part is None else np.asarray(part, dtype=np.int32)
+
+
+# Sidecar files -------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class MaterialMap:
+    """A sidecar's mapping from mesh or material names (or glob patterns) to materials, in file order.
+
+    Parameters
+    ----------
+    entries : tuple of (str, Material)
+    source : str
+        Where it came from, for messages.
+    """
+
+    entries: tuple[tuple[str, Material], ...]
+    source: str = ""
+
+    def lookup(self, names: Sequence[str]) -> Material | None:
+        """The material of the first entry matching any of ``names`` exactly, else by pattern; None if none does."""
+        present = [n for n in names if n]
+        for key, material in self.entries:
+            if key in present:
+                return material
+        for key, material in self.entries:
+            if any(fnmatch.fnmatchcase(n, key) for n in present):
+                return material
+        return None
+
+    @classmethod
+    def from_json(cls, data: Any, source: str) -> MaterialMap:
+        """Read ``{"name or pattern": material, ...}`` (see :func:`parse_material`)."""
+        if not isinstance(data, Mapping) or not data:
+            raise LivoxVizError(f"{source}: a material sidecar must be a JSON object mapping mesh or material "
+                                "names (or glob patterns) to materials")
+        return cls(tuple((str(k), parse_material(v, f"{source}: {k!r}")) for k, v in data.items()), source)
+
+
+def sidecar_path(mesh_path: Path) -> Path:
+    """``city.glb`` -> ``city.materials.json`` beside it."""
+    return mesh_path.with_name(mesh_path.stem + SIDECAR_SUFFIX)
+
+
+def read_sidecar(mesh_path: Path) -> MaterialMap | None:
+    """The material sidecar of a mesh file, or None when there is none."""
+    path = sidecar_path(mesh_path)
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise LivoxVizError(f"{path}: not a readable material sidecar ({exc})") from None
+    return MaterialMap.from_json(data, str(path))
+
+
+def part_material(part: trimesh.Trimesh, names: Sequence[str], sidecar: MaterialMap | None) -> tuple[
+        np.ndarray, np.ndarray]:
+    """The per-face reflectance and gain of one mesh part: the sidecar by name, else its colours, else NaN.
+
+    Parameters
+    ----------
+    part : trimesh.Trimesh
+        One geometry of a mesh file, with trimesh's visual.
+    names : sequence of str
+        Its node, geometry and material names.
+    sidecar : MaterialMap or None
+    """
+    faces = len(part.faces)
+    if sidecar is not None:
+        found = sidecar.lookup(names)
+        if found is not None:
+            return np.full(faces, found.reflectance), np.full(faces, found.retro_gain)
+    visual = part.visual
+    gain = np.ones(faces)
+    material = getattr(visual, "material", None)
+    if material is not None:
+        colour = getattr(material, "baseColorFactor", None)
+        if colour is None:
+            colour = getattr(material, "diffuse", None)
+        if colour is None:
+            colour = getattr(material, "main_color", None)
+        if colour is not None:
+            return np.full(faces, reflectance_from_colour(colour)), gain
+    if getattr(visual, "kind", None) in ("face", "vertex") and getattr(visual, "defined", False):
+        colours = np.asarray(visual.face_colors, dtype=np.float64)[:, :3] / 255.0
+        return np.clip(colours @ np.array([0.2126, 0.7152, 0.0722]), 0.0, 1.0), gain
+    return np.full(faces, np.nan), gain
