@@ -8,6 +8,12 @@ ranges, per-point times and stream indices, and the sensor's world pose.
 Rays with no return within ``otherParams[0]`` are left out (the frame's point
 count says how many returned), as the platform does. :class:`LidarScanner`
 is a pattern stream and a mounted caster cut into published frames.
+
+The configuration's return model chooses what a ray returns: ``"ideal"``, its
+exact first hit (RflySim's own sensor: no intensity, reflectivity 0, tag 0x10,
+return 1 of 1), or ``"datasheet"``, the sheet's sensor
+(:mod:`~livox_viz.casting.returns`: noise, detection range, beam footprint,
+multiple returns, reflectivity and tags).
 """
 
 from __future__ import annotations
@@ -21,6 +27,7 @@ import trimesh
 
 from livox_viz.casting.codec import decode_int16, encode_int16
 from livox_viz.casting.directions import directions_from_xy
+from livox_viz.casting.returns import ReturnModel
 from livox_viz.config.mount import sensor_mount, sensor_world_pose
 from livox_viz.config.sensor import SensorConfig
 from livox_viz.core.poses import Pose, pose_quaternion
@@ -33,6 +40,8 @@ from livox_viz.scene.raycast import EmbreeCaster, RayCaster
 
 #: Rays cast in one call at most: a huge frame is cast in parts so memory stays bounded.
 CAST_PART = 1 << 20
+#: The tag of an ideal point: return 1, no noise flags (Livox SDK1 layout).
+IDEAL_TAG = 0x10
 
 
 @dataclass(frozen=True)
@@ -72,6 +81,17 @@ class ScanFrame:
     track : SensorTrack, optional
         With a moving vehicle: the sensor's track (the one motion model), from which
         :attr:`point_origin` and :attr:`point_quaternion` follow when asked for.
+    reflectivity : (M,) uint8, optional
+        Livox's reflectivity byte: 0-150 Lambertian 0-100 %, 151-255 retroreflective (0 for ideal points).
+    tag : (M,) uint8, optional
+        Livox SDK1 tag: bits 0-1 spatial noise, 2-3 intensity noise, 4-5 return number (0x10 for ideal points).
+    return_number : (M,) uint8, optional
+        1, 2, 3 in range order within the point's pulse (a pulse may return several points; they share
+        its stream index and time).
+    number_of_returns : (M,) uint8, optional
+        Points the pulse returned.
+
+    The last four default to an ideal point's values.
     """
 
     index: int
@@ -89,6 +109,16 @@ class ScanFrame:
     range_max: float
     end_pose: Pose
     track: SensorTrack | None = field(default=None, repr=False)
+    reflectivity: np.ndarray = field(default=None, repr=False)
+    tag: np.ndarray = field(default=None, repr=False)
+    return_number: np.ndarray = field(default=None, repr=False)
+    number_of_returns: np.ndarray = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        count = len(self)
+        for name, value in (("reflectivity", 0), ("tag", IDEAL_TAG), ("return_number", 1), ("number_of_returns", 1)):
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, np.full(count, value, dtype=np.uint8))
 
     def __len__(self) -> int:
         return int(self.range_m.shape[0])
@@ -136,12 +166,17 @@ class MountedCaster:
     trajectory : Trajectory, optional
         A moving vehicle: each ray starts from the sensor's pose at its own time (``vehicle_pose``
         is then the pose at t = 0).
+    seed : int
+        Seed of the datasheet return model's noise (with each ray's stream index).
     """
 
     def __init__(self, config: SensorConfig, scene: trimesh.Trimesh | RayCaster,
-                 vehicle_pose: Pose | None = None, trajectory: Trajectory | None = None) -> None:
+                 vehicle_pose: Pose | None = None, trajectory: Trajectory | None = None, seed: int = 0) -> None:
         self.config = config
         self.caster: RayCaster = EmbreeCaster(scene) if isinstance(scene, trimesh.Trimesh) else scene
+        #: The datasheet return model, or None for ideal returns.
+        self.returns = (ReturnModel(config.return_params, self.caster, seed, config.range_max)
+                        if config.returns_model == "datasheet" else None)
         self.trajectory = trajectory
         self.vehicle_pose = trajectory.pose_at(trajectory.span[0]) if trajectory is not None else (
             vehicle_pose or Pose())
@@ -177,14 +212,23 @@ class MountedCaster:
             else:
                 origin = self.sensor_pose.origin
                 directions_world = directions_sensor @ self.sensor_pose.rotation.T
+            if self.returns is not None:
+                quaternion = self.track.poses_at(chunk.t[first : first + CAST_PART])[1] if moving else None
+                found = self.returns.cast(chunk.start + first, xy, directions_sensor, directions_world, origin,
+                                          None if moving else self.sensor_pose.rotation, quaternion)
+                parts.append((first + found.beam, found.range_m, found.xyz_sensor, found.xyz_world,
+                              found.reflectivity, found.tag, found.return_number, found.number_of_returns))
+                continue
             distance = self.caster.distances(origin, directions_world, config.range_max)
             hit = np.flatnonzero(np.isfinite(distance))
             range_m = distance[hit]
             start = origin[hit] if moving else origin
             parts.append((first + hit, range_m, directions_sensor[hit] * range_m[:, None],
-                          start + directions_world[hit] * range_m[:, None]))
-        columns = [p[0] for p in parts] if len(parts) == 1 else [np.concatenate(c) for c in zip(*parts, strict=True)]
-        rows, range_m, xyz_sensor, xyz_world = columns if len(parts) > 1 else parts[0]
+                          start + directions_world[hit] * range_m[:, None], None, None, None, None))
+        columns = [p[0] for p in parts] if len(parts) == 1 else [
+            None if c[0] is None else np.concatenate(c) for c in zip(*parts, strict=True)]
+        rows, range_m, xyz_sensor, xyz_world, reflectivity, tag, return_number, number_of_returns = (
+            columns if len(parts) > 1 else parts[0])
         return ScanFrame(
             index=chunk.start // config.points_per_frame,
             ray_count=len(chunk),
@@ -201,6 +245,10 @@ class MountedCaster:
             range_max=config.range_max,
             end_pose=self.sensor_pose_at(chunk.stop / config.point_rate),
             track=self.track,
+            reflectivity=reflectivity,
+            tag=tag,
+            return_number=return_number,
+            number_of_returns=number_of_returns,
         )
 
 
@@ -229,7 +277,7 @@ class LidarScanner:
         trajectory: Trajectory | None = None,
     ) -> None:
         self.config = config
-        self.mounted = MountedCaster(config, scene, vehicle_pose, trajectory)
+        self.mounted = MountedCaster(config, scene, vehicle_pose, trajectory, seed)
         self.pattern = make_pattern(config, seed=seed)
 
     @property

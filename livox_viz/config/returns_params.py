@@ -11,7 +11,7 @@ ignores::
       "blind_zone_m": 1.0,                             # nothing nearer is returned
       "false_alarm_rate": 0.0001,                      # a false point, per pulse that meets nothing
       "returns_per_pulse": 1,                          # 1 single, 2 dual, 3 triple
-      "angular_sigma_deg": 0.02,                       # 1-sigma direction noise of a point
+      "angular_sigma_deg": 0.0,                        # 1-sigma direction noise of a point
       "return0_range_m": 1.5,                          # a first return nearer than this is tagged return 0
       "return_separation_m": 0.6,                      # echoes nearer than this merge into one
       "detection_snr": 5.0                             # detection threshold / receiver noise (1 sigma)
@@ -113,7 +113,7 @@ class ReturnParams:
     blind_zone_m: float = 0.05
     false_alarm_rate: float = 1e-4
     returns_per_pulse: int = 2
-    angular_sigma_deg: float = 0.02
+    angular_sigma_deg: float = 0.0
     return0_range_m: float = 1.5
     return_separation_m: float = 0.6
     detection_snr: float = 5.0
@@ -187,8 +187,8 @@ class ReturnParams:
         rho_a, r_a = self.detection_range_m[0]
         alpha = self.range_loss_per_m
         r = np.asarray(range_m, dtype=np.float64)
-        return (np.asarray(reflectance) * np.asarray(cos_incidence) / rho_a * (r_a / r) ** 2
-                * np.exp(-2.0 * alpha * (r - r_a)))
+        ratio = np.asarray(reflectance) * np.asarray(cos_incidence) * (r_a * r_a / rho_a) / (r * r)
+        return ratio if alpha == 0.0 else ratio * np.exp(-2.0 * alpha * (r - r_a))
 
     def power_to_reflectance(self, ratio: np.ndarray, range_m: np.ndarray) -> np.ndarray:
         """The Lambertian reflectance (at normal incidence) an echo of ``ratio`` at ``range_m`` metres implies."""
@@ -212,6 +212,8 @@ class ReturnParams:
 
     def range_sigma(self, range_m: np.ndarray) -> np.ndarray:
         """1-sigma range noise at ``range_m`` metres, ``(n,)`` float64."""
+        if len(self.range_sigma_m) == 1:
+            return np.full(np.shape(range_m), self.range_sigma_m[0][1])
         table = np.asarray(self.range_sigma_m, dtype=np.float64)
         return np.interp(range_m, table[:, 0], table[:, 1])
 
@@ -304,11 +306,27 @@ DATASHEETS: dict[str, ReturnParams] = {
     "hap": ReturnParams("datasheet", ((20.0, 0.02),), ((0.1, 150.0),), (0.03, 0.28), 0.5, 1e-4, 1),
     "mid360": ReturnParams("datasheet", ((10.0, 0.02),), ((0.1, 40.0), (0.8, 70.0)), (0.1, 0.1), 0.1, 1e-4, 1),
 }
+#: The sensors' names as Livox writes them.
+SHEET_NAMES: dict[str, str] = {"mid40": "Mid-40", "mid70": "Mid-70", "avia": "Avia", "horizon": "Horizon",
+                               "tele15": "Tele-15", "hap": "HAP", "mid360": "Mid-360"}
 #: What each sheet leaves unpublished and livox-viz chose (also said in the presets' descriptions).
 CHOSEN: dict[str, str] = {
-    "all": "angular noise 0.02 deg 1-sigma, return-0 range 1.5 m (the manuals' example), echo separation 0.6 m, "
-           "detection threshold 5 x receiver noise",
+    "all": "angular noise 0 (the sheets give an angular accuracy, a bound on a systematic error, not a per-point "
+           "noise), return-0 range 1.5 m (the manuals' example), echo separation 0.6 m, detection threshold 5 x "
+           "receiver noise",
     "horizon": "blind zone 0.5 m",
     "tele15": "blind zone 1 m",
     "mid360": "beam divergence 0.1 x 0.1 deg",
 }
+
+
+def describe_sheet(sheet: str) -> str:
+    """One line for a preset's description: the sheet's figures and what was chosen."""
+    params = DATASHEETS[sheet]
+    ranges = ", ".join(f"{r:g} m at {100 * p:g} %" for p, r in params.detection_range_m)
+    sigma = ", ".join(f"{100 * s:g} cm at {r:g} m" for r, s in params.range_sigma_m)
+    returns = {1: "single", 2: "dual", 3: "triple"}[params.returns_per_pulse]
+    chosen = "; ".join(v for k, v in CHOSEN.items() if k in ("all", sheet))
+    return (f"Livox {SHEET_NAMES[sheet]} sheet: detection {ranges}; range noise {sigma}; divergence "
+            f"{params.divergence_deg[0]:g} x {params.divergence_deg[1]:g} deg; blind zone {params.blind_zone_m:g} m; "
+            f"{returns} return; false alarms {100 * params.false_alarm_rate:g} %; chosen (unpublished): {chosen}")

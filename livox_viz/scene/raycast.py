@@ -155,29 +155,68 @@ class EmbreeCaster:
                 np.broadcast_to(local[0] if shared_origin else local[start:stop], (rows, 3)), dtype=np.float32)
             found = self._scene.run(part_origins, np.ascontiguousarray(directions[start:stop], dtype=np.float32),
                                     dists=np.full(rows, limit, dtype=np.float32), query="INTERSECT", output=1)
+            # Embree reports only hits nearer than the limit; a miss has primID -1.
             ids = found["primID"]
             hit = ids >= 0
-            triangle[start:stop] = np.where(hit, ids, -1)
+            triangle[start:stop] = ids
+            far = found["tfar"]
             if self.exact:
                 planes = self._planes[np.maximum(ids, 0)]
                 o = origins if shared_origin else origins[start:stop]
                 with np.errstate(divide="ignore", invalid="ignore"):
                     exact = (planes[:, 3] - np.einsum("ij,ij->i", planes[:, :3], np.broadcast_to(o, (rows, 3)))) / (
                         np.einsum("ij,ij->i", planes[:, :3], directions[start:stop]))
-                good = np.isfinite(exact) & (exact >= 0)
-                far = np.where(good, exact, found["tfar"])
-            else:
-                far = found["tfar"]
-            distance[start:stop] = np.where(hit & (far <= max_distance), far, np.inf)
-            triangle[start:stop] = np.where(np.isfinite(distance[start:stop]), triangle[start:stop], -1)
+                far = np.where(np.isfinite(exact) & (exact >= 0), exact, far)
+            distance[start:stop] = np.where(hit, far, np.inf)
 
+        self._run_split(run, count)
+        return distance, triangle
+
+    def occluded(self, origins: np.ndarray, directions: np.ndarray, max_distance: float | np.ndarray) -> np.ndarray:
+        """Whether anything lies along each ray closer than its own ``max_distance`` (Embree's occlusion query).
+
+        Parameters
+        ----------
+        origins : (n, 3) or (3,) float
+            Ray origins, metres, world frame.
+        directions : (n, 3) float
+            Unit ray directions.
+        max_distance : float or (n,) float
+            Metres, per ray or for all.
+
+        Returns
+        -------
+        blocked : (n,) bool
+        """
+        origins, directions = _check_rays(origins, directions)
+        count = directions.shape[0]
+        blocked = np.zeros(count, dtype=bool)
+        limits = np.broadcast_to(np.minimum(np.asarray(max_distance, dtype=np.float64), 1e37), (count,))
+        local = origins - self.local_origin
+        shared_origin = local.shape[0] == 1
+
+        def run(bounds: tuple[int, int]) -> None:
+            start, stop = bounds
+            rows = stop - start
+            part_origins = np.ascontiguousarray(
+                np.broadcast_to(local[0] if shared_origin else local[start:stop], (rows, 3)), dtype=np.float32)
+            found = self._scene.run(part_origins, np.ascontiguousarray(directions[start:stop], dtype=np.float32),
+                                    dists=np.ascontiguousarray(limits[start:stop], dtype=np.float32),
+                                    query="OCCLUDED")
+            blocked[start:stop] = found >= 0
+
+        if count:
+            self._run_split(run, count)
+        return blocked
+
+    def _run_split(self, run, count: int) -> None:
+        """``run((start, stop))`` over contiguous parts of ``count`` rays on the worker threads."""
         parts = _split(count, self.threads)
         if self._pool is None or len(parts) == 1:
             for part in parts:
                 run(part)
         else:
             list(self._pool.map(run, parts))
-        return distance, triangle
 
     def triangle_ids(self, origins: np.ndarray, directions: np.ndarray, max_distance: float = np.inf) -> np.ndarray:
         """Index of the first triangle each ray hits, ``(n,)`` int32, -1 for a miss."""
@@ -437,6 +476,11 @@ class TrimeshCaster:
         far = distance > max_distance
         distance[far], triangle[far] = np.inf, -1
         return distance, triangle
+
+    def occluded(self, origins: np.ndarray, directions: np.ndarray, max_distance: float | np.ndarray) -> np.ndarray:
+        """See :meth:`EmbreeCaster.occluded`."""
+        distance, _ = self.hits(origins, directions)
+        return distance < np.broadcast_to(np.asarray(max_distance, dtype=np.float64), distance.shape)
 
     def distances(self, origins: np.ndarray, directions: np.ndarray, max_distance: float = np.inf) -> np.ndarray:
         """See :meth:`RayCaster.distances`."""

@@ -1,0 +1,511 @@
+"""The beam's footprint: an elliptical Gaussian cone sampled with sub-rays, and when sampling can change the answer.
+
+A Livox beam diverges into an ellipse, ``H x V`` degrees full width (0.03 x 0.28
+deg: 1 x 10 cm at 20 m), its long axis along pattern y. Its energy falls off as
+a Gaussian whose 1/e^2 contour is that ellipse. Following HELIOS++'s beam
+sub-sampling (concentric rings of sub-rays), :data:`SUBRAY_UNIT` places 19
+sub-rays in normalised ellipse coordinates: the centre, 6 at half the radius
+and 12 on the 1/e^2 contour (their angles include both axes, so a straight
+edge along an axis is seen exactly where the ellipse reaches it). Each carries
+the Gaussian energy of its ring cell (Voronoi annuli 0-0.25-0.75-infinity,
+shared equally round the ring), :data:`SUBRAY_WEIGHTS`.
+
+Casting 19 rays for every pulse would cost 19 times the ideal scan, so the
+footprint is sampled only where it can change the answer, found in three
+tests from cheapest to dearest:
+
+1. :meth:`TriangleEdges.leaves`: the footprint leaves the triangle the central
+   ray hit. The ellipse's image on the triangle's plane is exact to first order
+   (its support in the direction of each edge, from the ray's angular
+   derivatives); an edge to a neighbour of the same material that continues
+   the surface (less than 20 deg of dihedral angle, facing the ray the same
+   way, wider than the footprint's reach) does not count, so a cylinder's
+   facets or a wall's diagonal do not make every hit a footprint.
+2. :class:`TileProxy`: a broad phase for occluders. The scene's objects become
+   boxes (a convex object one, others tiles at most :data:`TILE_SIZE` across),
+   inflated by the footprint's radius at their farthest distance from the
+   sensor; a ray through those boxes up to the footprint's farthest reach says
+   whether any box but the hit's own comes near the beam.
+3. Probes (:data:`PROBE_UNIT`): for the pulses the broad phase names, four rays
+   at the corners of the ellipse's bounding box ask (Embree's occlusion query)
+   whether anything lies in front of the hit's plane along them. A straight
+   edge that crosses the ellipse puts one of those corners on its far side, so
+   a partial occluder whose silhouette crosses the footprint is found; an
+   object thinner than the footprint lying between the probes (a wire) is
+   missed, as by the ideal scan.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import trimesh
+
+from livox_viz.scene.materials import face_materials, face_parts
+
+_RING_HALF = np.deg2rad(np.arange(0, 360, 60))
+_RING_EDGE = np.deg2rad(np.arange(0, 360, 30))
+#: ``(19, 2)`` sub-ray positions in the unit ellipse (x along the horizontal divergence, y the vertical),
+#: the central ray first.
+SUBRAY_UNIT = np.vstack([
+    [[0.0, 0.0]],
+    0.5 * np.column_stack([np.cos(_RING_HALF), np.sin(_RING_HALF)]),
+    np.column_stack([np.cos(_RING_EDGE), np.sin(_RING_EDGE)]),
+])
+
+
+def _ring_energy(inner: float, outer: float) -> float:
+    """Energy of a Gaussian beam (1/e^2 radius 1) between two normalised radii."""
+    return math.exp(-2.0 * inner**2) - (math.exp(-2.0 * outer**2) if math.isfinite(outer) else 0.0)
+
+
+#: ``(19,)`` energy share of each sub-ray (sums to 1).
+SUBRAY_WEIGHTS = np.concatenate([
+    [_ring_energy(0.0, 0.25)],
+    np.full(6, _ring_energy(0.25, 0.75) / 6),
+    np.full(12, _ring_energy(0.75, math.inf) / 12),
+])
+#: ``(4, 2)`` the corners of the ellipse's bounding box, in the same units.
+PROBE_UNIT = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
+#: Largest dihedral angle between neighbours that continue one surface, degrees.
+SMOOTH_DEG = 20.0
+#: Tiles of the broad phase are at most this long in any axis, metres.
+TILE_SIZE = 10.0
+#: Objects of more triangles than this are not tested for convexity (taken as not convex).
+CONVEX_TEST_MAX = 4000
+
+
+class Footprint:
+    """The sub-rays and probes of one beam divergence.
+
+    Parameters
+    ----------
+    divergence_deg : (float, float)
+        Full divergence, degrees: horizontal (pattern x) and vertical (pattern y).
+    """
+
+    def __init__(self, divergence_deg: tuple[float, float]) -> None:
+        half = np.radians(np.array(divergence_deg, dtype=np.float64) / 2.0)
+        self.divergence_deg = tuple(float(v) for v in divergence_deg)
+        #: The ellipse's semi-axes, radians: horizontal (pattern x), vertical (pattern y).
+        self.half_rad = half
+        #: ``(19, 2)`` sub-ray offsets from the beam's pattern angles, radians.
+        self.subray_offsets = SUBRAY_UNIT * half
+        #: ``(4, 2)`` probe offsets, radians.
+        self.probe_offsets = PROBE_UNIT * half
+        #: Tangent of the footprint's largest half-angle (the ellipse's semi-major axis).
+        self.tan_half_max = math.tan(float(half.max()))
+
+    def rays(self, direction: np.ndarray, basis_x: np.ndarray, basis_y: np.ndarray,
+             offsets: np.ndarray) -> np.ndarray:
+        """Unit directions of the rays at ``offsets`` (radians) around each beam, ``(n, k, 3)`` float32.
+
+        Parameters
+        ----------
+        direction : (n, 3)
+            The beams' unit directions.
+        basis_x, basis_y : (n, 3)
+            The derivatives of the direction by pattern x and y (per radian), in the same frame.
+        offsets : (k, 2)
+        """
+        rays = (direction.astype(np.float32)[:, None, :]
+                + offsets[None, :, 0, None].astype(np.float32) * basis_x.astype(np.float32)[:, None, :]
+                + offsets[None, :, 1, None].astype(np.float32) * basis_y.astype(np.float32)[:, None, :])
+        rays /= np.sqrt(np.einsum("nkj,nkj->nk", rays, rays))[..., None]
+        return rays
+
+    def support(self, along: np.ndarray, basis_x: np.ndarray, basis_y: np.ndarray) -> np.ndarray:
+        """How far the footprint reaches, per metre of range, in the directions ``along``.
+
+        The footprint is the ellipse's image: ``delta -> J delta`` for angular offsets ``delta``;
+        its support in direction ``m`` is ``sqrt((a m.J_x)^2 + (b m.J_y)^2)``.
+
+        Parameters
+        ----------
+        along : (n, k, 3)
+            Unit directions (or any vectors: the support scales with them).
+        basis_x, basis_y : (n, 3)
+            The footprint's displacement per radian of pattern x and y, per metre of range.
+
+        Returns
+        -------
+        reach : (n, k)
+        """
+        a, b = self.half_rad
+        return np.hypot(a * np.einsum("nkj,nj->nk", along, basis_x), b * np.einsum("nkj,nj->nk", along, basis_y))
+
+
+class TriangleEdges:
+    """Each triangle's three edge lines in its own plane, and whether its neighbour across each continues it.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        World frame, metres, with its materials (:mod:`~livox_viz.scene.materials`).
+    """
+
+    def __init__(self, mesh: trimesh.Trimesh) -> None:
+        triangles = np.asarray(mesh.triangles, dtype=np.float64)
+        faces = triangles.shape[0]
+        normal = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+        area2 = np.linalg.norm(normal, axis=1)
+        normal /= np.where(area2 > 0, area2, 1.0)[:, None]
+        # For edge k (from vertex k+1 to k+2), the in-plane unit vector pointing at vertex k, and its offset:
+        # the signed distance of a point p of the plane from that edge is m . p - c (>= 0 inside).
+        self.inward = np.empty((faces, 3, 3), dtype=np.float64)
+        self.offset = np.empty((faces, 3), dtype=np.float64)
+        longest = np.zeros(faces)
+        for k in range(3):
+            a, b = triangles[:, (k + 1) % 3], triangles[:, (k + 2) % 3]
+            edge = b - a
+            longest = np.maximum(longest, np.linalg.norm(edge, axis=1))
+            inward = np.cross(normal, edge)
+            inward /= np.maximum(np.linalg.norm(inward, axis=1), 1e-300)[:, None]
+            flip = np.einsum("ij,ij->i", inward, triangles[:, k] - a) < 0
+            inward[flip] *= -1.0
+            self.inward[:, k] = inward
+            self.offset[:, k] = np.einsum("ij,ij->i", inward, a)
+        # A degenerate triangle has no inside: every footprint leaves it.
+        self.offset[area2 <= 0] = np.inf
+        # The incircle: a point deeper inside it than a footprint reaches needs no edge test.
+        lengths = np.stack([np.linalg.norm(triangles[:, (k + 2) % 3] - triangles[:, (k + 1) % 3], axis=1)
+                            for k in range(3)], axis=1)
+        perimeter = np.maximum(lengths.sum(axis=1), 1e-300)
+        #: (F, 3) each triangle's incentre, world frame.
+        self.incentre = np.einsum("fk,fkj->fj", lengths, triangles) / perimeter[:, None]
+        #: (F,) its inradius, metres (0 for a degenerate triangle).
+        self.inradius = np.where(area2 > 0, area2 / perimeter, 0.0)
+        #: (F, 3) the triangle across each edge when it continues the surface, else -1.
+        self.neighbour = np.full((faces, 3), -1, dtype=np.int64)
+        #: (F,) the triangle's least altitude (how far a footprint may reach across it), metres.
+        self.narrowest = np.where(longest > 0, area2 / np.maximum(longest, 1e-300), 0.0)
+        self.normal = normal
+        self._find_neighbours(mesh)
+
+    def _find_neighbours(self, mesh: trimesh.Trimesh) -> None:
+        """Neighbours across shared edges (vertices merged by position) that continue the surface."""
+        if len(mesh.faces) < 2:
+            return
+        scale = float(np.ptp(mesh.vertices, axis=0).max()) or 1.0
+        merged = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+        merged.merge_vertices(digits_vertex=max(0, int(-math.log10(scale * 1e-9))))
+        pairs = merged.face_adjacency
+        if len(pairs) == 0:
+            return
+        shared = merged.face_adjacency_edges
+        faces = np.asarray(merged.faces)
+        reflectance, gain = face_materials(mesh)
+        brightness = reflectance * gain
+        smooth = (np.einsum("ij,ij->i", self.normal[pairs[:, 0]], self.normal[pairs[:, 1]])
+                  > math.cos(math.radians(SMOOTH_DEG)))
+        same = brightness[pairs[:, 0]] == brightness[pairs[:, 1]]
+        keep = smooth & same
+        # An edge shared by more than two triangles continues nothing.
+        edge_key = np.sort(shared, axis=1)
+        _, first, counts = np.unique(edge_key, axis=0, return_index=True, return_counts=True)
+        manifold = np.zeros(len(pairs), dtype=bool)
+        manifold[first[counts == 1]] = True
+        keep &= manifold
+        for side in (0, 1):
+            face = pairs[keep, side]
+            other = pairs[keep, 1 - side]
+            # The edge's index in `face` is the index of the vertex not on it.
+            on_edge = (faces[face] == shared[keep, 0:1]) | (faces[face] == shared[keep, 1:2])
+            k = np.argmin(on_edge, axis=1)
+            self.neighbour[face, k] = other
+
+    def leaves(self, triangle: np.ndarray, point: np.ndarray, ray: np.ndarray, range_m: np.ndarray,
+               reach: np.ndarray) -> np.ndarray:
+        """Whether each footprint crosses an edge of its triangle that does not continue the surface.
+
+        Parameters
+        ----------
+        triangle : (n,) int
+        point : (n, 3) float64
+            The central ray's hit, world frame.
+        ray : (n, 3) float64
+            The central ray's direction.
+        range_m : (n,) float64
+        reach : (n, 3) float64
+            The footprint's reach towards each edge, metres (:meth:`Footprint.support` times range).
+
+        Returns
+        -------
+        leaves : (n,) bool
+        """
+        distance = np.einsum("nkj,nj->nk", self.inward[triangle], point) - self.offset[triangle]
+        crossing = distance < reach
+        beyond = self.neighbour[triangle]
+        continues = beyond >= 0
+        if continues.any():
+            other = np.maximum(beyond, 0)
+            facing = np.einsum("nkj,nj->nk", self.normal[other], ray)
+            own = np.einsum("nj,nj->n", self.normal[triangle], ray)[:, None]
+            # Across a soft edge the footprint lands on the neighbour: fine while it faces the ray as the hit
+            # does (not a silhouette) and the footprint cannot reach past it.
+            continues &= (np.sign(facing) == np.sign(own)) & (np.abs(facing) > 0.05) & (
+                reach - np.maximum(distance, 0.0) < self.narrowest[other])
+        return np.any(crossing & ~continues, axis=1)
+
+
+class TileProxy:
+    """The broad phase: the scene's objects as boxes inflated by the footprint's reach.
+
+    A convex object is one box (its other faces cannot cover its own footprint);
+    another is cut into tiles (small triangles grouped by a :data:`TILE_SIZE` grid,
+    large ones cut along it). A flat object (every triangle in one plane, like
+    the ground) has no box: it covers part of a footprint on something else only
+    along that thing's own edge with it, which :meth:`TriangleEdges.leaves` sees
+    where the other object's mesh stops at the plane (one that pierces the
+    ground is the exception).
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The scene, world frame, with its part numbers (:func:`~livox_viz.scene.materials.face_parts`).
+    tan_half : float
+        Tangent of the footprint's largest half-angle.
+    caster_type : type
+        The ray caster to build over the boxes (the scene's own kind).
+    """
+
+    def __init__(self, mesh: trimesh.Trimesh, tan_half: float, caster_type) -> None:
+        self.tan_half = tan_half
+        self._caster_type = caster_type
+        parts = face_parts(mesh)
+        triangles = np.asarray(mesh.triangles, dtype=np.float64)
+        kind = _part_kinds(triangles, parts)
+        low, high, tile_triangle, triangle_tile = _tiles(triangles, parts, kind)
+        self.low, self.high = low, high
+        #: (T,) the one large triangle a tile is a piece of, else -1.
+        self.tile_triangle = tile_triangle
+        #: (F,) each triangle's own tile (its object's box, or its group), -1 for none.
+        self.triangle_tile = triangle_tile
+        self.centre: np.ndarray | None = None
+        self.radius = 0.0
+        self._caster = None
+        self._crowded = np.zeros(low.shape[0], dtype=bool)
+
+    @property
+    def tiles(self) -> int:
+        """Boxes in the broad phase."""
+        return int(self.low.shape[0])
+
+    def place(self, positions: np.ndarray, margin: float = 10.0) -> None:
+        """Make sure the inflated boxes cover beams fired from ``positions`` ``(k, 3)`` (world, metres).
+
+        The boxes are inflated for a sphere of sensor positions: a fixed sensor's point, or the
+        positions of a moving one plus ``margin`` metres; they are rebuilt only when the sensor leaves it.
+        """
+        positions = np.atleast_2d(np.asarray(positions, dtype=np.float64))
+        if self.centre is not None and np.all(np.linalg.norm(positions - self.centre, axis=1) <= self.radius + 1e-9):
+            return
+        centre = positions.mean(axis=0)
+        spread = float(np.linalg.norm(positions - centre, axis=1).max())
+        radius = 0.0 if spread == 0.0 and self.centre is None else spread + margin
+        if self.tiles:
+            corners = np.where(((np.arange(8)[:, None] >> np.arange(3)) & 1).astype(bool)[None],
+                               self.high[:, None, :], self.low[:, None, :])
+            farthest = np.linalg.norm(corners - centre, axis=2).max(axis=1)
+            grow = ((farthest + radius) * self.tan_half * 1.02 + 1e-3)[:, None]
+            low, high = self.low - grow, self.high + grow
+            self._crowded = _overlapping(low, high, self.triangle_tile, self.tile_triangle)
+            if self._caster is not None and hasattr(self._caster, "close"):
+                self._caster.close()
+            self._caster = self._caster_type(_box_mesh(low, high))
+        self.centre, self.radius = centre, radius
+
+    def near(self, origins: np.ndarray, directions: np.ndarray, reach: np.ndarray,
+             triangle: np.ndarray) -> np.ndarray:
+        """Whether a box other than the hit's own comes within the footprint before ``reach``.
+
+        Parameters
+        ----------
+        origins : (3,) or (n, 3) float64
+        directions : (n, 3) float64
+        reach : (n,) float64
+            How far along the beam the footprint may meet something, metres.
+        triangle : (n,) int
+            The central ray's triangle, -1 for a miss.
+        """
+        if self._caster is None:
+            return np.zeros(directions.shape[0], dtype=bool)
+        distance, box = self._caster.hits(origins, directions, np.inf)
+        tile = np.where(box >= 0, box // 12, -1)
+        entered = (tile >= 0) & (distance < reach)
+        safe_tile, safe_triangle = np.maximum(tile, 0), np.maximum(triangle, 0)
+        own = entered & (triangle >= 0) & ((self.triangle_tile[safe_triangle] == tile)
+                                           | (self.tile_triangle[safe_tile] == triangle))
+        near = entered & ~own
+        # Inside its own box, the beam may still pass another box that overlaps it.
+        rows = np.flatnonzero(own & self._crowded[safe_tile])
+        if rows.size:
+            start = distance[rows] + 1e-4
+            ray_origin = (origins if origins.ndim == 1 else origins[rows]) + directions[rows] * start[:, None]
+            near[rows] = self._caster.occluded(ray_origin, directions[rows], reach[rows] - start)
+        return near
+
+
+def _part_kinds(triangles: np.ndarray, parts: np.ndarray) -> np.ndarray:
+    """``(P,)`` int: 0 flat (one plane), 1 convex, 2 anything else.
+
+    Convex: every vertex of the part lies on or behind every one of its triangles' planes (parts of more than
+    :data:`CONVEX_TEST_MAX` triangles are not tested).
+    """
+    count = int(parts.max()) + 1 if parts.size else 0
+    kind = np.full(count, 2, dtype=np.int64)
+    order = np.argsort(parts, kind="stable")
+    bounds = np.searchsorted(parts[order], np.arange(count + 1))
+    for part in range(count):
+        rows = order[bounds[part]:bounds[part + 1]]
+        if rows.size == 0 or rows.size > CONVEX_TEST_MAX:
+            continue
+        tri = triangles[rows]
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(normal, axis=1)
+        good = length > 0
+        if not good.any():
+            continue
+        normal = normal[good] / length[good, None]
+        vertices = np.unique(tri.reshape(-1, 3), axis=0)
+        tolerance = 1e-9 * max(float(np.ptp(vertices, axis=0).max()), 1.0)
+        height = vertices @ normal.T - np.einsum("ij,ij->i", normal, tri[good, 0])[None, :]
+        if np.all(np.abs(height) <= tolerance):
+            kind[part] = 0
+        elif np.all(height <= tolerance):
+            kind[part] = 1
+    return kind
+
+
+def _overlapping(low: np.ndarray, high: np.ndarray, triangle_tile: np.ndarray, tile_triangle: np.ndarray) -> np.ndarray:
+    """``(T,)`` bool: another box overlaps the tile's box (pieces of one large triangle do not count)."""
+    count = low.shape[0]
+    if count > 6000:
+        return np.ones(count, dtype=bool)
+    crowded = np.zeros(count, dtype=bool)
+    for first in range(0, count, 512):
+        block = slice(first, min(first + 512, count))
+        meets = np.all((low[block, None, :] <= high[None, :, :]) & (high[block, None, :] >= low[None, :, :]), axis=2)
+        rows = np.arange(block.start, block.stop)
+        meets[np.arange(rows.size), rows] = False
+        same = (tile_triangle[rows, None] >= 0) & (tile_triangle[rows, None] == tile_triangle[None, :])
+        crowded[block] = np.any(meets & ~same, axis=1)
+    return crowded
+
+
+def _tiles(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray):
+    """The broad phase's boxes: a convex part's own box, a flat part none, the rest in tiles.
+
+    Returns
+    -------
+    low, high : (T, 3) float64
+        Each tile's box.
+    tile_triangle : (T,) int
+        The one large triangle a tile is a piece of, else -1.
+    triangle_tile : (F,) int
+        Each triangle's own tile (its part's box, or its group of small triangles), -1 for a large
+        triangle (its pieces name it) or a flat part's.
+    """
+    lows, highs, tile_triangles = [], [], []
+    triangle_tile = np.full(triangles.shape[0], -1, dtype=np.int64)
+    tri_low, tri_high = triangles.min(axis=1), triangles.max(axis=1)
+    part_kind = kind[parts]
+    tiles = 0
+
+    def add(low: np.ndarray, high: np.ndarray, members: np.ndarray | None, group: np.ndarray | None,
+            piece_of: int = -1) -> None:
+        nonlocal tiles
+        lows.append(low)
+        highs.append(high)
+        tile_triangles.append(np.full(low.shape[0], piece_of, dtype=np.int64))
+        if members is not None:
+            triangle_tile[members] = tiles + group
+        tiles += low.shape[0]
+
+    convex = np.flatnonzero(part_kind == 1)
+    if convex.size:
+        _, group = np.unique(parts[convex], return_inverse=True)
+        group = group.reshape(-1)
+        add(*_group_boxes(tri_low[convex], tri_high[convex], group), convex, group)
+    other = part_kind == 2
+    large = other & ((tri_high - tri_low).max(axis=1) > TILE_SIZE)
+    small = np.flatnonzero(other & ~large)
+    if small.size:
+        # Small triangles grouped by part and the grid cell of their centroid; a group's box may exceed its cell
+        # by a triangle's size (at most TILE_SIZE).
+        cell = np.floor(triangles[small].mean(axis=1) / TILE_SIZE).astype(np.int64)
+        _, group = np.unique(np.column_stack([parts[small], cell]), axis=0, return_inverse=True)
+        group = group.reshape(-1)
+        add(*_group_boxes(tri_low[small], tri_high[small], group), small, group)
+    for t in np.flatnonzero(large):
+        add(*_cut_triangle(triangles[t]), None, None, int(t))
+    if not lows:
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.int64), triangle_tile
+    return np.concatenate(lows), np.concatenate(highs), np.concatenate(tile_triangles), triangle_tile
+
+
+def _group_boxes(low: np.ndarray, high: np.ndarray, group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The box of each group of boxes, ``(G, 3)`` each."""
+    groups = int(group.max()) + 1
+    out_low = np.full((groups, 3), np.inf)
+    out_high = np.full((groups, 3), -np.inf)
+    np.minimum.at(out_low, group, low)
+    np.maximum.at(out_high, group, high)
+    return out_low, out_high
+
+
+def _cut_triangle(triangle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Boxes covering a large triangle: a grid over its two longest axes, the third axis from its plane."""
+    low, high = triangle.min(axis=0), triangle.max(axis=0)
+    size = high - low
+    axes = np.argsort(size)[::-1]
+    u, v, w = axes
+    nu = max(1, math.ceil(size[u] / TILE_SIZE))
+    nv = max(1, math.ceil(size[v] / TILE_SIZE))
+    eu = np.linspace(low[u], high[u], nu + 1)
+    ev = np.linspace(low[v], high[v], nv + 1)
+    cu0, cv0 = np.meshgrid(eu[:-1], ev[:-1], indexing="ij")
+    cu1, cv1 = np.meshgrid(eu[1:], ev[1:], indexing="ij")
+    cu0, cv0, cu1, cv1 = (a.ravel() for a in (cu0, cv0, cu1, cv1))
+    # The triangle's plane as w = f(u, v) when it is not edge-on to w; else the triangle's whole w-range.
+    normal = np.cross(triangle[1] - triangle[0], triangle[2] - triangle[0])
+    if abs(normal[w]) > 1e-12 * np.linalg.norm(normal):
+        c = normal @ triangle[0]
+        ws = [(c - normal[u] * a - normal[v] * b) / normal[w] for a in (cu0, cu1) for b in (cv0, cv1)]
+        w0 = np.clip(np.minimum.reduce(ws), low[w], high[w])
+        w1 = np.clip(np.maximum.reduce(ws), low[w], high[w])
+    else:
+        w0, w1 = np.full(cu0.size, low[w]), np.full(cu0.size, high[w])
+    # Keep the cells the triangle's 2D footprint meets (its box test against the cell is enough here).
+    box_low = np.empty((cu0.size, 3))
+    box_high = np.empty((cu0.size, 3))
+    box_low[:, u], box_low[:, v], box_low[:, w] = cu0, cv0, w0
+    box_high[:, u], box_high[:, v], box_high[:, w] = cu1, cv1, w1
+    meets = _triangle_meets_rectangles(triangle[:, [u, v]], cu0, cv0, cu1, cv1)
+    return box_low[meets], box_high[meets]
+
+
+def _triangle_meets_rectangles(tri2: np.ndarray, u0, v0, u1, v1) -> np.ndarray:
+    """Separating-axis test of a 2D triangle against axis-aligned rectangles, ``(k,)`` bool."""
+    corners = np.stack([np.column_stack([u0, v0]), np.column_stack([u1, v0]), np.column_stack([u1, v1]),
+                        np.column_stack([u0, v1])], axis=1)
+    meets = (tri2[:, 0].max() >= u0) & (tri2[:, 0].min() <= u1) & (tri2[:, 1].max() >= v0) & (tri2[:, 1].min() <= v1)
+    for k in range(3):
+        a, b = tri2[k], tri2[(k + 1) % 3]
+        normal = np.array([b[1] - a[1], a[0] - b[0]])
+        third = tri2[(k + 2) % 3]
+        side = np.sign(normal @ (third - a))
+        # The rectangle is wholly outside this edge when every corner lies on the far side.
+        outside = np.all(side * ((corners - a) @ normal) < 0, axis=1)
+        meets &= ~outside
+    return meets
+
+
+def _box_mesh(low: np.ndarray, high: np.ndarray) -> trimesh.Trimesh:
+    """One mesh of axis-aligned boxes, 12 triangles each, box k's triangles 12k..12k+11."""
+    unit = trimesh.creation.box((1.0, 1.0, 1.0))
+    corner = (np.asarray(unit.vertices) + 0.5)  # 0..1
+    vertices = low[:, None, :] + corner[None, :, :] * (high - low)[:, None, :]
+    faces = np.asarray(unit.faces)[None, :, :] + (np.arange(low.shape[0]) * 8)[:, None, None]
+    return trimesh.Trimesh(vertices.reshape(-1, 3), faces.reshape(-1, 3), process=False)
