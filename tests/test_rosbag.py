@@ -38,6 +38,8 @@ def test_custom_msg_bytes_are_rosbags_own() -> None:
         xyz = rng.normal(size=(count, 3)).astype(np.float32)
         offset = rng.integers(0, 10**8, count)
         line = rng.integers(0, 6, count).astype(np.uint8)
+        reflectivity = rng.integers(0, 256, count).astype(np.uint8)
+        tag = rng.integers(0, 64, count).astype(np.uint8)
         stamp = 1_700_000_000_123_456_789
         message = types["livox_ros_driver2/msg/CustomMsg"](
             header=types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](
@@ -45,9 +47,9 @@ def test_custom_msg_bytes_are_rosbags_own() -> None:
             timebase=stamp, point_num=count, lidar_id=0, rsvd=np.zeros(3, np.uint8),
             points=[types["livox_ros_driver2/msg/CustomPoint"](
                 offset_time=int(offset[i]), x=float(xyz[i, 0]), y=float(xyz[i, 1]), z=float(xyz[i, 2]),
-                reflectivity=0, tag=0, line=int(line[i])) for i in range(count)])
+                reflectivity=int(reflectivity[i]), tag=int(tag[i]), line=int(line[i])) for i in range(count)])
         expected = bytes(store.serialize_cdr(message, "livox_ros_driver2/msg/CustomMsg"))
-        assert custom_msg_cdr(stamp, "livox_frame", xyz, offset, line) == expected
+        assert custom_msg_cdr(stamp, "livox_frame", xyz, offset, line, reflectivity, tag) == expected
 
 
 def test_ned_frd_to_enu_flu_at_the_boundary() -> None:

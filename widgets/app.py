@@ -27,7 +27,7 @@ from livox_viz.config.sensor import PARAM_RANGES
 
 from . import files
 from .charts import CurveCharts
-from .controls import Sliders
+from .controls import SLIDER_PAGES, Sliders
 from .hud import HeadsUp
 from .keys import KEYS
 from .overlay import WINDOWS, PresetSource, TableSource
@@ -192,6 +192,25 @@ class LivoxVizApp:
         display = self.session.display
         display.scene_colour = next_choice(SCENE_COLOURS, display.scene_colour)
         self.session.recolour()
+
+    def toggle_returns_model(self) -> None:
+        """Cast with the ideal or the datasheet return model; the sliders show the return model's with the latter."""
+        model = "ideal" if self.session.config.returns_model == "datasheet" else "datasheet"
+        self.session.set_returns_model(model)
+        if self.sliders is not None:
+            self.sliders.page = "returns" if model == "datasheet" else "pattern"
+            self._sync_sliders()
+        returns = self.session.config.return_params
+        self.session.message = (f"returns {model}" + (f": range noise {100 * returns.range_sigma_m[0][1]:g} cm, "
+                                                      f"{returns.detection_range(0.1):.0f} m at 10 %"
+                                                      if model == "datasheet" else ""))
+
+    def toggle_slider_page(self) -> None:
+        """Show the pattern's sliders or the return model's under the pattern view."""
+        if self.sliders is not None:
+            self.sliders.page = next_choice(SLIDER_PAGES, self.sliders.page)
+            self._sync_sliders()
+            self.session.message = f"sliders: {self.sliders.page}"
 
     def toggle_jitter_scope(self) -> None:
         self.session.set_jitter_scope("figure" if self.session.config.jitter_scope == "flower" else "flower")

@@ -1,7 +1,11 @@
 """The sliders under the views: one per tunable parameter, plus playback speed and the integration window.
 
 Each pattern model has its own set of parameter sliders, drawn in the same
-place; only the set of the model in use is shown. A slider shows the value in
+place; only the set of the model in use is shown, or, on the returns page
+(key ``t``, and whenever ``d`` turns the datasheet model on), the return
+model's sliders: range noise (1 sigma at the sheet's first range), detection
+range at 10 % reflectivity, blind zone, beam divergence, false alarms and
+angular noise (1 sigma). A slider shows the value in
 the user's unit (speed in x real time, the window in seconds), never an
 internal index or logarithm.
 """
@@ -46,6 +50,17 @@ PATTERN_SLIDERS: dict[str, tuple[tuple[str, str], ...]] = {
         ("range_max", "[0] range, m"),
     ),
 }
+#: The return model's sliders (the returns page, drawn where the pattern's are).
+RETURN_SLIDERS: tuple[tuple[str, str], ...] = (
+    ("returns_range_sigma", "range noise, m"),
+    ("returns_detection_range_10", "range at 10 %, m"),
+    ("returns_blind_zone", "blind zone, m"),
+    ("returns_false_alarm_rate", "false alarms / pulse"),
+    ("returns_divergence_h", "divergence H, deg"),
+    ("returns_divergence_v", "divergence V, deg"),
+    ("returns_angular_sigma", "angle noise, deg"),
+)
+SLIDER_PAGES: tuple[str, ...] = ("pattern", "returns")
 #: Sliders under the scene view: the frame structure, which sets the point rate W x H x F.
 SENSOR_SLIDERS: tuple[tuple[str, str], ...] = (
     ("data_width", "DataWidth W"),
@@ -90,7 +105,9 @@ class Sliders:
         self._model_widgets: dict[str, dict[str, Any]] = {}
         plotter.subplot(1, 0)
         plotter.set_background("#0c0f15")
-        for model, rows in PATTERN_SLIDERS.items():
+        #: Which set the left pane shows: the pattern model's sliders or the return model's.
+        self.page = "pattern"
+        for model, rows in (*PATTERN_SLIDERS.items(), ("returns", RETURN_SLIDERS)):
             made = {}
             for k, (name, title) in enumerate(rows):
                 row, col = divmod(k, 4)
@@ -137,13 +154,14 @@ class Sliders:
         return [*self.widgets.values(), *(w for made in self._model_widgets.values() for w in made.values())]
 
     def show_model(self, model: str) -> None:
-        """Show the parameter sliders of ``model`` only."""
+        """Show the parameter sliders of ``model`` only (the return model's on the returns page)."""
+        shown = "returns" if self.page == "returns" else model
         for name, made in self._model_widgets.items():
             for widget in made.values():
-                widget.SetEnabled(name == model)
+                widget.SetEnabled(name == shown)
 
     def param_widgets(self) -> dict[str, Any]:
-        """The parameter sliders in use (the shown model's and the frame structure's), by parameter."""
+        """The parameter sliders in use (the shown set's and the frame structure's), by parameter."""
         shown = next((m for m, made in self._model_widgets.items()
                       if any(w.GetEnabled() for w in made.values())), "rflysim")
         return {**self._model_widgets[shown], **{n: self.widgets[n] for n, _ in SENSOR_SLIDERS}}

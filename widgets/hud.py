@@ -89,7 +89,8 @@ class HeadsUp:
                 moving = (f"\ntrajectory {session.trajectory.name}, cloud in the {session.display.cloud_frame} "
                           "frame (w)")
             scene_lines = (f"scene {session.scene.name}: {len(session.scene.mesh.faces):,} triangles\n"
-                           f"decoded cloud: {session.scene_ring.count:,} returns in the window\n"
+                           f"decoded cloud: {session.scene_ring.count:,} returns in the window, "
+                           f"returns {cfg.returns_model} (d)\n"
                            f"colour: {session.display.scene_colour}  (k){moving}")
         if self.scene_state is not None:
             self.scene_state.SetText(2, scene_lines)

@@ -37,7 +37,11 @@ KEYS: tuple[KeyRow, ...] = (
     KeyRow("i", "integration window: 0.1, 0.5, 1, 2 s, unlimited (1 M points)", (("i", "cycle_window"),),
            "window"),
     KeyRow("c / k", "pattern colours (time, figure-8, petal, flower, arc; laser for Risley) / scene colours "
-           "(range, height, time)", (("c", "cycle_pattern_colour"), ("k", "cycle_scene_colour")), "colours"),
+           "(range, height, time, reflectivity, return/tag)", (("c", "cycle_pattern_colour"),
+                                                               ("k", "cycle_scene_colour")), "colours"),
+    KeyRow("d / t", "return model: ideal (each ray's exact first hit, as RflySim) / datasheet (the sensor's sheet: "
+           "noise, detection range, beam footprint, returns, reflectivity, tags) / the sliders of the pattern or of "
+           "the return model", (("d", "toggle_returns_model"), ("t", "toggle_slider_page")), "returns"),
     KeyRow("j", "add the random rotation after each flower / after each figure", (("j", "toggle_jitter_scope"),)),
     KeyRow("v", "pattern model: RflySim's rosette / the track (a configuration with Risley or track parameters)",
            (("v", "toggle_pattern_model"),), "model"),

@@ -32,6 +32,9 @@ class PointRing:
         self.scalars = np.zeros(self.capacity, dtype=np.float32)
         self.times = np.zeros(self.capacity, dtype=np.float64)
         self.stream_index = np.zeros(self.capacity, dtype=np.int64)
+        #: Per point: the Livox reflectivity byte and tag (scene cloud; zeros for pattern points).
+        self.reflectivity = np.zeros(self.capacity, dtype=np.uint8)
+        self.tag = np.zeros(self.capacity, dtype=np.uint8)
         # Slot numbers twice over: any run of live slots is one contiguous slice.
         self._doubled = np.concatenate([np.arange(self.capacity), np.arange(self.capacity)]).astype(np.int64)
         self._offsets = np.arange(self.capacity + 1, dtype=np.int64)
@@ -50,7 +53,8 @@ class PointRing:
         self.count = 0
         self.head = 0
 
-    def write(self, positions: np.ndarray, scalars: np.ndarray, times: np.ndarray, stream_index: np.ndarray) -> None:
+    def write(self, positions: np.ndarray, scalars: np.ndarray, times: np.ndarray, stream_index: np.ndarray,
+              reflectivity: np.ndarray | None = None, tag: np.ndarray | None = None) -> None:
         """Append points in time order, dropping the oldest when full.
 
         Parameters
@@ -61,13 +65,18 @@ class PointRing:
             Emission times, seconds, non-decreasing.
         stream_index : (n,) int64
             Point numbers in the pattern stream.
+        reflectivity, tag : (n,) uint8, optional
+            The points' Livox reflectivity and tag (default 0).
         """
         n = positions.shape[0]
         if n == 0:
             return
+        reflectivity = np.zeros(n, np.uint8) if reflectivity is None else reflectivity
+        tag = np.zeros(n, np.uint8) if tag is None else tag
         if n > self.capacity:
             positions, scalars = positions[-self.capacity :], scalars[-self.capacity :]
             times, stream_index = times[-self.capacity :], stream_index[-self.capacity :]
+            reflectivity, tag = reflectivity[-self.capacity :], tag[-self.capacity :]
             n = self.capacity
         evicted = self.count + n - self.capacity
         if evicted > 0 and self.on_evict is not None:
@@ -79,6 +88,8 @@ class PointRing:
             self.scalars[target] = scalars[source]
             self.times[target] = times[source]
             self.stream_index[target] = stream_index[source]
+            self.reflectivity[target] = reflectivity[source]
+            self.tag[target] = tag[source]
         self.head = (self.head + n) % self.capacity
         self.count = min(self.capacity, self.count + n)
 

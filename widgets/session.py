@@ -44,7 +44,9 @@ PATTERN_COLOURS: dict[str, tuple[str, str] | None] = {
     "time": None, "figure-8": ("figure8", "flower"), "petal": ("petal", "flower"),
     "flower": ("flower", "figure"), "arc": ("arc", "figure8"), "laser": None,
 }
-SCENE_COLOURS: tuple[str, ...] = ("range", "height", "time")
+SCENE_COLOURS: tuple[str, ...] = ("range", "height", "time", "reflectivity", "return/tag")
+#: The categories of the return/tag colouring: each point's class from its Livox tag.
+TAG_CLASSES: tuple[str, ...] = ("return 0", "return 1", "return 2", "return 3", "mixed", "noise")
 CLOUD_FRAMES: tuple[str, ...] = ("world", "sensor")
 DRAWINGS: tuple[str, ...] = ("auto", "points", "density")
 #: Most points one tick may add; a slow machine drops scan time rather than freezing.
@@ -77,6 +79,15 @@ class DisplayOptions:
     drawing: str = "auto"
     step_unit: str = "flower"
     cloud_frame: str = "world"
+
+
+def tag_classes(tag: np.ndarray) -> np.ndarray:
+    """``(n,)`` float32 the :data:`TAG_CLASSES` index of Livox tags: noise, else mixed, else the return number."""
+    tag = np.asarray(tag, dtype=np.uint8)
+    out = ((tag >> 4) & 0x03).astype(np.float32)
+    out[(tag & 0x03) != 0] = 4.0
+    out[(tag & 0x0C) != 0] = 5.0
+    return out
 
 
 def step_units(config: SensorConfig) -> tuple[str, ...]:
@@ -192,6 +203,10 @@ class Session:
         self.message = ""
         return True
 
+    def set_returns_model(self, model: str) -> None:
+        """Cast with the "ideal" or the "datasheet" return model (a configuration without one gets the Mid-70's)."""
+        self.set_config(self.config.with_returns_model(model))
+
     def set_jitter_scope(self, scope: str) -> None:
         """Switch when the random rotation is added ("flower" or "figure") and restart."""
         self.set_config(replace(self.config, jitter_scope=scope))
@@ -226,7 +241,7 @@ class Session:
     def restart(self) -> None:
         """Start the pattern again from scan time 0."""
         self.pattern = make_pattern(self.config, seed=self.seed)
-        self.mounted = MountedCaster(self.config, self.caster, self.vehicle_pose, self.trajectory)
+        self.mounted = MountedCaster(self.config, self.caster, self.vehicle_pose, self.trajectory, self.seed)
         self.scan_time = 0.0
         self.playback.restart()
         self.frame_index = 0
@@ -357,7 +372,8 @@ class Session:
             world = end.origin + frame.xyz_decoded @ end.rotation.T
         else:
             world = frame.xyz_world_decoded
-        self.scene_ring.write(world, self.scene_scalars(world, frame.range_m, frame.t), frame.t, index)
+        self.scene_ring.write(world, self.scene_scalars(world, frame.range_m, frame.t, frame.reflectivity, frame.tag),
+                              frame.t, index, frame.reflectivity, frame.tag)
 
     def _drop_old(self) -> None:
         if self.window is not None:
@@ -390,13 +406,22 @@ class Session:
             top = self.config.unit_points[within] // self.config.unit_points[unit]
         return 0.0, float(max(top - 1, 1))
 
-    def scene_scalars(self, world: np.ndarray, ranges: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """Scalars of scene points for the current colour mode, ``(n,)`` float32."""
+    def scene_scalars(self, world: np.ndarray, ranges: np.ndarray, t: np.ndarray,
+                      reflectivity: np.ndarray | None = None, tag: np.ndarray | None = None) -> np.ndarray:
+        """Scalars of scene points for the current colour mode, ``(n,)`` float32.
+
+        ``reflectivity`` shows the byte (0-255); ``return/tag`` the index of :data:`TAG_CLASSES`: return 0-3 of
+        a clean point, 4 a mixed point (spatial-noise bits), 5 noise (intensity-noise bits: a false alarm).
+        """
         mode = self.display.scene_colour
         if mode == "range":
             return ranges.astype(np.float32)
         if mode == "height":
             return (-world[:, 2]).astype(np.float32)
+        if mode == "reflectivity":
+            return (np.zeros(len(world)) if reflectivity is None else reflectivity).astype(np.float32)
+        if mode == "return/tag":
+            return tag_classes(np.full(len(world), 0x10, np.uint8) if tag is None else tag)
         return t.astype(np.float32)
 
     def scene_scalar_range(self) -> tuple[float, float]:
@@ -406,6 +431,10 @@ class Session:
             return 0.0, min(self.config.range_max, 150.0)
         if mode == "height":
             return 0.0, 30.0
+        if mode == "reflectivity":
+            return 1.0, 255.0
+        if mode == "return/tag":
+            return -0.5, len(TAG_CLASSES) - 0.5
         low = self.scan_time - self.window if self.window is not None else 0.0
         return max(0.0, low), max(self.scan_time, 1e-6)
 
@@ -419,7 +448,8 @@ class Session:
         if ring.count:
             world = ring.positions[live].astype(np.float64)
             ranges = np.linalg.norm(world - self.sensor_pose.origin, axis=1)
-            ring.scalars[live] = self.scene_scalars(world, ranges, ring.times[live])
+            ring.scalars[live] = self.scene_scalars(world, ranges, ring.times[live], ring.reflectivity[live],
+                                                    ring.tag[live])
 
     # Measures ------------------------------------------------------------------------------
     def visible_coverage(self) -> float:

@@ -17,14 +17,18 @@ import pyvista as pv
 from livox_viz.core.rotations import FRD_TO_FLU
 
 from .ring import PointRing
-from .session import Session
+from .session import TAG_CLASSES, Session
 
 #: NED (z down) to the display's z-up frame (north-west-up), as a 4x4 actor matrix.
 NED_TO_DISPLAY = np.eye(4)
 NED_TO_DISPLAY[:3, :3] = FRD_TO_FLU
 PATTERN_UNITS = {"time": "time, s", "figure-8": "figure-8 in flower", "petal": "petal in flower",
                  "flower": "flower in figure", "arc": "arc in figure-8", "laser": "laser"}
-SCENE_UNITS = {"range": "range, m", "height": "height, m", "time": "time, s"}
+SCENE_UNITS = {"range": "range, m", "height": "height, m", "time": "time, s",
+               "reflectivity": "reflectivity\n(151+ retro)",
+               "return/tag": "return / tag"}
+#: Colours of the return/tag classes (return 0, 1, 2, 3, mixed, noise).
+TAG_COLOURS = ("#9aa5b1", "#4fc3f7", "#ffb74d", "#ba68c8", "#ff5252", "#fff176")
 
 
 def ring_polydata(ring: PointRing) -> pv.PolyData:
@@ -459,6 +463,23 @@ class SceneView(_View):
         camera.view_angle = 50
         self.renderer.ResetCameraClippingRange()
 
+    def _use_table(self, mode: str) -> None:
+        """The colour table of a scene colour mode: classes for return/tag, log-scaled for reflectivity."""
+        if mode == "return/tag":
+            table = pv.LookupTable(cmap=list(TAG_COLOURS), n_values=len(TAG_COLOURS))
+            table.annotations = dict(enumerate(TAG_CLASSES))
+            labels = 0
+        else:
+            table = pv.LookupTable(cmap="viridis", n_values=256)
+            # Reflectivity spans 1-255 logarithmically: dark asphalt at grazing incidence, paint and walls, signs.
+            table.log_scale = mode == "reflectivity"
+            labels = 5
+        self.actor.mapper.lookup_table = table
+        self.scalar_bar.SetLookupTable(table)
+        self.scalar_bar.SetNumberOfLabels(labels)
+        self.scalar_bar.SetDrawAnnotations(mode == "return/tag")
+        self.scalar_bar.GetAnnotationTextProperty().SetColor(0.87, 0.89, 0.92)
+
     def update(self) -> None:
         """Show the ring's current points and colours, and the vehicle where it is now."""
         if self.session.trajectory is not None:
@@ -466,6 +487,10 @@ class SceneView(_View):
         if self._ring is not self.session.scene_ring:
             self._ring = self.session.scene_ring
         update_ring_polydata(self.poly, self._ring)
+        mode = self.session.display.scene_colour
+        if getattr(self, "_colour_mode", None) != mode:
+            self._colour_mode = mode
+            self._use_table(mode)
         low, high = self.session.scene_scalar_range()
         self.actor.mapper.scalar_range = (low, high if high > low else low + 1e-6)
-        self.scalar_bar.SetTitle(SCENE_UNITS[self.session.display.scene_colour])
+        self.scalar_bar.SetTitle(SCENE_UNITS[mode])

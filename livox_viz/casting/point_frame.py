@@ -41,6 +41,14 @@ class PointFrame(Protocol):
         The points in the world NED frame, metres (true hits for a scan, decoded for a received frame).
     xyz_world_decoded : (M, 3) float64
         The decoded points placed in the world with the frame's pose.
+    reflectivity : (M,) uint8
+        Livox's reflectivity byte (0-150 Lambertian 0-100 %, 151-255 retroreflective; 0 when unknown).
+    tag : (M,) uint8
+        Livox SDK1 tag: bits 0-1 spatial noise, 2-3 intensity noise, 4-5 return number.
+    return_number : (M,) uint8
+        1, 2, 3 in range order within the point's pulse.
+    number_of_returns : (M,) uint8
+        Points the pulse returned.
     """
 
     index: int
@@ -50,6 +58,10 @@ class PointFrame(Protocol):
     t: np.ndarray
     range_m: np.ndarray
     xyz_int16: np.ndarray
+    reflectivity: np.ndarray
+    tag: np.ndarray
+    return_number: np.ndarray
+    number_of_returns: np.ndarray
 
     @property
     def xyz_decoded(self) -> np.ndarray: ...

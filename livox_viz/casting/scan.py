@@ -143,6 +143,17 @@ class ScanFrame:
         """``(M, 3)`` float64 what a client decodes, sensor FRD, metres."""
         return decode_int16(self.xyz_int16, self.range_max)
 
+    @property
+    def wire_xyz_int16(self) -> np.ndarray:
+        """``(K, 3)`` int16 what RflySim's wire carries: one point per ray, each pulse's first return.
+
+        The wire has no field to tell a second return from a first, and RflySim's own frames hold at
+        most one point per ray (W*H), so later returns stay off it.
+        """
+        if self.return_number.size and int(self.return_number.max()) > 1:
+            return self.xyz_int16[self.return_number == 1]
+        return self.xyz_int16
+
     @cached_property
     def xyz_world_decoded(self) -> np.ndarray:
         """``(M, 3)`` float64 the decoded points placed in the world (NED), each with the pose of its own time."""

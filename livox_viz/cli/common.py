@@ -16,10 +16,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from livox_viz.config.presets import DEFAULT_PRESET, load_preset
+from livox_viz.config.returns_params import RETURN_MODELS
 from livox_viz.config.sensor import SensorConfig, load_config
 from livox_viz.core.atomic import resolve_destination
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.poses import Pose
+from livox_viz.scene.materials import DEFAULT_REFLECTANCE
 
 PROG = "livox-viz"
 Handler = Callable[[argparse.Namespace], int]
@@ -91,17 +93,33 @@ def whole_number(low: int, high: int, meaning: str = "") -> Callable[[str], int]
     return parse
 
 
+def reflectance_value(text: str) -> float:
+    """argparse type: a Lambertian reflectance in [0, 1]."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value) or not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"{text!r}: allowed: a reflectance from 0 to 1")
+    return value
+
+
 seed_value = whole_number(0, 2**63 - 1, "a whole number from 0 to 2**63 - 1")
 port_value = whole_number(0, 65535, "0 (any free port) to 65535")
 
 
 # Shared options -------------------------------------------------------------------------
 def add_config_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--preset NAME | --config FILE [--seq-id N]``."""
+    """``--preset NAME | --config FILE [--seq-id N] [--returns ideal|datasheet]``."""
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--preset", help=f"preset name or JSON path (default {DEFAULT_PRESET})")
     group.add_argument("--config", help="RflySim sensor JSON or Config.json")
     parser.add_argument("--seq-id", type=int, help="SeqID of the sensor to use in a Config.json")
+    parser.add_argument("--returns", choices=RETURN_MODELS,
+                        help="what a ray returns: ideal (its exact first hit, as RflySim computes: no noise, no "
+                             "intensity) or datasheet (the sensor's sheet: noise, detection range, beam footprint, "
+                             "multiple returns, reflectivity, tags); default: the configuration's own "
+                             "(LivoxVizReturns; ideal without one, and the Mid-70's sheet for datasheet)")
 
 
 def add_seed_argument(parser: argparse.ArgumentParser) -> None:
@@ -112,8 +130,11 @@ def add_seed_argument(parser: argparse.ArgumentParser) -> None:
 def config_from_args(args: argparse.Namespace) -> SensorConfig:
     """The configuration the ``--preset``/``--config`` arguments name."""
     if getattr(args, "config", None):
-        return load_config(args.config, seq_id=args.seq_id)
-    return load_preset(getattr(args, "preset", None) or DEFAULT_PRESET)
+        config = load_config(args.config, seq_id=args.seq_id)
+    else:
+        config = load_preset(getattr(args, "preset", None) or DEFAULT_PRESET)
+    returns = getattr(args, "returns", None)
+    return config.with_returns_model(returns) if returns else config
 
 
 def config_label(args: argparse.Namespace) -> str:
@@ -133,6 +154,10 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--exact", action="store_true",
                         help="recompute every range in float64 from its triangle's plane (about 10 %% slower; "
                              "the default float32 ranges are good to 1e-7 of the scene's size)")
+    parser.add_argument("--reflectance", type=reflectance_value, default=DEFAULT_REFLECTANCE,
+                        help="Lambertian reflectance 0-1 of surfaces without a material of their own (mesh files "
+                             "without a sidecar or colours, scene objects without one); default "
+                             f"{DEFAULT_REFLECTANCE:g}, about dry concrete at 905 nm")
 
 
 def scene_from_args(args: argparse.Namespace):
@@ -140,7 +165,7 @@ def scene_from_args(args: argparse.Namespace):
     from livox_viz.scene.raycast import EmbreeCaster
     from livox_viz.scene.scenes import open_scene
 
-    scene = open_scene(args.scene, up=args.up)
+    scene = open_scene(args.scene, up=args.up, reflectance=getattr(args, "reflectance", DEFAULT_REFLECTANCE))
     pose = Pose.parse(args.pose) if args.pose else scene.vehicle_pose
     return scene, pose, EmbreeCaster(scene.mesh, exact=getattr(args, "exact", False))
 

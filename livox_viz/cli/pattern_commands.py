@@ -69,6 +69,17 @@ def derived_figures(cfg: SensorConfig) -> dict[str, float | int | str]:
             "lasers": track.lasers,
             "series_terms": len(track.terms),
         })
+    returns = cfg.return_params
+    figures.update({
+        "returns_model": returns.model,
+        "returns_detection_range_m": [list(p) for p in returns.detection_range_m],
+        "returns_range_sigma_m": [list(p) for p in returns.range_sigma_m],
+        "returns_divergence_deg": list(returns.divergence_deg),
+        "returns_blind_zone_m": returns.blind_zone_m,
+        "returns_per_pulse": returns.returns_per_pulse,
+        "returns_false_alarm_rate": returns.false_alarm_rate,
+        "returns_angular_sigma_deg": returns.angular_sigma_deg,
+    })
     fov = cfg.field_of_view
     figures.update({
         "pattern_plane": fov.plane,
@@ -118,6 +129,18 @@ def cmd_info(args: argparse.Namespace) -> int:
         print(f"  series             {len(track.terms)} terms, {track.lasers} laser(s), {track.form} form")
     print(f"  range              {cfg.range_max:g} m, int16 step {cfg.range_step * 1e3:.3f} mm, "
           f"max decode error {max_decode_error(cfg.range_max) * 1e3:.3f} mm")
+    returns = cfg.return_params
+    kind = {1: "single", 2: "dual", 3: "triple"}[returns.returns_per_pulse]
+    sheet = (f"detection {', '.join(f'{r:g} m at {100 * p:g} %' for p, r in returns.detection_range_m)}; range "
+             f"noise {', '.join(f'{100 * s:g} cm at {r:g} m' for r, s in returns.range_sigma_m)}; divergence "
+             f"{returns.divergence_deg[0]:g} x {returns.divergence_deg[1]:g} deg; blind zone "
+             f"{returns.blind_zone_m:g} m; {kind} return; false alarms {100 * returns.false_alarm_rate:g} %; "
+             f"angular noise {returns.angular_sigma_deg:g} deg")
+    if returns.model == "ideal":
+        print("  returns            ideal (each ray's exact first hit, as RflySim computes); --returns datasheet: "
+              f"{sheet}")
+    else:
+        print(f"  returns            datasheet: {sheet}")
     return 0
 
 

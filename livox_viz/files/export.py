@@ -26,6 +26,13 @@ expects: world ENU (x east, y north, z up), sensor FLU (x forward, y left, z
 up), said in a WKT coordinate system (a local one) and in a livox-viz record;
 its offset and scale are chosen from the data (0.1 mm wherever the cloud's
 extent allows).
+
+**Livox fields.** Every format carries each point's ``reflectivity`` (uint8,
+0-150 Lambertian 0-100 %, 151-255 retroreflective), ``tag`` (SDK1: bits 0-1
+spatial noise, 2-3 intensity noise, 4-5 return number), ``return_number`` and
+``number_of_returns``: PLY, PCD and CSV fields and columns, NPZ arrays; LAS's
+own ``intensity`` (the byte x 256, LAS's 16-bit scale), ``return_number`` and
+``number_of_returns``, the byte and the tag as extra bytes.
 """
 
 from __future__ import annotations
@@ -66,10 +73,15 @@ NPZ_RULE = ("xyz_int16: the wire (sensor FRD); xyz_sensor: those points decoded 
 LAS_SCALE = 1e-4
 
 
+#: The Livox per-point fields every format carries.
+LIVOX_FIELDS: tuple[str, ...] = ("reflectivity", "tag", "return_number", "number_of_returns")
+
+
 def point_fields(coordinates: str, file_format: str = ".ply") -> tuple[tuple[str, str], ...]:
     """Per-point fields of PLY, PCD and CSV with their numpy types; world x, y, z are float64 but in a PCD."""
     xyz = "<f8" if coordinates == "world" and file_format != ".pcd" else "<f4"
-    return (("x", xyz), ("y", xyz), ("z", xyz), ("range", "<f4"), ("time", "<f8"), ("frame", "<u4"))
+    return (("x", xyz), ("y", xyz), ("z", xyz), ("range", "<f4"), ("time", "<f8"), ("frame", "<u4"),
+            *((name, "u1") for name in LIVOX_FIELDS))
 
 
 #: The sensor-frame fields (see :func:`point_fields`).
@@ -77,7 +89,7 @@ POINT_FIELDS = point_fields("sensor")
 #: The LAS body, kept as raw records until the file's offset and scale are known: x y z in the LAS frame.
 _LAS_BODY: tuple[tuple[str, str], ...] = (
     ("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("gps_time", "<f8"), ("range", "<f4"), ("frame", "<u4"),
-    ("return_number", "u1"), ("number_of_returns", "u1"),
+    ("return_number", "u1"), ("number_of_returns", "u1"), ("intensity", "<u2"), ("reflectivity", "u1"), ("tag", "u1"),
 )
 #: NPZ columns, one row per point; ``frame_pose`` holds one row per frame: index, then the sensor's
 #: posAng (x, y, z, roll, pitch, yaw) at the frame's first ray and just after its last.
@@ -88,6 +100,7 @@ _NPZ_ARRAYS: dict[str, tuple[str, tuple[int, ...]]] = {
     "range": ("<f8", ()),
     "t": ("<f8", ()),
     "frame": ("<i8", ()),
+    **{name: ("u1", ()) for name in LIVOX_FIELDS},
 }
 
 
@@ -107,6 +120,8 @@ def frame_records(frame: PointFrame, coordinates: str, extra_fields: Sequence[tu
     records["range"] = np.linalg.norm(frame.xyz_decoded, axis=1)
     records["time"] = frame.t
     records["frame"] = frame.index
+    for name in LIVOX_FIELDS:
+        records[name] = getattr(frame, name)
     for name, _ in extra_fields:
         records[name] = (extra or {})[name]
     return records
@@ -210,7 +225,8 @@ class PointCloudWriter:
         if self._npz is not None:
             self._npz.append({
                 "xyz_sensor": frame.xyz_decoded, "xyz_world": frame.xyz_world, "xyz_int16": frame.xyz_int16,
-                "range": frame.range_m, "t": frame.t, "frame": np.full(len(frame), frame.index), **extra,
+                "range": frame.range_m, "t": frame.t, "frame": np.full(len(frame), frame.index),
+                **{name: getattr(frame, name) for name in LIVOX_FIELDS}, **extra,
             })
             self._npz_poses.append(np.concatenate([[frame.index], frame.sensor_pose.as_array(),
                                                    frame.end_pose.as_array()]))
@@ -227,7 +243,8 @@ class PointCloudWriter:
             self.offset = np.round(np.median(frame_points(frame, "world"), axis=0) / 1000.0) * 1000.0 + 0.0  # no -0
         records = frame_records(frame, self.coordinates, self.extra_fields, extra, self.format, self.offset)
         if self.format == ".csv" or self.ascii:
-            formats = ["%.6f"] * 4 + ["%.9f", "%d"] + ["%.9f" if t[1] == "f" else "%d" for _, t in self.extra_fields]
+            formats = ["%.6f"] * 4 + ["%.9f", "%d"] + ["%d"] * len(LIVOX_FIELDS) + [
+                "%.9f" if t[1] == "f" else "%d" for _, t in self.extra_fields]
             np.savetxt(self._body, _records_as_columns(records), fmt=formats,
                        delimiter="," if self.format == ".csv" else " ")
         else:
@@ -295,13 +312,13 @@ class PointCloudWriter:
         frame = f"frame {self.coordinates}: {FRAME_DESCRIPTION[self.coordinates]}"
         if self.format == ".ply":
             encoding = "ascii" if self.ascii else "binary_little_endian"
-            types = {"<f4": "float", "<f8": "double", "<u4": "uint", "<i4": "int"}
+            types = {"<f4": "float", "<f8": "double", "<u4": "uint", "<i4": "int", "u1": "uchar"}
             lines = ["ply", f"format {encoding} 1.0", "comment livox-viz scan", f"comment {frame}",
                      f"comment {POINTS_RULE}", f"element vertex {self.count}"]
             lines += [f"property {types[t]} {name}" for name, t in fields]
             lines.append("end_header")
             return ("\n".join(lines) + "\n").encode()
-        sizes = {"<f4": ("4", "F"), "<f8": ("8", "F"), "<u4": ("4", "U"), "<i4": ("4", "I")}
+        sizes = {"<f4": ("4", "F"), "<f8": ("8", "F"), "<u4": ("4", "U"), "<i4": ("4", "I"), "u1": ("1", "U")}
         offset = np.zeros(3) if self.offset is None else self.offset
         lines = [
             f"# .PCD v0.7 - livox-viz scan; {frame}",
@@ -336,8 +353,8 @@ class PointCloudWriter:
                 # The integers themselves: offset and scale were chosen so that every point fits.
                 points.X, points.Y, points.Z = (np.round((records[axis] - offset[k]) / scale[k]).astype(np.int32)
                                                 for k, axis in enumerate("xyz"))
-                for name in ("gps_time", "range", "frame", "return_number", "number_of_returns",
-                             *(name for name, _ in self.extra_fields)):
+                for name in ("gps_time", "range", "frame", "return_number", "number_of_returns", "intensity",
+                             "reflectivity", "tag", *(name for name, _ in self.extra_fields)):
                     points[name] = records[name]
                 writer.write_points(points)
 
@@ -388,6 +405,8 @@ def _las_header(coordinates: str, offset: np.ndarray, scale: np.ndarray,
     header.global_encoding.wkt = True  # required for point formats 6-10 (LAS 1.4 R15)
     header.add_extra_dims([laspy.ExtraBytesParams("range", np.float32, description="range m"),
                            laspy.ExtraBytesParams("frame", np.uint32, description="frame index"),
+                           laspy.ExtraBytesParams("reflectivity", np.uint8, description="Livox reflectivity"),
+                           laspy.ExtraBytesParams("tag", np.uint8, description="Livox tag (SDK1)"),
                            *(laspy.ExtraBytesParams(name, np.dtype(t).newbyteorder("=")) for name, t in extra_fields)])
     header.generating_software = "livox-viz"
     header.system_identifier = f"livox-viz {coordinates}"[:32]
@@ -410,5 +429,10 @@ def _las_records(frame: PointFrame, coordinates: str, extra_fields: Sequence[tup
     records["gps_time"] = frame.t
     records["range"] = np.linalg.norm(frame.xyz_decoded, axis=1)
     records["frame"] = frame.index
-    records["return_number"] = records["number_of_returns"] = 1  # every return is the pulse's only one
+    records["return_number"] = frame.return_number
+    records["number_of_returns"] = frame.number_of_returns
+    # LAS keeps intensity on 16 bits: the byte times 256 (the LAS 1.4 normalisation of an 8-bit sensor).
+    records["intensity"] = frame.reflectivity.astype(np.uint16) * 256
+    records["reflectivity"] = frame.reflectivity
+    records["tag"] = frame.tag
     return records

@@ -8,6 +8,11 @@ needed. Topics (the Livox ROS driver 2's names by default, all settable):
   FAST-LIO reads by default);
 * ``/livox/points``: ``sensor_msgs/msg/PointCloud2`` in the driver's layout
   (x, y, z, intensity float32; tag, line uint8; timestamp float64 ns), one per frame;
+
+  both carry each point's reflectivity (CustomMsg ``reflectivity``, PointCloud2
+  ``intensity``) and its SDK1 tag, whose return-number bits are 0x10 for a first
+  return (0x00 nearer than the sensor's return-0 range), 0x20 and 0x30 for a
+  second and third: FAST-LIO keeps the points with ``tag & 0x30`` 0x00 or 0x10;
 * ``/livox/imu``: ``sensor_msgs/msg/Imu`` (no orientation: covariance[0] = -1), in
   ``base_link`` (the vehicle's body origin and axes) by default, or in
   ``livox_frame`` (the lidar's origin and axes, lever-arm effects included) as the
@@ -266,9 +271,12 @@ class RosbagWriter:
         xyz = flu_from_frd(frame.xyz_decoded).astype(np.float32)
         offset = np.round((frame.t - frame.timestamp) * 1e9).astype(np.int64)
         line = (frame.stream_index % self.lasers).astype(np.uint8)
-        self._emit(self._lidar, [stamp], [custom_msg_cdr(stamp, self.names.lidar_frame, xyz, offset, line)])
+        self._emit(self._lidar, [stamp], [custom_msg_cdr(stamp, self.names.lidar_frame, xyz, offset, line,
+                                                         frame.reflectivity, frame.tag)])
         cloud = np.zeros(len(frame), dtype=_PC2_DTYPE)
         cloud["x"], cloud["y"], cloud["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+        cloud["intensity"] = frame.reflectivity
+        cloud["tag"] = frame.tag
         cloud["line"] = line
         cloud["timestamp"] = (stamp + offset).astype(np.float64)
         types = self.store.types
@@ -476,7 +484,7 @@ class FixedLayout:
 
 
 def custom_msg_cdr(stamp_ns: int, frame_id: str, xyz_flu: np.ndarray, offset_ns: np.ndarray,
-                   line: np.ndarray) -> bytes:
+                   line: np.ndarray, reflectivity: np.ndarray | None = None, tag: np.ndarray | None = None) -> bytes:
     """A ``livox_ros_driver2/msg/CustomMsg`` in little-endian CDR, built with numpy (rosbags would make a
     Python object per point); the tests check it byte for byte against rosbags' own serializer.
 
@@ -489,6 +497,8 @@ def custom_msg_cdr(stamp_ns: int, frame_id: str, xyz_flu: np.ndarray, offset_ns:
     offset_ns : (M,) int64
         Each point's time after ``timebase``, ns (< 2**32).
     line : (M,) uint8
+    reflectivity, tag : (M,) uint8, optional
+        Default 0 (no intensity) and 0x10 (a first return).
     """
     if offset_ns.size and (offset_ns.min() < 0 or offset_ns.max() >= 2**32):
         raise LivoxVizError("a CustomMsg's offset_time must fit uint32 ns (a frame under 4.29 s)")
@@ -512,5 +522,7 @@ def custom_msg_cdr(stamp_ns: int, frame_id: str, xyz_flu: np.ndarray, offset_ns:
     points["offset_time"] = offset_ns
     points["x"], points["y"], points["z"] = xyz_flu[:, 0], xyz_flu[:, 1], xyz_flu[:, 2]
     points["line"] = line
+    points["reflectivity"] = 0 if reflectivity is None else reflectivity
+    points["tag"] = 0x10 if tag is None else tag
     body = points.tobytes()
     return bytes(out) + (body[:-1] if body else body)  # no padding after the last point

@@ -27,7 +27,8 @@ class ReceivedFrame:
     """A frame received from RflySim (or our publisher), decoded with the sensor's range.
 
     Per-point times are not on the wire: every point carries the frame's
-    timestamp. Ranges and angles are those of the decoded int16 points.
+    timestamp. Ranges and angles are those of the decoded int16 points. Nor are
+    intensities or tags: reflectivity 0, tag 0x10, return 1 of 1.
 
     Parameters
     ----------
@@ -122,6 +123,26 @@ class ReceivedFrame:
     def xyz_world(self) -> np.ndarray:
         """Same as :attr:`xyz_world_decoded`: a received frame knows no truer point."""
         return self.xyz_world_decoded
+
+    @cached_property
+    def reflectivity(self) -> np.ndarray:
+        """``(M,)`` uint8 zeros: RflySim's wire carries no intensity."""
+        return np.zeros(len(self), dtype=np.uint8)
+
+    @cached_property
+    def tag(self) -> np.ndarray:
+        """``(M,)`` uint8 0x10 (return 1, no noise flags): the wire carries one point per ray."""
+        return np.full(len(self), 0x10, dtype=np.uint8)
+
+    @cached_property
+    def return_number(self) -> np.ndarray:
+        """``(M,)`` uint8 ones."""
+        return np.ones(len(self), dtype=np.uint8)
+
+    @property
+    def number_of_returns(self) -> np.ndarray:
+        """``(M,)`` uint8 ones."""
+        return self.return_number
 
 
 #: Per-point fields of a recording besides the usual ones (see ``PointCloudWriter(extra_fields=...)``).

@@ -118,9 +118,10 @@ def publish(frames: Iterable[ScanFrame], sender: UdpSender | ShmSender, speed: f
                 time.sleep(min(delay, 0.1))
         if stop is not None and stop():
             break
-        report.datagrams += sender.send(frame.timestamp, frame.sensor_pose.as_array(), frame.xyz_int16)
+        points = frame.wire_xyz_int16
+        report.datagrams += sender.send(frame.timestamp, frame.sensor_pose.as_array(), points)
         report.frames += 1
-        report.points += len(frame)
+        report.points += len(points)
         report.scan_seconds = frame.end_time
         if on_progress is not None:
             on_progress(report)
