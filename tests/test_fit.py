@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -129,7 +130,8 @@ def test_fit_cli_on_mid40(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
     rms = float(text.split("rms ")[1].split()[0])
     assert rms <= 0.25
     fitted = load_preset(str(out))
-    assert fitted == load_preset("livox_mid40")
+    # The shipped preset is the fit plus the Mid-40's return model (LivoxVizReturns), which a fit does not make.
+    assert fitted == replace(load_preset("livox_mid40"), returns=None)
     assert main(["compare", "--config", str(out), "mid40", "--plot", str(tmp_path / "c.png")]) == 0
     assert (tmp_path / "c.png").stat().st_size > 10_000
 

@@ -21,11 +21,11 @@ tests from cheapest to dearest:
    the surface (less than 20 deg of dihedral angle, facing the ray the same
    way, wider than the footprint's reach) does not count, so a cylinder's
    facets or a wall's diagonal do not make every hit a footprint.
-2. :class:`TileProxy`: a broad phase for occluders. The scene's objects become
-   boxes (a convex object one, others tiles at most :data:`TILE_SIZE` across),
-   inflated by the footprint's radius at their farthest distance from the
-   sensor; a ray through those boxes up to the footprint's farthest reach says
-   whether any box but the hit's own comes near the beam.
+2. :class:`TileProxy`: a broad phase for occluders. The scene's objects are cut
+   into tiles at most :data:`TILE_SIZE` across whose boxes are inflated by the
+   footprint's radius at their farthest distance from the sensor; a ray through
+   those boxes up to the footprint's farthest reach says whether any box but the
+   hit's own comes near the beam.
 3. Probes (:data:`PROBE_UNIT`): for the pulses the broad phase names, four rays
    at the corners of the ellipse's bounding box ask (Embree's occlusion query)
    whether anything lies in front of the hit's plane along them. A straight
@@ -72,6 +72,8 @@ PROBE_UNIT = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
 SMOOTH_DEG = 20.0
 #: Tiles of the broad phase are at most this long in any axis, metres.
 TILE_SIZE = 10.0
+#: A large triangle is cut into at most this many pieces along each of its two longest axes.
+CUT_CELLS = 24
 #: Objects of more triangles than this are not tested for convexity (taken as not convex).
 CONVEX_TEST_MAX = 4000
 
@@ -250,15 +252,15 @@ class TriangleEdges:
 
 
 class TileProxy:
-    """The broad phase: the scene's objects as boxes inflated by the footprint's reach.
+    """The broad phase: the scene's objects cut into tiles, each a box inflated by the footprint's reach.
 
-    A convex object is one box (its other faces cannot cover its own footprint);
-    another is cut into tiles (small triangles grouped by a :data:`TILE_SIZE` grid,
-    large ones cut along it). A flat object (every triangle in one plane, like
-    the ground) has no box: it covers part of a footprint on something else only
-    along that thing's own edge with it, which :meth:`TriangleEdges.leaves` sees
-    where the other object's mesh stops at the plane (one that pierces the
-    ground is the exception).
+    Small triangles are grouped by object and a :data:`TILE_SIZE` grid; large ones are cut along it.
+    A tile of the hit's own convex object cannot cover its footprint (that object's other faces lie
+    behind the hit), so it counts as the hit's own; for other objects only the hit triangle's tile does.
+    A flat object (every triangle in one plane, like the ground) has no tiles: it covers part of a
+    footprint on something else only along that thing's own edge with it, which
+    :meth:`TriangleEdges.leaves` sees where the other object's mesh stops at the plane (one that
+    pierces the ground is the exception).
 
     Parameters
     ----------
@@ -276,12 +278,16 @@ class TileProxy:
         parts = face_parts(mesh)
         triangles = np.asarray(mesh.triangles, dtype=np.float64)
         kind = _part_kinds(triangles, parts)
-        low, high, tile_triangle, triangle_tile = _tiles(triangles, parts, kind)
+        low, high, tile_part, tile_triangle, triangle_tile = _tiles(triangles, parts, kind)
         self.low, self.high = low, high
+        #: (T,) the object of each tile, and whether that object is convex.
+        self.tile_part = tile_part
+        self.tile_convex = kind[tile_part] == 1 if tile_part.size else np.zeros(0, dtype=bool)
         #: (T,) the one large triangle a tile is a piece of, else -1.
         self.tile_triangle = tile_triangle
-        #: (F,) each triangle's own tile (its object's box, or its group), -1 for none.
+        #: (F,) each small triangle's tile, -1 for a large one (its pieces name it) or a flat object's.
         self.triangle_tile = triangle_tile
+        self.triangle_part = parts.astype(np.int64)
         self.centre: np.ndarray | None = None
         self.radius = 0.0
         self._caster = None
@@ -310,7 +316,7 @@ class TileProxy:
             farthest = np.linalg.norm(corners - centre, axis=2).max(axis=1)
             grow = ((farthest + radius) * self.tan_half * 1.02 + 1e-3)[:, None]
             low, high = self.low - grow, self.high + grow
-            self._crowded = _overlapping(low, high, self.triangle_tile, self.tile_triangle)
+            self._crowded = _overlapping(low, high, self.tile_part, self.tile_convex, self.tile_triangle)
             if self._caster is not None and hasattr(self._caster, "close"):
                 self._caster.close()
             self._caster = self._caster_type(_box_mesh(low, high))
@@ -334,17 +340,22 @@ class TileProxy:
         distance, box = self._caster.hits(origins, directions, np.inf)
         tile = np.where(box >= 0, box // 12, -1)
         entered = (tile >= 0) & (distance < reach)
-        safe_tile, safe_triangle = np.maximum(tile, 0), np.maximum(triangle, 0)
-        own = entered & (triangle >= 0) & ((self.triangle_tile[safe_triangle] == tile)
-                                           | (self.tile_triangle[safe_tile] == triangle))
+        own = entered & (triangle >= 0) & self._own(tile, triangle)
         near = entered & ~own
-        # Inside its own box, the beam may still pass another box that overlaps it.
-        rows = np.flatnonzero(own & self._crowded[safe_tile])
+        # Inside its own box, the beam may still pass another object's box that overlaps it.
+        rows = np.flatnonzero(own & self._crowded[np.maximum(tile, 0)])
         if rows.size:
             start = distance[rows] + 1e-4
             ray_origin = (origins if origins.ndim == 1 else origins[rows]) + directions[rows] * start[:, None]
             near[rows] = self._caster.occluded(ray_origin, directions[rows], reach[rows] - start)
         return near
+
+    def _own(self, tile: np.ndarray, triangle: np.ndarray) -> np.ndarray:
+        """Whether each tile is the hit's own: a tile of its convex object, its triangle's tile or piece."""
+        tile = np.maximum(tile, 0)
+        triangle = np.maximum(triangle, 0)
+        same_convex = self.tile_convex[tile] & (self.tile_part[tile] == self.triangle_part[triangle])
+        return same_convex | (self.triangle_tile[triangle] == tile) | (self.tile_triangle[tile] == triangle)
 
 
 def _part_kinds(triangles: np.ndarray, parts: np.ndarray) -> np.ndarray:
@@ -378,71 +389,74 @@ def _part_kinds(triangles: np.ndarray, parts: np.ndarray) -> np.ndarray:
     return kind
 
 
-def _overlapping(low: np.ndarray, high: np.ndarray, triangle_tile: np.ndarray, tile_triangle: np.ndarray) -> np.ndarray:
-    """``(T,)`` bool: another box overlaps the tile's box (pieces of one large triangle do not count)."""
+def _overlapping(low: np.ndarray, high: np.ndarray, part: np.ndarray, convex: np.ndarray,
+                 piece_of: np.ndarray) -> np.ndarray:
+    """``(T,)`` bool: a box of something else overlaps the tile's box.
+
+    Tiles of one convex object, or pieces of one large triangle, are not something else.
+    """
     count = low.shape[0]
     if count > 6000:
         return np.ones(count, dtype=bool)
     crowded = np.zeros(count, dtype=bool)
     for first in range(0, count, 512):
-        block = slice(first, min(first + 512, count))
-        meets = np.all((low[block, None, :] <= high[None, :, :]) & (high[block, None, :] >= low[None, :, :]), axis=2)
-        rows = np.arange(block.start, block.stop)
+        rows = np.arange(first, min(first + 512, count))
+        meets = np.all((low[rows, None, :] <= high[None, :, :]) & (high[rows, None, :] >= low[None, :, :]), axis=2)
         meets[np.arange(rows.size), rows] = False
-        same = (tile_triangle[rows, None] >= 0) & (tile_triangle[rows, None] == tile_triangle[None, :])
-        crowded[block] = np.any(meets & ~same, axis=1)
+        same = ((convex[rows, None] & (part[rows, None] == part[None, :]))
+                | ((piece_of[rows, None] >= 0) & (piece_of[rows, None] == piece_of[None, :])))
+        crowded[rows] = np.any(meets & ~same, axis=1)
     return crowded
 
 
 def _tiles(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray):
-    """The broad phase's boxes: a convex part's own box, a flat part none, the rest in tiles.
+    """The broad phase's tiles: small triangles grouped by object and grid cell, large ones cut; none for flat objects.
 
     Returns
     -------
     low, high : (T, 3) float64
         Each tile's box.
+    tile_part : (T,) int
+        The object of each tile.
     tile_triangle : (T,) int
         The one large triangle a tile is a piece of, else -1.
     triangle_tile : (F,) int
-        Each triangle's own tile (its part's box, or its group of small triangles), -1 for a large
-        triangle (its pieces name it) or a flat part's.
+        The tile of each small triangle, -1 for a large one or a flat object's.
     """
-    lows, highs, tile_triangles = [], [], []
+    lows, highs, tile_parts, tile_triangles = [], [], [], []
     triangle_tile = np.full(triangles.shape[0], -1, dtype=np.int64)
     tri_low, tri_high = triangles.min(axis=1), triangles.max(axis=1)
-    part_kind = kind[parts]
+    solid = kind[parts] != 0
+    large = solid & ((tri_high - tri_low).max(axis=1) > TILE_SIZE)
+    small = np.flatnonzero(solid & ~large)
     tiles = 0
-
-    def add(low: np.ndarray, high: np.ndarray, members: np.ndarray | None, group: np.ndarray | None,
-            piece_of: int = -1) -> None:
-        nonlocal tiles
-        lows.append(low)
-        highs.append(high)
-        tile_triangles.append(np.full(low.shape[0], piece_of, dtype=np.int64))
-        if members is not None:
-            triangle_tile[members] = tiles + group
-        tiles += low.shape[0]
-
-    convex = np.flatnonzero(part_kind == 1)
-    if convex.size:
-        _, group = np.unique(parts[convex], return_inverse=True)
-        group = group.reshape(-1)
-        add(*_group_boxes(tri_low[convex], tri_high[convex], group), convex, group)
-    other = part_kind == 2
-    large = other & ((tri_high - tri_low).max(axis=1) > TILE_SIZE)
-    small = np.flatnonzero(other & ~large)
     if small.size:
-        # Small triangles grouped by part and the grid cell of their centroid; a group's box may exceed its cell
-        # by a triangle's size (at most TILE_SIZE).
+        # Grouped by object and the grid cell of their centroid; a group's box may exceed its cell by a
+        # triangle's size (at most TILE_SIZE).
         cell = np.floor(triangles[small].mean(axis=1) / TILE_SIZE).astype(np.int64)
         _, group = np.unique(np.column_stack([parts[small], cell]), axis=0, return_inverse=True)
         group = group.reshape(-1)
-        add(*_group_boxes(tri_low[small], tri_high[small], group), small, group)
+        low, high = _group_boxes(tri_low[small], tri_high[small], group)
+        part_of = np.zeros(low.shape[0], dtype=np.int64)
+        part_of[group] = parts[small]
+        triangle_tile[small] = group
+        lows.append(low)
+        highs.append(high)
+        tile_parts.append(part_of)
+        tile_triangles.append(np.full(low.shape[0], -1, dtype=np.int64))
+        tiles = low.shape[0]
     for t in np.flatnonzero(large):
-        add(*_cut_triangle(triangles[t]), None, None, int(t))
+        low, high = _cut_triangle(triangles[t])
+        lows.append(low)
+        highs.append(high)
+        tile_parts.append(np.full(low.shape[0], parts[t], dtype=np.int64))
+        tile_triangles.append(np.full(low.shape[0], t, dtype=np.int64))
+        tiles += low.shape[0]
     if not lows:
-        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.int64), triangle_tile
-    return np.concatenate(lows), np.concatenate(highs), np.concatenate(tile_triangles), triangle_tile
+        empty = np.zeros(0, np.int64)
+        return np.zeros((0, 3)), np.zeros((0, 3)), empty, empty, triangle_tile
+    return (np.concatenate(lows), np.concatenate(highs), np.concatenate(tile_parts), np.concatenate(tile_triangles),
+            triangle_tile)
 
 
 def _group_boxes(low: np.ndarray, high: np.ndarray, group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -461,8 +475,9 @@ def _cut_triangle(triangle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     size = high - low
     axes = np.argsort(size)[::-1]
     u, v, w = axes
-    nu = max(1, math.ceil(size[u] / TILE_SIZE))
-    nv = max(1, math.ceil(size[v] / TILE_SIZE))
+    # At most CUT_CELLS cells a side: a huge triangle's pieces grow (they are far, with a wide footprint anyway).
+    nu = min(CUT_CELLS, max(1, math.ceil(size[u] / TILE_SIZE)))
+    nv = min(CUT_CELLS, max(1, math.ceil(size[v] / TILE_SIZE)))
     eu = np.linspace(low[u], high[u], nu + 1)
     ev = np.linspace(low[v], high[v], nv + 1)
     cu0, cv0 = np.meshgrid(eu[:-1], ev[:-1], indexing="ij")

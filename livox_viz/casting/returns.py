@@ -47,7 +47,7 @@ import numpy as np
 
 from livox_viz.casting.beam import SUBRAY_WEIGHTS, Footprint, TileProxy, TriangleEdges
 from livox_viz.config.returns_params import ReturnParams
-from livox_viz.core.rotations import quat_rotate
+from livox_viz.core.rotations import quat_rotate, rotate_rows
 from livox_viz.core.streamrandom import MAX_COLUMNS, stream_normal, stream_uniform
 from livox_viz.scene.materials import face_materials
 
@@ -122,9 +122,7 @@ class _Placement:
     def to_world(self, vectors: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Sensor-frame vectors ``(len(rows), 3)`` of the pulses ``rows`` turned into the world frame."""
         if self.quaternion is None:
-            # Columns times the matrix's columns: small products through BLAS cost more than they do.
-            r = self.rotation
-            return vectors[:, 0:1] * r[:, 0] + vectors[:, 1:2] * r[:, 1] + vectors[:, 2:3] * r[:, 2]
+            return rotate_rows(vectors, self.rotation)
         return quat_rotate(self.quaternion[rows], vectors)
 
 

@@ -31,7 +31,7 @@ from livox_viz.casting.returns import ReturnModel
 from livox_viz.config.mount import sensor_mount, sensor_world_pose
 from livox_viz.config.sensor import SensorConfig
 from livox_viz.core.poses import Pose, pose_quaternion
-from livox_viz.core.rotations import quat_rotate
+from livox_viz.core.rotations import quat_rotate, rotate_rows
 from livox_viz.motion.track import SensorTrack
 from livox_viz.motion.trajectory import Trajectory
 from livox_viz.patterns.factory import make_pattern
@@ -222,7 +222,7 @@ class MountedCaster:
                 origin, directions_world = self.track.rays(chunk.t[first : first + CAST_PART], directions_sensor)
             else:
                 origin = self.sensor_pose.origin
-                directions_world = directions_sensor @ self.sensor_pose.rotation.T
+                directions_world = rotate_rows(directions_sensor, self.sensor_pose.rotation)
             if self.returns is not None:
                 quaternion = self.track.poses_at(chunk.t[first : first + CAST_PART])[1] if moving else None
                 found = self.returns.cast(chunk.start + first, xy, directions_sensor, directions_world, origin,
@@ -240,6 +240,16 @@ class MountedCaster:
             None if c[0] is None else np.concatenate(c) for c in zip(*parts, strict=True)]
         rows, range_m, xyz_sensor, xyz_world, reflectivity, tag, return_number, number_of_returns = (
             columns if len(parts) > 1 else parts[0])
+        xyz_int16 = encode_int16(xyz_sensor, config.range_max)
+        # A point nearer than half an int16 step would be published as (0, 0, 0), which a client reads as
+        # "no return": it is left out, like a ray that returns nothing.
+        at_zero = ~xyz_int16.any(axis=1)
+        if at_zero.any():
+            keep = ~at_zero
+            rows, range_m, xyz_sensor, xyz_world, xyz_int16 = (rows[keep], range_m[keep], xyz_sensor[keep],
+                                                              xyz_world[keep], xyz_int16[keep])
+            reflectivity, tag, return_number, number_of_returns = (
+                None if a is None else a[keep] for a in (reflectivity, tag, return_number, number_of_returns))
         return ScanFrame(
             index=chunk.start // config.points_per_frame,
             ray_count=len(chunk),
@@ -248,7 +258,7 @@ class MountedCaster:
             xy_deg=chunk.xy_deg[rows],
             range_m=range_m,
             xyz_sensor=xyz_sensor,
-            xyz_int16=encode_int16(xyz_sensor, config.range_max),
+            xyz_int16=xyz_int16,
             xyz_world=xyz_world,
             sensor_pose=self.sensor_pose_at(chunk.start / config.point_rate),
             timestamp=chunk.start / config.point_rate,

@@ -80,6 +80,15 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return out
 
 
+def rotate_rows(vectors: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """``(n, 3)`` vectors turned by one ``(3, 3)`` rotation, column by column.
+
+    Not ``vectors @ rotation.T``: BLAS may round a row differently with the number of rows, and a ray's
+    direction must not depend on how a scan is cut (the return model's noise and footprint follow it).
+    """
+    return (vectors[:, 0:1] * rotation[:, 0] + vectors[:, 1:2] * rotation[:, 1]) + vectors[:, 2:3] * rotation[:, 2]
+
+
 def quat_conjugate(q: np.ndarray) -> np.ndarray:
     """The inverse of unit quaternions ``(..., 4)``."""
     return np.asarray(q, dtype=np.float64) * np.array([-1.0, -1.0, -1.0, 1.0])

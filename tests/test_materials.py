@@ -1,0 +1,113 @@
+"""Surface materials: built-in scenes, mesh files' colours and sidecars, the default, and bad input."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from livox_viz import LivoxVizError
+from livox_viz.scene.materials import DEFAULT_REFLECTANCE, MATERIALS, face_materials, face_parts
+from livox_viz.scene.scenes import load_mesh_file, open_scene
+
+
+def luminance(rgb: tuple[int, int, int]) -> float:
+    r, g, b = (c / 255 for c in rgb)
+    return 0.2126 * r + 0.7152 * g + 0.0722 * b
+
+
+def coloured(rgb: tuple[int, int, int], name: str, offset: float) -> trimesh.Trimesh:
+    box = trimesh.creation.box((1, 1, 1), trimesh.transformations.translation_matrix((offset, 0, 0)))
+    box.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.SimpleMaterial(
+        name=name, diffuse=[*rgb, 255]))
+    return box
+
+
+def test_every_built_in_scene_has_plausible_materials() -> None:
+    for name in ("urban", "open_field", "dense_terrain"):
+        reflectance, gain = face_materials(open_scene(name).mesh, np.nan)
+        assert not np.isnan(reflectance).any() and np.all((reflectance > 0) & (reflectance <= 1)), name
+    urban = open_scene("urban")
+    reflectance, gain = face_materials(urban.mesh)
+    parts = face_parts(urban.mesh)
+    ground = parts == 0  # the first object
+    assert np.all(reflectance[ground] == MATERIALS["asphalt"].reflectance)
+    assert (gain > 1).sum() == 24  # two retroreflective signs, 12 triangles each
+    assert np.isin(MATERIALS["white_paint"].reflectance, reflectance) and np.isin(
+        MATERIALS["vegetation"].reflectance, reflectance)
+    assert len(np.unique(parts)) == 33
+
+
+def test_mesh_file_parts_take_their_material_colours(tmp_path: Path) -> None:
+    scene = trimesh.Scene({"road": coloured((30, 30, 30), "Road", 0.0),
+                           "sign": coloured((250, 250, 250), "Paint", 3.0)})
+    for suffix in (".obj", ".glb"):
+        path = tmp_path / f"street{suffix}"
+        scene.export(path)
+        mesh = load_mesh_file(path)
+        reflectance, _ = face_materials(mesh)
+        x = mesh.triangles_center[:, 0]
+        assert np.allclose(reflectance[x < 1.5], luminance((30, 30, 30)), atol=2e-3), suffix
+        assert np.allclose(reflectance[x > 1.5], luminance((250, 250, 250)), atol=2e-3), suffix
+
+
+def test_face_colours_and_the_default_reflectance(tmp_path: Path) -> None:
+    box = trimesh.creation.box((1, 1, 1))
+    colours = np.tile([200, 100, 50, 255], (len(box.faces), 1))
+    colours[:6] = [10, 20, 30, 255]
+    box.visual.face_colors = colours
+    box.export(tmp_path / "faces.ply")
+    reflectance, _ = face_materials(load_mesh_file(tmp_path / "faces.ply"))
+    assert sorted({round(v, 4) for v in reflectance}) == sorted({round(luminance((10, 20, 30)), 4),
+                                                                  round(luminance((200, 100, 50)), 4)})
+    trimesh.creation.box((1, 1, 1)).export(tmp_path / "plain.stl")
+    assert np.all(face_materials(load_mesh_file(tmp_path / "plain.stl"))[0] == DEFAULT_REFLECTANCE)
+    assert np.all(face_materials(open_scene(tmp_path / "plain.stl", reflectance=0.7).mesh)[0] == 0.7)
+
+
+def test_a_sidecar_maps_names_and_patterns(tmp_path: Path) -> None:
+    scene = trimesh.Scene({"road": coloured((30, 30, 30), "Road", 0.0), "sign_stop": coloured((90, 0, 0), "Red", 3.0),
+                           "wall": coloured((120, 120, 120), "Grey", 6.0)})
+    # glTF keeps the meshes' (nodes') names: they and glob patterns of them pick materials.
+    path = tmp_path / "street.glb"
+    scene.export(path)
+    (tmp_path / "street.materials.json").write_text(json.dumps({
+        "road": "asphalt", "sign_*": {"reflectance": 0.7, "retroreflective": True}}))
+    mesh = load_mesh_file(path)
+    reflectance, gain = face_materials(mesh)
+    x = mesh.triangles_center[:, 0]
+    assert np.all(reflectance[x < 1.5] == MATERIALS["asphalt"].reflectance) and np.all(gain[x < 1.5] == 1)
+    sign = (x > 1.5) & (x < 4.5)
+    assert np.all(reflectance[sign] == 0.7) and np.all(gain[sign] > 1)
+    assert np.allclose(reflectance[x > 4.5], luminance((120, 120, 120)), atol=2e-3)  # not in the sidecar
+    # OBJ parts are named by their materials (usemtl): those names work too.
+    obj = tmp_path / "street2.obj"
+    scene.export(obj)
+    (tmp_path / "street2.materials.json").write_text(json.dumps({"Grey": 0.9}))
+    mesh = load_mesh_file(obj)
+    reflectance, _ = face_materials(mesh)
+    assert np.all(reflectance[mesh.triangles_center[:, 0] > 4.5] == 0.9)
+
+
+@pytest.mark.parametrize(("material", "message"), [
+    ("unobtainium", "unknown material 'unobtainium'"), (1.5, "reflectance 1.5"),
+    ({"reflectance": 0.5, "retroreflective": "yes"}, "true or false"),
+    ({"reflectance": 0.5, "retro_gain": 0.5}, "retro_gain"), ({"shiny": True}, "allowed"),
+])
+def test_bad_materials_are_one_line_errors(tmp_path: Path, material: object, message: str) -> None:
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps({"objects": [{"type": "box", "center": [5, 0, 0], "size": [1, 1, 1],
+                                             "material": material}]}))
+    with pytest.raises(LivoxVizError, match=message) as error:
+        open_scene(path)
+    assert "\n" not in str(error.value) and "object 0" in str(error.value)
+
+
+def test_a_broken_sidecar_is_a_one_line_error(tmp_path: Path) -> None:
+    trimesh.creation.box((1, 1, 1)).export(tmp_path / "b.obj")
+    (tmp_path / "b.materials.json").write_text("{not json")
+    with pytest.raises(LivoxVizError, match=r"b\.materials\.json: not a readable material sidecar"):
+        load_mesh_file(tmp_path / "b.obj")

@@ -1,0 +1,354 @@
+"""The datasheet return model against the sheets and closed-form geometry, by seeded statistics (issue 17).
+
+Every expectation here is computed independently of the model: the sheets' figures typed from the issue's
+table, the true range of a ray to a plane from its pattern angles, the share of footprints straddling an
+edge from the beam's divergence and the pattern angles.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import trimesh
+
+from livox_viz import ConfigError, SensorConfig, load_preset
+from livox_viz.casting.codec import decode_int16
+from livox_viz.casting.scan import LidarScanner, MountedCaster
+from livox_viz.config.returns_params import DATASHEETS, ReturnParams
+from livox_viz.patterns.factory import make_pattern
+from livox_viz.scene.materials import set_face_materials
+from livox_viz.scene.raycast import EmbreeCaster, TrimeshCaster
+
+#: The issue's table, typed here by hand: (10 % range, 80 % range or None, sigma m, divergence H, V, blind, returns).
+SHEET = {
+    "mid40": (90, 260, 0.02, 0.03, 0.28, 1.0, 1),
+    "mid70": (90, 260, 0.02, 0.03, 0.28, 0.05, 2),
+    "avia": (190, 320, 0.02, 0.03, 0.28, 1.0, 3),
+    "hap": (150, None, 0.02, 0.03, 0.28, 0.5, 1),
+    "mid360": (40, 70, 0.02, None, None, 0.1, 1),
+}
+
+
+def at_origin(name: str, **returns: object) -> SensorConfig:
+    """A preset at the vehicle's origin, unrotated, with the datasheet model (and ``returns`` changed)."""
+    cfg = load_preset(name).with_returns_model("datasheet")
+    cfg = replace(cfg, sensor_pos_xyz=(0.0, 0.0, 0.0), sensor_ang_euler=(0.0, 0.0, 0.0))
+    return replace(cfg, returns=replace(cfg.returns, **returns)) if returns else cfg
+
+
+def surface(mesh: trimesh.Trimesh, reflectance: float, gain: float = 1.0) -> trimesh.Trimesh:
+    faces = len(mesh.faces)
+    return set_face_materials(mesh, np.full(faces, reflectance), np.full(faces, gain), np.zeros(faces))
+
+
+def wall(distance: float, reflectance: float, gain: float = 1.0) -> trimesh.Trimesh:
+    """A wall facing the sensor (normal -x) at ``distance`` metres, 4 km across."""
+    box = trimesh.creation.box((0.5, 4000, 4000), trimesh.transformations.translation_matrix((distance + 0.25, 0, 0)))
+    return surface(box, reflectance, gain)
+
+
+def scan(cfg: SensorConfig, mesh, seconds: float, seed: int = 3):
+    """The frames of ``seconds`` of scan, and the pattern angles of every ray fired."""
+    scanner = LidarScanner(cfg, EmbreeCaster(mesh) if isinstance(mesh, trimesh.Trimesh) else mesh, seed=seed)
+    frames = list(scanner.frames(seconds))
+    fired = make_pattern(cfg, seed=seed).take(sum(f.ray_count for f in frames)).xy_deg
+    return frames, fired
+
+
+def joined(frames, name: str) -> np.ndarray:
+    return np.concatenate([getattr(f, name) for f in frames])
+
+
+def off_axis_deg(xy_deg: np.ndarray) -> np.ndarray:
+    return np.hypot(xy_deg[:, 0], xy_deg[:, 1])
+
+
+# The sheets ----------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("preset", "sheet", "model"), [
+    ("livox_mid40_risley", "mid40", "datasheet"), ("livox_mid70_risley", "mid70", "datasheet"),
+    ("livox_mid40", "mid40", "ideal"), ("livox_mid70_fitted", "mid70", "ideal"), ("livox_mid70", "mid70", "ideal"),
+])
+def test_presets_carry_their_sheets(preset: str, sheet: str, model: str) -> None:
+    cfg = load_preset(preset)
+    params = cfg.return_params
+    near, far, sigma, h, v, blind, returns = SHEET[sheet]
+    assert cfg.returns_model == model  # the real sensors' presets use their sheet; RflySim's rosettes stay ideal
+    assert params.detection_range_m == ((0.1, near), (0.8, far))
+    assert params.range_sigma_m == ((20.0, sigma),)
+    assert params.divergence_deg == (h, v)
+    assert params.blind_zone_m == blind and params.returns_per_pulse == returns
+    assert params.false_alarm_rate == pytest.approx(1e-4)
+    description = load_preset(preset).to_json_dict().get("LivoxVizDescription", "")
+    if "LivoxVizReturns" in load_preset(preset).to_json_dict():
+        assert "chosen (unpublished)" in description
+
+
+@pytest.mark.parametrize("sheet", sorted(DATASHEETS))
+def test_the_lidar_equation_puts_the_threshold_at_each_sheet_figure(sheet: str) -> None:
+    params = DATASHEETS[sheet]
+    for reflectivity, range_m in params.detection_range_m:
+        assert params.signal_ratio(np.array([reflectivity]), np.array([1.0]), np.array([range_m]))[0] == (
+            pytest.approx(1.0, rel=1e-12))
+        assert params.detection_range(reflectivity) == pytest.approx(range_m, rel=1e-9)
+    if len(params.detection_range_m) == 2:
+        (p1, r1), (p2, r2) = params.detection_range_m
+        # rho e^(-2 a r) / r^2 equal at both figures.
+        alpha = params.range_loss_per_m
+        assert p1 * math.exp(-2 * alpha * r1) / r1**2 == pytest.approx(p2 * math.exp(-2 * alpha * r2) / r2**2)
+    # Power falls with range, as 1/r^2 at short range, and with the incidence cosine.
+    ranges = np.linspace(1.0, 2.0 * params.detection_range(0.8), 200)
+    power = params.signal_ratio(np.full(200, 0.5), np.ones(200), ranges)
+    assert np.all(np.diff(power) < 0)
+    assert params.signal_ratio(np.array([0.5]), np.array([0.5]), np.array([10.0]))[0] == pytest.approx(
+        0.5 * params.signal_ratio(np.array([0.5]), np.array([1.0]), np.array([10.0]))[0])
+
+
+def test_returns_json_round_trip_and_errors() -> None:
+    params = replace(DATASHEETS["tele15"], model="datasheet")
+    assert ReturnParams.from_json(params.to_json()) == params
+    # Keys left out take the Mid-70's sheet.
+    assert ReturnParams.from_json({"model": "datasheet"}) == DATASHEETS["mid70"]
+    for bad, message in [({"model": "noisy"}, "ideal or datasheet"), ({"blind_zone_m": -1}, "blind_zone_m"),
+                         ({"returns_per_pulse": 4}, "1, 2 or 3"), ({"divergence_deg": [0.03]}, "divergence"),
+                         ({"detection_range_m": [[0.1, 300], [0.8, 100]]}, "brighter target"),
+                         ({"detection_range_m": [[0.1, 90], [0.8, 2000]]}, "grow with range"),
+                         ({"range_sigma_m": [[20, 0.02], [10, 0.03]]}, "must increase"),
+                         ({"noise": 1}, "unknown key 'noise'")]:
+        with pytest.raises(ConfigError, match=message):
+            ReturnParams.from_json(bad)
+
+
+def test_sliders_move_the_sheet_as_a_whole() -> None:
+    cfg = load_preset("livox_mid70_risley")
+    farther = cfg.with_param("returns_detection_range_10", 120.0)
+    assert farther.return_params.detection_range(0.1) == pytest.approx(120.0)
+    assert farther.return_params.detection_range(0.8) == pytest.approx(260.0 * 120.0 / 90.0)
+    noisier = cfg.with_param("returns_range_sigma", 0.05)
+    assert noisier.return_params.range_sigma(np.array([5.0, 20.0, 300.0])).tolist() == [0.05] * 3
+    assert cfg.with_param("returns_blind_zone", 2.0).return_params.blind_zone_m == 2.0
+    with pytest.raises(ConfigError, match="blind_zone"):
+        cfg.with_param("returns_blind_zone", 50.0)
+
+
+# Range noise and reflectivity ------------------------------------------------------------------------------
+@pytest.mark.parametrize("preset", ["livox_mid40_risley", "livox_mid70_risley"])
+def test_range_noise_on_a_wall_at_20_m_is_the_sheets(preset: str) -> None:
+    cfg = at_origin(preset)
+    frames, _ = scan(cfg, wall(20.0, 0.5), 0.5)
+    xy = joined(frames, "xy_deg")
+    true = 20.0 / np.cos(np.radians(off_axis_deg(xy)))  # the plane x = 20 along each ray
+    measured = joined(frames, "range_m")
+    residual = measured - true
+    assert residual.size > 40_000
+    assert np.std(residual) == pytest.approx(0.02, rel=0.10)
+    assert abs(np.mean(residual)) < 3 * 0.02 / math.sqrt(residual.size)
+    # What a client decodes adds the int16 step's uniform error: along x, q^2/12 (the wall is normal to x).
+    step = cfg.range_step
+    decoded = joined(frames, "xyz_decoded")[:, 0] - 20.0
+    assert np.std(decoded) == pytest.approx(math.sqrt(0.02**2 + step**2 / 12), rel=0.10)
+    assert math.sqrt(0.02**2 + step**2 / 12) > 0.0203  # the step is not negligible here
+
+
+@pytest.mark.parametrize(("reflectance", "byte"), [(0.5, 75), (0.1, 15)])
+def test_reflectivity_byte_of_a_lambertian_wall(reflectance: float, byte: int) -> None:
+    frames, _ = scan(at_origin("livox_mid40_risley"), wall(20.0, reflectance), 0.3)
+    xy = joined(frames, "xy_deg")
+    normal = off_axis_deg(xy) < 3.0  # normal incidence: cos >= 0.9986
+    values = joined(frames, "reflectivity")[normal].astype(float)
+    assert values.size > 1000
+    assert abs(values.mean() - byte) <= 3 and np.all(np.abs(values - byte) <= 3)
+    # Off the normal the byte follows the incidence cosine (Lambertian), as the sensor cannot know it.
+    oblique = off_axis_deg(xy) > 15.0
+    expected = 150 * reflectance * np.cos(np.radians(off_axis_deg(xy[oblique])))
+    assert np.abs(joined(frames, "reflectivity")[oblique] - expected).max() <= 3
+
+
+def test_a_retroreflective_sign_reads_above_150_and_walls_below() -> None:
+    sign = surface(trimesh.creation.box((0.05, 2.0, 2.0), trimesh.transformations.translation_matrix((30, 0, 0))),
+                   0.8, 300.0)
+    scene = trimesh.util.concatenate([sign, wall(60.0, 0.9)])
+    frames, _ = scan(at_origin("livox_mid70_risley"), scene, 0.3)
+    x = joined(frames, "xyz_sensor")[:, 0]
+    byte = joined(frames, "reflectivity")
+    on_sign, on_wall = x < 45, x > 45
+    assert on_sign.sum() > 100 and on_wall.sum() > 1000
+    assert byte[on_sign & (joined(frames, "tag") & 0x03 == 0)].min() >= 151
+    assert byte[on_wall].max() <= 150
+
+
+# Detection range -----------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("reflectance", "sheet_range"), [(0.1, 90.0), (0.8, 260.0)])
+def test_detection_probability_around_the_sheets_range(reflectance: float, sheet_range: float) -> None:
+    cfg = at_origin("livox_mid40_risley")
+    shares = []
+    for factor in (0.8, 1.0, 1.2):
+        frames, fired = scan(cfg, wall(sheet_range * factor, reflectance), 0.4)
+        returned = off_axis_deg(joined(frames, "xy_deg")) < 2.0
+        tried = off_axis_deg(fired) < 2.0
+        shares.append(returned.sum() / tried.sum())
+    assert shares[0] >= 0.90
+    assert 0.40 <= shares[1] <= 0.60
+    assert shares[2] <= 0.10
+
+
+# The footprint ---------------------------------------------------------------------------------------------
+def step_edge(vertical: bool) -> trimesh.Trimesh:
+    """A plate at 15 m covering the lower half-space (or the right one), in front of a wall at 25 m."""
+    size, centre = ((0.5, 200, 200), (15.25, 100, 0)) if vertical else ((0.5, 200, 200), (15.25, 0, 100))
+    plate = surface(trimesh.creation.box(size, trimesh.transformations.translation_matrix(centre)), 0.5)
+    return trimesh.util.concatenate([plate, wall(25.0, 0.5)])
+
+
+@pytest.mark.parametrize(("preset", "vertical"), [("livox_mid40_risley", False), ("livox_mid70_risley", False),
+                                                   ("livox_mid70_risley", True)])
+def test_a_step_edge_gives_mixed_or_dual_returns_where_footprints_straddle_it(preset: str, vertical: bool) -> None:
+    # The vertical edge gets a wide horizontal divergence so enough beams straddle it to count.
+    divergence = (0.28, 0.03) if vertical else (0.03, 0.28)
+    cfg = at_origin(preset, divergence_deg=divergence)
+    frames, fired = scan(cfg, step_edge(vertical), 1.0)
+    # Closed form: the edge is the plane y = 0 (vertical) or z = 0: pattern x = 0 or y = 0. A footprint straddles
+    # it when the ellipse's half-extent across it reaches over.
+    across = 0 if vertical else 1
+    half = divergence[across] / 2.0
+    straddling = np.abs(fired[:, across]) < half
+    expected = straddling.mean()
+    stream = joined(frames, "stream_index")
+    tag = joined(frames, "tag")
+    number = joined(frames, "return_number")
+    returns = joined(frames, "number_of_returns")
+    x = joined(frames, "xyz_sensor")[:, 0]
+    pulses = sum(f.ray_count for f in frames)
+    if cfg.return_params.returns_per_pulse == 1:
+        mixed = (tag & 0x03) != 0
+        measured = np.unique(stream[mixed]).size / pulses
+        # A mixed point lies between the plate and the wall, is a first return, and is flagged as noise.
+        assert np.all((x[mixed] > 15.05) & (x[mixed] < 24.95))
+        assert np.all(tag[mixed] & 0x30 == 0x10) and np.all(number[mixed] == 1)
+        clean = x[~mixed]
+        assert np.all((np.abs(clean - 15.0) < 0.15) | (np.abs(clean - 25.0) < 0.15))
+    else:
+        dual = returns == 2
+        measured = np.unique(stream[dual]).size / pulses
+        first, second = dual & (number == 1), dual & (number == 2)
+        assert first.sum() == second.sum()
+        assert np.allclose(x[first], 15.0, atol=0.15) and np.allclose(x[second], 25.0, atol=0.15)
+        assert np.all(tag[first] & 0x30 == 0x10) and np.all(tag[second] & 0x30 == 0x20)
+        assert np.all(tag[dual] & 0x03 == 0)  # each return lies on its own surface
+    assert expected > 0.005
+    assert measured == pytest.approx(expected, rel=0.20)
+
+
+def test_a_pole_thinner_than_the_footprint_is_seen_with_the_energy_it_intercepts() -> None:
+    # A 2 cm bar across the boresight at 10 m (the footprint is 4.9 cm tall there) in front of a wall at 80 m.
+    cfg = at_origin("livox_mid40_risley")
+    bar = surface(trimesh.creation.box((0.02, 40, 0.02), trimesh.transformations.translation_matrix((10, 0, 0.05))),
+                  0.8)
+    frames, fired = scan(cfg, trimesh.util.concatenate([bar, wall(80.0, 0.05)]), 1.0)
+    x = joined(frames, "xyz_sensor")[:, 0]
+    byte = joined(frames, "reflectivity")
+    near = x < 40
+    # Beams whose central ray misses the bar but whose footprint meets it return from the bar, dimmer.
+    y_bar = np.degrees(np.arctan2(-0.05, 10.0))  # pattern y of the bar's centre line (z down, y up)
+    central_on_bar = np.abs(fired[:, 1] - y_bar) < np.degrees(0.01 / 10.0)
+    assert near.sum() > 1.5 * central_on_bar.sum()
+    assert np.median(byte[near]) < 0.8 * 150
+
+
+# Blind zone, (0, 0, 0), false alarms -------------------------------------------------------------------------
+def test_nothing_nearer_than_the_blind_zone() -> None:
+    cfg = at_origin("livox_mid40_risley")  # blind zone 1 m
+    frames, _ = scan(cfg, wall(0.7, 0.5), 0.2)
+    real = joined(frames, "tag") & 0x0C == 0
+    assert real.sum() == 0  # the wall inside the blind zone returns nothing (only the odd false alarm)
+    assert np.all(joined(frames, "range_m") >= 1.0)
+    frames, _ = scan(cfg, wall(1.3, 0.5), 0.2)
+    assert len(joined(frames, "range_m")) > 10_000 and joined(frames, "range_m").min() >= 1.0
+    # A first return nearer than the return-0 range is tagged return 0 (FAST-LIO keeps it).
+    assert np.all(joined(frames, "tag") & 0x30 == 0)
+
+
+def test_no_point_at_the_origin_and_false_alarms_at_the_sheets_rate() -> None:
+    # Nothing in front: a box behind the sensor. Every point is a false alarm.
+    cfg = at_origin("livox_mid40_risley")
+    behind = surface(trimesh.creation.box((1, 1, 1), trimesh.transformations.translation_matrix((-5, 0, 0))), 0.5)
+    frames, _ = scan(cfg, behind, 20.0, seed=11)
+    pulses = sum(f.ray_count for f in frames)
+    count = sum(len(f) for f in frames)
+    expected = pulses * 1e-4
+    assert abs(count - expected) < 3.5 * math.sqrt(expected)
+    tag = joined(frames, "tag")
+    assert np.all(tag == 0x15)  # spatial 01 and intensity 01: noise; return 1 (FAST-LIO would keep it)
+    ranges = joined(frames, "range_m")
+    assert ranges.min() >= 1.0 and ranges.max() <= 260.0 and np.ptp(ranges) > 200
+    assert np.all(np.abs(joined(frames, "xyz_int16")).max(axis=1) > 0)
+
+
+def test_the_sky_gives_no_points_without_false_alarms() -> None:
+    cfg = at_origin("livox_mid70_risley", false_alarm_rate=0.0)
+    behind = surface(trimesh.creation.box((1, 1, 1), trimesh.transformations.translation_matrix((-5, 0, 0))), 0.5)
+    frames, _ = scan(cfg, behind, 0.5)
+    assert sum(len(f) for f in frames) == 0
+
+
+# Determinism -------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("preset", ["livox_mid40_risley", "livox_mid70_risley"])
+def test_same_seed_same_cloud_however_the_scan_is_cut(preset: str) -> None:
+    from livox_viz.scene.scenes import open_scene
+
+    urban = open_scene("urban")
+    cfg = load_preset(preset)
+    caster = EmbreeCaster(urban.mesh)
+    whole = list(LidarScanner(cfg, caster, urban.vehicle_pose, seed=5).frames(0.3))
+    pattern = make_pattern(cfg, seed=5)
+    mounted = MountedCaster(cfg, caster, urban.vehicle_pose, seed=5)
+    sizes = [1, 7, 2500, 313, 9999, 4]
+    cut = []
+    while pattern.position < 30_000:
+        cut.append(mounted.cast(pattern.take(min(sizes[len(cut) % len(sizes)], 30_000 - pattern.position))))
+    for name in ("stream_index", "xyz_int16", "range_m", "reflectivity", "tag", "return_number",
+                 "number_of_returns"):
+        assert np.array_equal(joined(whole, name), joined(cut, name)), name
+    # The Risley stream's angles themselves differ in the last bit with the chunk (its BLAS product's width).
+    np.testing.assert_allclose(joined(whole, "xyz_world"), joined(cut, "xyz_world"), rtol=0, atol=1e-12)
+    other = list(LidarScanner(cfg, caster, urban.vehicle_pose, seed=6).frames(0.3))
+    assert not np.array_equal(joined(whole, "xyz_int16")[:1000], joined(other, "xyz_int16")[:1000])
+    assert len(set(joined(whole, "tag").tolist())) >= 3  # the urban scan has mixed points and near returns
+
+
+def test_the_trimesh_caster_gives_the_same_returns() -> None:
+    cfg = at_origin("livox_mid70_risley")
+    mesh = step_edge(vertical=False)
+    embree = list(LidarScanner(cfg, EmbreeCaster(mesh, exact=True), seed=2).frames(0.02))
+    numpy_backend = list(LidarScanner(cfg, TrimeshCaster(mesh), seed=2).frames(0.02))
+    assert np.array_equal(joined(embree, "stream_index"), joined(numpy_backend, "stream_index"))
+    assert np.array_equal(joined(embree, "tag"), joined(numpy_backend, "tag"))
+    # Sub-ray directions are float32 (what Embree takes): their ranges agree to well under a millimetre.
+    np.testing.assert_allclose(joined(embree, "range_m"), joined(numpy_backend, "range_m"), atol=1e-4)
+
+
+def test_ideal_returns_are_the_exact_first_hits() -> None:
+    cfg = at_origin("livox_mid70_risley").with_returns_model("ideal")
+    frames, fired = scan(cfg, wall(20.0, 0.5), 0.1)
+    assert sum(len(f) for f in frames) == len(fired)
+    np.testing.assert_allclose(joined(frames, "range_m"), 20.0 / np.cos(np.radians(off_axis_deg(fired))),
+                               atol=1e-3)
+    assert np.all(joined(frames, "tag") == 0x10) and np.all(joined(frames, "reflectivity") == 0)
+    assert np.all(joined(frames, "return_number") == 1)
+
+
+def test_a_moving_sensor_gets_returns_from_its_own_pose() -> None:
+    from livox_viz.core.poses import Pose
+    from livox_viz.motion.flights import builtin_trajectory
+
+    cfg = at_origin("livox_mid70_risley")
+    flight = builtin_trajectory("line", 8.0, Pose(), 0.6)
+    scanner = LidarScanner(cfg, EmbreeCaster(wall(30.0, 0.5)), trajectory=flight, seed=1)
+    frames = list(scanner.frames(0.5))
+    world = joined(frames, "xyz_world")
+    # Every point lies on the wall (x = 30 in the world) up to the range noise, from wherever the sensor was.
+    assert np.abs(world[:, 0] - 30.0).max() < 6 * 0.02
+    decoded = decode_int16(joined(frames, "xyz_int16"), cfg.range_max)
+    assert np.abs(decoded[:, 0] - joined(frames, "xyz_sensor")[:, 0]).max() < cfg.range_step
