@@ -292,17 +292,19 @@ class TileProxy:
         self.radius = 0.0
         self._caster = None
         self._crowded = np.zeros(low.shape[0], dtype=bool)
+        self.in_use = np.zeros(0, dtype=np.int64)
 
     @property
     def tiles(self) -> int:
         """Boxes in the broad phase."""
         return int(self.low.shape[0])
 
-    def place(self, positions: np.ndarray, margin: float = 10.0) -> None:
+    def place(self, positions: np.ndarray, range_max: float, margin: float = 10.0) -> None:
         """Make sure the inflated boxes cover beams fired from ``positions`` ``(k, 3)`` (world, metres).
 
         The boxes are inflated for a sphere of sensor positions: a fixed sensor's point, or the
         positions of a moving one plus ``margin`` metres; they are rebuilt only when the sensor leaves it.
+        Tiles wholly beyond ``range_max`` metres from it are left out (nothing there is in front of a hit).
         """
         positions = np.atleast_2d(np.asarray(positions, dtype=np.float64))
         if self.centre is not None and np.all(np.linalg.norm(positions - self.centre, axis=1) <= self.radius + 1e-9):
@@ -314,12 +316,18 @@ class TileProxy:
             corners = np.where(((np.arange(8)[:, None] >> np.arange(3)) & 1).astype(bool)[None],
                                self.high[:, None, :], self.low[:, None, :])
             farthest = np.linalg.norm(corners - centre, axis=2).max(axis=1)
-            grow = ((farthest + radius) * self.tan_half * 1.02 + 1e-3)[:, None]
-            low, high = self.low - grow, self.high + grow
-            self._crowded = _overlapping(low, high, self.tile_part, self.tile_convex, self.tile_triangle)
+            nearest = np.linalg.norm(np.clip(centre, self.low, self.high) - centre, axis=1)
+            #: The tiles in the broad phase (box k of it is tile ``in_use[k]``).
+            self.in_use = np.flatnonzero(nearest - radius <= range_max)
+            grow = ((farthest[self.in_use] + radius) * self.tan_half * 1.02 + 1e-3)[:, None]
+            low, high = self.low[self.in_use] - grow, self.high[self.in_use] + grow
+            crowded = _overlapping(low, high, self.tile_part[self.in_use], self.tile_convex[self.in_use],
+                                   self.tile_triangle[self.in_use])
+            self._crowded = np.zeros(self.tiles, dtype=bool)
+            self._crowded[self.in_use] = crowded
             if self._caster is not None and hasattr(self._caster, "close"):
                 self._caster.close()
-            self._caster = self._caster_type(_box_mesh(low, high))
+            self._caster = self._caster_type(_box_mesh(low, high)) if self.in_use.size else None
         self.centre, self.radius = centre, radius
 
     def near(self, origins: np.ndarray, directions: np.ndarray, reach: np.ndarray,
@@ -337,9 +345,9 @@ class TileProxy:
         """
         if self._caster is None:
             return np.zeros(directions.shape[0], dtype=bool)
-        distance, box = self._caster.hits(origins, directions, np.inf)
-        tile = np.where(box >= 0, box // 12, -1)
-        entered = (tile >= 0) & (distance < reach)
+        distance, box = self._caster.hits(origins, directions, reach)
+        tile = np.where(box >= 0, self.in_use[np.maximum(box, 0) // 12], -1)
+        entered = tile >= 0
         own = entered & (triangle >= 0) & self._own(tile, triangle)
         near = entered & ~own
         # Inside its own box, the beam may still pass another object's box that overlaps it.
@@ -361,7 +369,7 @@ class TileProxy:
 def _part_kinds(triangles: np.ndarray, parts: np.ndarray) -> np.ndarray:
     """``(P,)`` int: 0 flat (one plane), 1 convex, 2 anything else.
 
-    Convex: every vertex of the part lies on or behind every one of its triangles' planes (parts of more than
+    Convex: every vertex of the part lies on one side of each of its triangles' planes (parts of more than
     :data:`CONVEX_TEST_MAX` triangles are not tested).
     """
     count = int(parts.max()) + 1 if parts.size else 0
@@ -384,8 +392,8 @@ def _part_kinds(triangles: np.ndarray, parts: np.ndarray) -> np.ndarray:
         height = vertices @ normal.T - np.einsum("ij,ij->i", normal, tri[good, 0])[None, :]
         if np.all(np.abs(height) <= tolerance):
             kind[part] = 0
-        elif np.all(height <= tolerance):
-            kind[part] = 1
+        elif np.all((height <= tolerance).all(axis=0) | (height >= -tolerance).all(axis=0)):
+            kind[part] = 1  # every face's plane has the whole object on one side (whichever way it was wound)
     return kind
 
 

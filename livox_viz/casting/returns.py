@@ -41,6 +41,7 @@ into frames.
 from __future__ import annotations
 
 import time
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -172,11 +173,12 @@ class ReturnModel:
         self.seed = int(seed)
         self.range_max = float(range_max)
         self.footprint = Footprint(params.divergence_deg)
-        reflectance, gain = face_materials(caster.mesh)
+        self._tables = _scene_tables(caster)
+        if "brightness" not in self._tables:
+            reflectance, gain = face_materials(caster.mesh)
+            self._tables["brightness"] = reflectance * gain
         #: (F,) Lambertian reflectance x retroreflective gain of each triangle.
-        self.brightness = reflectance * gain
-        self._edges: TriangleEdges | None = None
-        self._proxy: TileProxy | None = None
+        self.brightness = self._tables["brightness"]
         #: Farthest range a false alarm may come from: the sensor's range gate.
         self.false_alarm_reach = min(self.range_max, params.detection_range(0.8))
         #: What the last run did (for benchmarks): pulses, footprints leaving their triangle, pulses the broad
@@ -193,17 +195,18 @@ class ReturnModel:
 
     @property
     def edges(self) -> TriangleEdges:
-        """The triangles' edge lines and smooth neighbours (made on first use: a large scene takes a moment)."""
-        if self._edges is None:
-            self._edges = TriangleEdges(self.caster.mesh)
-        return self._edges
+        """The triangles' edge lines and smooth neighbours (made on first use, once per scene)."""
+        if "edges" not in self._tables:
+            self._tables["edges"] = TriangleEdges(self.caster.mesh)
+        return self._tables["edges"]
 
     @property
     def proxy(self) -> TileProxy:
-        """The broad phase's boxes (made on first use)."""
-        if self._proxy is None:
-            self._proxy = TileProxy(self.caster.mesh, self.footprint.tan_half_max, type(self.caster))
-        return self._proxy
+        """The broad phase's boxes (made on first use, once per scene and beam divergence)."""
+        key = ("proxy", self.footprint.tan_half_max)
+        if key not in self._tables:
+            self._tables[key] = TileProxy(self.caster.mesh, self.footprint.tan_half_max, type(self.caster))
+        return self._tables[key]
 
     # The run ------------------------------------------------------------------------------------------
     def cast(self, start: int, xy_deg: np.ndarray, directions_sensor: np.ndarray, directions_world: np.ndarray,
@@ -304,7 +307,8 @@ class ReturnModel:
                  reach: np.ndarray, distance: np.ndarray, triangle: np.ndarray) -> np.ndarray:
         """Of ``rows``, those whose footprint something nearer covers in part (sorted)."""
         proxy = self.proxy
-        proxy.place(place.origin if place.quaternion is None else place.origin[:: max(1, rows.size // 64)])
+        proxy.place(place.origin if place.quaternion is None else place.origin[:: max(1, rows.size // 64)],
+                    self.range_max)
         near = proxy.near(place.origins(rows), directions_world[rows], reach[rows], triangle[rows])
         rows = rows[near]
         self.last_counts["near"] = int(rows.size)
@@ -465,6 +469,18 @@ class ReturnModel:
             xyz_world = place.origin_of(beam) + directions_world[beam] * along
         return ReturnPoints(beam, measured, xyz_sensor, xyz_world, reflectivity, tag, number.astype(np.uint8),
                             returns.astype(np.uint8))
+
+
+#: Per ray caster (one scene): the tables a return model makes from its mesh, kept while the caster lives, so a
+#: restart (a slider, a new preset) does not make them again.
+_TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _scene_tables(caster) -> dict:
+    try:
+        return _TABLES.setdefault(caster, {})
+    except TypeError:  # a caster that cannot be weakly referenced keeps its tables with the model
+        return {}
 
 
 def _jitter(direction: np.ndarray, noise: np.ndarray, sigma_rad: float) -> np.ndarray:

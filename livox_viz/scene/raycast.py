@@ -118,7 +118,7 @@ class EmbreeCaster:
         return self._planes
 
     def hits(self, origins: np.ndarray, directions: np.ndarray,
-             max_distance: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
+             max_distance: float | np.ndarray = np.inf) -> tuple[np.ndarray, np.ndarray]:
         """Distance to each ray's first hit and the triangle it hit.
 
         Parameters
@@ -127,8 +127,8 @@ class EmbreeCaster:
             Ray origins, metres, world frame.
         directions : (n, 3) float
             Unit ray directions.
-        max_distance : float
-            Hits farther than this are misses, metres.
+        max_distance : float or (n,) float
+            Hits farther than this are misses, metres (per ray or for all).
 
         Returns
         -------
@@ -144,7 +144,9 @@ class EmbreeCaster:
         triangle = np.empty(count, dtype=np.int32)
         if count == 0:
             return distance, triangle
-        limit = np.float32(min(max_distance, 1e37))
+        per_ray = np.ndim(max_distance) > 0
+        limits = (np.minimum(np.asarray(max_distance, dtype=np.float64), 1e37) if per_ray
+                  else np.float32(min(max_distance, 1e37)))
         local = origins - self.local_origin
         shared_origin = local.shape[0] == 1
 
@@ -153,8 +155,10 @@ class EmbreeCaster:
             rows = stop - start
             part_origins = np.ascontiguousarray(
                 np.broadcast_to(local[0] if shared_origin else local[start:stop], (rows, 3)), dtype=np.float32)
+            dists = (np.ascontiguousarray(limits[start:stop], dtype=np.float32) if per_ray
+                     else np.full(rows, limits, dtype=np.float32))
             found = self._scene.run(part_origins, np.ascontiguousarray(directions[start:stop], dtype=np.float32),
-                                    dists=np.full(rows, limit, dtype=np.float32), query="INTERSECT", output=1)
+                                    dists=dists, query="INTERSECT", output=1)
             # Embree reports only hits nearer than the limit; a miss has primID -1.
             ids = found["primID"]
             hit = ids >= 0
@@ -460,7 +464,7 @@ class TrimeshCaster:
         return self._planes
 
     def hits(self, origins: np.ndarray, directions: np.ndarray,
-             max_distance: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
+             max_distance: float | np.ndarray = np.inf) -> tuple[np.ndarray, np.ndarray]:
         """See :meth:`EmbreeCaster.hits`."""
         origins, directions = _check_rays(origins, directions)
         origins = np.broadcast_to(origins, directions.shape)
