@@ -280,8 +280,10 @@ def test_no_point_at_the_origin_and_false_alarms_at_the_sheets_rate() -> None:
     expected = pulses * 1e-4
     assert abs(count - expected) < 3.5 * math.sqrt(expected)
     tag = joined(frames, "tag")
-    assert np.all(tag == 0x15)  # spatial 01 and intensity 01: noise; return 1 (FAST-LIO would keep it)
     ranges = joined(frames, "range_m")
+    # Spatial 01 and intensity 01: noise; return 1, or 0 nearer than the return-0 range (FAST-LIO keeps both).
+    assert np.all(tag & 0x0F == 0x05)
+    assert np.all(tag[ranges >= 1.5] & 0x30 == 0x10) and np.all(tag[ranges < 1.5] & 0x30 == 0x00)
     assert ranges.min() >= 1.0 and ranges.max() <= 260.0 and np.ptp(ranges) > 200
     assert np.all(np.abs(joined(frames, "xyz_int16")).max(axis=1) > 0)
 
@@ -352,3 +354,22 @@ def test_a_moving_sensor_gets_returns_from_its_own_pose() -> None:
     assert np.abs(world[:, 0] - 30.0).max() < 6 * 0.02
     decoded = decode_int16(joined(frames, "xyz_int16"), cfg.range_max)
     assert np.abs(decoded[:, 0] - joined(frames, "xyz_sensor")[:, 0]).max() < cfg.range_step
+
+
+def test_the_compiled_random_numbers_are_streamrandoms() -> None:
+    from livox_viz.casting import return_kernels
+    from livox_viz.core.streamrandom import stream_key, stream_normal, stream_uniform
+
+    return_kernels.kernel("false_alarms")  # compiles the shared helpers too
+    index = np.array([0, 1, 7, 123_456_789, 2**40 + 3])
+    key = np.uint64(stream_key(9, 2))
+    normal = stream_normal(9, 2, index, 4)
+    uniform = stream_uniform(9, 2, index, 3)
+    for row, i in enumerate(index):
+        for pair in (0, 1):
+            got = return_kernels._normal_pair(key, int(i), pair)
+            np.testing.assert_allclose(got, normal[row, 2 * pair : 2 * pair + 2], rtol=0, atol=1e-12)
+        assert [return_kernels._uniform(key, int(i), c) for c in range(3)] == uniform[row].tolist()
+    # And they are normal and uniform: moments of 200 000 draws.
+    many = stream_normal(9, 2, np.arange(200_000), 2)
+    assert abs(many.mean()) < 0.01 and abs(many.std() - 1) < 0.01 and abs(np.corrcoef(many.T)[0, 1]) < 0.01

@@ -363,7 +363,7 @@ def test_restart_columns_in_every_format(tmp_path: Path, suffix: str, capsys: py
 
 def _read_binary_ply(path: Path) -> dict[str, np.ndarray]:
     """A binary little-endian PLY vertex list, read from its header's declared properties."""
-    types = {"float": "<f4", "double": "<f8", "uint": "<u4", "int": "<i4"}
+    types = {"float": "<f4", "double": "<f8", "uint": "<u4", "int": "<i4", "uchar": "u1"}
     raw = path.read_bytes()
     header, body = raw.split(b"end_header\n", 1)
     lines = header.decode().splitlines()

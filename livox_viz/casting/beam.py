@@ -22,10 +22,11 @@ tests from cheapest to dearest:
    way, wider than the footprint's reach) does not count, so a cylinder's
    facets or a wall's diagonal do not make every hit a footprint.
 2. :class:`TileProxy`: a broad phase for occluders. The scene's objects are cut
-   into tiles at most :data:`TILE_SIZE` across whose boxes are inflated by the
-   footprint's radius at their farthest distance from the sensor; a ray through
-   those boxes up to the footprint's farthest reach says whether any box but the
-   hit's own comes near the beam.
+   into tiles at most :data:`TILE_SIZE` across (a convex object up to
+   :data:`WHOLE_CONVEX` is one) whose boxes are inflated by the footprint's radius
+   at their farthest distance from the sensor; a ray through those boxes up to the
+   footprint's farthest reach (a compiled walk down a tree of the boxes) says
+   whether any box but the hit's own comes near the beam.
 3. Probes (:data:`PROBE_UNIT`): for the pulses the broad phase names, four rays
    at the corners of the ellipse's bounding box ask (Embree's occlusion query)
    whether anything lies in front of the hit's plane along them. A straight
@@ -42,6 +43,7 @@ import math
 import numpy as np
 import trimesh
 
+from livox_viz.casting.return_kernels import kernel
 from livox_viz.scene.materials import face_materials, face_parts
 
 _RING_HALF = np.deg2rad(np.arange(0, 360, 60))
@@ -72,6 +74,8 @@ PROBE_UNIT = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
 SMOOTH_DEG = 20.0
 #: Tiles of the broad phase are at most this long in any axis, metres.
 TILE_SIZE = 10.0
+#: A convex object at most this long in every axis is one box of the broad phase, metres.
+WHOLE_CONVEX = 50.0
 #: A large triangle is cut into at most this many pieces along each of its two longest axes.
 CUT_CELLS = 24
 #: Objects of more triangles than this are not tested for convexity (taken as not convex).
@@ -268,13 +272,10 @@ class TileProxy:
         The scene, world frame, with its part numbers (:func:`~livox_viz.scene.materials.face_parts`).
     tan_half : float
         Tangent of the footprint's largest half-angle.
-    caster_type : type
-        The ray caster to build over the boxes (the scene's own kind).
     """
 
-    def __init__(self, mesh: trimesh.Trimesh, tan_half: float, caster_type) -> None:
+    def __init__(self, mesh: trimesh.Trimesh, tan_half: float) -> None:
         self.tan_half = tan_half
-        self._caster_type = caster_type
         parts = face_parts(mesh)
         triangles = np.asarray(mesh.triangles, dtype=np.float64)
         kind = _part_kinds(triangles, parts)
@@ -290,14 +291,17 @@ class TileProxy:
         self.triangle_part = parts.astype(np.int64)
         self.centre: np.ndarray | None = None
         self.radius = 0.0
-        self._caster = None
-        self._crowded = np.zeros(low.shape[0], dtype=bool)
-        self.in_use = np.zeros(0, dtype=np.int64)
+        self._tree: BoxTree | None = None
 
     @property
     def tiles(self) -> int:
         """Boxes in the broad phase."""
         return int(self.low.shape[0])
+
+    @property
+    def boxes_in_use(self) -> int:
+        """Boxes near enough to the sensor to matter, as last placed."""
+        return 0 if self._tree is None else int(self._tree.tile.size)
 
     def place(self, positions: np.ndarray, range_max: float, margin: float = 10.0) -> None:
         """Make sure the inflated boxes cover beams fired from ``positions`` ``(k, 3)`` (world, metres).
@@ -312,27 +316,21 @@ class TileProxy:
         centre = positions.mean(axis=0)
         spread = float(np.linalg.norm(positions - centre, axis=1).max())
         radius = 0.0 if spread == 0.0 and self.centre is None else spread + margin
+        self._tree = None
         if self.tiles:
             corners = np.where(((np.arange(8)[:, None] >> np.arange(3)) & 1).astype(bool)[None],
                                self.high[:, None, :], self.low[:, None, :])
             farthest = np.linalg.norm(corners - centre, axis=2).max(axis=1)
             nearest = np.linalg.norm(np.clip(centre, self.low, self.high) - centre, axis=1)
-            #: The tiles in the broad phase (box k of it is tile ``in_use[k]``).
-            self.in_use = np.flatnonzero(nearest - radius <= range_max)
-            grow = ((farthest[self.in_use] + radius) * self.tan_half * 1.02 + 1e-3)[:, None]
-            low, high = self.low[self.in_use] - grow, self.high[self.in_use] + grow
-            crowded = _overlapping(low, high, self.tile_part[self.in_use], self.tile_convex[self.in_use],
-                                   self.tile_triangle[self.in_use])
-            self._crowded = np.zeros(self.tiles, dtype=bool)
-            self._crowded[self.in_use] = crowded
-            if self._caster is not None and hasattr(self._caster, "close"):
-                self._caster.close()
-            self._caster = self._caster_type(_box_mesh(low, high)) if self.in_use.size else None
+            in_use = np.flatnonzero(nearest - radius <= range_max)
+            grow = ((farthest[in_use] + radius) * self.tan_half * 1.02 + 1e-3)[:, None]
+            if in_use.size:
+                self._tree = BoxTree(self.low[in_use] - grow, self.high[in_use] + grow, in_use)
         self.centre, self.radius = centre, radius
 
     def near(self, origins: np.ndarray, directions: np.ndarray, reach: np.ndarray,
              triangle: np.ndarray) -> np.ndarray:
-        """Whether a box other than the hit's own comes within the footprint before ``reach``.
+        """Whether a box other than the hit's own lies along each beam before ``reach``.
 
         Parameters
         ----------
@@ -343,27 +341,61 @@ class TileProxy:
         triangle : (n,) int
             The central ray's triangle, -1 for a miss.
         """
-        if self._caster is None:
-            return np.zeros(directions.shape[0], dtype=bool)
-        distance, box = self._caster.hits(origins, directions, reach)
-        tile = np.where(box >= 0, self.in_use[np.maximum(box, 0) // 12], -1)
-        entered = tile >= 0
-        own = entered & (triangle >= 0) & self._own(tile, triangle)
-        near = entered & ~own
-        # Inside its own box, the beam may still pass another object's box that overlaps it.
-        rows = np.flatnonzero(own & self._crowded[np.maximum(tile, 0)])
-        if rows.size:
-            start = distance[rows] + 1e-4
-            ray_origin = (origins if origins.ndim == 1 else origins[rows]) + directions[rows] * start[:, None]
-            near[rows] = self._caster.occluded(ray_origin, directions[rows], reach[rows] - start)
+        near = np.zeros(directions.shape[0], dtype=np.bool_)
+        tree = self._tree
+        if tree is None or near.size == 0:
+            return near
+        kernel("near_boxes")(np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
+                             np.ascontiguousarray(directions, dtype=np.float64),
+                             np.ascontiguousarray(reach, dtype=np.float64), np.asarray(triangle, dtype=np.int64),
+                             tree.node_low, tree.node_high, tree.node_link, tree.box_low, tree.box_high, tree.tile,
+                             self.tile_part, self.tile_convex, self.tile_triangle, self.triangle_tile,
+                             self.triangle_part, near)
         return near
 
-    def _own(self, tile: np.ndarray, triangle: np.ndarray) -> np.ndarray:
-        """Whether each tile is the hit's own: a tile of its convex object, its triangle's tile or piece."""
-        tile = np.maximum(tile, 0)
-        triangle = np.maximum(triangle, 0)
-        same_convex = self.tile_convex[tile] & (self.tile_part[tile] == self.triangle_part[triangle])
-        return same_convex | (self.triangle_tile[triangle] == tile) | (self.tile_triangle[tile] == triangle)
+
+class BoxTree:
+    """A bounding-volume tree over boxes (median splits, up to four boxes a leaf), for the broad phase's loop.
+
+    Parameters
+    ----------
+    low, high : (B, 3) float64
+        The boxes.
+    tile : (B,) int
+        What each box stands for (its tile).
+    """
+
+    def __init__(self, low: np.ndarray, high: np.ndarray, tile: np.ndarray) -> None:
+        nodes_low, nodes_high, links = [], [], []
+        order: list[int] = []
+        centre = (low + high) / 2.0
+
+        def build(rows: np.ndarray) -> int:
+            node = len(links)
+            nodes_low.append(low[rows].min(axis=0))
+            nodes_high.append(high[rows].max(axis=0))
+            links.append([0, 0, 0])
+            if rows.size <= 4:
+                links[node] = [-1, len(order), rows.size]  # a leaf: its boxes' place in `order`, and how many
+                order.extend(rows.tolist())
+                return node
+            axis = int(np.argmax(np.ptp(centre[rows], axis=0)))
+            sorted_rows = rows[np.argsort(centre[rows, axis], kind="stable")]
+            half = sorted_rows.size // 2
+            left = build(sorted_rows[:half])
+            right = build(sorted_rows[half:])
+            links[node] = [left, right, 0]
+            return node
+
+        build(np.arange(low.shape[0]))
+        order_array = np.array(order, dtype=np.int64)
+        self.node_low = np.ascontiguousarray(nodes_low, dtype=np.float64)
+        self.node_high = np.ascontiguousarray(nodes_high, dtype=np.float64)
+        #: (N, 3) int: inner node (left, right, 0); leaf (-1, first, count) into the box arrays.
+        self.node_link = np.ascontiguousarray(links, dtype=np.int64)
+        self.box_low = np.ascontiguousarray(low[order_array])
+        self.box_high = np.ascontiguousarray(high[order_array])
+        self.tile = np.ascontiguousarray(np.asarray(tile, dtype=np.int64)[order_array])
 
 
 def _part_kinds(triangles: np.ndarray, parts: np.ndarray) -> np.ndarray:
@@ -397,26 +429,6 @@ def _part_kinds(triangles: np.ndarray, parts: np.ndarray) -> np.ndarray:
     return kind
 
 
-def _overlapping(low: np.ndarray, high: np.ndarray, part: np.ndarray, convex: np.ndarray,
-                 piece_of: np.ndarray) -> np.ndarray:
-    """``(T,)`` bool: a box of something else overlaps the tile's box.
-
-    Tiles of one convex object, or pieces of one large triangle, are not something else.
-    """
-    count = low.shape[0]
-    if count > 6000:
-        return np.ones(count, dtype=bool)
-    crowded = np.zeros(count, dtype=bool)
-    for first in range(0, count, 512):
-        rows = np.arange(first, min(first + 512, count))
-        meets = np.all((low[rows, None, :] <= high[None, :, :]) & (high[rows, None, :] >= low[None, :, :]), axis=2)
-        meets[np.arange(rows.size), rows] = False
-        same = ((convex[rows, None] & (part[rows, None] == part[None, :]))
-                | ((piece_of[rows, None] >= 0) & (piece_of[rows, None] == piece_of[None, :])))
-        crowded[rows] = np.any(meets & ~same, axis=1)
-    return crowded
-
-
 def _tiles(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray):
     """The broad phase's tiles: small triangles grouped by object and grid cell, large ones cut; none for flat objects.
 
@@ -435,13 +447,17 @@ def _tiles(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray):
     triangle_tile = np.full(triangles.shape[0], -1, dtype=np.int64)
     tri_low, tri_high = triangles.min(axis=1), triangles.max(axis=1)
     solid = kind[parts] != 0
-    large = solid & ((tri_high - tri_low).max(axis=1) > TILE_SIZE)
+    # A convex object up to WHOLE_CONVEX across is one box (its inflation stays small); a larger one is cut.
+    part_low, part_high = _group_boxes(tri_low, tri_high, parts.astype(np.int64))
+    whole = (kind == 1) & ((part_high - part_low).max(axis=1) <= WHOLE_CONVEX)
+    large = solid & ~whole[parts] & ((tri_high - tri_low).max(axis=1) > TILE_SIZE)
     small = np.flatnonzero(solid & ~large)
     tiles = 0
     if small.size:
-        # Grouped by object and the grid cell of their centroid; a group's box may exceed its cell by a
-        # triangle's size (at most TILE_SIZE).
+        # Grouped by object and the grid cell of their centroid (a whole convex object: one group); a group's
+        # box may exceed its cell by a triangle's size (at most TILE_SIZE).
         cell = np.floor(triangles[small].mean(axis=1) / TILE_SIZE).astype(np.int64)
+        cell[whole[parts[small]]] = 0
         _, group = np.unique(np.column_stack([parts[small], cell]), axis=0, return_inverse=True)
         group = group.reshape(-1)
         low, high = _group_boxes(tri_low[small], tri_high[small], group)
@@ -523,12 +539,3 @@ def _triangle_meets_rectangles(tri2: np.ndarray, u0, v0, u1, v1) -> np.ndarray:
         outside = np.all(side * ((corners - a) @ normal) < 0, axis=1)
         meets &= ~outside
     return meets
-
-
-def _box_mesh(low: np.ndarray, high: np.ndarray) -> trimesh.Trimesh:
-    """One mesh of axis-aligned boxes, 12 triangles each, box k's triangles 12k..12k+11."""
-    unit = trimesh.creation.box((1.0, 1.0, 1.0))
-    corner = (np.asarray(unit.vertices) + 0.5)  # 0..1
-    vertices = low[:, None, :] + corner[None, :, :] * (high - low)[:, None, :]
-    faces = np.asarray(unit.faces)[None, :, :] + (np.arange(low.shape[0]) * 8)[:, None, None]
-    return trimesh.Trimesh(vertices.reshape(-1, 3), faces.reshape(-1, 3), process=False)

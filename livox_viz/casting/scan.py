@@ -210,6 +210,10 @@ class MountedCaster:
                     np.tile(pose_quaternion(self.sensor_pose), (count, 1)))
         return self.track.poses_at(t)
 
+    def _turn(self, t: np.ndarray):
+        """Sensor-frame vectors of rays ``rows`` (fired at ``t[rows]``) into the world, each with its own pose."""
+        return lambda vectors, rows: self.track.rays(t[rows], vectors)[1]
+
     def cast(self, chunk: PatternChunk) -> ScanFrame:
         """The returns of the chunk's rays (each from the sensor's pose at its own time when moving)."""
         config = self.config
@@ -224,9 +228,9 @@ class MountedCaster:
                 origin = self.sensor_pose.origin
                 directions_world = rotate_rows(directions_sensor, self.sensor_pose.rotation)
             if self.returns is not None:
-                quaternion = self.track.poses_at(chunk.t[first : first + CAST_PART])[1] if moving else None
                 found = self.returns.cast(chunk.start + first, xy, directions_sensor, directions_world, origin,
-                                          None if moving else self.sensor_pose.rotation, quaternion)
+                                          None if moving else self.sensor_pose.rotation,
+                                          self._turn(chunk.t[first : first + CAST_PART]) if moving else None)
                 parts.append((first + found.beam, found.range_m, found.xyz_sensor, found.xyz_world,
                               found.reflectivity, found.tag, found.return_number, found.number_of_returns))
                 continue

@@ -75,18 +75,21 @@ def stream_uniform(seed: int, purpose: int, index: np.ndarray, columns: int = 1)
 def stream_normal(seed: int, purpose: int, index: np.ndarray, columns: int = 1) -> np.ndarray:
     """Standard normal numbers, one row per stream index.
 
+    Column pair ``(2k, 2k + 1)`` is the Box-Muller transform of hash ``k``: ``u1`` from its top 24 bits, ``u2``
+    from its low 24 bits, ``sqrt(-2 ln u1) (cos, sin)(2 pi u2)``, in float64.
+
     Returns
     -------
-    z : (n, columns) float32
+    z : (n, columns) float64
     """
     pairs = (columns + 1) // 2
     z = _hashes(stream_key(seed, purpose), index, pairs)
-    scale = np.float32(1.0 / (1 << 24))
-    u1 = ((z >> np.uint64(40)).astype(np.float32) + np.float32(0.5)) * scale
-    u2 = ((z & np.uint64(0xFFFFFF)).astype(np.float32) + np.float32(0.5)) * scale
-    radius = np.sqrt(np.float32(-2.0) * np.log(u1))
-    angle = np.float32(2.0 * np.pi) * u2
-    out = np.empty((z.shape[0], 2 * pairs), dtype=np.float32)
+    scale = 1.0 / (1 << 24)
+    u1 = ((z >> np.uint64(40)).astype(np.float64) + 0.5) * scale
+    u2 = ((z & np.uint64(0xFFFFFF)).astype(np.float64) + 0.5) * scale
+    radius = np.sqrt(-2.0 * np.log(u1))
+    angle = 2.0 * np.pi * u2
+    out = np.empty((z.shape[0], 2 * pairs), dtype=np.float64)
     out[:, 0::2] = radius * np.cos(angle)
     out[:, 1::2] = radius * np.sin(angle)
     return out[:, :columns]

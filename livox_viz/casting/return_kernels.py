@@ -1,0 +1,467 @@
+"""The datasheet return model's per-pulse loops, compiled (numba, ``nogil``).
+
+Each loop here replaces dozens of numpy passes over every pulse (measured:
+the numpy version of the model cost three to four times its scan's ideal
+rays); :mod:`~livox_viz.casting.returns` calls them and says what they compute.
+numba is already a dependency for the moving sensor's per-ray kernel.
+
+Every random number comes from the counter-based generator of
+:mod:`~livox_viz.core.streamrandom`, written out here the same way (SplitMix64
+of ``(stream index * 64 + column + key) * gamma``; normal numbers by Box-Muller
+of the hash's two 24-bit halves), in float64: the tests hold the two
+implementations to each other.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+_KERNELS: dict[str, object] = {}
+#: The small functions the loops call: compiled (in this module's namespace) before the first loop is.
+_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab")
+
+
+def _compile(function):
+    import numba
+
+    try:
+        return numba.njit(cache=True, nogil=True)(function)
+    except RuntimeError:  # no writable cache folder: compile in each process
+        return numba.njit(nogil=True)(function)
+
+
+def kernel(name: str):
+    """The compiled loop ``name`` (compiled, or loaded from numba's cache, on first use)."""
+    found = _KERNELS.get(name)
+    if found is None:
+        if not _KERNELS:
+            namespace = globals()
+            for helper in _HELPERS:
+                namespace[helper] = _compile(namespace[helper])
+        found = _KERNELS[name] = _compile(globals()[f"_{name}"])
+    return found
+
+
+# Counter-based random numbers (the same as core.streamrandom) -------------------------------------------------------
+_GAMMA = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+
+
+def _hash(key, counter):  # pragma: no cover - compiled
+    z = (counter + key) * _GAMMA
+    z ^= z >> np.uint64(30)
+    z *= _M1
+    z ^= z >> np.uint64(27)
+    z *= _M2
+    z ^= z >> np.uint64(31)
+    return z
+
+
+def _normal_pair(key, index, pair):  # pragma: no cover - compiled
+    """Columns ``2 pair`` and ``2 pair + 1`` of :func:`~livox_viz.core.streamrandom.stream_normal` at ``index``."""
+    z = _hash(key, np.uint64(index) * np.uint64(64) + np.uint64(pair))
+    u1 = (float(z >> np.uint64(40)) + 0.5) / 16777216.0
+    u2 = (float(z & np.uint64(0xFFFFFF)) + 0.5) / 16777216.0
+    radius = math.sqrt(-2.0 * math.log(u1))
+    angle = 2.0 * math.pi * u2
+    return radius * math.cos(angle), radius * math.sin(angle)
+
+
+def _uniform(key, index, column):  # pragma: no cover - compiled
+    """Column ``column`` of :func:`~livox_viz.core.streamrandom.stream_uniform` at ``index``."""
+    z = _hash(key, np.uint64(index) * np.uint64(64) + np.uint64(column))
+    return (float(z >> np.uint64(11)) + 0.5) * (1.0 / 9007199254740992.0)
+
+
+def _sigma(range_m, table):  # pragma: no cover - compiled
+    """The range noise table ``(k, 2)`` at ``range_m``: linear between its rows, flat outside."""
+    if range_m <= table[0, 0]:
+        return table[0, 1]
+    last = table.shape[0] - 1
+    if range_m >= table[last, 0]:
+        return table[last, 1]
+    k = 0
+    while table[k + 1, 0] < range_m:
+        k += 1
+    share = (range_m - table[k, 0]) / (table[k + 1, 0] - table[k, 0])
+    return table[k, 1] + share * (table[k + 1, 1] - table[k, 1])
+
+
+# The rays ----------------------------------------------------------------------------------------------------------
+def _sensor_basis(xy_deg, out_x, out_y):  # pragma: no cover - compiled
+    """The derivatives of each ray's sensor-frame direction by pattern x and y, per radian.
+
+    The ray is ``(cos a, s x, -s y)``, ``a = |(x, y)|``, ``s = sin(a)/a``; with ``q = (a cos a - sin a)/a^3``
+    (-1/3 at the boresight): ``d/dx = (-s x, s + x^2 q, -x y q)``, ``d/dy = (-s y, x y q, -(s + y^2 q))``.
+    """
+    scale = math.pi / 180.0
+    for i in range(xy_deg.shape[0]):
+        x = xy_deg[i, 0] * scale
+        y = xy_deg[i, 1] * scale
+        alpha = math.sqrt(x * x + y * y)
+        if alpha < 1e-3:
+            s = 1.0 - alpha * alpha / 6.0
+            q = -1.0 / 3.0 + alpha * alpha / 30.0
+        else:
+            s = math.sin(alpha) / alpha
+            q = (alpha * math.cos(alpha) - math.sin(alpha)) / (alpha * alpha * alpha)
+        out_x[i, 0] = -s * x
+        out_x[i, 1] = s + x * x * q
+        out_x[i, 2] = -x * y * q
+        out_y[i, 0] = -s * y
+        out_y[i, 1] = x * y * q
+        out_y[i, 2] = -(s + y * y * q)
+
+
+def _rotate(vectors, rotation, out):  # pragma: no cover - compiled
+    for i in range(vectors.shape[0]):
+        vx, vy, vz = vectors[i, 0], vectors[i, 1], vectors[i, 2]
+        for j in range(3):
+            out[i, j] = rotation[j, 0] * vx + rotation[j, 1] * vy + rotation[j, 2] * vz
+
+
+def _offset_rays(rows, directions, basis_x, basis_y, offsets, out):  # pragma: no cover - compiled
+    """Unit directions of the rays at ``offsets`` ``(k, 2)`` radians around each beam ``rows``: ``out (m, k, 3)``."""
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        for k in range(offsets.shape[0]):
+            a, b = offsets[k, 0], offsets[k, 1]
+            x = directions[i, 0] + a * basis_x[i, 0] + b * basis_y[i, 0]
+            y = directions[i, 1] + a * basis_x[i, 1] + b * basis_y[i, 1]
+            z = directions[i, 2] + a * basis_x[i, 2] + b * basis_y[i, 2]
+            inverse = 1.0 / math.sqrt(x * x + y * y + z * z)
+            out[r, k, 0] = x * inverse
+            out[r, k, 1] = y * inverse
+            out[r, k, 2] = z * inverse
+
+
+# Step 1 and 2: the central hits, and whether the footprint leaves the triangle --------------------------------------
+def _central(distance, triangle, directions, origins, basis_x, basis_y, planes, brightness, incentre, inradius,
+             inward, offset, neighbour, narrowest, half_x, half_y, tan_half, calibration, range_max,
+             power, cosine, leaves, reach):  # pragma: no cover - compiled
+    """Per pulse: echo power of the whole footprint on the hit triangle, the incidence cosine, whether the
+    footprint leaves the triangle (an edge that does not continue the surface within its reach), and how far
+    along the beam the footprint can meet something. ``origins`` is ``(1, 3)`` for a fixed sensor.
+
+    ``calibration`` = (reflectivity a, range a, alpha): power = rho cos (r_a^2 / rho_a) / r^2 exp(-2 alpha (r - r_a)).
+    """
+    shared = origins.shape[0] == 1
+    rho_a, r_a, alpha = calibration[0], calibration[1], calibration[2]
+    for i in range(distance.shape[0]):
+        t = triangle[i]
+        reach[i] = range_max
+        leaves[i] = False
+        if t < 0:
+            power[i] = 0.0
+            cosine[i] = 0.0
+            continue
+        o = 0 if shared else i
+        d = distance[i]
+        ux, uy, uz = directions[i, 0], directions[i, 1], directions[i, 2]
+        nx, ny, nz = planes[t, 0], planes[t, 1], planes[t, 2]
+        facing = nx * ux + ny * uy + nz * uz
+        if abs(facing) < 1e-6:
+            facing = 1e-6 if facing >= 0 else -1e-6
+        cos = abs(facing)
+        cosine[i] = cos
+        power[i] = brightness[t] * cos * (r_a * r_a / rho_a) / (d * d) * math.exp(-2.0 * alpha * (d - r_a))
+        sine = math.sqrt(max(1.0 - cos * cos, 0.0))
+        reach[i] = min(d * (1.0 + 1.01 * tan_half * sine / cos) + 0.01, range_max)
+        px = origins[o, 0] + ux * d
+        py = origins[o, 1] + uy * d
+        pz = origins[o, 2] + uz * d
+        cx, cy, cz = px - incentre[t, 0], py - incentre[t, 1], pz - incentre[t, 2]
+        if inradius[t] - math.sqrt(cx * cx + cy * cy + cz * cz) >= d * tan_half / cos:
+            continue  # deep inside the incircle: the footprint stays on the triangle
+        # The footprint's displacement on the plane per radian of pattern x and y, per metre of range.
+        sx = (nx * basis_x[i, 0] + ny * basis_x[i, 1] + nz * basis_x[i, 2]) / facing
+        sy = (nx * basis_y[i, 0] + ny * basis_y[i, 1] + nz * basis_y[i, 2]) / facing
+        wx0, wx1, wx2 = basis_x[i, 0] - sx * ux, basis_x[i, 1] - sx * uy, basis_x[i, 2] - sx * uz
+        wy0, wy1, wy2 = basis_y[i, 0] - sy * ux, basis_y[i, 1] - sy * uy, basis_y[i, 2] - sy * uz
+        for k in range(3):
+            mx, my, mz = inward[t, k, 0], inward[t, k, 1], inward[t, k, 2]
+            gap = mx * px + my * py + mz * pz - offset[t, k]
+            across = d * math.sqrt((half_x * (mx * wx0 + my * wx1 + mz * wx2)) ** 2
+                                   + (half_y * (mx * wy0 + my * wy1 + mz * wy2)) ** 2)
+            if gap >= across:
+                continue
+            other = neighbour[t, k]
+            if other >= 0:
+                other_facing = planes[other, 0] * ux + planes[other, 1] * uy + planes[other, 2] * uz
+                # Across a soft edge the footprint lands on the neighbour: fine while the neighbour faces the ray as
+                # the hit does (not a silhouette) and the footprint cannot reach past it.
+                if (other_facing > 0) == (facing > 0) and abs(other_facing) > 0.05 and (
+                        across - max(gap, 0.0) < narrowest[other]):
+                    continue
+            leaves[i] = True
+            break
+
+
+def _near_boxes(origins, directions, reach, triangle, node_low, node_high, node_link, box_low, box_high, box_tile,
+                tile_part, tile_convex, tile_triangle, triangle_tile, triangle_part, near):  # pragma: no cover
+    """Per beam: does it pass through a box, other than its hit's own, before ``reach``? (A walk down the tree.)
+
+    A box is the hit's own when it is the hit triangle's tile, a piece of the hit triangle, or a tile of the
+    hit's convex object. ``origins`` is ``(1, 3)`` for a fixed sensor.
+    """
+    shared = origins.shape[0] == 1
+    stack = np.empty(128, dtype=np.int64)
+    for i in range(directions.shape[0]):
+        o = 0 if shared else i
+        ox, oy, oz = origins[o, 0], origins[o, 1], origins[o, 2]
+        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+        ix = 1.0 / dx if dx != 0.0 else np.inf
+        iy = 1.0 / dy if dy != 0.0 else np.inf
+        iz = 1.0 / dz if dz != 0.0 else np.inf
+        limit = reach[i]
+        hit = triangle[i]
+        part = triangle_part[hit] if hit >= 0 else -1
+        own_tile = triangle_tile[hit] if hit >= 0 else -1
+        top = 0
+        stack[0] = 0
+        top = 1
+        found = False
+        while top > 0 and not found:
+            top -= 1
+            node = stack[top]
+            if not _slab(ox, oy, oz, ix, iy, iz, limit, node_low[node, 0], node_low[node, 1], node_low[node, 2],
+                         node_high[node, 0], node_high[node, 1], node_high[node, 2]):
+                continue
+            if node_link[node, 0] >= 0:
+                stack[top] = node_link[node, 0]
+                stack[top + 1] = node_link[node, 1]
+                top += 2
+                continue
+            for b in range(node_link[node, 1], node_link[node, 1] + node_link[node, 2]):
+                tile = box_tile[b]
+                if hit >= 0 and (tile == own_tile or tile_triangle[tile] == hit or (
+                        tile_convex[tile] and tile_part[tile] == part)):
+                    continue
+                if _slab(ox, oy, oz, ix, iy, iz, limit, box_low[b, 0], box_low[b, 1], box_low[b, 2],
+                         box_high[b, 0], box_high[b, 1], box_high[b, 2]):
+                    found = True
+                    break
+        near[i] = found
+
+
+def _slab(ox, oy, oz, ix, iy, iz, limit, lx, ly, lz, hx, hy, hz):  # pragma: no cover - compiled
+    """Whether the ray from o (inverse direction i) meets the box [l, h] between 0 and ``limit``."""
+    near_t = 0.0
+    far_t = limit
+    for o, inv, lo, hi in ((ox, ix, lx, hx), (oy, iy, ly, hy), (oz, iz, lz, hz)):
+        if inv == np.inf:
+            if o < lo or o > hi:
+                return False
+            continue
+        a = (lo - o) * inv
+        b = (hi - o) * inv
+        if a > b:
+            a, b = b, a
+        near_t = max(near_t, a)
+        far_t = min(far_t, b)
+        if near_t > far_t:
+            return False
+    return True
+
+
+def _probe_limits(rows, probes, triangle, planes, origins, range_max, out):  # pragma: no cover - compiled
+    """How far each probe ray may look: just short of the hit's own plane (the whole range for a miss)."""
+    shared = origins.shape[0] == 1
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        t = triangle[i]
+        o = 0 if shared else i
+        for k in range(probes.shape[1]):
+            out[r, k] = range_max
+            if t < 0:
+                continue
+            nx, ny, nz = planes[t, 0], planes[t, 1], planes[t, 2]
+            height = planes[t, 3] - (nx * origins[o, 0] + ny * origins[o, 1] + nz * origins[o, 2])
+            along = nx * probes[r, k, 0] + ny * probes[r, k, 1] + nz * probes[r, k, 2]
+            if along == 0.0:
+                continue
+            short = height / along * (1.0 - 1e-4) - 1e-3
+            if short > 0.0:
+                out[r, k] = min(short, range_max)
+
+
+# Step 3: echoes of sampled footprints ------------------------------------------------------------------------------
+def _footprint_echoes(rows, ranges, triangles, rays, weights, planes, brightness, origins, blind, separate,
+                      separation, sigma_table, mix_floor, calibration,
+                      beam, slot, power, range_m, spatial, unit_power):  # pragma: no cover - compiled
+    """Echoes of each sampled pulse's 19 sub-rays; returns how many were written.
+
+    Sub-rays sorted by range; a gap over ``separation`` starts a new echo (never when not ``separate``: a
+    single-return sensor). An echo's power sums its sub-rays', its range is their power-weighted mean. Its
+    strongest sub-ray names its surface: when sub-rays lie more than 3 range sigmas (at least ``mix_floor``)
+    off that plane the point is mixed, its spatial bits from where it sits between the depths (01 beyond a
+    quarter of the spread from the surface, 10 beyond a tenth, else 11).
+    """
+    shared = origins.shape[0] == 1
+    rho_a, r_a, alpha = calibration[0], calibration[1], calibration[2]
+    count = weights.shape[0]
+    order = np.empty(count, dtype=np.int64)
+    sub_power = np.empty(count)
+    written = 0
+    for m in range(rows.shape[0]):
+        i = rows[m]
+        o = 0 if shared else i
+        live = 0
+        for k in range(count):
+            t = triangles[m, k]
+            r = ranges[m, k]
+            if t < 0 or r < blind:
+                continue
+            cos = abs(planes[t, 0] * rays[m, k, 0] + planes[t, 1] * rays[m, k, 1] + planes[t, 2] * rays[m, k, 2])
+            sub_power[k] = weights[k] * brightness[t] * cos * (r_a * r_a / rho_a) / (r * r) * math.exp(
+                -2.0 * alpha * (r - r_a))
+            if sub_power[k] <= 0.0:
+                continue
+            # Insertion by range.
+            j = live
+            while j > 0 and ranges[m, order[j - 1]] > r:
+                order[j] = order[j - 1]
+                j -= 1
+            order[j] = k
+            live += 1
+        echo_slot = 0
+        first = 0
+        while first < live:
+            last = first + 1
+            while last < live and not (separate and ranges[m, order[last]] - ranges[m, order[last - 1]] > separation):
+                last += 1
+            total = 0.0
+            weighted = 0.0
+            strongest = order[first]
+            for j in range(first, last):
+                k = order[j]
+                total += sub_power[k]
+                weighted += sub_power[k] * ranges[m, k]
+                if sub_power[k] > sub_power[strongest]:
+                    strongest = k
+            blend = weighted / total
+            t = triangles[m, strongest]
+            nx, ny, nz, c = planes[t, 0], planes[t, 1], planes[t, 2], planes[t, 3]
+            height = c - (nx * origins[o, 0] + ny * origins[o, 1] + nz * origins[o, 2])
+            spread = 0.0
+            for j in range(first, last):
+                k = order[j]
+                along = nx * rays[m, k, 0] + ny * rays[m, k, 1] + nz * rays[m, k, 2]
+                depth = abs(ranges[m, k] - height / along) if along != 0.0 else np.inf
+                spread = max(spread, depth)
+            along = nx * rays[m, 0, 0] + ny * rays[m, 0, 1] + nz * rays[m, 0, 2]
+            bits = 0
+            if spread > max(3.0 * _sigma(blend, sigma_table), mix_floor):
+                between = abs(blend - height / along) / spread if along != 0.0 and spread < np.inf else 1.0
+                bits = 1 if between > 0.25 else (2 if between > 0.1 else 3)
+            beam[written] = i
+            slot[written] = echo_slot
+            power[written] = total
+            range_m[written] = blend
+            spatial[written] = bits
+            unit_power[written] = rho_a * (blend / r_a) ** 2 * math.exp(2.0 * alpha * (blend - r_a))
+            written += 1
+            echo_slot += 1
+            first = last
+    return written
+
+
+# Steps 4 and 5: detection, selection, noise, bytes, tags, false alarms ------------------------------------------------
+def _detect(beam, slot, power, range_m, index, echo_key, later_key, snr, sigma_table, blind, range_max,
+            keep_returns, chosen, number, returns, seen, measured):  # pragma: no cover - compiled
+    """Which echoes a pulse reports, with their measured ranges and seen powers; returns how many.
+
+    Echoes come sorted by pulse, then range. Receiver noise (the detection's and the intensity's) and range
+    noise are one normal pair per echo: the pulse's first pair for its nearest echo, the ``later`` stream's
+    pair ``slot - 1`` for the others. An echo is seen when power plus noise / ``snr`` passes 1 and its measured
+    range lies in [blind zone, range_max]. When more are seen than ``keep_returns``, the first and then the
+    strongest others are kept; those kept are numbered 1, 2, 3 in range order (``number``) of ``returns``.
+    """
+    count = beam.shape[0]
+    for e in range(count):
+        if slot[e] == 0:
+            a, b = _normal_pair(echo_key, index[beam[e]], 0)
+        else:
+            a, b = _normal_pair(later_key, index[beam[e]], slot[e] - 1)
+        seen[e] = power[e] + a / snr
+        measured[e] = range_m[e] + _sigma(range_m[e], sigma_table) * b
+        chosen[e] = seen[e] > 1.0 and blind <= measured[e] <= range_max
+    kept = 0
+    e = 0
+    while e < count:
+        stop = e + 1
+        while stop < count and beam[stop] == beam[e]:
+            stop += 1
+        detected = 0
+        for j in range(e, stop):
+            number[j] = 1 if chosen[j] else 0  # number holds "detected" for now
+            detected += number[j]
+        if detected > keep_returns:
+            first = e
+            while number[first] == 0:
+                first += 1
+            for j in range(e, stop):
+                chosen[j] = j == first
+            for _ in range(keep_returns - 1):
+                best = -1
+                for j in range(e, stop):
+                    if number[j] == 1 and not chosen[j] and (best < 0 or seen[j] > seen[best]):
+                        best = j
+                chosen[best] = True
+        n = 0
+        for j in range(e, stop):
+            number[j] = 0
+            if chosen[j]:
+                n += 1
+                number[j] = n
+        for j in range(e, stop):
+            returns[j] = n
+        kept += n
+        e = stop
+    return kept
+
+
+def _false_alarms(index, has_return, false_key, rate, out):  # pragma: no cover - compiled
+    """Rows of pulses without a return that report a false alarm; returns how many."""
+    found = 0
+    for i in range(index.shape[0]):
+        if not has_return[i] and _uniform(false_key, index[i], 0) < rate:
+            out[found] = i
+            found += 1
+    return found
+
+
+def _finish(beam, measured, seen, unit_power, spatial, number, returns, multi, return0, directions_sensor,
+            directions_world, origins, jitter_key, jitter, index, xyz_sensor, xyz_world, reflectivity,
+            tag):  # pragma: no cover - compiled
+    """The points: measured range along the (jittered) direction, the reflectivity byte, the tag."""
+    shared = origins.shape[0] == 1
+    for p in range(beam.shape[0]):
+        i = beam[p]
+        o = 0 if shared else i
+        r = measured[p]
+        dx, dy, dz = directions_sensor[i, 0], directions_sensor[i, 1], directions_sensor[i, 2]
+        if jitter > 0.0:
+            a, b = _normal_pair(jitter_key, index[i], 0)
+            scale = jitter / math.sqrt(dx * dx + dy * dy)
+            a *= scale
+            b *= scale
+            dx, dy, dz = dx - a * dy - b * dz * dx, dy + a * dx - b * dz * dy, dz + b * (dx * dx + dy * dy)
+        xyz_sensor[p, 0], xyz_sensor[p, 1], xyz_sensor[p, 2] = dx * r, dy * r, dz * r
+        if jitter <= 0.0:
+            xyz_world[p, 0] = origins[o, 0] + directions_world[i, 0] * r
+            xyz_world[p, 1] = origins[o, 1] + directions_world[i, 1] * r
+            xyz_world[p, 2] = origins[o, 2] + directions_world[i, 2] * r
+        value = seen[p] * unit_power[p]
+        if value >= 2.0:
+            share = math.log(value / 2.0) / math.log(500.0)
+            reflectivity[p] = 151 + math.floor(104.0 * min(max(share, 0.0), 1.0) + 0.5)
+        else:
+            reflectivity[p] = math.floor(150.0 * min(max(value, 0.0), 1.0) + 0.5)
+        bits = number[p] if multi else 1
+        if number[p] == 1 and r < return0:
+            bits = 0
+        tag[p] = spatial[p] | (bits << 4)
