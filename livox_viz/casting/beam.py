@@ -328,13 +328,15 @@ class TileProxy:
                 self._tree = BoxTree(self.low[in_use] - grow, self.high[in_use] + grow, in_use)
         self.centre, self.radius = centre, radius
 
-    def near(self, origins: np.ndarray, directions: np.ndarray, reach: np.ndarray,
+    def near(self, candidate: np.ndarray, origins: np.ndarray, directions: np.ndarray, reach: np.ndarray,
              triangle: np.ndarray) -> np.ndarray:
-        """Whether a box other than the hit's own lies along each beam before ``reach``.
+        """Whether a box other than the hit's own lies along each ``candidate`` beam before ``reach``.
 
         Parameters
         ----------
-        origins : (3,) or (n, 3) float64
+        candidate : (n,) bool
+            The beams to ask about (the others answer False).
+        origins : (3,), (1, 3) or (n, 3) float64
         directions : (n, 3) float64
         reach : (n,) float64
             How far along the beam the footprint may meet something, metres.
@@ -345,7 +347,8 @@ class TileProxy:
         tree = self._tree
         if tree is None or near.size == 0:
             return near
-        kernel("near_boxes")(np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
+        kernel("near_boxes")(np.ascontiguousarray(candidate, dtype=np.bool_),
+                             np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
                              np.ascontiguousarray(directions, dtype=np.float64),
                              np.ascontiguousarray(reach, dtype=np.float64), np.asarray(triangle, dtype=np.int64),
                              tree.node_low, tree.node_high, tree.node_link, tree.box_low, tree.box_high, tree.tile,

@@ -20,16 +20,21 @@ import numpy as np
 
 _KERNELS: dict[str, object] = {}
 #: The small functions the loops call: compiled (in this module's namespace) before the first loop is.
-_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab")
+_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab", "_basis_at", "_any_chosen", "_byte")
 
 
-def _compile(function):
+#: The loops that would run their pulses on every core (``prange``). None does: on this 2-core machine shared
+#: with Embree's two threads (and others' work) numba's parallel regions cost ten times what they save (measured).
+_PARALLEL: tuple[str, ...] = ()
+
+
+def _compile(function, parallel: bool = False):
     import numba
 
     try:
-        return numba.njit(cache=True, nogil=True)(function)
+        return numba.njit(cache=True, nogil=True, parallel=parallel)(function)
     except RuntimeError:  # no writable cache folder: compile in each process
-        return numba.njit(nogil=True)(function)
+        return numba.njit(nogil=True, parallel=parallel)(function)
 
 
 def kernel(name: str):
@@ -38,10 +43,17 @@ def kernel(name: str):
     if found is None:
         if not _KERNELS:
             namespace = globals()
+            import numba
+
+            namespace["prange"] = numba.prange
             for helper in _HELPERS:
                 namespace[helper] = _compile(namespace[helper])
-        found = _KERNELS[name] = _compile(globals()[f"_{name}"])
+        found = _KERNELS[name] = _compile(globals()[f"_{name}"], name in _PARALLEL)
     return found
+
+
+#: ``numba.prange`` once the loops are compiled (plain ``range`` before, so the module imports without numba).
+prange = range
 
 
 # Counter-based random numbers (the same as core.streamrandom) -------------------------------------------------------
@@ -116,6 +128,21 @@ def _sensor_basis(xy_deg, out_x, out_y):  # pragma: no cover - compiled
         out_y[i, 2] = -(s + y * y * q)
 
 
+def _basis_at(x_deg, y_deg):  # pragma: no cover - compiled
+    """One ray's :func:`_sensor_basis` (six numbers: d/dx, then d/dy)."""
+    scale = math.pi / 180.0
+    x = x_deg * scale
+    y = y_deg * scale
+    alpha = math.sqrt(x * x + y * y)
+    if alpha < 1e-3:
+        s = 1.0 - alpha * alpha / 6.0
+        q = -1.0 / 3.0 + alpha * alpha / 30.0
+    else:
+        s = math.sin(alpha) / alpha
+        q = (alpha * math.cos(alpha) - math.sin(alpha)) / (alpha * alpha * alpha)
+    return -s * x, s + x * x * q, -x * y * q, -s * y, x * y * q, -(s + y * y * q)
+
+
 def _rotate(vectors, rotation, out):  # pragma: no cover - compiled
     for i in range(vectors.shape[0]):
         vx, vy, vz = vectors[i, 0], vectors[i, 1], vectors[i, 2]
@@ -124,14 +151,17 @@ def _rotate(vectors, rotation, out):  # pragma: no cover - compiled
 
 
 def _offset_rays(rows, directions, basis_x, basis_y, offsets, out):  # pragma: no cover - compiled
-    """Unit directions of the rays at ``offsets`` ``(k, 2)`` radians around each beam ``rows``: ``out (m, k, 3)``."""
-    for r in range(rows.shape[0]):
+    """Unit directions of the rays at ``offsets`` ``(k, 2)`` radians around each beam ``rows``: ``out (m, k, 3)``.
+
+    ``basis_x``, ``basis_y`` ``(m, 3)``: the derivatives of each of those beams' direction by pattern x and y.
+    """
+    for r in prange(rows.shape[0]):
         i = rows[r]
         for k in range(offsets.shape[0]):
             a, b = offsets[k, 0], offsets[k, 1]
-            x = directions[i, 0] + a * basis_x[i, 0] + b * basis_y[i, 0]
-            y = directions[i, 1] + a * basis_x[i, 1] + b * basis_y[i, 1]
-            z = directions[i, 2] + a * basis_x[i, 2] + b * basis_y[i, 2]
+            x = directions[i, 0] + a * basis_x[r, 0] + b * basis_y[r, 0]
+            y = directions[i, 1] + a * basis_x[r, 1] + b * basis_y[r, 1]
+            z = directions[i, 2] + a * basis_x[r, 2] + b * basis_y[r, 2]
             inverse = 1.0 / math.sqrt(x * x + y * y + z * z)
             out[r, k, 0] = x * inverse
             out[r, k, 1] = y * inverse
@@ -139,18 +169,44 @@ def _offset_rays(rows, directions, basis_x, basis_y, offsets, out):  # pragma: n
 
 
 # Step 1 and 2: the central hits, and whether the footprint leaves the triangle --------------------------------------
-def _central(distance, triangle, directions, origins, basis_x, basis_y, planes, brightness, incentre, inradius,
-             inward, offset, neighbour, narrowest, half_x, half_y, tan_half, calibration, range_max,
-             power, cosine, leaves, reach):  # pragma: no cover - compiled
+def _plane_distance(triangle, directions, origins, planes, range_max, distance):  # pragma: no cover - compiled
+    """Each ray's distance to the plane of the triangle it hit, float64 (``inf`` for a miss); -1 where the plane
+    cannot say (a ray along it), for Embree's own distance. Returns how many those are."""
+    stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
+    unresolved = 0
+    for i in range(triangle.shape[0]):
+        t = triangle[i]
+        if t < 0:
+            distance[i] = np.inf
+            continue
+        o = i * stride
+        along = planes[t, 0] * directions[i, 0] + planes[t, 1] * directions[i, 1] + planes[t, 2] * directions[i, 2]
+        height = planes[t, 3] - (planes[t, 0] * origins[o, 0] + planes[t, 1] * origins[o, 1]
+                                 + planes[t, 2] * origins[o, 2])
+        d = height / along if abs(along) > 1e-9 else -1.0
+        if not (0.0 <= d <= range_max * (1.0 + 1e-9)):
+            d = -1.0
+            unresolved += 1
+        distance[i] = min(d, range_max) if d >= 0.0 else -1.0
+    return unresolved
+
+
+
+def _central(distance, triangle, directions, origins, xy_deg, rotation, basis_x, basis_y, planes, brightness,
+             incentre, inradius, inward, offset, neighbour, narrowest, half_x, half_y, tan_half, calibration,
+             range_max, power, cosine, leaves, reach):  # pragma: no cover - compiled
     """Per pulse: echo power of the whole footprint on the hit triangle, the incidence cosine, whether the
     footprint leaves the triangle (an edge that does not continue the surface within its reach), and how far
-    along the beam the footprint can meet something. ``origins`` is ``(1, 3)`` for a fixed sensor.
+    along the beam the footprint can meet something.
 
-    ``calibration`` = (reflectivity a, range a, alpha): power = rho cos (r_a^2 / rho_a) / r^2 exp(-2 alpha (r - r_a)).
+    ``origins`` is ``(1, 3)`` for a fixed sensor, whose ray derivatives come from ``xy_deg`` and ``rotation``;
+    a moving one gives them per pulse (``basis_x``, ``basis_y``, world frame). ``calibration`` = (reflectivity a,
+    range a, alpha): power = rho cos (r_a^2 / rho_a) / r^2 exp(-2 alpha (r - r_a)).
     """
-    shared = origins.shape[0] == 1
+    stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
+    fixed = basis_x.shape[0] == 0
     rho_a, r_a, alpha = calibration[0], calibration[1], calibration[2]
-    for i in range(distance.shape[0]):
+    for i in prange(distance.shape[0]):
         t = triangle[i]
         reach[i] = range_max
         leaves[i] = False
@@ -158,7 +214,7 @@ def _central(distance, triangle, directions, origins, basis_x, basis_y, planes, 
             power[i] = 0.0
             cosine[i] = 0.0
             continue
-        o = 0 if shared else i
+        o = i * stride
         d = distance[i]
         ux, uy, uz = directions[i, 0], directions[i, 1], directions[i, 2]
         nx, ny, nz = planes[t, 0], planes[t, 1], planes[t, 2]
@@ -176,11 +232,22 @@ def _central(distance, triangle, directions, origins, basis_x, basis_y, planes, 
         cx, cy, cz = px - incentre[t, 0], py - incentre[t, 1], pz - incentre[t, 2]
         if inradius[t] - math.sqrt(cx * cx + cy * cy + cz * cz) >= d * tan_half / cos:
             continue  # deep inside the incircle: the footprint stays on the triangle
+        if fixed:
+            ax, ay, az, bx, by, bz = _basis_at(xy_deg[i, 0], xy_deg[i, 1])
+            bxx = rotation[0, 0] * ax + rotation[0, 1] * ay + rotation[0, 2] * az
+            bxy = rotation[1, 0] * ax + rotation[1, 1] * ay + rotation[1, 2] * az
+            bxz = rotation[2, 0] * ax + rotation[2, 1] * ay + rotation[2, 2] * az
+            byx = rotation[0, 0] * bx + rotation[0, 1] * by + rotation[0, 2] * bz
+            byy = rotation[1, 0] * bx + rotation[1, 1] * by + rotation[1, 2] * bz
+            byz = rotation[2, 0] * bx + rotation[2, 1] * by + rotation[2, 2] * bz
+        else:
+            bxx, bxy, bxz = basis_x[i, 0], basis_x[i, 1], basis_x[i, 2]
+            byx, byy, byz = basis_y[i, 0], basis_y[i, 1], basis_y[i, 2]
         # The footprint's displacement on the plane per radian of pattern x and y, per metre of range.
-        sx = (nx * basis_x[i, 0] + ny * basis_x[i, 1] + nz * basis_x[i, 2]) / facing
-        sy = (nx * basis_y[i, 0] + ny * basis_y[i, 1] + nz * basis_y[i, 2]) / facing
-        wx0, wx1, wx2 = basis_x[i, 0] - sx * ux, basis_x[i, 1] - sx * uy, basis_x[i, 2] - sx * uz
-        wy0, wy1, wy2 = basis_y[i, 0] - sy * ux, basis_y[i, 1] - sy * uy, basis_y[i, 2] - sy * uz
+        sx = (nx * bxx + ny * bxy + nz * bxz) / facing
+        sy = (nx * byx + ny * byy + nz * byz) / facing
+        wx0, wx1, wx2 = bxx - sx * ux, bxy - sx * uy, bxz - sx * uz
+        wy0, wy1, wy2 = byx - sy * ux, byy - sy * uy, byz - sy * uz
         for k in range(3):
             mx, my, mz = inward[t, k, 0], inward[t, k, 1], inward[t, k, 2]
             gap = mx * px + my * py + mz * pz - offset[t, k]
@@ -192,88 +259,106 @@ def _central(distance, triangle, directions, origins, basis_x, basis_y, planes, 
             if other >= 0:
                 other_facing = planes[other, 0] * ux + planes[other, 1] * uy + planes[other, 2] * uz
                 # Across a soft edge the footprint lands on the neighbour: fine while the neighbour faces the ray as
-                # the hit does (not a silhouette) and the footprint cannot reach past it.
-                if (other_facing > 0) == (facing > 0) and abs(other_facing) > 0.05 and (
+                # the hit does, not much more edge-on (not a silhouette), and the footprint cannot reach past it.
+                if (other_facing > 0) == (facing > 0) and abs(other_facing) > 0.5 * abs(facing) and (
                         across - max(gap, 0.0) < narrowest[other]):
                     continue
             leaves[i] = True
             break
 
 
-def _near_boxes(origins, directions, reach, triangle, node_low, node_high, node_link, box_low, box_high, box_tile,
-                tile_part, tile_convex, tile_triangle, triangle_tile, triangle_part, near):  # pragma: no cover
-    """Per beam: does it pass through a box, other than its hit's own, before ``reach``? (A walk down the tree.)
+def _near_boxes(candidate, origins, directions, reach, triangle, node_low, node_high, node_link, box_low, box_high,
+                box_tile, tile_part, tile_convex, tile_triangle, triangle_tile, triangle_part,
+                near):  # pragma: no cover - compiled
+    """Per ``candidate`` beam: does it pass through a box, other than its hit's own, before ``reach``?
 
-    A box is the hit's own when it is the hit triangle's tile, a piece of the hit triangle, or a tile of the
-    hit's convex object. ``origins`` is ``(1, 3)`` for a fixed sensor.
+    A walk down the tree. A box is the hit's own when it is the hit triangle's tile, a piece of the hit
+    triangle, or a tile of the hit's convex object. ``origins`` is ``(1, 3)`` for a fixed sensor.
     """
-    shared = origins.shape[0] == 1
-    stack = np.empty(128, dtype=np.int64)
-    for i in range(directions.shape[0]):
-        o = 0 if shared else i
-        ox, oy, oz = origins[o, 0], origins[o, 1], origins[o, 2]
-        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
-        ix = 1.0 / dx if dx != 0.0 else np.inf
-        iy = 1.0 / dy if dy != 0.0 else np.inf
-        iz = 1.0 / dz if dz != 0.0 else np.inf
-        limit = reach[i]
-        hit = triangle[i]
-        part = triangle_part[hit] if hit >= 0 else -1
-        own_tile = triangle_tile[hit] if hit >= 0 else -1
-        top = 0
-        stack[0] = 0
-        top = 1
-        found = False
-        while top > 0 and not found:
-            top -= 1
-            node = stack[top]
-            if not _slab(ox, oy, oz, ix, iy, iz, limit, node_low[node, 0], node_low[node, 1], node_low[node, 2],
-                         node_high[node, 0], node_high[node, 1], node_high[node, 2]):
+    stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
+    count = directions.shape[0]
+    block = 1024
+    for first in prange((count + block - 1) // block):
+        stack = np.empty(128, dtype=np.int64)
+        for i in range(first * block, min(first * block + block, count)):
+            near[i] = False
+            if not candidate[i]:
                 continue
-            if node_link[node, 0] >= 0:
-                stack[top] = node_link[node, 0]
-                stack[top + 1] = node_link[node, 1]
-                top += 2
-                continue
-            for b in range(node_link[node, 1], node_link[node, 1] + node_link[node, 2]):
-                tile = box_tile[b]
-                if hit >= 0 and (tile == own_tile or tile_triangle[tile] == hit or (
-                        tile_convex[tile] and tile_part[tile] == part)):
+            o = i * stride
+            ox, oy, oz = origins[o, 0], origins[o, 1], origins[o, 2]
+            dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+            ix = 1.0 / dx if dx != 0.0 else np.inf
+            iy = 1.0 / dy if dy != 0.0 else np.inf
+            iz = 1.0 / dz if dz != 0.0 else np.inf
+            limit = reach[i]
+            hit = triangle[i]
+            part = triangle_part[hit] if hit >= 0 else -1
+            own_tile = triangle_tile[hit] if hit >= 0 else -1
+            stack[0] = 0
+            top = 1
+            found = False
+            while top > 0 and not found:
+                top -= 1
+                node = stack[top]
+                if not _slab(ox, oy, oz, ix, iy, iz, limit, node_low[node, 0], node_low[node, 1], node_low[node, 2],
+                             node_high[node, 0], node_high[node, 1], node_high[node, 2]):
                     continue
-                if _slab(ox, oy, oz, ix, iy, iz, limit, box_low[b, 0], box_low[b, 1], box_low[b, 2],
-                         box_high[b, 0], box_high[b, 1], box_high[b, 2]):
-                    found = True
-                    break
-        near[i] = found
+                if node_link[node, 0] >= 0:
+                    stack[top] = node_link[node, 0]
+                    stack[top + 1] = node_link[node, 1]
+                    top += 2
+                    continue
+                for b in range(node_link[node, 1], node_link[node, 1] + node_link[node, 2]):
+                    tile = box_tile[b]
+                    if hit >= 0 and (tile == own_tile or tile_triangle[tile] == hit or (
+                            tile_convex[tile] and tile_part[tile] == part)):
+                        continue
+                    if _slab(ox, oy, oz, ix, iy, iz, limit, box_low[b, 0], box_low[b, 1], box_low[b, 2],
+                             box_high[b, 0], box_high[b, 1], box_high[b, 2]):
+                        found = True
+                        break
+            near[i] = found
 
 
 def _slab(ox, oy, oz, ix, iy, iz, limit, lx, ly, lz, hx, hy, hz):  # pragma: no cover - compiled
-    """Whether the ray from o (inverse direction i) meets the box [l, h] between 0 and ``limit``."""
+    """Whether the ray from o (inverse direction i, infinite along an axis it does not move on) meets the box
+    [l, h] between 0 and ``limit``."""
     near_t = 0.0
     far_t = limit
-    for o, inv, lo, hi in ((ox, ix, lx, hx), (oy, iy, ly, hy), (oz, iz, lz, hz)):
-        if inv == np.inf:
-            if o < lo or o > hi:
-                return False
-            continue
-        a = (lo - o) * inv
-        b = (hi - o) * inv
-        if a > b:
-            a, b = b, a
-        near_t = max(near_t, a)
-        far_t = min(far_t, b)
-        if near_t > far_t:
+    if ix == np.inf:
+        if ox < lx or ox > hx:
             return False
-    return True
+    else:
+        a = (lx - ox) * ix
+        b = (hx - ox) * ix
+        near_t = max(near_t, min(a, b))
+        far_t = min(far_t, max(a, b))
+    if iy == np.inf:
+        if oy < ly or oy > hy:
+            return False
+    else:
+        a = (ly - oy) * iy
+        b = (hy - oy) * iy
+        near_t = max(near_t, min(a, b))
+        far_t = min(far_t, max(a, b))
+    if iz == np.inf:
+        if oz < lz or oz > hz:
+            return False
+    else:
+        a = (lz - oz) * iz
+        b = (hz - oz) * iz
+        near_t = max(near_t, min(a, b))
+        far_t = min(far_t, max(a, b))
+    return near_t <= far_t
 
 
 def _probe_limits(rows, probes, triangle, planes, origins, range_max, out):  # pragma: no cover - compiled
     """How far each probe ray may look: just short of the hit's own plane (the whole range for a miss)."""
-    shared = origins.shape[0] == 1
-    for r in range(rows.shape[0]):
+    stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
+    for r in prange(rows.shape[0]):
         i = rows[r]
         t = triangle[i]
-        o = 0 if shared else i
+        o = i * stride
         for k in range(probes.shape[1]):
             out[r, k] = range_max
             if t < 0:
@@ -291,8 +376,8 @@ def _probe_limits(rows, probes, triangle, planes, origins, range_max, out):  # p
 # Step 3: echoes of sampled footprints ------------------------------------------------------------------------------
 def _footprint_echoes(rows, ranges, triangles, rays, weights, planes, brightness, origins, blind, separate,
                       separation, sigma_table, mix_floor, calibration,
-                      beam, slot, power, range_m, spatial, unit_power):  # pragma: no cover - compiled
-    """Echoes of each sampled pulse's 19 sub-rays; returns how many were written.
+                      written, slot, power, range_m, spatial, unit_power):  # pragma: no cover - compiled
+    """Echoes of each sampled pulse's 19 sub-rays, in slots ``m * 19 ..``; ``written[m]`` says how many.
 
     Sub-rays sorted by range; a gap over ``separation`` starts a new echo (never when not ``separate``: a
     single-return sensor). An echo's power sums its sub-rays', its range is their power-weighted mean. Its
@@ -300,15 +385,14 @@ def _footprint_echoes(rows, ranges, triangles, rays, weights, planes, brightness
     off that plane the point is mixed, its spatial bits from where it sits between the depths (01 beyond a
     quarter of the spread from the surface, 10 beyond a tenth, else 11).
     """
-    shared = origins.shape[0] == 1
+    stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
     rho_a, r_a, alpha = calibration[0], calibration[1], calibration[2]
     count = weights.shape[0]
-    order = np.empty(count, dtype=np.int64)
-    sub_power = np.empty(count)
-    written = 0
-    for m in range(rows.shape[0]):
+    for m in prange(rows.shape[0]):
+        order = np.empty(count, dtype=np.int64)
+        sub_power = np.empty(count)
         i = rows[m]
-        o = 0 if shared else i
+        o = i * stride
         live = 0
         for k in range(count):
             t = triangles[m, k]
@@ -327,7 +411,7 @@ def _footprint_echoes(rows, ranges, triangles, rays, weights, planes, brightness
                 j -= 1
             order[j] = k
             live += 1
-        echo_slot = 0
+        out = m * count
         first = 0
         while first < live:
             last = first + 1
@@ -357,111 +441,152 @@ def _footprint_echoes(rows, ranges, triangles, rays, weights, planes, brightness
             if spread > max(3.0 * _sigma(blend, sigma_table), mix_floor):
                 between = abs(blend - height / along) / spread if along != 0.0 and spread < np.inf else 1.0
                 bits = 1 if between > 0.25 else (2 if between > 0.1 else 3)
-            beam[written] = i
-            slot[written] = echo_slot
-            power[written] = total
-            range_m[written] = blend
-            spatial[written] = bits
-            unit_power[written] = rho_a * (blend / r_a) ** 2 * math.exp(2.0 * alpha * (blend - r_a))
-            written += 1
-            echo_slot += 1
+            slot[out] = out - m * count
+            power[out] = total
+            range_m[out] = blend
+            spatial[out] = bits
+            unit_power[out] = rho_a * (blend / r_a) ** 2 * math.exp(2.0 * alpha * (blend - r_a))
+            out += 1
             first = last
-    return written
+        written[m] = out - m * count
 
 
 # Steps 4 and 5: detection, selection, noise, bytes, tags, false alarms ------------------------------------------------
-def _detect(beam, slot, power, range_m, index, echo_key, later_key, snr, sigma_table, blind, range_max,
-            keep_returns, chosen, number, returns, seen, measured):  # pragma: no cover - compiled
-    """Which echoes a pulse reports, with their measured ranges and seen powers; returns how many.
+def _detect(whole, power, distance, first, count, e_power, e_range, index, keys, snr, sigma_table, blind,
+            range_max, keep_returns, false_rate, seen, measured, chosen, points):  # pragma: no cover - compiled
+    """Pass 1 over the pulses: which echoes each reports (``chosen``) and how many points (``points``, a false
+    alarm counted); returns how many in all.
 
-    Echoes come sorted by pulse, then range. Receiver noise (the detection's and the intensity's) and range
-    noise are one normal pair per echo: the pulse's first pair for its nearest echo, the ``later`` stream's
-    pair ``slot - 1`` for the others. An echo is seen when power plus noise / ``snr`` passes 1 and its measured
-    range lies in [blind zone, range_max]. When more are seen than ``keep_returns``, the first and then the
-    strongest others are kept; those kept are numbered 1, 2, 3 in range order (``number``) of ``returns``.
+    A pulse is ``whole`` (one echo, its central hit's ``power`` at ``distance``, kept at row ``E + i`` of
+    ``seen``, ``measured`` and ``chosen``, E the footprint echoes' count) or has ``count[i]`` footprint echoes
+    from row ``first[i]``, in range order. Receiver noise (the detection's and the intensity's) and range noise
+    are one normal pair per echo: the pulse's first pair (``keys[0]``) for its nearest echo, the later stream's
+    pair ``slot - 1`` (``keys[1]``) for the others. An echo is seen when power plus noise / ``snr`` passes 1 and
+    its measured range lies in [blind zone, range_max]; when more are seen than ``keep_returns``, the first and
+    then the strongest others are kept. A pulse left without a point reports a false alarm with probability
+    ``false_rate`` (``keys[3]``).
     """
-    count = beam.shape[0]
-    for e in range(count):
-        if slot[e] == 0:
-            a, b = _normal_pair(echo_key, index[beam[e]], 0)
-        else:
-            a, b = _normal_pair(later_key, index[beam[e]], slot[e] - 1)
-        seen[e] = power[e] + a / snr
-        measured[e] = range_m[e] + _sigma(range_m[e], sigma_table) * b
-        chosen[e] = seen[e] > 1.0 and blind <= measured[e] <= range_max
-    kept = 0
-    e = 0
-    while e < count:
-        stop = e + 1
-        while stop < count and beam[stop] == beam[e]:
-            stop += 1
-        detected = 0
-        for j in range(e, stop):
-            number[j] = 1 if chosen[j] else 0  # number holds "detected" for now
-            detected += number[j]
-        if detected > keep_returns:
-            first = e
-            while number[first] == 0:
-                first += 1
-            for j in range(e, stop):
-                chosen[j] = j == first
-            for _ in range(keep_returns - 1):
-                best = -1
-                for j in range(e, stop):
-                    if number[j] == 1 and not chosen[j] and (best < 0 or seen[j] > seen[best]):
-                        best = j
-                chosen[best] = True
-        n = 0
-        for j in range(e, stop):
-            number[j] = 0
-            if chosen[j]:
-                n += 1
-                number[j] = n
-        for j in range(e, stop):
-            returns[j] = n
-        kept += n
-        e = stop
-    return kept
+    echoes = e_power.shape[0]
+    total = 0
+    for i in range(whole.shape[0]):
+        kept = 0
+        if whole[i]:
+            e = echoes + i
+            a, b = _normal_pair(keys[0], index[i], 0)
+            seen[e] = power[i] + a / snr
+            measured[e] = distance[i] + _sigma(distance[i], sigma_table) * b
+            chosen[e] = seen[e] > 1.0 and blind <= measured[e] <= range_max
+            kept = 1 if chosen[e] else 0
+        elif count[i] > 0:
+            start = first[i]
+            stop = start + count[i]
+            for e in range(start, stop):
+                if e == start:
+                    a, b = _normal_pair(keys[0], index[i], 0)
+                else:
+                    a, b = _normal_pair(keys[1], index[i], e - start - 1)
+                seen[e] = e_power[e] + a / snr
+                measured[e] = e_range[e] + _sigma(e_range[e], sigma_table) * b
+                chosen[e] = seen[e] > 1.0 and blind <= measured[e] <= range_max
+                if chosen[e]:
+                    kept += 1
+            if kept > keep_returns:
+                picked = np.zeros(stop - start, dtype=np.bool_)
+                nearest = start
+                while not chosen[nearest]:
+                    nearest += 1
+                picked[nearest - start] = True
+                for _ in range(keep_returns - 1):
+                    best = -1
+                    for e in range(start, stop):
+                        if chosen[e] and not picked[e - start] and (best < 0 or seen[e] > seen[best]):
+                            best = e
+                    picked[best - start] = True
+                for e in range(start, stop):
+                    chosen[e] = picked[e - start]
+                kept = keep_returns
+        if kept == 0 and false_rate > 0.0 and _uniform(keys[3], index[i], 0) < false_rate:
+            kept = 1
+        points[i] = kept
+        total += kept
+    return total
 
 
-def _false_alarms(index, has_return, false_key, rate, out):  # pragma: no cover - compiled
-    """Rows of pulses without a return that report a false alarm; returns how many."""
-    found = 0
-    for i in range(index.shape[0]):
-        if not has_return[i] and _uniform(false_key, index[i], 0) < rate:
-            out[found] = i
-            found += 1
-    return found
+def _emit(whole, first, count, e_power, e_range, e_spatial, e_unit, distance, seen, measured, chosen, points,
+          index, keys, multi, return0, false_reach, blind, directions_sensor, directions_world, origins, jitter,
+          calibration, beam, range_out, xyz_sensor, xyz_world, reflectivity, tag, number,
+          returns):  # pragma: no cover - compiled
+    """Pass 2 over the pulses: their points, in pulse order and range order within a pulse.
 
-
-def _finish(beam, measured, seen, unit_power, spatial, number, returns, multi, return0, directions_sensor,
-            directions_world, origins, jitter_key, jitter, index, xyz_sensor, xyz_world, reflectivity,
-            tag):  # pragma: no cover - compiled
-    """The points: measured range along the (jittered) direction, the reflectivity byte, the tag."""
-    shared = origins.shape[0] == 1
-    for p in range(beam.shape[0]):
-        i = beam[p]
-        o = 0 if shared else i
-        r = measured[p]
+    Each at its measured range along the pulse's direction (turned by the angular noise, ``keys[2]``); the
+    reflectivity byte from seen power x the reflectance one unit of power means at that range (0-150
+    Lambertian, 151-255 logarithmic from twice to 1000 times a white target's power); the tag (spatial bits,
+    return number: 1-3, or 0 for a first return nearer than ``return0``). A false alarm: a range uniform in
+    [blind zone, ``false_reach``], byte 0-3, tag spatial 01 and intensity 01.
+    """
+    stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
+    echoes = e_power.shape[0]
+    rho_a, r_a, alpha = calibration[0], calibration[1], calibration[2]
+    p = 0
+    for i in range(whole.shape[0]):
+        if points[i] == 0:
+            continue
+        o = i * stride
         dx, dy, dz = directions_sensor[i, 0], directions_sensor[i, 1], directions_sensor[i, 2]
         if jitter > 0.0:
-            a, b = _normal_pair(jitter_key, index[i], 0)
+            a, b = _normal_pair(keys[2], index[i], 0)
             scale = jitter / math.sqrt(dx * dx + dy * dy)
             a *= scale
             b *= scale
             dx, dy, dz = dx - a * dy - b * dz * dx, dy + a * dx - b * dz * dy, dz + b * (dx * dx + dy * dy)
-        xyz_sensor[p, 0], xyz_sensor[p, 1], xyz_sensor[p, 2] = dx * r, dy * r, dz * r
-        if jitter <= 0.0:
-            xyz_world[p, 0] = origins[o, 0] + directions_world[i, 0] * r
-            xyz_world[p, 1] = origins[o, 1] + directions_world[i, 1] * r
-            xyz_world[p, 2] = origins[o, 2] + directions_world[i, 2] * r
-        value = seen[p] * unit_power[p]
-        if value >= 2.0:
-            share = math.log(value / 2.0) / math.log(500.0)
-            reflectivity[p] = 151 + math.floor(104.0 * min(max(share, 0.0), 1.0) + 0.5)
-        else:
-            reflectivity[p] = math.floor(150.0 * min(max(value, 0.0), 1.0) + 0.5)
-        bits = number[p] if multi else 1
-        if number[p] == 1 and r < return0:
-            bits = 0
-        tag[p] = spatial[p] | (bits << 4)
+        rows_start = p
+        real = chosen[echoes + i] if whole[i] else (count[i] > 0 and _any_chosen(chosen, first[i], count[i]))
+        if real and whole[i]:
+            e = echoes + i
+            range_out[p] = measured[e]
+            unit = rho_a * (distance[i] / r_a) ** 2 * math.exp(2.0 * alpha * (distance[i] - r_a))
+            reflectivity[p] = _byte(seen[e] * unit)
+            tag[p] = 0
+            p += 1
+        elif real:
+            for e in range(first[i], first[i] + count[i]):
+                if chosen[e]:
+                    range_out[p] = measured[e]
+                    reflectivity[p] = _byte(seen[e] * e_unit[e])
+                    tag[p] = e_spatial[e]
+                    p += 1
+        else:  # a false alarm
+            near_end = min(max(blind, 0.1), false_reach)
+            range_out[p] = near_end + _uniform(keys[4], index[i], 0) * (false_reach - near_end)
+            reflectivity[p] = math.floor(_uniform(keys[4], index[i], 1) * 4.0)
+            tag[p] = 0x05
+            p += 1
+        for q in range(rows_start, p):
+            r = range_out[q]
+            beam[q] = i
+            number[q] = q - rows_start + 1
+            returns[q] = p - rows_start
+            bits = number[q] if multi else 1
+            if number[q] == 1 and r < return0:
+                bits = 0
+            tag[q] = tag[q] | (bits << 4)
+            xyz_sensor[q, 0], xyz_sensor[q, 1], xyz_sensor[q, 2] = dx * r, dy * r, dz * r
+            if jitter <= 0.0:
+                xyz_world[q, 0] = origins[o, 0] + directions_world[i, 0] * r
+                xyz_world[q, 1] = origins[o, 1] + directions_world[i, 1] * r
+                xyz_world[q, 2] = origins[o, 2] + directions_world[i, 2] * r
+
+
+def _any_chosen(chosen, start, count):  # pragma: no cover - compiled
+    for e in range(start, start + count):
+        if chosen[e]:
+            return True
+    return False
+
+
+def _byte(value):  # pragma: no cover - compiled
+    """Livox's reflectivity byte of an echo as bright as a Lambertian target of reflectance ``value``."""
+    if value >= 2.0:
+        share = math.log(value / 2.0) / math.log(500.0)
+        return 151 + math.floor(104.0 * min(max(share, 0.0), 1.0) + 0.5)
+    return math.floor(150.0 * min(max(value, 0.0), 1.0) + 0.5)

@@ -52,7 +52,7 @@ from livox_viz.casting.beam import SUBRAY_WEIGHTS, Footprint, TileProxy, Triangl
 from livox_viz.casting.return_kernels import kernel
 from livox_viz.config.returns_params import ReturnParams
 from livox_viz.core.rotations import rotate_rows
-from livox_viz.core.streamrandom import stream_key, stream_uniform
+from livox_viz.core.streamrandom import stream_key
 from livox_viz.scene.materials import face_materials
 
 #: The purposes of the random numbers (each its own stream under one seed).
@@ -108,6 +108,24 @@ class ReturnPoints:
     number_of_returns: np.ndarray
 
 
+class _RowBasis:
+    """The derivatives of beams' world directions by pattern x and y, for any rows of a run."""
+
+    def __init__(self, xy_deg: np.ndarray, rotation: np.ndarray, basis_x: np.ndarray, basis_y: np.ndarray) -> None:
+        self.xy_deg, self.rotation, self.basis_x, self.basis_y = xy_deg, rotation, basis_x, basis_y
+
+    def at(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(len(rows), 3)`` twice, world frame."""
+        if self.basis_x.shape[0]:
+            return np.ascontiguousarray(self.basis_x[rows]), np.ascontiguousarray(self.basis_y[rows])
+        sensor_x, sensor_y = np.empty((rows.size, 3)), np.empty((rows.size, 3))
+        kernel("sensor_basis")(np.ascontiguousarray(self.xy_deg[rows]), sensor_x, sensor_y)
+        world_x, world_y = np.empty_like(sensor_x), np.empty_like(sensor_y)
+        kernel("rotate")(sensor_x, self.rotation, world_x)
+        kernel("rotate")(sensor_y, self.rotation, world_y)
+        return world_x, world_y
+
+
 class ReturnModel:
     """A sensor's datasheet return model over one scene.
 
@@ -140,8 +158,9 @@ class ReturnModel:
         rho_a, r_a = params.detection_range_m[0]
         self._calibration = np.array([rho_a, r_a, params.range_loss_per_m])
         self._sigma_table = np.ascontiguousarray(params.range_sigma_m, dtype=np.float64)
-        self._keys = {purpose: np.uint64(stream_key(self.seed, purpose)) for purpose in (
-            _ECHO_NOISE, _LATER_ECHO_NOISE, _ANGLE_NOISE, _FALSE_ALARM)}
+        #: The random streams' keys: echo noise, later echoes' noise, angular noise, false alarms, their points.
+        self._key_array = np.array([stream_key(self.seed, purpose) for purpose in (
+            _ECHO_NOISE, _LATER_ECHO_NOISE, _ANGLE_NOISE, _FALSE_ALARM, _FALSE_ALARM_POINT)], dtype=np.uint64)
         #: Farthest range a false alarm may come from: the sensor's range gate.
         self.false_alarm_reach = min(self.range_max, params.detection_range(0.8))
         #: What the last run did (for benchmarks): pulses, footprints leaving their triangle, pulses the broad
@@ -199,65 +218,79 @@ class ReturnModel:
         origins = np.ascontiguousarray(np.asarray(origin, dtype=np.float64).reshape(-1, 3))
         moving = origins.shape[0] > 1 or turn is not None
         directions_world = np.ascontiguousarray(directions_world, dtype=np.float64)
-        distance, triangle = self.caster.hits(origins[0] if not moving else origins, directions_world,
-                                              self.range_max)
+        distance, triangle = self._central_hits(origins, directions_world, moving)
         self._lap("central rays")
         planes = self.caster.face_planes
         edges = self.edges
-        basis_x, basis_y = np.empty((n, 3)), np.empty((n, 3))
-        kernel("sensor_basis")(np.ascontiguousarray(xy_deg, dtype=np.float64), basis_x, basis_y)
+        xy_deg = np.ascontiguousarray(xy_deg, dtype=np.float64)
         if turn is None:
-            kernel("rotate")(basis_x.copy(), rotation, basis_x)
-            kernel("rotate")(basis_y.copy(), rotation, basis_y)
+            basis_x = basis_y = np.empty((0, 3))  # a fixed sensor's come from the pattern angles and the rotation
         else:
+            basis_x, basis_y = np.empty((n, 3)), np.empty((n, 3))
+            kernel("sensor_basis")(xy_deg, basis_x, basis_y)
             every = np.arange(n)
             basis_x, basis_y = turn(basis_x, every), turn(basis_y, every)
+        rotation = np.eye(3) if rotation is None else np.ascontiguousarray(rotation, dtype=np.float64)
         power, cosine, reach = np.empty(n), np.empty(n), np.empty(n)
         leaves = np.empty(n, dtype=np.bool_)
-        kernel("central")(distance, triangle, directions_world, origins, basis_x, basis_y, planes, self.brightness,
-                          edges.incentre, edges.inradius, edges.inward, edges.offset, edges.neighbour,
-                          edges.narrowest, footprint.half_rad[0], footprint.half_rad[1], footprint.tan_half_max,
-                          self._calibration, self.range_max, power, cosine, leaves, reach)
+        kernel("central")(distance, triangle, directions_world, origins, xy_deg, rotation, basis_x, basis_y, planes,
+                          self.brightness, edges.incentre, edges.inradius, edges.inward, edges.offset,
+                          edges.neighbour, edges.narrowest, footprint.half_rad[0], footprint.half_rad[1],
+                          footprint.tan_half_max, self._calibration, self.range_max, power, cosine, leaves, reach)
+        rows_basis = _RowBasis(xy_deg, rotation, basis_x, basis_y)
         self._lap("materials, edges and reach")
-        covered = self._covered(np.flatnonzero(~leaves), directions_world, origins, basis_x, basis_y, reach,
-                                triangle, moving)
+        covered = self._covered(~leaves, directions_world, origins, rows_basis, reach, triangle, moving)
         sampled = np.union1d(np.flatnonzero(leaves), covered)
         self.last_counts = {"pulses": n, "leaves": int(leaves.sum()), "near": self.last_counts.get("near", 0),
                             "covered": int(covered.size)}
         whole = (triangle >= 0) & (distance >= params.blind_zone_m)
         whole[sampled] = False
-        beam = np.flatnonzero(whole)
-        rho_a, r_a, alpha = self._calibration
-        d = distance[beam]
-        echoes = [beam, np.zeros(beam.size, np.int64), power[beam], d, np.zeros(beam.size, np.uint8),
-                  rho_a * (d / r_a) ** 2 * (np.exp(2.0 * alpha * (d - r_a)) if alpha else 1.0)]
+        first, count = np.zeros(n, np.int64), np.zeros(n, np.int64)
         if sampled.size:
-            more = self._footprint_echoes(sampled, directions_world, origins, basis_x, basis_y, distance, triangle,
-                                          moving)
-            echoes = [np.concatenate([a, b]) for a, b in zip(echoes, more, strict=True)]
-            order = np.argsort(echoes[0] * 64 + np.minimum(echoes[1], 63), kind="stable")
-            echoes = [a[order] for a in echoes]
+            footprint_echoes = self._footprint_echoes(sampled, directions_world, origins, rows_basis, distance,
+                                                      triangle, moving)
+            first[sampled] = np.arange(sampled.size) * SUBRAY_WEIGHTS.size
+            count[sampled] = footprint_echoes[0]
+            footprint_echoes = footprint_echoes[1:]
+        else:
+            footprint_echoes = [np.zeros(0), np.zeros(0), np.zeros(0, np.uint8), np.zeros(0)]
         self._lap("footprint sub-rays")
-        points = self._points(echoes, index, directions_sensor, directions_world, origins, rotation, turn)
+        points = self._points(whole, power, distance, first, count, footprint_echoes, index, directions_sensor,
+                              directions_world, origins, rotation, turn)
         self._lap("detection, noise, tags")
         return points
 
+    def _central_hits(self, origins: np.ndarray, directions_world: np.ndarray,
+                      moving: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Each central ray's distance (float64, from its triangle's plane) and triangle (-1 for a miss)."""
+        ray_origin = origins[0] if not moving else origins
+        if not hasattr(self.caster, "triangle_ids"):
+            return self.caster.hits(ray_origin, directions_world, self.range_max)
+        triangle = self.caster.triangle_ids(ray_origin, directions_world, self.range_max)
+        distance = np.empty(triangle.size)
+        if kernel("plane_distance")(triangle, directions_world, origins, self.caster.face_planes, self.range_max,
+                                    distance):
+            # A ray along its triangle's plane: Embree's own distance.
+            rows = np.flatnonzero(distance < 0)
+            distance[rows] = self.caster.distances(origins[rows] if moving else ray_origin, directions_world[rows],
+                                                   self.range_max)
+            triangle[rows[~np.isfinite(distance[rows])]] = -1
+        return distance, triangle
+
     # Step 2: footprints something nearer covers --------------------------------------------------------------
-    def _covered(self, rows: np.ndarray, directions_world: np.ndarray, origins: np.ndarray, basis_x: np.ndarray,
-                 basis_y: np.ndarray, reach: np.ndarray, triangle: np.ndarray, moving: bool) -> np.ndarray:
-        """Of ``rows``, those whose footprint something nearer covers in part (sorted)."""
+    def _covered(self, candidate: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
+                 rows_basis: _RowBasis, reach: np.ndarray, triangle: np.ndarray, moving: bool) -> np.ndarray:
+        """Of the ``candidate`` pulses, those whose footprint something nearer covers in part (sorted rows)."""
         proxy = self.proxy
         proxy.place(origins[0] if not moving else origins[:: max(1, origins.shape[0] // 64)], self.range_max)
-        near = proxy.near(origins[0] if not moving else origins[rows], directions_world[rows], reach[rows],
-                          triangle[rows])
-        rows = rows[near]
+        rows = np.flatnonzero(proxy.near(candidate, origins, directions_world, reach, triangle))
         self.last_counts["near"] = int(rows.size)
         self._lap("broad phase")
         if rows.size == 0:
             return rows
         # Probe rays at the corners of the footprint's bounding box: is anything in front of the hit's plane?
         probes = np.empty((rows.size, 4, 3), dtype=np.float32)
-        kernel("offset_rays")(rows, directions_world, basis_x, basis_y, self.footprint.probe_offsets, probes)
+        kernel("offset_rays")(rows, directions_world, *rows_basis.at(rows), self.footprint.probe_offsets, probes)
         limit = np.empty((rows.size, 4))
         kernel("probe_limits")(rows, probes, triangle, self.caster.face_planes, origins, self.range_max, limit)
         ray_origin = origins[0] if not moving else np.repeat(origins[rows], 4, axis=0)
@@ -267,80 +300,60 @@ class ReturnModel:
 
     # Step 3: echoes of sampled footprints ------------------------------------------------------------------
     def _footprint_echoes(self, rows: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
-                          basis_x: np.ndarray, basis_y: np.ndarray, distance: np.ndarray, triangle: np.ndarray,
+                          rows_basis: _RowBasis, distance: np.ndarray, triangle: np.ndarray,
                           moving: bool) -> list[np.ndarray]:
-        """The echoes of pulses sampled with all 19 sub-rays: beam, slot, power, range, spatial bits, unit power."""
+        """The echoes of pulses sampled with all 19 sub-rays: how many each has, then, in 19 slots a pulse, their
+        power, range, spatial bits and the reflectance one unit of power means at their range."""
         params = self.params
         m = rows.size
         count = SUBRAY_WEIGHTS.size
         rays = np.empty((m, count, 3), dtype=np.float32)
-        kernel("offset_rays")(rows, directions_world, basis_x, basis_y, self.footprint.subray_offsets, rays)
+        kernel("offset_rays")(rows, directions_world, *rows_basis.at(rows), self.footprint.subray_offsets, rays)
         ranges = np.empty((m, count))
         triangles = np.empty((m, count), dtype=np.int64)
         ranges[:, 0], triangles[:, 0] = distance[rows], triangle[rows]
         more_r, more_tri = self.caster.hits(origins[0] if not moving else np.repeat(origins[rows], count - 1, axis=0),
                                             rays[:, 1:].reshape(-1, 3), self.range_max)
         ranges[:, 1:], triangles[:, 1:] = more_r.reshape(m, count - 1), more_tri.reshape(m, count - 1)
-        capacity = m * count
-        beam, slot = np.empty(capacity, np.int64), np.empty(capacity, np.int64)
-        power, range_m, unit = np.empty(capacity), np.empty(capacity), np.empty(capacity)
-        spatial = np.empty(capacity, np.uint8)
-        written = kernel("footprint_echoes")(
-            rows, ranges, triangles, rays, SUBRAY_WEIGHTS, self.caster.face_planes, self.brightness, origins,
-            params.blind_zone_m, params.returns_per_pulse > 1, params.return_separation_m, self._sigma_table,
-            MIX_FLOOR_M, self._calibration, beam, slot, power, range_m, spatial, unit)
-        return [a[:written] for a in (beam, slot, power, range_m, spatial, unit)]
+        written = np.empty(m, np.int64)
+        slot = np.empty(m * count, np.int64)
+        power, range_m, unit = np.empty(m * count), np.empty(m * count), np.empty(m * count)
+        spatial = np.zeros(m * count, np.uint8)
+        kernel("footprint_echoes")(rows, ranges, triangles, rays, SUBRAY_WEIGHTS, self.caster.face_planes,
+                                   self.brightness, origins, params.blind_zone_m, params.returns_per_pulse > 1,
+                                   params.return_separation_m, self._sigma_table, MIX_FLOOR_M, self._calibration,
+                                   written, slot, power, range_m, spatial, unit)
+        return [written, power, range_m, spatial, unit]
 
     # Steps 4 and 5: detection and the points -----------------------------------------------------------
-    def _points(self, echoes: list[np.ndarray], index: np.ndarray, directions_sensor: np.ndarray,
-                directions_world: np.ndarray, origins: np.ndarray, rotation: np.ndarray | None,
-                turn: Turn | None) -> ReturnPoints:
-        """Detection, selection, noise, reflectivity and tags of echoes sorted by pulse and rank."""
+    def _points(self, whole: np.ndarray, power: np.ndarray, distance: np.ndarray, first: np.ndarray,
+                count: np.ndarray, footprint_echoes: list[np.ndarray], index: np.ndarray,
+                directions_sensor: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
+                rotation: np.ndarray, turn: Turn | None) -> ReturnPoints:
+        """Detection, selection, noise, reflectivity and tags, false alarms: the run's points in pulse order."""
         params = self.params
-        beam, slot, power, range_m, spatial, unit = echoes
-        count = beam.size
-        chosen = np.empty(count, dtype=np.bool_)
-        number, returns = np.empty(count, np.int64), np.empty(count, np.int64)
-        seen, measured = np.empty(count), np.empty(count)
-        kernel("detect")(beam, slot, power, range_m, index, self._keys[_ECHO_NOISE], self._keys[_LATER_ECHO_NOISE],
-                         params.detection_snr, self._sigma_table, params.blind_zone_m, self.range_max,
-                         params.returns_per_pulse, chosen, number, returns, seen, measured)
-        kept = np.flatnonzero(chosen)
-        beam, seen, measured, unit, spatial = beam[kept], seen[kept], measured[kept], unit[kept], spatial[kept]
-        number, returns = number[kept], returns[kept]
-        # False alarms: a pulse that returned nothing may still report noise.
-        if params.false_alarm_rate > 0:
-            has_return = np.zeros(index.size, dtype=np.bool_)
-            has_return[beam] = True
-            found = np.empty(index.size, dtype=np.int64)
-            false = found[:kernel("false_alarms")(index, has_return, self._keys[_FALSE_ALARM],
-                                                  params.false_alarm_rate, found)]
-            if false.size:
-                u = stream_uniform(self.seed, _FALSE_ALARM_POINT, index[false], 2)
-                near_end = min(max(params.blind_zone_m, 0.1), self.false_alarm_reach)
-                beam = np.concatenate([beam, false])
-                measured = np.concatenate([measured, near_end + u[:, 0] * (self.false_alarm_reach - near_end)])
-                # A false alarm's byte is 0-3 (the weak echo of noise): seen x unit power = byte / 150.
-                seen = np.concatenate([seen, np.floor(u[:, 1] * 4) / LAMBERTIAN_TOP])
-                unit = np.concatenate([unit, np.ones(false.size)])
-                spatial = np.concatenate([spatial, np.full(false.size, SPATIAL_HIGH | INTENSITY_NOISE, np.uint8)])
-                number = np.concatenate([number, np.ones(false.size, np.int64)])
-                returns = np.concatenate([returns, np.ones(false.size, np.int64)])
-                order = np.argsort(beam, kind="stable")
-                beam, measured, seen, unit, spatial, number, returns = (
-                    a[order] for a in (beam, measured, seen, unit, spatial, number, returns))
-        points = beam.size
-        xyz_sensor, xyz_world = np.empty((points, 3)), np.empty((points, 3))
-        reflectivity, tag = np.empty(points, np.uint8), np.empty(points, np.uint8)
+        e_power, e_range, e_spatial, e_unit = footprint_echoes
+        rows = e_power.size + whole.size
+        seen, measured, chosen = np.empty(rows), np.empty(rows), np.zeros(rows, dtype=np.bool_)
+        points = np.empty(whole.size, np.int64)
+        keys = self._key_array
+        total = kernel("detect")(whole, power, distance, first, count, e_power, e_range, index, keys,
+                                 params.detection_snr, self._sigma_table, params.blind_zone_m, self.range_max,
+                                 params.returns_per_pulse, params.false_alarm_rate, seen, measured, chosen, points)
+        beam, range_m = np.empty(total, np.int64), np.empty(total)
+        xyz_sensor, xyz_world = np.empty((total, 3)), np.empty((total, 3))
+        reflectivity, tag = np.empty(total, np.uint8), np.empty(total, np.uint8)
+        number, returns = np.empty(total, np.uint8), np.empty(total, np.uint8)
         jitter = float(np.radians(params.angular_sigma_deg))
-        kernel("finish")(beam, measured, seen, unit, spatial, number, returns, params.returns_per_pulse > 1,
-                         params.return0_range_m, directions_sensor, directions_world, origins,
-                         self._keys[_ANGLE_NOISE], jitter, index, xyz_sensor, xyz_world, reflectivity, tag)
-        if jitter > 0 and points:
+        kernel("emit")(whole, first, count, e_power, e_range, e_spatial, e_unit, distance, seen, measured, chosen,
+                       points, index, keys, params.returns_per_pulse > 1, params.return0_range_m,
+                       self.false_alarm_reach, params.blind_zone_m, np.ascontiguousarray(directions_sensor),
+                       directions_world, origins, jitter, self._calibration, beam, range_m, xyz_sensor, xyz_world,
+                       reflectivity, tag, number, returns)
+        if jitter > 0 and total:
             turned = rotate_rows(xyz_sensor, rotation) if turn is None else turn(xyz_sensor, beam)
             xyz_world = (origins[0] if origins.shape[0] == 1 else origins[beam]) + turned
-        return ReturnPoints(beam, measured, xyz_sensor, xyz_world, reflectivity, tag, number.astype(np.uint8),
-                            returns.astype(np.uint8))
+        return ReturnPoints(beam, range_m, xyz_sensor, xyz_world, reflectivity, tag, number, returns)
 
 
 def reflectivity_byte(reflectance: np.ndarray) -> np.ndarray:

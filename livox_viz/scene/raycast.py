@@ -54,7 +54,9 @@ class RayCaster(Protocol):
 
 def _check_rays(origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     origins = np.asarray(origins, dtype=np.float64)
-    directions = np.asarray(directions, dtype=np.float64)
+    directions = np.asarray(directions)
+    if directions.dtype != np.float32:  # float32 (what Embree takes) passes as it is
+        directions = directions.astype(np.float64, copy=False)
     if directions.ndim != 2 or directions.shape[1] != 3:
         raise LivoxVizError(f"directions have shape {directions.shape}; allowed: (n, 3)")
     if origins.shape == (3,):
