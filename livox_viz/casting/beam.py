@@ -14,7 +14,8 @@ Casting 19 rays for every pulse would cost 19 times the ideal scan, so the
 footprint is sampled only where it can change the answer, found in three
 tests from cheapest to dearest:
 
-1. :meth:`TriangleEdges.leaves`: the footprint leaves the triangle the central
+1. The edge test (:class:`TriangleEdges`, run by
+   :mod:`~livox_viz.casting.return_kernels`): the footprint leaves the triangle the central
    ray hit. The ellipse's image on the triangle's plane is exact to first order
    (its support in the direction of each edge, from the ray's angular
    derivatives); an edge to a neighbour of the same material that continues
@@ -25,8 +26,9 @@ tests from cheapest to dearest:
    into tiles at most :data:`TILE_SIZE` across (a convex object up to
    :data:`WHOLE_CONVEX` is one) whose boxes are inflated by the footprint's radius
    at their farthest distance from the sensor; a ray through those boxes up to the
-   footprint's farthest reach (a compiled walk down a tree of the boxes) says
-   whether any box but the hit's own comes near the beam.
+   footprint's farthest reach says whether any box but the hit's own comes near the
+   beam (a fixed sensor's beam tests only the boxes filed under its direction,
+   :class:`DirectionGrid`; a moving one's walks down a tree of them, :class:`BoxTree`).
 3. Probes (:data:`PROBE_UNIT`): for the pulses the broad phase names, four rays
    at the corners of the ellipse's bounding box ask (Embree's occlusion query)
    whether anything lies in front of the hit's plane along them. A straight
@@ -102,44 +104,6 @@ class Footprint:
         self.probe_offsets = PROBE_UNIT * half
         #: Tangent of the footprint's largest half-angle (the ellipse's semi-major axis).
         self.tan_half_max = math.tan(float(half.max()))
-
-    def rays(self, direction: np.ndarray, basis_x: np.ndarray, basis_y: np.ndarray,
-             offsets: np.ndarray) -> np.ndarray:
-        """Unit directions of the rays at ``offsets`` (radians) around each beam, ``(n, k, 3)`` float32.
-
-        Parameters
-        ----------
-        direction : (n, 3)
-            The beams' unit directions.
-        basis_x, basis_y : (n, 3)
-            The derivatives of the direction by pattern x and y (per radian), in the same frame.
-        offsets : (k, 2)
-        """
-        rays = (direction.astype(np.float32)[:, None, :]
-                + offsets[None, :, 0, None].astype(np.float32) * basis_x.astype(np.float32)[:, None, :]
-                + offsets[None, :, 1, None].astype(np.float32) * basis_y.astype(np.float32)[:, None, :])
-        rays /= np.sqrt(np.einsum("nkj,nkj->nk", rays, rays))[..., None]
-        return rays
-
-    def support(self, along: np.ndarray, basis_x: np.ndarray, basis_y: np.ndarray) -> np.ndarray:
-        """How far the footprint reaches, per metre of range, in the directions ``along``.
-
-        The footprint is the ellipse's image: ``delta -> J delta`` for angular offsets ``delta``;
-        its support in direction ``m`` is ``sqrt((a m.J_x)^2 + (b m.J_y)^2)``.
-
-        Parameters
-        ----------
-        along : (n, k, 3)
-            Unit directions (or any vectors: the support scales with them).
-        basis_x, basis_y : (n, 3)
-            The footprint's displacement per radian of pattern x and y, per metre of range.
-
-        Returns
-        -------
-        reach : (n, k)
-        """
-        a, b = self.half_rad
-        return np.hypot(a * np.einsum("nkj,nj->nk", along, basis_x), b * np.einsum("nkj,nj->nk", along, basis_y))
 
 
 class TriangleEdges:
@@ -221,39 +185,6 @@ class TriangleEdges:
             k = np.argmin(on_edge, axis=1)
             self.neighbour[face, k] = other
 
-    def leaves(self, triangle: np.ndarray, point: np.ndarray, ray: np.ndarray, range_m: np.ndarray,
-               reach: np.ndarray) -> np.ndarray:
-        """Whether each footprint crosses an edge of its triangle that does not continue the surface.
-
-        Parameters
-        ----------
-        triangle : (n,) int
-        point : (n, 3) float64
-            The central ray's hit, world frame.
-        ray : (n, 3) float64
-            The central ray's direction.
-        range_m : (n,) float64
-        reach : (n, 3) float64
-            The footprint's reach towards each edge, metres (:meth:`Footprint.support` times range).
-
-        Returns
-        -------
-        leaves : (n,) bool
-        """
-        distance = np.einsum("nkj,nj->nk", self.inward[triangle], point) - self.offset[triangle]
-        crossing = distance < reach
-        beyond = self.neighbour[triangle]
-        continues = beyond >= 0
-        if continues.any():
-            other = np.maximum(beyond, 0)
-            facing = np.einsum("nkj,nj->nk", self.normal[other], ray)
-            own = np.einsum("nj,nj->n", self.normal[triangle], ray)[:, None]
-            # Across a soft edge the footprint lands on the neighbour: fine while it faces the ray as the hit
-            # does (not a silhouette) and the footprint cannot reach past it.
-            continues &= (np.sign(facing) == np.sign(own)) & (np.abs(facing) > 0.05) & (
-                reach - np.maximum(distance, 0.0) < self.narrowest[other])
-        return np.any(crossing & ~continues, axis=1)
-
 
 class TileProxy:
     """The broad phase: the scene's objects cut into tiles, each a box inflated by the footprint's reach.
@@ -262,9 +193,8 @@ class TileProxy:
     A tile of the hit's own convex object cannot cover its footprint (that object's other faces lie
     behind the hit), so it counts as the hit's own; for other objects only the hit triangle's tile does.
     A flat object (every triangle in one plane, like the ground) has no tiles: it covers part of a
-    footprint on something else only along that thing's own edge with it, which
-    :meth:`TriangleEdges.leaves` sees where the other object's mesh stops at the plane (one that
-    pierces the ground is the exception).
+    footprint on something else only along that thing's own edge with it, which the edge test sees
+    where the other object's mesh stops at the plane (one that pierces the ground is the exception).
 
     Parameters
     ----------
@@ -292,6 +222,8 @@ class TileProxy:
         self.centre: np.ndarray | None = None
         self.radius = 0.0
         self._tree: BoxTree | None = None
+        self._grid: DirectionGrid | None = None
+        self._rotation: np.ndarray | None = None
 
     @property
     def tiles(self) -> int:
@@ -303,20 +235,28 @@ class TileProxy:
         """Boxes near enough to the sensor to matter, as last placed."""
         return 0 if self._tree is None else int(self._tree.tile.size)
 
-    def place(self, positions: np.ndarray, range_max: float, margin: float = 10.0) -> None:
+    def place(self, positions: np.ndarray, range_max: float, rotation: np.ndarray | None = None,
+              margin: float = 10.0) -> None:
         """Make sure the inflated boxes cover beams fired from ``positions`` ``(k, 3)`` (world, metres).
 
         The boxes are inflated for a sphere of sensor positions: a fixed sensor's point, or the
         positions of a moving one plus ``margin`` metres; they are rebuilt only when the sensor leaves it.
         Tiles wholly beyond ``range_max`` metres from it are left out (nothing there is in front of a hit).
+        A fixed sensor's ``rotation`` (sensor FRD -> world) also files the boxes by direction
+        (:class:`DirectionGrid`), so a beam tests only those in its own direction.
         """
         positions = np.atleast_2d(np.asarray(positions, dtype=np.float64))
-        if self.centre is not None and np.all(np.linalg.norm(positions - self.centre, axis=1) <= self.radius + 1e-9):
+        inside = self.centre is not None and np.all(
+            np.linalg.norm(positions - self.centre, axis=1) <= self.radius + 1e-9)
+        same_rotation = (rotation is None and self._rotation is None) or (
+            rotation is not None and self._rotation is not None and np.array_equal(rotation, self._rotation))
+        if inside and same_rotation:
             return
-        centre = positions.mean(axis=0)
+        centre = positions.mean(axis=0) if not inside else self.centre
         spread = float(np.linalg.norm(positions - centre, axis=1).max())
-        radius = 0.0 if spread == 0.0 and self.centre is None else spread + margin
+        radius = self.radius if inside else (0.0 if spread == 0.0 and self.centre is None else spread + margin)
         self._tree = None
+        self._grid = None
         if self.tiles:
             corners = np.where(((np.arange(8)[:, None] >> np.arange(3)) & 1).astype(bool)[None],
                                self.high[:, None, :], self.low[:, None, :])
@@ -326,10 +266,13 @@ class TileProxy:
             grow = ((farthest[in_use] + radius) * self.tan_half * 1.02 + 1e-3)[:, None]
             if in_use.size:
                 self._tree = BoxTree(self.low[in_use] - grow, self.high[in_use] + grow, in_use)
+                if radius == 0.0 and rotation is not None:
+                    self._grid = DirectionGrid(self._tree.box_low, self._tree.box_high, centre, rotation)
         self.centre, self.radius = centre, radius
+        self._rotation = None if rotation is None else np.array(rotation, dtype=np.float64)
 
     def near(self, candidate: np.ndarray, origins: np.ndarray, directions: np.ndarray, reach: np.ndarray,
-             triangle: np.ndarray) -> np.ndarray:
+             triangle: np.ndarray, directions_sensor: np.ndarray | None = None) -> np.ndarray:
         """Whether a box other than the hit's own lies along each ``candidate`` beam before ``reach``.
 
         Parameters
@@ -338,23 +281,83 @@ class TileProxy:
             The beams to ask about (the others answer False).
         origins : (3,), (1, 3) or (n, 3) float64
         directions : (n, 3) float64
+            World frame.
         reach : (n,) float64
             How far along the beam the footprint may meet something, metres.
         triangle : (n,) int
             The central ray's triangle, -1 for a miss.
+        directions_sensor : (n, 3) float64, optional
+            The same in the sensor frame (a fixed sensor's beams then look up their direction's boxes).
         """
         near = np.zeros(directions.shape[0], dtype=np.bool_)
         tree = self._tree
         if tree is None or near.size == 0:
             return near
-        kernel("near_boxes")(np.ascontiguousarray(candidate, dtype=np.bool_),
-                             np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
-                             np.ascontiguousarray(directions, dtype=np.float64),
-                             np.ascontiguousarray(reach, dtype=np.float64), np.asarray(triangle, dtype=np.int64),
-                             tree.node_low, tree.node_high, tree.node_link, tree.box_low, tree.box_high, tree.tile,
-                             self.tile_part, self.tile_convex, self.tile_triangle, self.triangle_tile,
-                             self.triangle_part, near)
+        arguments = (np.ascontiguousarray(candidate, dtype=np.bool_),
+                     np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
+                     np.ascontiguousarray(directions, dtype=np.float64),
+                     np.ascontiguousarray(reach, dtype=np.float64), np.asarray(triangle, dtype=np.int64))
+        own = (self.tile_part, self.tile_convex, self.tile_triangle, self.triangle_tile, self.triangle_part)
+        grid = self._grid
+        if grid is not None and directions_sensor is not None:
+            kernel("near_grid")(*arguments, np.ascontiguousarray(directions_sensor, dtype=np.float64), grid.bounds,
+                                grid.cell_start, grid.cell_boxes, grid.always, tree.box_low, tree.box_high, tree.tile,
+                                *own, near)
+        else:
+            kernel("near_boxes")(*arguments, tree.node_low, tree.node_high, tree.node_link, tree.box_low,
+                                 tree.box_high, tree.tile, *own, near)
         return near
+
+
+class DirectionGrid:
+    """Boxes filed by the directions they cover as seen from a fixed sensor, for the broad phase's loop.
+
+    A beam's sensor-frame direction ``d`` has gnomonic coordinates ``(d_y / d_x, d_z / d_x)``; a box wholly in
+    front of the sensor covers the convex hull of its corners' coordinates (a central projection keeps
+    straight lines straight), so it is filed in the grid cells of their bounding rectangle; one reaching
+    behind the sensor is tested by every beam (``always``).
+
+    Parameters
+    ----------
+    low, high : (B, 3) float64
+        The boxes, world frame.
+    centre : (3,) float64
+        The sensor's position, world frame.
+    rotation : (3, 3) float64
+        Sensor FRD -> world.
+    """
+
+    #: Cells a metre of gnomonic coordinate (about 0.57 deg each on the boresight); the grid spans +-SPAN.
+    CELLS_PER_UNIT = 100
+    SPAN = 2.0
+
+    def __init__(self, low: np.ndarray, high: np.ndarray, centre: np.ndarray, rotation: np.ndarray) -> None:
+        corners = np.where(((np.arange(8)[:, None] >> np.arange(3)) & 1).astype(bool)[None],
+                           high[:, None, :], low[:, None, :])
+        local = (corners - centre) @ rotation  # sensor frame: R^T v, row by row
+        in_front = local[:, :, 0].min(axis=1) > 1e-3
+        side = int(2 * self.SPAN * self.CELLS_PER_UNIT)
+        self.bounds = np.array([-self.SPAN, float(self.CELLS_PER_UNIT), float(side)])
+        members: list[np.ndarray] = []
+        owners: list[np.ndarray] = []
+        for box in np.flatnonzero(in_front):
+            u = local[box, :, 1] / local[box, :, 0]
+            v = local[box, :, 2] / local[box, :, 0]
+            u0, u1 = (np.clip(np.floor((np.array([u.min(), u.max()]) + self.SPAN) * self.CELLS_PER_UNIT), 0,
+                              side - 1).astype(int))
+            v0, v1 = (np.clip(np.floor((np.array([v.min(), v.max()]) + self.SPAN) * self.CELLS_PER_UNIT), 0,
+                              side - 1).astype(int))
+            cells = (np.arange(u0, u1 + 1)[:, None] * side + np.arange(v0, v1 + 1)[None, :]).reshape(-1)
+            members.append(cells)
+            owners.append(np.full(cells.size, box))
+        cells = np.concatenate(members) if members else np.zeros(0, np.int64)
+        boxes = np.concatenate(owners) if owners else np.zeros(0, np.int64)
+        order = np.argsort(cells, kind="stable")
+        #: (side * side + 1,) where each cell's boxes start in :attr:`cell_boxes`.
+        self.cell_start = np.searchsorted(cells[order], np.arange(side * side + 1)).astype(np.int64)
+        self.cell_boxes = boxes[order].astype(np.int64)
+        #: Boxes every beam tests (they reach behind the sensor).
+        self.always = np.flatnonzero(~in_front).astype(np.int64)
 
 
 class BoxTree:

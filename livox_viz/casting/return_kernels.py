@@ -143,25 +143,31 @@ def _basis_at(x_deg, y_deg):  # pragma: no cover - compiled
     return -s * x, s + x * x * q, -x * y * q, -s * y, x * y * q, -(s + y * y * q)
 
 
-def _rotate(vectors, rotation, out):  # pragma: no cover - compiled
-    for i in range(vectors.shape[0]):
-        vx, vy, vz = vectors[i, 0], vectors[i, 1], vectors[i, 2]
-        for j in range(3):
-            out[i, j] = rotation[j, 0] * vx + rotation[j, 1] * vy + rotation[j, 2] * vz
-
-
-def _offset_rays(rows, directions, basis_x, basis_y, offsets, out):  # pragma: no cover - compiled
+def _offset_rays(rows, directions, xy_deg, rotation, basis_x, basis_y, offsets, out):  # pragma: no cover - compiled
     """Unit directions of the rays at ``offsets`` ``(k, 2)`` radians around each beam ``rows``: ``out (m, k, 3)``.
 
-    ``basis_x``, ``basis_y`` ``(m, 3)``: the derivatives of each of those beams' direction by pattern x and y.
+    The derivatives of a beam's direction by pattern x and y come from its pattern angles and ``rotation``
+    (a fixed sensor: ``basis_x`` empty), else from ``basis_x``, ``basis_y`` (per pulse, world frame).
     """
-    for r in prange(rows.shape[0]):
+    fixed = basis_x.shape[0] == 0
+    for r in range(rows.shape[0]):
         i = rows[r]
+        if fixed:
+            ax, ay, az, bx, by, bz = _basis_at(xy_deg[i, 0], xy_deg[i, 1])
+            wx0 = rotation[0, 0] * ax + rotation[0, 1] * ay + rotation[0, 2] * az
+            wx1 = rotation[1, 0] * ax + rotation[1, 1] * ay + rotation[1, 2] * az
+            wx2 = rotation[2, 0] * ax + rotation[2, 1] * ay + rotation[2, 2] * az
+            wy0 = rotation[0, 0] * bx + rotation[0, 1] * by + rotation[0, 2] * bz
+            wy1 = rotation[1, 0] * bx + rotation[1, 1] * by + rotation[1, 2] * bz
+            wy2 = rotation[2, 0] * bx + rotation[2, 1] * by + rotation[2, 2] * bz
+        else:
+            wx0, wx1, wx2 = basis_x[i, 0], basis_x[i, 1], basis_x[i, 2]
+            wy0, wy1, wy2 = basis_y[i, 0], basis_y[i, 1], basis_y[i, 2]
         for k in range(offsets.shape[0]):
             a, b = offsets[k, 0], offsets[k, 1]
-            x = directions[i, 0] + a * basis_x[r, 0] + b * basis_y[r, 0]
-            y = directions[i, 1] + a * basis_x[r, 1] + b * basis_y[r, 1]
-            z = directions[i, 2] + a * basis_x[r, 2] + b * basis_y[r, 2]
+            x = directions[i, 0] + a * wx0 + b * wy0
+            y = directions[i, 1] + a * wx1 + b * wy1
+            z = directions[i, 2] + a * wx2 + b * wy2
             inverse = 1.0 / math.sqrt(x * x + y * y + z * z)
             out[r, k, 0] = x * inverse
             out[r, k, 1] = y * inverse
@@ -318,6 +324,59 @@ def _near_boxes(candidate, origins, directions, reach, triangle, node_low, node_
                         found = True
                         break
             near[i] = found
+
+
+def _near_grid(candidate, origins, directions, reach, triangle, directions_sensor, bounds, cell_start, cell_boxes,
+               always, box_low, box_high, box_tile, tile_part, tile_convex, tile_triangle, triangle_tile,
+               triangle_part, near):  # pragma: no cover - compiled
+    """:func:`_near_boxes` for a fixed sensor: a beam tests only the boxes filed in its direction's grid cell
+    (``bounds`` = (lowest coordinate, cells per unit, cells a side)) and those reaching behind the sensor;
+    a beam outside the grid tests them all."""
+    stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
+    low, per_unit, side = bounds[0], bounds[1], int(bounds[2])
+    boxes = box_tile.shape[0]
+    for i in range(directions.shape[0]):
+        near[i] = False
+        if not candidate[i]:
+            continue
+        o = i * stride
+        ox, oy, oz = origins[o, 0], origins[o, 1], origins[o, 2]
+        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+        ix = 1.0 / dx if dx != 0.0 else np.inf
+        iy = 1.0 / dy if dy != 0.0 else np.inf
+        iz = 1.0 / dz if dz != 0.0 else np.inf
+        limit = reach[i]
+        hit = triangle[i]
+        part = triangle_part[hit] if hit >= 0 else -1
+        own_tile = triangle_tile[hit] if hit >= 0 else -1
+        sx = directions_sensor[i, 0]
+        cell = -1
+        if sx > 1e-6:
+            cu = math.floor((directions_sensor[i, 1] / sx - low) * per_unit)
+            cv = math.floor((directions_sensor[i, 2] / sx - low) * per_unit)
+            if 0 <= cu < side and 0 <= cv < side:
+                cell = cu * side + cv
+        if cell >= 0:
+            first, stop, extra = cell_start[cell], cell_start[cell + 1], always.shape[0]
+        else:
+            first, stop, extra = 0, 0, boxes
+        found = False
+        for j in range(first, stop + extra):
+            if j < stop:
+                b = cell_boxes[j]
+            elif cell >= 0:
+                b = always[j - stop]
+            else:
+                b = j - stop
+            tile = box_tile[b]
+            if hit >= 0 and (tile == own_tile or tile_triangle[tile] == hit or (
+                    tile_convex[tile] and tile_part[tile] == part)):
+                continue
+            if _slab(ox, oy, oz, ix, iy, iz, limit, box_low[b, 0], box_low[b, 1], box_low[b, 2],
+                     box_high[b, 0], box_high[b, 1], box_high[b, 2]):
+                found = True
+                break
+        near[i] = found
 
 
 def _slab(ox, oy, oz, ix, iy, iz, limit, lx, ly, lz, hx, hy, hz):  # pragma: no cover - compiled

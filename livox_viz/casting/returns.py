@@ -108,22 +108,20 @@ class ReturnPoints:
     number_of_returns: np.ndarray
 
 
-class _RowBasis:
-    """The derivatives of beams' world directions by pattern x and y, for any rows of a run."""
+class _Basis:
+    """What gives beams' ray derivatives by pattern x and y: a fixed sensor's pattern angles and rotation, or a
+    moving one's per-pulse world vectors (``basis_x``, ``basis_y``; empty for a fixed sensor)."""
 
     def __init__(self, xy_deg: np.ndarray, rotation: np.ndarray, basis_x: np.ndarray, basis_y: np.ndarray) -> None:
         self.xy_deg, self.rotation, self.basis_x, self.basis_y = xy_deg, rotation, basis_x, basis_y
 
-    def at(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(len(rows), 3)`` twice, world frame."""
-        if self.basis_x.shape[0]:
-            return np.ascontiguousarray(self.basis_x[rows]), np.ascontiguousarray(self.basis_y[rows])
-        sensor_x, sensor_y = np.empty((rows.size, 3)), np.empty((rows.size, 3))
-        kernel("sensor_basis")(np.ascontiguousarray(self.xy_deg[rows]), sensor_x, sensor_y)
-        world_x, world_y = np.empty_like(sensor_x), np.empty_like(sensor_y)
-        kernel("rotate")(sensor_x, self.rotation, world_x)
-        kernel("rotate")(sensor_y, self.rotation, world_y)
-        return world_x, world_y
+    def rays(self, rows: np.ndarray, directions_world: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        """Unit directions ``(len(rows), k, 3)`` float32 of the rays at ``offsets`` ``(k, 2)`` radians around the
+        beams ``rows``."""
+        out = np.empty((rows.size, offsets.shape[0], 3), dtype=np.float32)
+        kernel("offset_rays")(rows, directions_world, self.xy_deg, self.rotation, self.basis_x, self.basis_y,
+                              offsets, out)
+        return out
 
 
 class ReturnModel:
@@ -237,10 +235,13 @@ class ReturnModel:
                           self.brightness, edges.incentre, edges.inradius, edges.inward, edges.offset,
                           edges.neighbour, edges.narrowest, footprint.half_rad[0], footprint.half_rad[1],
                           footprint.tan_half_max, self._calibration, self.range_max, power, cosine, leaves, reach)
-        rows_basis = _RowBasis(xy_deg, rotation, basis_x, basis_y)
+        rows_basis = _Basis(xy_deg, rotation, basis_x, basis_y)
         self._lap("materials, edges and reach")
-        covered = self._covered(~leaves, directions_world, origins, rows_basis, reach, triangle, moving)
-        sampled = np.union1d(np.flatnonzero(leaves), covered)
+        covered = self._covered(~leaves, directions_world, origins, rows_basis, reach, triangle, moving,
+                                directions_sensor, rotation)
+        sampled_mask = leaves.copy()
+        sampled_mask[covered] = True
+        sampled = np.flatnonzero(sampled_mask)
         self.last_counts = {"pulses": n, "leaves": int(leaves.sum()), "near": self.last_counts.get("near", 0),
                             "covered": int(covered.size)}
         whole = (triangle >= 0) & (distance >= params.blind_zone_m)
@@ -279,18 +280,20 @@ class ReturnModel:
 
     # Step 2: footprints something nearer covers --------------------------------------------------------------
     def _covered(self, candidate: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
-                 rows_basis: _RowBasis, reach: np.ndarray, triangle: np.ndarray, moving: bool) -> np.ndarray:
+                 rows_basis: _Basis, reach: np.ndarray, triangle: np.ndarray, moving: bool,
+                 directions_sensor: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         """Of the ``candidate`` pulses, those whose footprint something nearer covers in part (sorted rows)."""
         proxy = self.proxy
-        proxy.place(origins[0] if not moving else origins[:: max(1, origins.shape[0] // 64)], self.range_max)
-        rows = np.flatnonzero(proxy.near(candidate, origins, directions_world, reach, triangle))
+        proxy.place(origins[0] if not moving else origins[:: max(1, origins.shape[0] // 64)], self.range_max,
+                    None if moving else rotation)
+        rows = np.flatnonzero(proxy.near(candidate, origins, directions_world, reach, triangle,
+                                         None if moving else directions_sensor))
         self.last_counts["near"] = int(rows.size)
         self._lap("broad phase")
         if rows.size == 0:
             return rows
         # Probe rays at the corners of the footprint's bounding box: is anything in front of the hit's plane?
-        probes = np.empty((rows.size, 4, 3), dtype=np.float32)
-        kernel("offset_rays")(rows, directions_world, *rows_basis.at(rows), self.footprint.probe_offsets, probes)
+        probes = rows_basis.rays(rows, directions_world, self.footprint.probe_offsets)
         limit = np.empty((rows.size, 4))
         kernel("probe_limits")(rows, probes, triangle, self.caster.face_planes, origins, self.range_max, limit)
         ray_origin = origins[0] if not moving else np.repeat(origins[rows], 4, axis=0)
@@ -300,20 +303,29 @@ class ReturnModel:
 
     # Step 3: echoes of sampled footprints ------------------------------------------------------------------
     def _footprint_echoes(self, rows: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
-                          rows_basis: _RowBasis, distance: np.ndarray, triangle: np.ndarray,
+                          rows_basis: _Basis, distance: np.ndarray, triangle: np.ndarray,
                           moving: bool) -> list[np.ndarray]:
         """The echoes of pulses sampled with all 19 sub-rays: how many each has, then, in 19 slots a pulse, their
         power, range, spatial bits and the reflectance one unit of power means at their range."""
         params = self.params
         m = rows.size
         count = SUBRAY_WEIGHTS.size
-        rays = np.empty((m, count, 3), dtype=np.float32)
-        kernel("offset_rays")(rows, directions_world, *rows_basis.at(rows), self.footprint.subray_offsets, rays)
+        rays = rows_basis.rays(rows, directions_world, self.footprint.subray_offsets)
         ranges = np.empty((m, count))
         triangles = np.empty((m, count), dtype=np.int64)
         ranges[:, 0], triangles[:, 0] = distance[rows], triangle[rows]
-        more_r, more_tri = self.caster.hits(origins[0] if not moving else np.repeat(origins[rows], count - 1, axis=0),
-                                            rays[:, 1:].reshape(-1, 3), self.range_max)
+        ray_origin = origins[0] if not moving else np.repeat(origins[rows], count - 1, axis=0)
+        sub_rays = rays[:, 1:].reshape(-1, 3)
+        if hasattr(self.caster, "triangle_ids"):
+            # The sub-rays' triangles from Embree, their ranges from those triangles' planes (a sub-ray along its
+            # plane carries no energy back: cos 0).
+            more_tri = self.caster.triangle_ids(ray_origin, sub_rays, self.range_max)
+            more_r = np.empty(more_tri.size)
+            kernel("plane_distance")(more_tri, sub_rays, np.atleast_2d(ray_origin), self.caster.face_planes,
+                                     self.range_max, more_r)
+            more_tri[more_r < 0] = -1
+        else:
+            more_r, more_tri = self.caster.hits(ray_origin, sub_rays, self.range_max)
         ranges[:, 1:], triangles[:, 1:] = more_r.reshape(m, count - 1), more_tri.reshape(m, count - 1)
         written = np.empty(m, np.int64)
         slot = np.empty(m * count, np.int64)
