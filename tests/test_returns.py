@@ -270,6 +270,16 @@ def test_nothing_nearer_than_the_blind_zone() -> None:
     assert np.all(joined(frames, "tag") & 0x30 == 0)
 
 
+def test_a_sensor_touching_a_surface_returns_nothing_from_it() -> None:
+    # The window on the plane of a floor the beams graze (a vehicle resting on the ground): hits at zero range
+    # have no finite power; they fall inside the blind zone and give no point, and the cast does not fail.
+    cfg = at_origin("livox_mid70_risley")
+    floor = surface(trimesh.creation.box((400, 400, 1), trimesh.transformations.translation_matrix((0, 0, 0.5))), 0.5)
+    frames, _ = scan(cfg, floor, 0.1)
+    ranges = joined(frames, "range_m")
+    assert np.all(ranges >= cfg.return_params.blind_zone_m)
+
+
 def test_no_point_at_the_origin_and_false_alarms_at_the_sheets_rate() -> None:
     # Nothing in front: a box behind the sensor. Every point is a false alarm.
     cfg = at_origin("livox_mid40_risley")

@@ -229,7 +229,8 @@ def _central(distance, triangle, directions, origins, xy_deg, rotation, basis_x,
             facing = 1e-6 if facing >= 0 else -1e-6
         cos = abs(facing)
         cosine[i] = cos
-        power[i] = brightness[t] * cos * (r_a * r_a / rho_a) / (d * d) * math.exp(-2.0 * alpha * (d - r_a))
+        near = max(d, 1e-3)  # a hit at the window itself (the sensor touching a surface) has no finite power
+        power[i] = brightness[t] * cos * (r_a * r_a / rho_a) / (near * near) * math.exp(-2.0 * alpha * (d - r_a))
         sine = math.sqrt(max(1.0 - cos * cos, 0.0))
         reach[i] = min(d * (1.0 + 1.01 * tan_half * sine / cos) + 0.01, range_max)
         px = origins[o, 0] + ux * d
@@ -459,7 +460,8 @@ def _footprint_echoes(rows, ranges, triangles, rays, weights, planes, brightness
             if t < 0 or r < blind:
                 continue
             cos = abs(planes[t, 0] * rays[m, k, 0] + planes[t, 1] * rays[m, k, 1] + planes[t, 2] * rays[m, k, 2])
-            sub_power[k] = weights[k] * brightness[t] * cos * (r_a * r_a / rho_a) / (r * r) * math.exp(
+            near = max(r, 1e-3)
+            sub_power[k] = weights[k] * brightness[t] * cos * (r_a * r_a / rho_a) / (near * near) * math.exp(
                 -2.0 * alpha * (r - r_a))
             if sub_power[k] <= 0.0:
                 continue
