@@ -19,7 +19,8 @@ seconds in ``presets/tables`` are used (the shipped presets were made from the
   their rosettes are the fitted Mid-70 / Mid-40 rosettes at that rate.
 
 Ranges are the longest Livox publishes for each (80 % reflectivity; the HAP's
-manual gives 150 m at 10 %).
+manual gives 150 m at 10 %). Each carries its sheet's datasheet return model
+(``LivoxVizReturns``, :data:`~livox_viz.config.returns_params.DATASHEETS`).
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ sys.path.insert(0, str(ROOT))
 
 from livox_viz.config.fov import FieldOfView  # noqa: E402
 from livox_viz.config.presets import DESCRIPTION_KEY, load_preset  # noqa: E402
+from livox_viz.config.returns_params import DATASHEETS, describe_sheet  # noqa: E402
 from livox_viz.config.risley_params import RisleyParams  # noqa: E402
 from livox_viz.config.sensor import SensorConfig, frame_layout  # noqa: E402
 from livox_viz.core.atomic import write_text_atomic  # noqa: E402
@@ -49,8 +51,11 @@ from livox_viz.patterns.planes import directions_from_xy  # noqa: E402
 
 
 def write(config: SensorConfig, description: str, folder: Path, name: str) -> None:
+    """Write the preset with its sensor's datasheet return model (``LivoxVizReturns``), said in its description."""
+    sheet = name.removeprefix("livox_")
+    config = replace(config, returns=DATASHEETS[sheet])
     data = config.to_json_dict()
-    data[DESCRIPTION_KEY] = description
+    data[DESCRIPTION_KEY] = f"{description}. Returns: the {describe_sheet(sheet)}"
     write_text_atomic(folder / f"{name}.json", dumps_readable(data))
     print(f"{name}: {description}")
 

@@ -22,13 +22,16 @@ from livox_viz.patterns.factory import make_pattern
 from livox_viz.scene.materials import set_face_materials
 from livox_viz.scene.raycast import EmbreeCaster, TrimeshCaster
 
-#: The issue's table, typed here by hand: (10 % range, 80 % range or None, sigma m, divergence H, V, blind, returns).
+#: The issue's table, typed here by hand: detection ranges ((reflectivity, m), ...), range sigma ((at m, sigma m),
+#: ...), divergence H, V (None: unpublished), blind zone (None: unpublished), returns per pulse.
 SHEET = {
-    "mid40": (90, 260, 0.02, 0.03, 0.28, 1.0, 1),
-    "mid70": (90, 260, 0.02, 0.03, 0.28, 0.05, 2),
-    "avia": (190, 320, 0.02, 0.03, 0.28, 1.0, 3),
-    "hap": (150, None, 0.02, 0.03, 0.28, 0.5, 1),
-    "mid360": (40, 70, 0.02, None, None, 0.1, 1),
+    "mid40": (((0.1, 90), (0.8, 260)), ((20, 0.02),), 0.03, 0.28, 1.0, 1),
+    "mid70": (((0.1, 90), (0.8, 260)), ((20, 0.02),), 0.03, 0.28, 0.05, 2),
+    "avia": (((0.1, 190), (0.8, 320)), ((20, 0.02),), 0.03, 0.28, 1.0, 3),
+    "horizon": (((0.1, 90), (0.8, 260)), ((20, 0.02),), 0.03, 0.28, None, 2),
+    "tele15": (((0.1, 320), (0.5, 500)), ((70, 0.02), (120, 0.04)), 0.02, 0.12, None, 2),
+    "hap": (((0.1, 150),), ((20, 0.02),), 0.03, 0.28, 0.5, 1),
+    "mid360": (((0.1, 40), (0.8, 70)), ((10, 0.02),), None, None, 0.1, 1),
 }
 
 
@@ -69,21 +72,30 @@ def off_axis_deg(xy_deg: np.ndarray) -> np.ndarray:
 # The sheets ----------------------------------------------------------------------------------------------
 @pytest.mark.parametrize(("preset", "sheet", "model"), [
     ("livox_mid40_risley", "mid40", "datasheet"), ("livox_mid70_risley", "mid70", "datasheet"),
+    ("livox_avia", "avia", "datasheet"), ("livox_horizon", "horizon", "datasheet"),
+    ("livox_tele15", "tele15", "datasheet"), ("livox_hap", "hap", "datasheet"), ("livox_mid360", "mid360", "datasheet"),
     ("livox_mid40", "mid40", "ideal"), ("livox_mid70_fitted", "mid70", "ideal"), ("livox_mid70", "mid70", "ideal"),
 ])
 def test_presets_carry_their_sheets(preset: str, sheet: str, model: str) -> None:
     cfg = load_preset(preset)
     params = cfg.return_params
-    near, far, sigma, h, v, blind, returns = SHEET[sheet]
+    detection, sigma, h, v, blind, returns = SHEET[sheet]
     assert cfg.returns_model == model  # the real sensors' presets use their sheet; RflySim's rosettes stay ideal
-    assert params.detection_range_m == ((0.1, near), (0.8, far))
-    assert params.range_sigma_m == ((20.0, sigma),)
-    assert params.divergence_deg == (h, v)
-    assert params.blind_zone_m == blind and params.returns_per_pulse == returns
+    assert params.detection_range_m == detection
+    assert params.range_sigma_m == sigma
+    if h is not None:
+        assert params.divergence_deg == (h, v)
+    if blind is not None:
+        assert params.blind_zone_m == blind
+    assert params.returns_per_pulse == returns
     assert params.false_alarm_rate == pytest.approx(1e-4)
-    description = load_preset(preset).to_json_dict().get("LivoxVizDescription", "")
-    if "LivoxVizReturns" in load_preset(preset).to_json_dict():
+    description = cfg.to_json_dict().get("LivoxVizDescription", "")
+    if "LivoxVizReturns" in cfg.to_json_dict():
+        # What the sheet leaves unpublished is chosen, and the description says so.
         assert "chosen (unpublished)" in description
+        for unpublished, words in ((h is None, "beam divergence"), (blind is None, "blind zone")):
+            if unpublished:
+                assert words in description.split("chosen (unpublished)")[1]
 
 
 @pytest.mark.parametrize("sheet", sorted(DATASHEETS))
@@ -239,6 +251,32 @@ def test_a_step_edge_gives_mixed_or_dual_returns_where_footprints_straddle_it(pr
         assert np.all(tag[dual] & 0x03 == 0)  # each return lies on its own surface
     assert expected > 0.005
     assert measured == pytest.approx(expected, rel=0.20)
+
+
+def test_a_panoramic_head_spreads_its_footprint_along_azimuth_and_elevation() -> None:
+    # The footprint's axes of a head that scans azimuth and elevation: the unit tangents of its rays.
+    from livox_viz.casting.returns import sensor_basis
+    from livox_viz.patterns.planes import directions_from_xy
+
+    xy = np.column_stack([np.linspace(-179, 179, 50), np.linspace(-7, 52, 50)])
+    along_x, along_y = sensor_basis(xy, "panorama")
+    step = 1e-6
+    for k, along in enumerate((along_x, along_y)):
+        shifted = xy.copy()
+        shifted[:, k] += np.degrees(step)
+        slope = (directions_from_xy(shifted, "panorama") - directions_from_xy(xy, "panorama")) / step
+        np.testing.assert_allclose(along, slope / np.linalg.norm(slope, axis=1, keepdims=True), atol=1e-5)
+    # A Mid-360 (its divergence set to 0.03 x 0.28 deg) looking at a horizontal step edge at its own height:
+    # a footprint straddles it when its elevation is within half the vertical divergence, whatever the azimuth.
+    cfg = at_origin("livox_mid360", divergence_deg=(0.03, 0.28))
+    frames, fired = scan(cfg, step_edge(vertical=False), 1.0)
+    assert cfg.pattern_plane == "panorama"
+    ahead = np.abs(fired[:, 0]) < 60.0  # the plate's side edges (81 deg) left out
+    expected = (ahead & (np.abs(fired[:, 1]) < 0.14)).sum()
+    stream, tag = joined(frames, "stream_index"), joined(frames, "tag")
+    mixed = ((tag & 0x03) != 0) & ((tag & 0x0C) == 0) & ahead[stream]
+    assert expected > 100
+    assert np.unique(stream[mixed]).size == pytest.approx(expected, rel=0.20)
 
 
 def test_a_pole_thinner_than_the_footprint_is_seen_with_the_energy_it_intercepts() -> None:

@@ -108,6 +108,22 @@ class ReturnPoints:
     number_of_returns: np.ndarray
 
 
+def sensor_basis(xy_deg: np.ndarray, plane: str = "boresight") -> tuple[np.ndarray, np.ndarray]:
+    """The directions a beam's footprint spreads along, sensor frame: ``(n, 3)`` derivatives of each ray by
+    pattern x and y per radian (boresight plane), or the unit azimuth and elevation tangents (panorama, whose
+    beams' divergence is H along the azimuth, V along the elevation)."""
+    xy_deg = np.ascontiguousarray(xy_deg, dtype=np.float64)
+    if plane == "panorama":
+        x, y = np.radians(xy_deg[:, 0]), np.radians(xy_deg[:, 1])
+        zero = np.zeros_like(x)
+        along_x = np.column_stack([-np.sin(x), np.cos(x), zero])
+        along_y = np.column_stack([-np.sin(y) * np.cos(x), -np.sin(y) * np.sin(x), -np.cos(y)])
+        return along_x, along_y
+    along_x, along_y = np.empty((xy_deg.shape[0], 3)), np.empty((xy_deg.shape[0], 3))
+    kernel("sensor_basis")(xy_deg, along_x, along_y)
+    return along_x, along_y
+
+
 class _Basis:
     """What gives beams' ray derivatives by pattern x and y: a fixed sensor's pattern angles and rotation, or a
     moving one's per-pulse world vectors (``basis_x``, ``basis_y``; empty for a fixed sensor)."""
@@ -136,9 +152,12 @@ class ReturnModel:
         Seed of every random number (with each pulse's stream index).
     range_max : float
         The scan's maximum range (``otherParams[0]``), metres.
+    plane : {"boresight", "panorama"}
+        The pattern plane of the angles :meth:`cast` is given (:mod:`livox_viz.patterns.planes`).
     """
 
-    def __init__(self, params: ReturnParams, caster, seed: int, range_max: float) -> None:
+    def __init__(self, params: ReturnParams, caster, seed: int, range_max: float,
+                 plane: str = "boresight") -> None:
         for method in ("hits", "occluded", "face_planes"):
             if not hasattr(caster, method):
                 raise TypeError(f"the datasheet return model needs a caster with {method!r}")
@@ -146,6 +165,7 @@ class ReturnModel:
         self.caster = caster
         self.seed = int(seed)
         self.range_max = float(range_max)
+        self.plane = plane
         self.footprint = Footprint(params.divergence_deg)
         self._tables = _scene_tables(caster)
         if "brightness" not in self._tables:
@@ -221,14 +241,16 @@ class ReturnModel:
         planes = self.caster.face_planes
         edges = self.edges
         xy_deg = np.ascontiguousarray(xy_deg, dtype=np.float64)
-        if turn is None:
+        rotation = np.eye(3) if rotation is None else np.ascontiguousarray(rotation, dtype=np.float64)
+        if turn is None and self.plane == "boresight":
             basis_x = basis_y = np.empty((0, 3))  # a fixed sensor's come from the pattern angles and the rotation
         else:
-            basis_x, basis_y = np.empty((n, 3)), np.empty((n, 3))
-            kernel("sensor_basis")(xy_deg, basis_x, basis_y)
-            every = np.arange(n)
-            basis_x, basis_y = turn(basis_x, every), turn(basis_y, every)
-        rotation = np.eye(3) if rotation is None else np.ascontiguousarray(rotation, dtype=np.float64)
+            basis_x, basis_y = sensor_basis(xy_deg, self.plane)
+            if turn is None:
+                basis_x, basis_y = basis_x @ rotation.T, basis_y @ rotation.T
+            else:
+                every = np.arange(n)
+                basis_x, basis_y = turn(basis_x, every), turn(basis_y, every)
         power, cosine, reach = np.empty(n), np.empty(n), np.empty(n)
         leaves = np.empty(n, dtype=np.bool_)
         kernel("central")(distance, triangle, directions_world, origins, xy_deg, rotation, basis_x, basis_y, planes,
@@ -286,8 +308,9 @@ class ReturnModel:
         proxy = self.proxy
         proxy.place(origins[0] if not moving else origins[:: max(1, origins.shape[0] // 64)], self.range_max,
                     None if moving else rotation)
+        # A fixed sensor's beams look up their direction's boxes (a boresight grid: not for a panoramic head).
         rows = np.flatnonzero(proxy.near(candidate, origins, directions_world, reach, triangle,
-                                         None if moving else directions_sensor))
+                                         None if moving or self.plane != "boresight" else directions_sensor))
         self.last_counts["near"] = int(rows.size)
         self._lap("broad phase")
         if rows.size == 0:

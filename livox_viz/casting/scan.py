@@ -186,7 +186,7 @@ class MountedCaster:
         self.config = config
         self.caster: RayCaster = EmbreeCaster(scene) if isinstance(scene, trimesh.Trimesh) else scene
         #: The datasheet return model, or None for ideal returns.
-        self.returns = (ReturnModel(config.return_params, self.caster, seed, config.range_max)
+        self.returns = (ReturnModel(config.return_params, self.caster, seed, config.range_max, config.pattern_plane)
                         if config.returns_model == "datasheet" else None)
         self.trajectory = trajectory
         self.vehicle_pose = trajectory.pose_at(trajectory.span[0]) if trajectory is not None else (
