@@ -8,8 +8,8 @@
 2. The cost of each part: the return model's own clock per step
    (``ReturnModel.stage_seconds``), in ms per second of scan, and how many pulses
    each footprint test sent on.
-3. Memory over a 10-minute flight with the datasheet model written to a bag, in
-   child processes: peak RSS of 60 s against 600 s (target: flat).
+3. Memory over a 10-minute flight written to a bag, in child processes: peak
+   RSS of 60 s against 600 s (target: flat), the ideal model's beside it.
 
 The same figures with numpy's BLAS on one thread are printed for reference
 (``OPENBLAS_NUM_THREADS=1`` in a child): the Risley stream's small matrix
@@ -103,29 +103,35 @@ def memory() -> None:
             "assert main(sys.argv[1:]) == 0\n"
             "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n")
     with tempfile.TemporaryDirectory() as tmp:
-        for seconds in (60, 600):
-            start = time.perf_counter()
-            result = subprocess.run([sys.executable, "-c", code, "scan", "--preset", "livox_mid70_risley",
-                                     "--trajectory", "circle", "--seconds", str(seconds), "--rosbag",
-                                     f"{tmp}/bag{seconds}"], check=True, capture_output=True, text=True)
-            peak = int(result.stdout.strip().splitlines()[-1])
-            size = sum(p.stat().st_size for p in Path(f"{tmp}/bag{seconds}").iterdir()) / 2**30
-            print(f"  {seconds:3d} s circle flight, datasheet returns, to a bag ({size:.1f} GiB) in "
-                  f"{time.perf_counter() - start:.0f} s: peak RSS {peak / 1024:.0f} MiB")
-            subprocess.run(["rm", "-rf", f"{tmp}/bag{seconds}"], check=True)
+        for model in ("ideal", "datasheet"):
+            for seconds in (60, 600):
+                start = time.perf_counter()
+                result = subprocess.run([sys.executable, "-c", code, "scan", "--preset", "livox_mid70_risley",
+                                         "--returns", model, "--trajectory", "circle", "--seconds", str(seconds),
+                                         "--rosbag", f"{tmp}/bag{seconds}"], check=True, capture_output=True,
+                                        text=True)
+                peak = int(result.stdout.strip().splitlines()[-1])
+                size = sum(p.stat().st_size for p in Path(f"{tmp}/bag{seconds}").iterdir()) / 2**30
+                print(f"  {seconds:3d} s circle flight, {model} returns, to a bag ({size:.1f} GiB) in "
+                      f"{time.perf_counter() - start:.0f} s: peak RSS {peak / 1024:.0f} MiB")
+                subprocess.run(["rm", "-rf", f"{tmp}/bag{seconds}"], check=True)
 
 
 def main() -> None:
+    if "--memory" in sys.argv:
+        memory()
+        return
     if "--child" in sys.argv:
         print(json.dumps(speed(sys.argv[2], sys.argv[3])))
         return
     for preset, scene_name in (("livox_mid70_risley", "urban"), ("livox_mid40_risley", "urban"),
-                               ("livox_mid70_risley", "dense_terrain")):
+                               ("livox_mid70_risley", "dense_terrain"), ("livox_avia", "urban"),
+                               ("livox_mid360", "urban")):
         report(preset, scene_name, speed(preset, scene_name))
     single = subprocess.run([sys.executable, __file__, "--child", "livox_mid70_risley", "urban"], check=True,
                             capture_output=True, text=True, env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
     report("livox_mid70_risley", "urban", json.loads(single.stdout), " (numpy's BLAS on one thread)")
-    print("memory over a flight with the datasheet model, written to a bag (child processes; target: flat):")
+    print("memory over a circle flight written to a bag (child processes; target: flat):")
     memory()
 
 
