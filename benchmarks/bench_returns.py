@@ -99,9 +99,11 @@ def report(preset: str, scene_name: str, figures: dict, note: str = "") -> None:
 
 
 def memory() -> None:
-    code = ("import resource, sys\nfrom livox_viz.cli import main\n"
+    # The child's own peak (VmHWM, kB): getrusage's ru_maxrss would keep this process's larger peak across the
+    # fork and exec that start it.
+    code = ("import sys\nfrom livox_viz.cli import main\n"
             "assert main(sys.argv[1:]) == 0\n"
-            "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n")
+            "print([line.split()[1] for line in open('/proc/self/status') if line.startswith('VmHWM')][0])\n")
     with tempfile.TemporaryDirectory() as tmp:
         for model in ("ideal", "datasheet"):
             for seconds in (60, 600):
