@@ -23,6 +23,8 @@ from livox_viz.widgets.session import Session  # noqa: E402
 from livox_viz import PARAM_RANGES, SensorConfig, load_preset  # noqa: E402
 from livox_viz.scene.scenes import open_scene  # noqa: E402
 
+from .xserver import private_display, x_tools  # noqa: E402
+
 ROSETTE_SLIDERS = PATTERN_SLIDERS["rflysim"]
 
 BASELINES = Path(__file__).parent / "baselines"
@@ -308,19 +310,15 @@ def test_the_gui_cloud_is_the_scan_commands_cloud(urban, tmp_path: Path) -> None
 
 
 def test_real_window_under_xvfb(tmp_path: Path) -> None:
-    xvfb = shutil.which("Xvfb")
-    xdotool = shutil.which("xdotool")
-    if not (xvfb and xdotool):
-        if os.environ.get("CI"):
-            pytest.fail("CI must install xvfb and xdotool (see .ci/run)")
-        pytest.skip("Xvfb and xdotool are not installed")
-    display = f":{90 + os.getpid() % 100}"
-    server = subprocess.Popen([xvfb, display, "-screen", "0", "1600x900x24", "-nolisten", "tcp"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    _, xdotool = x_tools()
+    with private_display("1600x900x24") as display:
+        _real_window(tmp_path, xdotool, display)
+
+
+def _real_window(tmp_path: Path, xdotool: str, display: str) -> None:
     env = {**os.environ, "DISPLAY": display, "LIVOX_VIZ_PRESETS": str(tmp_path / "presets")}
     env.pop("WAYLAND_DISPLAY", None)
     try:
-        time.sleep(1.0)
         gui = subprocess.Popen([sys.executable, "-m", "livox_viz", "gui", "--size", "1200x700"], cwd=tmp_path,
                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         window = subprocess.run([xdotool, "search", "--sync", "--onlyvisible", "--name", "livox-viz"], env=env,
@@ -340,10 +338,10 @@ def test_real_window_under_xvfb(tmp_path: Path) -> None:
         assert sidecar["reference"] == "livox_avia"  # e picked the first preset with a track (in the same plane)
         assert len(list((tmp_path / "presets").glob("*.json"))) == 1
     finally:
-        for process in (locals().get("gui"), server):
-            if process is not None and process.poll() is None:
-                process.kill()
-                process.wait()
+        gui = locals().get("gui")
+        if gui is not None and gui.poll() is None:
+            gui.kill()
+            gui.communicate()
 
 
 def test_reference_overlay_plays_in_step(app: LivoxVizApp) -> None:

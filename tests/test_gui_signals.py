@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import shutil
 import signal
 import socket
 import subprocess
@@ -23,37 +22,20 @@ from livox_viz import load_preset  # noqa: E402
 from livox_viz.cli import main  # noqa: E402
 from livox_viz.scene.scenes import open_scene  # noqa: E402
 
-
-def _tools() -> tuple[str, str]:
-    xvfb, xdotool = shutil.which("Xvfb"), shutil.which("xdotool")
-    if not (xvfb and xdotool):
-        if os.environ.get("CI"):
-            pytest.fail("CI must install xvfb and xdotool (see .ci/run)")
-        pytest.skip("Xvfb and xdotool are not installed")
-    return xvfb, xdotool
+from .xserver import private_display, x_tools  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def x_display():
     """A private X server for this module's windows; yields its DISPLAY."""
-    xvfb, _ = _tools()
-    number = 150 + os.getpid() % 100
-    server = subprocess.Popen([xvfb, f":{number}", "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    socket_path = Path(f"/tmp/.X11-unix/X{number}")
-    deadline = time.monotonic() + 20
-    while not socket_path.exists() and server.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert server.poll() is None, "Xvfb did not start"
-    yield f":{number}"
-    server.terminate()
-    server.wait(10)
+    with private_display() as display:
+        yield display
 
 
 # 6. The window ends on SIGTERM, SIGINT and SIGHUP ------------------------------------------------
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP])
 def test_the_window_closes_on_a_signal(x_display: str, tmp_path: Path, signum: int) -> None:
-    _, xdotool = _tools()
+    _, xdotool = x_tools()
     env = {**os.environ, "DISPLAY": x_display, "LIVOX_VIZ_PRESETS": str(tmp_path / "presets")}
     env.pop("WAYLAND_DISPLAY", None)
     gui = subprocess.Popen([sys.executable, "-m", "livox_viz", "gui", "--size", "640x400"], cwd=tmp_path,
@@ -61,7 +43,7 @@ def test_the_window_closes_on_a_signal(x_display: str, tmp_path: Path, signum: i
     try:
         window = subprocess.run([xdotool, "search", "--sync", "--onlyvisible", "--name", "livox-viz"], env=env,
                                 capture_output=True, text=True, timeout=60).stdout.split()
-        assert window, "the livox-viz window did not appear"
+        assert window, f"the livox-viz window did not appear (gui: {gui.poll()})"
         time.sleep(1.0)
         assert gui.poll() is None
         gui.send_signal(signum)

@@ -1,0 +1,59 @@
+"""A private Xvfb server for the tests that open a real window."""
+
+from __future__ import annotations
+
+import os
+import select
+import shutil
+import subprocess
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import pytest
+
+
+def x_tools() -> tuple[str, str]:
+    """The paths of Xvfb and xdotool; CI must have them (it installs them), elsewhere the test is skipped."""
+    xvfb, xdotool = shutil.which("Xvfb"), shutil.which("xdotool")
+    if not (xvfb and xdotool):
+        if os.environ.get("CI"):
+            pytest.fail("CI must install xvfb and xdotool (see .ci/run)")
+        pytest.skip("Xvfb and xdotool are not installed")
+    return xvfb, xdotool
+
+
+@contextmanager
+def private_display(screen: str = "1280x800x24", timeout: float = 30.0) -> Iterator[str]:
+    """Run an Xvfb on a display number it picks itself; yield its ``DISPLAY``.
+
+    ``-displayfd`` lets the server take the first free number and say which: a number made from the process
+    id collided with another suite's server on the same machine, and the window then went to a server that
+    was shutting down.
+    """
+    xvfb, _ = x_tools()
+    read_end, write_end = os.pipe()
+    server = subprocess.Popen([xvfb, "-displayfd", str(write_end), "-screen", "0", screen, "-nolisten", "tcp"],
+                              pass_fds=(write_end,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(write_end)
+    try:
+        number = b""
+        deadline = time.monotonic() + timeout
+        while not number.endswith(b"\n") and time.monotonic() < deadline:
+            ready, _, _ = select.select([read_end], [], [], 0.2)
+            if ready:
+                chunk = os.read(read_end, 16)
+                if not chunk:
+                    break
+                number += chunk
+        assert number.strip().isdigit(), f"Xvfb did not start (exit status {server.poll()})"
+        yield f":{int(number)}"
+    finally:
+        os.close(read_end)
+        if server.poll() is None:
+            server.terminate()
+            try:
+                server.wait(10)
+            except subprocess.TimeoutExpired:
+                server.kill()
+                server.wait()
