@@ -41,12 +41,15 @@ tests from cheapest to dearest:
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from livox_viz.casting.return_kernels import kernel
 from livox_viz.scene.materials import face_materials, face_parts
+
+if TYPE_CHECKING:
+    import trimesh
 
 _RING_HALF = np.deg2rad(np.arange(0, 360, 60))
 _RING_EDGE = np.deg2rad(np.arange(0, 360, 30))
@@ -158,6 +161,8 @@ class TriangleEdges:
         if len(mesh.faces) < 2:
             return
         scale = float(np.ptp(mesh.vertices, axis=0).max()) or 1.0
+        import trimesh
+
         merged = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
         merged.merge_vertices(digits_vertex=max(0, int(-math.log10(scale * 1e-9))))
         pairs = merged.face_adjacency

@@ -21,9 +21,9 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from livox_viz.casting.codec import decode_int16, encode_int16
 from livox_viz.casting.directions import directions_from_xy
@@ -37,6 +37,9 @@ from livox_viz.motion.trajectory import Trajectory
 from livox_viz.patterns.factory import make_pattern
 from livox_viz.patterns.stream import PatternChunk, points_before
 from livox_viz.scene.raycast import EmbreeCaster, RayCaster
+
+if TYPE_CHECKING:
+    import trimesh
 
 #: Rays cast in one call at most: a huge frame is cast in parts so memory stays bounded.
 CAST_PART = 1 << 20
@@ -184,7 +187,8 @@ class MountedCaster:
     def __init__(self, config: SensorConfig, scene: trimesh.Trimesh | RayCaster,
                  vehicle_pose: Pose | None = None, trajectory: Trajectory | None = None, seed: int = 0) -> None:
         self.config = config
-        self.caster: RayCaster = EmbreeCaster(scene) if isinstance(scene, trimesh.Trimesh) else scene
+        # A caster has distances(); anything else is a mesh (trimesh is not imported just to ask).
+        self.caster: RayCaster = scene if hasattr(scene, "distances") else EmbreeCaster(scene)
         #: The datasheet return model, or None for ideal returns.
         self.returns = (ReturnModel(config.return_params, self.caster, seed, config.range_max, config.pattern_plane)
                         if config.returns_model == "datasheet" else None)

@@ -29,12 +29,14 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import trimesh
 
 from livox_viz.core.errors import LivoxVizError
+
+if TYPE_CHECKING:
+    import trimesh
 
 #: Reflectance of a surface that has no material of its own (about dry concrete at 905 nm).
 DEFAULT_REFLECTANCE = 0.3

@@ -19,12 +19,14 @@ from __future__ import annotations
 import itertools
 import os
 from concurrent.futures import ThreadPoolExecutor
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
-import trimesh
 
 from livox_viz.core.errors import LivoxVizError
+
+if TYPE_CHECKING:
+    import trimesh
 
 
 class RayCaster(Protocol):
@@ -83,6 +85,7 @@ class EmbreeCaster:
 
     Examples
     --------
+    >>> import trimesh
     >>> caster = EmbreeCaster(trimesh.creation.box((2, 2, 2)))
     >>> caster.distances(np.zeros(3), np.array([[1.0, 0, 0]])).tolist()
     [1.0]

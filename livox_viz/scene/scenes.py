@@ -11,6 +11,9 @@ trimesh reads) are taken in metres with a stated up axis and turned into NED:
 Every triangle carries its material (:mod:`~livox_viz.scene.materials`): a scene
 object's ``"material"``, a mesh file's sidecar or material colours, else the
 ``reflectance`` given (``--reflectance``).
+
+trimesh is imported by the functions that build meshes, not with the module: the
+commands that only list scenes or look at the pattern never pay its second of import.
 """
 
 from __future__ import annotations
@@ -20,10 +23,9 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import trimesh
 
 from livox_viz.config.presets import DESCRIPTION_KEY, shipped_preset_dir, user_config_dir
 from livox_viz.core.errors import LivoxVizError, require_file
@@ -38,6 +40,9 @@ from livox_viz.scene.materials import (
     read_sidecar,
     set_face_materials,
 )
+
+if TYPE_CHECKING:
+    import trimesh
 
 DEFAULT_SCENE = "urban"
 UP_AXES = ("z", "y")
@@ -166,6 +171,8 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: flo
     LivoxVizError
         If the file is missing, not a mesh, empty, or has non-finite vertices.
     """
+    import trimesh
+
     path = Path(path)
     if up not in UP_AXES:
         raise LivoxVizError(f"up axis {up!r}; allowed: {' or '.join(UP_AXES)}")
@@ -213,6 +220,8 @@ def _join(parts: list[trimesh.Trimesh]) -> trimesh.Trimesh:
 
 # Scene descriptions ------------------------------------------------------------------
 def _scene_from_json(path: Path, reflectance: float = DEFAULT_REFLECTANCE) -> Scene:
+    import trimesh
+
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
@@ -260,6 +269,8 @@ def _number(obj: dict[str, Any], key: str, where: str, default: float | None = N
 
 
 def _primitive(obj: Any, index: int, folder: Path) -> trimesh.Trimesh:
+    import trimesh
+
     where = f"object {index}"
     if not isinstance(obj, dict):
         raise LivoxVizError(f"{where}: must be a JSON object")
@@ -303,6 +314,8 @@ def _primitive(obj: Any, index: int, folder: Path) -> trimesh.Trimesh:
 
 def _grid(center: np.ndarray, size: np.ndarray, cells: int, height) -> trimesh.Trimesh:
     """A ``cells`` x ``cells`` height field (2 triangles a cell) centred on ``center``."""
+    import trimesh
+
     xs = center[0] + np.linspace(-size[0] / 2, size[0] / 2, cells + 1)
     ys = center[1] + np.linspace(-size[1] / 2, size[1] / 2, cells + 1)
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
@@ -316,6 +329,8 @@ def _grid(center: np.ndarray, size: np.ndarray, cells: int, height) -> trimesh.T
 
 def _roof(center: np.ndarray, size: np.ndarray) -> trimesh.Trimesh:
     """A gabled roof: base ``size[0]`` x ``size[1]`` at ``center``, ridge ``size[2]`` higher (NED: z smaller)."""
+    import trimesh
+
     hx, hy, rise = size[0] / 2, size[1] / 2, size[2]
     x0, y0, z0 = center
     vertices = np.array([
