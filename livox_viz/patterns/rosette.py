@@ -189,9 +189,10 @@ class ScanPattern(PatternStream):
         last8 = (stop - 1) // per8 + 1 if count else first8
         angles = self._figure8_angles(first8, last8)
         rotation = np.exp(1j * np.deg2rad(angles))
-        path, times = self._output(start, count)
+        path = self._path_buffer(count)
         _rotate_into(path, self._template, rotation, start - first8 * per8)
-        return PatternChunk(self.config, start, path.view(np.float64).reshape(count, 2), times, angles)
+        return PatternChunk(self.config, start, path.view(np.float64).reshape(count, 2),
+                            figure8_angle_deg=angles)
 
     # Random draws, one block of flowers at a time ---------------------------------
     def _figure8_angles(self, first: int, last: int) -> np.ndarray:

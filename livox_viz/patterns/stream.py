@@ -43,6 +43,30 @@ def points_before(seconds, rate: float):
     return max(0, math.ceil(seconds * rate - 1e-9))
 
 
+class _TimesOnDemand:
+    """The ``t`` field of :class:`PatternChunk`: the times given, or k / rate made on first use and kept.
+
+    A data descriptor as the field's default: the dataclass's ``__init__`` stores
+    through :meth:`__set__` (None when no times were given).
+    """
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self._name = f"_{name}_given"
+
+    def __get__(self, chunk: PatternChunk | None, owner: type | None = None) -> np.ndarray | None:
+        if chunk is None:
+            return None  # the dataclass asks for the field's default
+        times = chunk.__dict__.get(self._name)
+        if times is None:
+            times = np.arange(chunk.start, chunk.start + chunk.xy_deg.shape[0], dtype=np.float64)
+            times /= chunk.config.point_rate
+            chunk.__dict__[self._name] = times
+        return times
+
+    def __set__(self, chunk: PatternChunk, times: np.ndarray | None) -> None:
+        chunk.__dict__[self._name] = times
+
+
 @dataclass(frozen=True)
 class PatternChunk:
     """A run of consecutive points of the endless stream.
@@ -55,8 +79,10 @@ class PatternChunk:
         Stream index of the first point (points are numbered from 0).
     xy_deg : (n, 2) float64
         Pattern x, y, degrees.
-    t : (n,) float64
-        Emission time of each point, seconds since the scan start (k / rate).
+    t : (n,) float64, optional
+        Emission time of each point, seconds since the scan start; by default
+        k / rate, made on first use (a stream that only needs the angles, such as
+        the coverage charts, never pays for it).
     figure8_angle_deg : (m,) float64
         Rotation of each figure-8 the chunk touches, first one first, degrees
         in [0, 360) (rosette only; empty for the Risley track).
@@ -71,7 +97,7 @@ class PatternChunk:
     config: SensorConfig
     start: int
     xy_deg: np.ndarray
-    t: np.ndarray
+    t: np.ndarray = _TimesOnDemand()  # type: ignore[assignment]
     figure8_angle_deg: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
     def __len__(self) -> int:
@@ -160,15 +186,11 @@ class PatternStream:
         """Points ``start .. start+count-1`` of the stream, without moving it."""
         raise NotImplementedError
 
-    def _output(self, start: int, count: int) -> tuple[np.ndarray, np.ndarray]:
-        """A ``(count,)`` complex128 array to fill with points, and the ``(count,)`` float64 times k / rate."""
+    def _path_buffer(self, count: int) -> np.ndarray:
+        """A ``(count,)`` complex128 array to fill with points (x + iy, degrees), from the stream's pool."""
         if "_paths" not in self.__dict__:
             self._paths = _BufferPool(np.complex128)
-            self._times = _BufferPool(np.float64)
-        times = self._times.get(count)
-        np.add(self._times.ramp(count), start, out=times)
-        np.divide(times, self.config.point_rate, out=times)
-        return self._paths.get(count), times
+        return self._paths.get(count)
 
     @property
     def position(self) -> int:
@@ -227,7 +249,6 @@ class _BufferPool:
     def __init__(self, dtype: type) -> None:
         self.dtype = dtype
         self._free: list[np.ndarray] = []
-        self._ramp = np.arange(0, dtype=np.float64)
 
     def get(self, count: int) -> np.ndarray:
         """A ``(count,)`` array whose contents are undefined."""
@@ -239,12 +260,6 @@ class _BufferPool:
         if len(self._free) > self._KEEP:
             self._free.pop(0)
         return buffer
-
-    def ramp(self, count: int) -> np.ndarray:
-        """``0, 1, ..., count-1`` as float64, cached."""
-        if self._ramp.shape[0] < count:
-            self._ramp = np.arange(count, dtype=np.float64)
-        return self._ramp[:count]
 
 
 def _unheld_refcount() -> int:
