@@ -1,5 +1,5 @@
 """The fast paths of issue 19 compute what the plain ones do: BLAS pinning, the Risley block product, times on
-demand.
+demand, Embree casting in parts and in parallel.
 
 Speed itself is measured by the benchmarks, never here.
 """
@@ -11,6 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import trimesh
 from threadpoolctl import threadpool_limits
 
 from livox_viz import SensorConfig, load_preset
@@ -18,6 +19,7 @@ from livox_viz.core.blas import blas_threads, one_blas_thread
 from livox_viz.patterns.factory import make_pattern
 from livox_viz.patterns.risley import RisleyPattern, block_shape, risley_xy
 from livox_viz.patterns.stream import PatternChunk
+from livox_viz.scene.raycast import PART_RAYS, EmbreeCaster
 
 
 # BLAS threads -----------------------------------------------------------------------------
@@ -107,3 +109,66 @@ def test_times_are_made_on_first_use_as_k_over_rate(mid70: SensorConfig) -> None
     given = np.linspace(0.0, 1.0, 4)
     chunk = PatternChunk(mid70, 10, np.zeros((4, 2)), given)
     assert chunk.t is given
+
+
+# Embree in parts --------------------------------------------------------------------------------
+def ceiling() -> trimesh.Trimesh:
+    """A 200 m square ceiling 10 m up (NED: z = -10): rays below the horizon or past its edge miss."""
+    return trimesh.Trimesh([[-100, -100, -10], [100, -100, -10], [100, 100, -10], [-100, 100, -10]],
+                           [[0, 1, 2], [0, 2, 3]], process=False)
+
+
+def analytic_ceiling(origins: np.ndarray, directions: np.ndarray, max_distance: float) -> np.ndarray:
+    """Distance along each ray to the ceiling z = -10 inside |x|, |y| < 100, inf otherwise."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (-10.0 - origins[:, 2]) / directions[:, 2]
+    point = origins + t[:, None] * directions
+    inside = (t > 0) & (np.abs(point[:, 0]) < 100) & (np.abs(point[:, 1]) < 100) & (t <= max_distance)
+    return np.where(inside, t, np.inf)
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_distances_from_origins_per_ray_with_scattered_misses(threads: int) -> None:
+    rng = np.random.default_rng(4)
+    count = 3 * PART_RAYS + 1234  # several parts
+    directions = rng.normal(size=(count, 3))
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    origins = rng.uniform(-50, 50, size=(count, 3)) * (1, 1, 0.1)
+    caster = EmbreeCaster(ceiling(), threads=threads)
+    expected = analytic_ceiling(origins, directions, 60.0)
+    assert 0.2 < np.isinf(expected).mean() < 0.8  # misses all through the rays, upward ones hitting
+    got = caster.distances(origins, directions, 60.0)
+    hit = np.isfinite(expected)
+    np.testing.assert_array_equal(np.isfinite(got), hit)
+    np.testing.assert_allclose(got[hit], expected[hit], rtol=0, atol=2e-5)
+    # One origin for all; float32 directions go to Embree as they are and give the same answer.
+    single = caster.distances(origins[7], directions, 60.0)
+    np.testing.assert_allclose(single, analytic_ceiling(np.broadcast_to(origins[7], origins.shape), directions, 60.0),
+                               rtol=0, atol=2e-5)
+    np.testing.assert_array_equal(caster.distances(origins[7], directions.astype(np.float32), 60.0),
+                                  caster.distances(origins[7], directions.astype(np.float32).astype(np.float64), 60.0))
+    assert np.isinf(caster.distances(origins, directions, 0.0)).all()
+
+
+def test_distances_called_from_several_threads_at_once() -> None:
+    rng = np.random.default_rng(5)
+    caster = EmbreeCaster(ceiling(), threads=2)
+    calls = []
+    for _ in range(6):
+        directions = rng.normal(size=(20_000, 3)) * (1, 1, 3) - (0, 0, 2)
+        directions /= np.linalg.norm(directions, axis=1)[:, None]
+        calls.append((rng.uniform(-20, 20, size=(20_000, 3)), directions))
+    alone = [caster.distances(o, d, 200.0) for o, d in calls]
+    together: list[np.ndarray | None] = [None] * len(calls)
+
+    def run(k: int) -> None:
+        for _ in range(5):
+            together[k] = caster.distances(*calls[k], 200.0)
+
+    threads = [threading.Thread(target=run, args=(k,)) for k in range(len(calls))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    for one, other in zip(alone, together, strict=True):
+        np.testing.assert_array_equal(one, other)

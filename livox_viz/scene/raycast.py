@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Protocol
 
@@ -27,6 +28,10 @@ from livox_viz.core.errors import LivoxVizError
 
 if TYPE_CHECKING:
     import trimesh
+
+
+#: Rays in one part of a large call, about (parts are taken in turn by the worker threads).
+PART_RAYS = 65_536
 
 
 class RayCaster(Protocol):
@@ -235,11 +240,10 @@ class EmbreeCaster:
         return ids
 
     def distances(self, origins: np.ndarray, directions: np.ndarray, max_distance: float = np.inf) -> np.ndarray:
-        """See :meth:`RayCaster.distances`."""
+        """See :meth:`RayCaster.distances`; ``directions`` may also be float32 (passed to Embree without a copy)."""
         origins, directions = _check_rays(origins, directions)
-        count = directions.shape[0]
-        distance = np.empty(count, dtype=np.float64)
-        self._in_parts(origins, directions, max_distance, np.empty(count, dtype=np.int32), distance)
+        distance = np.empty(directions.shape[0], dtype=np.float64)
+        self._in_parts(origins, directions, max_distance, None, distance)
         return distance
 
     def _in_parts(
@@ -247,52 +251,71 @@ class EmbreeCaster:
         origins: np.ndarray,
         directions: np.ndarray,
         max_distance: float,
-        ids: np.ndarray,
+        ids: np.ndarray | None,
         distance: np.ndarray | None,
     ) -> None:
         """Cast contiguous parts of the rays on the worker threads, each part start to finish.
 
-        Everything per ray (float32 conversion, Embree, the float64 plane
-        distance) runs inside the part, so the threads share the work, not just
-        Embree's; numpy releases the GIL for these array operations.
+        Everything per ray (the origins re-centred and the directions made
+        float32, Embree, the misses) runs inside the part, so the threads share
+        all the work, not just Embree's; numpy releases the GIL for these array
+        operations. A large call is cut into more parts than threads, taken in
+        turn, so a thread whose rays were cheap (misses, a near wall) takes the
+        next part instead of waiting for the other. Each thread has its own
+        scratch arrays, so concurrent calls (frames cast side by side) are safe.
         """
         count = directions.shape[0]
         if count == 0:
             return
         limit = np.float32(min(max_distance, 1e37))
-        local = origins - self.local_origin
-        shared_origin = local.shape[0] == 1
-
-        def run(index_bounds: tuple[int, tuple[int, int]]) -> None:
-            index, (start, stop) = index_bounds
-            work = self._workspace(index, stop - start)
-            part_dirs = directions[start:stop]
-            part_local = work.origins(local[0]) if shared_origin else work.per_ray_origins(local[start:stop])
-            part_dirs32 = work.f32_directions
-            part_dirs32[:] = part_dirs
-            if distance is not None and not self.exact:
-                far = self._scene.run(part_local, part_dirs32, dists=work.limits(limit), query="DISTANCE")
-                hit = far < limit
-                distance[start:stop] = np.where(hit, far, np.inf)
-                ids[start:stop] = np.where(hit, 0, -1)
-                return
-            part_ids = self._scene.run(part_local, part_dirs32, dists=work.limits(limit), query="INTERSECT")
-            ids[start:stop] = part_ids
+        if not limit > 0:  # nothing can be hit within a range of 0
+            if ids is not None:
+                ids.fill(-1)
             if distance is not None:
-                part_origins = origins if shared_origin else origins[start:stop]
-                self._plane_distances(part_origins, part_dirs, part_ids, max_distance, work, distance[start:stop])
+                distance.fill(np.inf)
+            return
+        shared_origin = origins.shape[0] == 1
+        shared_local = origins[0] - self.local_origin if shared_origin else None
+        plain = distance is not None and not self.exact
 
-        parts = list(enumerate(_split(count, self.threads)))
+        def run(bounds: tuple[int, int]) -> None:
+            start, stop = bounds
+            work = self._workspace(stop - start)
+            if shared_origin:
+                part_origins = work.origins(shared_local)
+            else:
+                part_origins = work.per_ray_origins(origins[start:stop], self.local_origin)
+            part_dirs = directions[start:stop]
+            if part_dirs.dtype != np.float32 or not part_dirs.flags.c_contiguous:
+                part_dirs = work.f32_directions(part_dirs)
+            if plain:
+                far = self._scene.run(part_origins, part_dirs, dists=work.limits(limit), query="DISTANCE")
+                # A miss keeps its initial length, the limit; a hit is nearer. far / (far < limit) is the hit's
+                # distance or inf, without the branch per ray of np.where.
+                with np.errstate(divide="ignore"):
+                    np.divide(far, np.less(far, limit, out=work.hits), out=distance[start:stop])
+                return
+            part_ids = self._scene.run(part_origins, part_dirs, dists=work.limits(limit), query="INTERSECT")
+            if ids is not None:
+                ids[start:stop] = part_ids
+            if distance is not None:
+                part_world = origins if shared_origin else origins[start:stop]
+                self._plane_distances(part_world, directions[start:stop], part_ids, max_distance, work,
+                                      distance[start:stop])
+
+        parts = _split(count, self.threads)
         if self._pool is None or len(parts) == 1:
             for part in parts:
                 run(part)
         else:
             list(self._pool.map(run, parts))
 
-    def _workspace(self, index: int, rows: int) -> _Workspace:
-        work = self._workspaces.get(index)
+    def _workspace(self, rows: int) -> _Workspace:
+        """The calling thread's scratch arrays, ``rows`` long."""
+        key = threading.get_ident()
+        work = self._workspaces.get(key)
         if work is None or work.capacity < rows:
-            work = self._workspaces[index] = _Workspace(rows)
+            work = self._workspaces[key] = _Workspace(rows)
         return work.sized(rows)
 
     def _plane_distances(
@@ -376,8 +399,10 @@ class _Workspace:
         self.capacity = capacity
         self._origins = np.empty((capacity, 3), dtype=np.float32)
         self._origin_value: np.ndarray | None = None
+        self._origin_rows = 0  # rows of _origins holding _origin_value
         self._directions = np.empty((capacity, 3), dtype=np.float32)
         self._limits = np.empty(capacity, dtype=np.float32)
+        self._hits = np.empty(capacity, dtype=bool)
         self._faces = np.empty(capacity, dtype=np.int32)
         self._planes = np.empty((capacity, 4), dtype=np.float64)
         self._facing = np.empty(capacity, dtype=np.float64)
@@ -386,16 +411,15 @@ class _Workspace:
 
     def sized(self, rows: int) -> _Workspace:
         """Use the first ``rows`` rows."""
-        if rows != self.rows:
-            self._origin_value = None
         self.rows = rows
         return self
 
     def origins(self, value: np.ndarray) -> np.ndarray:
-        """``(rows, 3)`` float32 filled with one origin (refilled only when it changes)."""
-        if self._origin_value is None or not np.array_equal(self._origin_value, value):
+        """``(rows, 3)`` float32 filled with one origin (filled again only when it changed or more rows are asked)."""
+        if self._origin_rows < self.rows or not np.array_equal(self._origin_value, value):
             self._origins[: self.rows] = value
             self._origin_value = np.array(value)
+            self._origin_rows = self.rows
         return self._origins[: self.rows]
 
     def limits(self, value: np.float32) -> np.ndarray:
@@ -404,17 +428,22 @@ class _Workspace:
         limits.fill(value)
         return limits
 
-    def per_ray_origins(self, values: np.ndarray) -> np.ndarray:
-        """``(rows, 3)`` float32 filled with one origin per ray (the shared-origin cache is dropped)."""
-        self._origin_value = None
-        origins = self._origins[: self.rows]
-        origins[:] = values
-        return origins
+    def per_ray_origins(self, values: np.ndarray, centre: np.ndarray) -> np.ndarray:
+        """``(rows, 3)`` float32 ``values - centre``, one origin per ray, in one pass (the shared-origin cache
+        is dropped)."""
+        self._origin_rows = 0
+        return np.subtract(values, centre, out=self._origins[: self.rows], casting="same_kind")
+
+    def f32_directions(self, values: np.ndarray) -> np.ndarray:
+        """``(rows, 3)`` float32 copy of ``values``."""
+        directions = self._directions[: self.rows]
+        directions[:] = values
+        return directions
 
     @property
-    def f32_directions(self) -> np.ndarray:
-        """``(rows, 3)`` float32 scratch for directions."""
-        return self._directions[: self.rows]
+    def hits(self) -> np.ndarray:
+        """``(rows,)`` bool scratch."""
+        return self._hits[: self.rows]
 
     @property
     def faces(self) -> np.ndarray:
@@ -437,9 +466,10 @@ class _Workspace:
         return self._facing[: self.rows]
 
 
-def _split(count: int, parts: int) -> list[tuple[int, int]]:
-    """``parts`` contiguous ranges covering ``0..count`` (fewer for small counts)."""
-    parts = max(1, min(parts, count // 2048 or 1))
+def _split(count: int, threads: int) -> list[tuple[int, int]]:
+    """Contiguous ranges covering ``0..count``: one per thread, more (of about :data:`PART_RAYS`) for a large
+    call so the threads balance, fewer for a small one (a part of under 2048 rays is not worth a thread)."""
+    parts = max(1, min(count // 2048, max(threads, round(count / PART_RAYS))))
     edges = np.linspace(0, count, parts + 1).astype(int)
     return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
 
