@@ -1,5 +1,5 @@
 """The fast paths of issue 19 compute what the plain ones do: BLAS pinning, the Risley block product, times on
-demand, Embree casting in parts and in parallel.
+demand, Embree casting in parts and in parallel, frames cast side by side.
 
 Speed itself is measured by the benchmarks, never here.
 """
@@ -15,11 +15,13 @@ import trimesh
 from threadpoolctl import threadpool_limits
 
 from livox_viz import SensorConfig, load_preset
+from livox_viz.casting.scan import LidarScanner
 from livox_viz.core.blas import blas_threads, one_blas_thread
 from livox_viz.patterns.factory import make_pattern
 from livox_viz.patterns.risley import RisleyPattern, block_shape, risley_xy
 from livox_viz.patterns.stream import PatternChunk
 from livox_viz.scene.raycast import PART_RAYS, EmbreeCaster
+from livox_viz.scene.scenes import open_scene
 
 
 # BLAS threads -----------------------------------------------------------------------------
@@ -172,3 +174,59 @@ def test_distances_called_from_several_threads_at_once() -> None:
         thread.join()
     for one, other in zip(alone, together, strict=True):
         np.testing.assert_array_equal(one, other)
+
+
+# Frames cast side by side ---------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def urban():
+    return open_scene("urban")
+
+
+def frame_key(frame) -> tuple:
+    return (frame.index, frame.ray_count, frame.stream_index.tobytes(), frame.range_m.tobytes(),
+            frame.xyz_int16.tobytes(), frame.t.tobytes())
+
+
+def test_frames_side_by_side_are_the_frames_one_by_one(mid70: SensorConfig, urban) -> None:
+    caster = EmbreeCaster(urban.mesh)
+    piped = list(LidarScanner(mid70, caster, urban.vehicle_pose, seed=3).frames(0.73))
+    one_by_one = LidarScanner(mid70, caster, urban.vehicle_pose, seed=3)
+    expected = [one_by_one.next_frame() for _ in range(7)]
+    expected.append(one_by_one.cast(one_by_one.pattern.take(3000)))  # the partial last frame
+    assert [frame_key(f) for f in piped] == [frame_key(f) for f in expected]
+
+
+def test_stopping_early_puts_the_stream_back(mid70: SensorConfig, urban) -> None:
+    caster = EmbreeCaster(urban.mesh)
+    scanner = LidarScanner(mid70, caster, urban.vehicle_pose, seed=3)
+    frames = scanner.frames(2.0)
+    first = [next(frames) for _ in range(3)]
+    assert scanner.time == pytest.approx(0.3)  # the caller's place, though frames ahead are in flight
+    assert scanner.pattern.position > 3 * mid70.points_per_frame
+    frames.close()
+    assert scanner.pattern.position == 3 * mid70.points_per_frame and scanner.time == pytest.approx(0.3)
+    fresh = LidarScanner(mid70, caster, urban.vehicle_pose, seed=3)
+    expected = [fresh.next_frame() for _ in range(5)]
+    assert [frame_key(f) for f in first] == [frame_key(f) for f in expected[:3]]
+    assert [frame_key(f) for f in scanner.frames(0.5)] == [frame_key(f) for f in expected[3:]]
+
+
+def test_a_failing_cast_reaches_the_caller_and_the_stream_is_put_back(mid70: SensorConfig, urban) -> None:
+    real = EmbreeCaster(urban.mesh)
+
+    class FailsOnTheFifth:
+        calls = 0
+
+        def distances(self, origins, directions, max_distance=np.inf):
+            FailsOnTheFifth.calls += 1
+            if FailsOnTheFifth.calls == 5:
+                raise RuntimeError("the fifth cast fails")
+            return real.distances(origins, directions, max_distance)
+
+    scanner = LidarScanner(mid70, FailsOnTheFifth(), urban.vehicle_pose, seed=1)
+    handed = []
+    with pytest.raises(RuntimeError, match="fifth"):
+        for frame in scanner.frames(1.0):
+            handed.append(frame.index)
+    assert handed == [0, 1, 2, 3]
+    assert scanner.pattern.position == 4 * mid70.points_per_frame

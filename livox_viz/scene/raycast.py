@@ -16,10 +16,11 @@ triangle Embree found (about a tenth more time).
 
 from __future__ import annotations
 
-import itertools
 import os
 import threading
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -32,6 +33,24 @@ if TYPE_CHECKING:
 
 #: Rays in one part of a large call, about (parts are taken in turn by the worker threads).
 PART_RAYS = 65_536
+
+_this_thread = threading.local()
+
+
+@contextmanager
+def casting_in_this_thread() -> Iterator[None]:
+    """Within it, the calling thread's :meth:`EmbreeCaster.distances` calls cast every ray in that thread.
+
+    For callers that already keep every core busy, such as frames cast side by side
+    (:meth:`~livox_viz.casting.scan.LidarScanner.frames`): handing their parts to the
+    caster's worker threads as well would only add hand-overs (a tenth more CPU time).
+    """
+    before = getattr(_this_thread, "inline", False)
+    _this_thread.inline = True
+    try:
+        yield
+    finally:
+        _this_thread.inline = before
 
 
 class RayCaster(Protocol):
@@ -291,9 +310,11 @@ class EmbreeCaster:
             if plain:
                 far = self._scene.run(part_origins, part_dirs, dists=work.limits(limit), query="DISTANCE")
                 # A miss keeps its initial length, the limit; a hit is nearer. far / (far < limit) is the hit's
-                # distance or inf, without the branch per ray of np.where.
+                # distance or inf, without the branch per ray of np.where (all in float32, then widened).
+                hit = np.less(far, limit, out=work.hits, casting="unsafe")
                 with np.errstate(divide="ignore"):
-                    np.divide(far, np.less(far, limit, out=work.hits), out=distance[start:stop])
+                    np.divide(far, hit, out=far)
+                np.copyto(distance[start:stop], far)
                 return
             part_ids = self._scene.run(part_origins, part_dirs, dists=work.limits(limit), query="INTERSECT")
             if ids is not None:
@@ -304,7 +325,7 @@ class EmbreeCaster:
                                       distance[start:stop])
 
         parts = _split(count, self.threads)
-        if self._pool is None or len(parts) == 1:
+        if self._pool is None or len(parts) == 1 or getattr(_this_thread, "inline", False):
             for part in parts:
                 run(part)
         else:
@@ -398,11 +419,11 @@ class _Workspace:
     def __init__(self, capacity: int) -> None:
         self.capacity = capacity
         self._origins = np.empty((capacity, 3), dtype=np.float32)
-        self._origin_value: np.ndarray | None = None
+        self._origin_value: tuple[float, float, float] | None = None
         self._origin_rows = 0  # rows of _origins holding _origin_value
         self._directions = np.empty((capacity, 3), dtype=np.float32)
         self._limits = np.empty(capacity, dtype=np.float32)
-        self._hits = np.empty(capacity, dtype=bool)
+        self._hits = np.empty(capacity, dtype=np.float32)
         self._faces = np.empty(capacity, dtype=np.int32)
         self._planes = np.empty((capacity, 4), dtype=np.float64)
         self._facing = np.empty(capacity, dtype=np.float64)
@@ -416,9 +437,10 @@ class _Workspace:
 
     def origins(self, value: np.ndarray) -> np.ndarray:
         """``(rows, 3)`` float32 filled with one origin (filled again only when it changed or more rows are asked)."""
-        if self._origin_rows < self.rows or not np.array_equal(self._origin_value, value):
+        key = (float(value[0]), float(value[1]), float(value[2]))  # a tuple compares in a fraction of array_equal
+        if self._origin_rows < self.rows or key != self._origin_value:
             self._origins[: self.rows] = value
-            self._origin_value = np.array(value)
+            self._origin_value = key
             self._origin_rows = self.rows
         return self._origins[: self.rows]
 
@@ -442,7 +464,7 @@ class _Workspace:
 
     @property
     def hits(self) -> np.ndarray:
-        """``(rows,)`` bool scratch."""
+        """``(rows,)`` float32 scratch (1 for a hit, 0 for a miss)."""
         return self._hits[: self.rows]
 
     @property
@@ -470,8 +492,7 @@ def _split(count: int, threads: int) -> list[tuple[int, int]]:
     """Contiguous ranges covering ``0..count``: one per thread, more (of about :data:`PART_RAYS`) for a large
     call so the threads balance, fewer for a small one (a part of under 2048 rays is not worth a thread)."""
     parts = max(1, min(count // 2048, max(threads, round(count / PART_RAYS))))
-    edges = np.linspace(0, count, parts + 1).astype(int)
-    return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
+    return [(count * k // parts, count * (k + 1) // parts) for k in range(parts)]
 
 
 class TrimeshCaster:
