@@ -15,6 +15,7 @@ import trimesh
 from threadpoolctl import threadpool_limits
 
 from livox_viz import SensorConfig, load_preset
+from livox_viz.casting.directions import directions_from_xy
 from livox_viz.casting.scan import LidarScanner
 from livox_viz.core.blas import blas_threads, one_blas_thread
 from livox_viz.patterns.factory import make_pattern
@@ -213,19 +214,21 @@ def test_stopping_early_puts_the_stream_back(mid70: SensorConfig, urban) -> None
 
 def test_a_failing_cast_reaches_the_caller_and_the_stream_is_put_back(mid70: SensorConfig, urban) -> None:
     real = EmbreeCaster(urban.mesh)
+    scanner = LidarScanner(mid70, real, urban.vehicle_pose, seed=1)
+    # Ray 123 of frame 4, as the scanner will cast it (frames are cast side by side, in no fixed order; a
+    # frame's first ray is the pattern's centre, the same in every frame).
+    xy = make_pattern(mid70, seed=1).points(4 * mid70.points_per_frame + 123, 1).xy_deg
+    fourth = directions_from_xy(xy)[0] @ scanner.sensor_pose.rotation.T
 
-    class FailsOnTheFifth:
-        calls = 0
-
+    class FailsOnFrameFour:
         def distances(self, origins, directions, max_distance=np.inf):
-            FailsOnTheFifth.calls += 1
-            if FailsOnTheFifth.calls == 5:
-                raise RuntimeError("the fifth cast fails")
+            if len(directions) > 123 and np.allclose(directions[123], fourth, atol=1e-12):
+                raise RuntimeError("the cast of frame 4 fails")
             return real.distances(origins, directions, max_distance)
 
-    scanner = LidarScanner(mid70, FailsOnTheFifth(), urban.vehicle_pose, seed=1)
+    scanner = LidarScanner(mid70, FailsOnFrameFour(), urban.vehicle_pose, seed=1)
     handed = []
-    with pytest.raises(RuntimeError, match="fifth"):
+    with pytest.raises(RuntimeError, match="frame 4"):
         for frame in scanner.frames(1.0):
             handed.append(frame.index)
     assert handed == [0, 1, 2, 3]

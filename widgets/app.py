@@ -17,6 +17,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -101,6 +102,7 @@ class LivoxVizApp:
             plotter.iren.interactor.AddObserver("CharEvent", _swallow_our_keys, 10.0)
         session.subscribe(self._on_change)
         self._last_render: float | None = None
+        self._writer: ThreadPoolExecutor | None = None  # screenshots being written
         self._preset_cursor = -1
         self._scene_cursor = -1
         self._ready = True
@@ -234,7 +236,8 @@ class LivoxVizApp:
         """World or sensor accumulation of the cloud; the window is cast again in the new way."""
         display = self.session.display
         display.cloud_frame = next_choice(CLOUD_FRAMES, display.cloud_frame)
-        self.session.set_window(self.session.window_index)
+        if self.session.trajectory is not None:  # a sensor that stays puts its points in the same places either way
+            self.session.set_window(self.session.window_index)
         self.session.message = f"cloud in the {display.cloud_frame} frame"
 
     def cycle_drawing(self) -> None:
@@ -327,13 +330,37 @@ class LivoxVizApp:
 
     # Files ------------------------------------------------------------------------------
     def save_screenshot(self, folder: Path | None = None) -> Path:
-        """Save the window as PNG with a JSON sidecar (configuration, seed, scan time, cameras)."""
+        """Save the window as PNG with a JSON sidecar (configuration, seed, scan time, cameras); returns when
+        both are written."""
         path = files.unused_screenshot_path(Path(folder) if folder is not None else self.screenshot_dir)
-        self.render()
-        files.write_png(self.plotter.screenshot(None, return_img=True), path)
+        files.write_png(self.plotter.screenshot(None, return_img=True), path)  # screenshot() renders once
         files.write_sidecar(path, files.sidecar(self.session, self.cameras(), self.plotter.window_size))
         self.session.message = f"saved {path}"
         return path
+
+    def take_screenshot(self) -> Path:
+        """The ``s`` key: capture the window now; a writer thread encodes the PNG and writes the sidecar.
+
+        Encoding 1600x900 pixels takes 70-250 ms here, which the window would otherwise stand still for. The
+        message says "saving", then "saved" (or why not); :meth:`close` waits for the files.
+        """
+        path = files.unused_screenshot_path(self.screenshot_dir)
+        image = self.plotter.screenshot(None, return_img=True)
+        data = files.sidecar(self.session, self.cameras(), self.plotter.window_size)
+        if self._writer is None:
+            self._writer = ThreadPoolExecutor(1, thread_name_prefix="livox-viz-screenshot")
+        self.session.message = f"saving {path}"
+        self._writer.submit(self._write_screenshot, image, path, data)
+        return path
+
+    def _write_screenshot(self, image: Any, path: Path, data: dict[str, Any]) -> None:
+        try:
+            files.write_png(image, path)
+            files.write_sidecar(path, data)
+        except OSError as exc:
+            self.session.message = f"screenshot not saved: {exc.strerror or exc}"
+            return
+        self.session.message = f"saved {path}"
 
     def cameras(self) -> dict[str, Any]:
         """Each view's camera, for the sidecar."""
@@ -403,7 +430,11 @@ class LivoxVizApp:
         iren = self.plotter.iren
         iren.add_observer("TimerEvent", lambda *_: self._on_timer(stop))
         iren.create_timer(TIMER_MS, repeating=True)
-        self.plotter.show(auto_close=True)
+        try:
+            self.plotter.show(auto_close=True)
+        finally:
+            if self._writer is not None:  # the screenshots taken last are written before the command returns
+                self._writer.shutdown(wait=True)
 
     def _on_timer(self, stop: Callable[[], bool] | None = None) -> None:
         if stop is not None and stop():
@@ -416,6 +447,10 @@ class LivoxVizApp:
         self.render()
 
     def close(self) -> None:
+        """Close the window once the screenshots being written are on disk."""
+        if self._writer is not None:
+            self._writer.shutdown(wait=True)
+            self._writer = None
         self.plotter.close()
 
 

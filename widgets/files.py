@@ -23,7 +23,8 @@ def write_png(image: np.ndarray, path: Path) -> Path:
     from PIL import Image
 
     with atomic_path(path) as tmp:
-        Image.fromarray(np.asarray(image)).save(tmp, format="PNG")
+        # zlib level 1: a 1600x900 window in 70 ms instead of 110 ms, the file a tenth larger.
+        Image.fromarray(np.asarray(image)).save(tmp, format="PNG", compress_level=1)
     return path
 
 

@@ -46,14 +46,14 @@ KEYS: tuple[KeyRow, ...] = (
     KeyRow("v", "pattern model: RflySim's rosette / the track (a configuration with Risley or track parameters)",
            (("v", "toggle_pattern_model"),), "model"),
     KeyRow("s", "screenshot PNG into `screenshots/` with a JSON sidecar (configuration, seed, scan time, cameras)",
-           (("s", "save_screenshot"),), "screenshot"),
+           (("s", "take_screenshot"),), "screenshot"),
     KeyRow("p", "save the sliders as a user preset (`~/.config/livox-viz/presets`, never over a shipped one)",
            (("p", "save_preset"),), "preset"),
     KeyRow("n / b", "next / previous preset", (("n", "next_preset"), ("b", "previous_preset")), "presets"),
     KeyRow("w", "moving sensor: the cloud in the world (each point with the pose of its own time: walls stay sharp) "
            "/ as the sensor sees it (the motion's smear shows)", (("w", "toggle_cloud_frame"),)),
-    KeyRow("g", "pattern drawing: auto (a density image once points outnumber pixels) / points / density",
-           (("g", "cycle_drawing"),)),
+    KeyRow("g", "drawing: auto (the pattern as a density image once points outnumber pixels, the scene's cloud "
+           "thinned to 250 000 points) / every point / density", (("g", "cycle_drawing"),)),
     KeyRow("m", "next scene: the built-in ones, then mesh files in `~/.config/livox-viz/scenes` (a file that fails "
            "to load leaves a message, not a crash)", (("m", "cycle_scene"),)),
     KeyRow("o / l", "reference overlay on/off / its own integration window (its coverage shows beside ours)",

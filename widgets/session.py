@@ -439,17 +439,24 @@ class Session:
         return max(0.0, low), max(self.scan_time, 1e-6)
 
     def recolour(self) -> None:
-        """Recompute all scalars after a colour mode change."""
+        """Recompute all scalars after a colour mode change.
+
+        Slice by slice of the rings (no gather of a million slots), and the scene's ranges in float32 from the
+        stored float32 points: a colour key costs tens of milliseconds, not hundreds.
+        """
         ring = self.pattern_ring
-        live = ring.live_slots()
-        ring.scalars[live] = self.pattern_scalars(ring.stream_index[live], ring.times[live])
+        for piece in ring.live_pieces():
+            ring.scalars[piece] = self.pattern_scalars(ring.stream_index[piece], ring.times[piece])
         ring = self.scene_ring
-        live = ring.live_slots()
-        if ring.count:
-            world = ring.positions[live].astype(np.float64)
-            ranges = np.linalg.norm(world - self.sensor_pose.origin, axis=1)
-            ring.scalars[live] = self.scene_scalars(world, ranges, ring.times[live], ring.reflectivity[live],
-                                                    ring.tag[live])
+        origin = self.sensor_pose.origin.astype(np.float32)
+        for piece in ring.live_pieces():
+            world = ring.positions[piece]
+            ranges = np.square(world[:, 0] - origin[0])
+            for axis in (1, 2):
+                ranges += np.square(world[:, axis] - origin[axis])
+            np.sqrt(ranges, out=ranges)
+            ring.scalars[piece] = self.scene_scalars(world, ranges, ring.times[piece], ring.reflectivity[piece],
+                                                     ring.tag[piece])
 
     # Measures ------------------------------------------------------------------------------
     def visible_coverage(self) -> float:

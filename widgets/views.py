@@ -41,26 +41,64 @@ def ring_polydata(ring: PointRing) -> pv.PolyData:
     return poly
 
 
-def update_ring_polydata(poly: pv.PolyData, ring: PointRing) -> None:
+def update_ring_polydata(poly: pv.PolyData, ring: PointRing, stride: int = 1) -> None:
     """Tell VTK the ring changed: re-point the vertex cells if the live slots moved, mark the arrays modified.
 
     A full ring draws every slot, in any order, so its cells stay the same
-    from tick to tick and VTK does not rebuild its index buffer.
+    from tick to tick and VTK does not rebuild its index buffer. With
+    ``stride`` k > 1 only the slots that are multiples of k are drawn (a level
+    of detail): always the same slots, so the thinned cloud does not shimmer
+    as the ring turns.
     """
     if poly.GetPoints().GetData().GetVoidPointer(0) != _address(ring.positions):
         poly.points = ring.positions
         poly.point_data.set_array(ring.scalars, "scalars")
         poly.point_data.active_scalars_name = "scalars"
     full = ring.count == ring.capacity
-    cells_key = (id(ring), "full") if full else (id(ring), ring.tail, ring.count)
+    cells_key = (id(ring), "full", stride) if full else (id(ring), ring.tail, ring.count, stride)
     if getattr(poly, "_livox_cells_key", None) != cells_key:
         slots = ring.all_slots() if full else ring.live_slots()
-        poly.SetVerts(pv.CellArray.from_arrays(ring.cell_offsets(), slots))
+        if stride > 1:
+            slots = np.ascontiguousarray(slots[(-ring.tail if not full else 0) % stride :: stride])
+        poly.SetVerts(pv.CellArray.from_arrays(ring.cell_offsets()[: slots.size + 1], slots))
         poly._livox_cells_key = cells_key
     poly.GetPoints().GetData().Modified()
     poly.GetPoints().Modified()
     poly.GetPointData().GetArray("scalars").Modified()
     poly.Modified()
+
+
+#: Points of the scene's cloud drawn at most, unless the drawing is "points": software GL takes about 0.45 ms
+#: per thousand points (bench_window.py), so a million drawn cost 450 ms a frame, a quarter of a million 180 ms.
+SCENE_DRAW_LIMIT = 250_000
+
+
+def lod_stride(count: int, limit: int) -> int:
+    """Every how many points to draw so that at most ``limit`` of ``count`` are drawn."""
+    return max(1, -(-count // limit))
+
+
+def one_mesh(parts: list[pv.PolyData]) -> pv.PolyData:
+    """Line meshes as one mesh, their points and line cells joined with numpy.
+
+    What the guides and the FOV wire are made of: one actor instead of a dozen, and no ``merge`` filter
+    (merging and adding them one by one took 65 ms of every change of field of view).
+    """
+    points, offsets, connectivity, start, end = [], [np.zeros(1, dtype=np.int64)], [], 0, 0
+    for part in parts:
+        if part.n_points == 0:
+            continue
+        lines = part.GetLines()
+        points.append(np.asarray(part.points, dtype=np.float64))
+        connectivity.append(pv.convert_array(lines.GetConnectivityArray()).astype(np.int64) + start)
+        offsets.append(pv.convert_array(lines.GetOffsetsArray()).astype(np.int64)[1:] + end)
+        start += part.n_points
+        end += connectivity[-1].size
+    mesh = pv.PolyData()
+    if points:
+        mesh.points = np.vstack(points)
+        mesh.lines = pv.CellArray.from_arrays(np.concatenate(offsets), np.concatenate(connectivity))
+    return mesh
 
 
 def _address(array: np.ndarray) -> int:
@@ -103,6 +141,7 @@ class PatternView(_View):
     def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
         super().__init__(plotter, session, subplot)
         self._guides: list = []
+        self._guide_actors: tuple | None = None
         self._ring = session.pattern_ring
         self.poly = ring_polydata(self._ring)
         self.actor = plotter.add_mesh(
@@ -178,21 +217,26 @@ class PatternView(_View):
         """
         plotter = self.plotter
         plotter.subplot(*self.subplot)
-        for name in self._guides:
-            plotter.remove_actor(name, render=False)
+        if "grid-labels" in self._guides:
+            plotter.remove_actor("grid-labels", render=False)
         self._guides = []
         fov = self.session.config.field_of_view
         self._guides_fov = fov
         grid_lines, labels, positions = (_panorama_grid(fov) if fov.plane == "panorama" else _boresight_grid(fov))
-        for k, line in enumerate(grid_lines):
-            name = f"grid-{k}"
-            plotter.add_mesh(line, color="#3a4454", line_width=1, name=name, reset_camera=False, lighting=False,
-                             pickable=False)
-            self._guides.append(name)
-        outline = pv.lines_from_points(np.column_stack([fov.boundary(), np.zeros(len(fov.boundary()))]))
-        plotter.add_mesh(outline, color="#f2c14e", line_width=2, name="fov-outline", reset_camera=False,
-                         lighting=False, pickable=False)
-        self._guides.append("fov-outline")
+        # The grid and the outline are one mesh each, handed to the same two actors on every change.
+        grid = one_mesh(grid_lines)
+        boundary = fov.boundary()
+        outline = pv.lines_from_points(np.column_stack([boundary, np.zeros(len(boundary))]))
+        if self._guide_actors is None:
+            self._guide_actors = (
+                plotter.add_mesh(grid, color="#3a4454", line_width=1, name="grid", reset_camera=False,
+                                 lighting=False, pickable=False),
+                plotter.add_mesh(outline, color="#f2c14e", line_width=2, name="fov-outline", reset_camera=False,
+                                 lighting=False, pickable=False),
+            )
+        else:
+            for actor, mesh in zip(self._guide_actors, (grid, outline), strict=True):
+                actor.mapper.SetInputData(mesh)
         if labels:
             plotter.add_point_labels(positions, labels, font_size=11, text_color="#8a96a8", shape=None,
                                      show_points=False, name="grid-labels", always_visible=True, reset_camera=False)
@@ -338,22 +382,20 @@ def fov_wire(fov, length: float = 1.6) -> pv.PolyData:
     if fov.plane == "panorama":
         low, high = fov.elevation_deg
         azimuth = np.linspace(-180.0, 180.0, 145)
-        wire = None
+        parts = []
         for elevation in (low, high):
             rim = directions_from_xy(np.column_stack([azimuth, np.full(azimuth.size, elevation)]), "panorama")
-            part = pv.lines_from_points(rim * length)
-            wire = part if wire is None else wire.merge(part)
+            parts.append(pv.lines_from_points(rim * length))
         for spoke in np.arange(-180.0, 180.0, 45.0):
             meridian = np.column_stack([np.full(20, spoke), np.linspace(low, high, 20)])
             arc = directions_from_xy(meridian, "panorama") * length
-            wire = wire.merge(pv.lines_from_points(arc)).merge(pv.Line((0.0, 0.0, 0.0), arc[-1]))
-        return wire
+            parts += [pv.lines_from_points(arc), pv.Line((0.0, 0.0, 0.0), arc[-1])]
+        return one_mesh(parts)
     boundary = fov.boundary(96)
     rim = directions_from_xy(boundary, "boresight") * length
-    wire = pv.lines_from_points(rim)
-    for k in np.linspace(0, len(rim) - 1, 9)[:-1].astype(int):
-        wire = wire.merge(pv.Line((0.0, 0.0, 0.0), rim[k]))
-    return wire
+    parts = [pv.lines_from_points(rim)]
+    parts += [pv.Line((0.0, 0.0, 0.0), rim[k]) for k in np.linspace(0, len(rim) - 1, 9)[:-1].astype(int)]
+    return one_mesh(parts)
 
 
 class SceneView(_View):
@@ -480,6 +522,13 @@ class SceneView(_View):
         self.scalar_bar.SetDrawAnnotations(mode == "return/tag")
         self.scalar_bar.GetAnnotationTextProperty().SetColor(0.87, 0.89, 0.92)
 
+    def stride(self) -> int:
+        """Every how many of the cloud's points are drawn: all with the "points" drawing, else at most
+        :data:`SCENE_DRAW_LIMIT` (the ring's capacity decides, so the stride stays put while the window fills)."""
+        if self.session.display.drawing == "points":
+            return 1
+        return lod_stride(self.session.scene_ring.capacity, SCENE_DRAW_LIMIT)
+
     def update(self) -> None:
         """Show the ring's current points and colours, and the vehicle where it is now."""
         if self.session.trajectory is not None:
@@ -491,6 +540,8 @@ class SceneView(_View):
         if getattr(self, "_colour_mode", None) != mode:
             self._colour_mode = mode
             self._use_table(mode)
+
+        update_ring_polydata(self.poly, self._ring, self.stride())
         low, high = self.session.scene_scalar_range()
         self.actor.mapper.scalar_range = (low, high if high > low else low + 1e-6)
         self.scalar_bar.SetTitle(SCENE_UNITS[mode])

@@ -135,7 +135,7 @@ class EmbreeCaster:
         normals /= np.where(lengths > 0, lengths, 1.0)[:, None]
         # One row per triangle, [nx, ny, nz, n . v0], so a hit needs one gather.
         self._planes = np.column_stack([normals, np.einsum("ij,ij->i", normals, v0)])
-        self._workspaces: dict[int, _Workspace] = {}
+        self._workspaces = threading.local()
         self.threads = max(1, threads or os.cpu_count() or 1)
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
         # Embree builds its BVH on the first query; do it now, not inside a timed frame.
@@ -332,11 +332,10 @@ class EmbreeCaster:
             list(self._pool.map(run, parts))
 
     def _workspace(self, rows: int) -> _Workspace:
-        """The calling thread's scratch arrays, ``rows`` long."""
-        key = threading.get_ident()
-        work = self._workspaces.get(key)
+        """The calling thread's scratch arrays, ``rows`` long (thread-local: they go when the thread ends)."""
+        work = getattr(self._workspaces, "work", None)
         if work is None or work.capacity < rows:
-            work = self._workspaces[key] = _Workspace(rows)
+            work = self._workspaces.work = _Workspace(rows)
         return work.sized(rows)
 
     def _plane_distances(

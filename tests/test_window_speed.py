@@ -1,0 +1,171 @@
+"""The window's fast paths (issue 19) show what the plain ones did: ring slices, colours, the thinned cloud, the
+guides, the screenshot written behind the key, the curves' cells. Off-screen, small windows; no timing here."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pv = pytest.importorskip("pyvista")
+
+from livox_viz.widgets import views  # noqa: E402
+from livox_viz.widgets.app import LivoxVizApp  # noqa: E402
+from livox_viz.widgets.overlay import WINDOWS  # noqa: E402
+from livox_viz.widgets.ring import PointRing  # noqa: E402
+from livox_viz.widgets.session import Session  # noqa: E402
+
+from livox_viz import load_preset  # noqa: E402
+from livox_viz.motion.flights import builtin_trajectory  # noqa: E402
+from livox_viz.patterns.metrics import LIVOX_CELL_DEG, CoverageGrid  # noqa: E402
+from livox_viz.scene.scenes import open_scene  # noqa: E402
+
+SIZE = (480, 300)
+
+
+@pytest.fixture(scope="module")
+def urban():
+    return open_scene("urban")
+
+
+@pytest.fixture
+def app(urban, tmp_path: Path):
+    session = Session(load_preset("livox_mid70"), urban, seed=0, preset_name="livox_mid70")
+    application = LivoxVizApp(session, off_screen=True, window_size=SIZE, screenshot_dir=tmp_path / "shots")
+    yield application
+    application.close()
+
+
+def test_live_pieces_are_the_live_slots_in_order() -> None:
+    ring = PointRing(10)
+    for size in (3, 4, 6, 2, 9, 1):
+        ring.write(np.zeros((size, 3)), np.zeros(size), np.arange(size, dtype=float), np.arange(size))
+        if size == 2:
+            ring.drop_older_than(1.0)
+        joined = np.concatenate([np.arange(10)[piece] for piece in ring.live_pieces()] or [np.zeros(0, int)])
+        np.testing.assert_array_equal(joined, ring.live_slots())
+
+
+def test_colour_keys_give_the_scalars_of_each_point_as_written(app: LivoxVizApp) -> None:
+    session = app.session
+    session.set_window(WINDOWS.index(0.1))
+    scene = session.scene_ring
+    for step in range(1, 40):  # tick by tick until the ring has turned: its live slots wrap around the end
+        session.advance_to(0.033 * step)
+        if scene.tail + scene.count > scene.capacity:
+            break
+    assert scene.tail + scene.count > scene.capacity
+    for _ in range(3):
+        app.cycle_scene_colour()
+        live = scene.live_slots()
+        world = scene.positions[live].astype(np.float64)
+        mode = session.display.scene_colour
+        expected = {"range": np.linalg.norm(world - session.sensor_pose.origin, axis=1),
+                    "height": -world[:, 2], "time": scene.times[live]}[mode]
+        np.testing.assert_allclose(scene.scalars[live], expected, rtol=2e-6, atol=2e-5)
+    app.cycle_pattern_colour()
+    ring = session.pattern_ring
+    live = ring.live_slots()
+    np.testing.assert_array_equal(ring.scalars[live],
+                                  session.pattern_scalars(ring.stream_index[live], ring.times[live]))
+
+
+def test_a_large_cloud_is_drawn_thinned_and_every_point_on_request(app: LivoxVizApp, monkeypatch) -> None:
+    session = app.session
+    monkeypatch.setattr(views, "SCENE_DRAW_LIMIT", 2000)  # the half-second window holds 50 000 slots
+    session.advance_to(0.8)
+    app.refresh()
+    ring = session.scene_ring
+    stride = app.scene_view.stride()
+    assert stride == math.ceil(ring.capacity / 2000) > 1
+    drawn = app.scene_view.poly.GetVerts()
+    slots = pv.convert_array(drawn.GetConnectivityArray())
+    assert len(slots) == len(range(0, ring.count, stride)) or abs(len(slots) - ring.count / stride) <= 1
+    assert set(slots.tolist()) <= set(ring.live_slots().tolist()) and np.all(slots % stride == 0)
+    first = set(slots.tolist())
+    session.advance_to(0.85)  # the ring turns: the drawn slots stay the multiples of the stride
+    app.refresh()
+    assert np.all(pv.convert_array(app.scene_view.poly.GetVerts().GetConnectivityArray()) % stride == 0)
+    assert first  # something was drawn
+    while session.display.drawing != "points":
+        app.cycle_drawing()
+    app.refresh()
+    assert app.scene_view.poly.n_cells == ring.count
+
+
+def test_guides_follow_the_fov(app: LivoxVizApp) -> None:
+    app.on_param("camera_fov", 40.0)
+    app.plotter.subplot(*app.pattern_view.subplot)
+    fov_ring = app.plotter.actors["fov-ring"]
+    bounds = fov_ring.mapper.GetInput().GetBounds()
+    assert bounds[1] == pytest.approx(20.0) and bounds[3] == pytest.approx(20.0)
+    grid = app.plotter.actors["guides"].mapper.GetInput()
+    radii = np.unique(np.round(np.hypot(*np.asarray(grid.points)[:, :2].T), 6))
+    assert 10.0 in radii and 20.0 in radii  # the 10-degree ring and the cross hairs' ends
+    app.plotter.subplot(*app.scene_view.subplot)
+    cone = app.plotter.actors["fov-cone"].mapper.GetInput()
+    rim = np.asarray(cone.points)[:-1]
+    np.testing.assert_allclose(np.hypot(rim[:, 1], rim[:, 2]) / rim[:, 0], math.tan(math.radians(20.0)))
+
+
+def test_the_screenshot_key_writes_behind_and_close_waits(app: LivoxVizApp, tmp_path: Path) -> None:
+    from PIL import Image
+
+    app.session.advance_to(0.2)
+    app.refresh()
+    path = app.take_screenshot()
+    assert app.session.message.startswith(("saving", "saved"))
+    app.close()  # waits for the writer
+    with Image.open(path) as image:
+        assert image.size == SIZE
+    assert json.loads(path.with_suffix(".json").read_text())["scan_time_s"] == pytest.approx(0.2)
+    assert app.session.message == f"saved {path}"
+
+
+def test_the_cloud_frame_key_recasts_only_for_a_moving_sensor(urban) -> None:
+    still = Session(load_preset("livox_mid70"), urban, seed=0)
+    app = LivoxVizApp(still, off_screen=True, window_size=SIZE, views="scene")
+    try:
+        still.advance_to(0.3)
+        before = still.scene_ring.positions.copy()
+        app.toggle_cloud_frame()
+        assert still.display.cloud_frame == "sensor" and still.scene_ring.count > 0
+        np.testing.assert_array_equal(still.scene_ring.positions, before)
+    finally:
+        app.close()
+    flight = builtin_trajectory("circle", 5.0, urban.vehicle_pose, 5.0)
+    moving = Session(load_preset("livox_mid70"), urban, seed=0, trajectory=flight)
+    app = LivoxVizApp(moving, off_screen=True, window_size=SIZE, views="scene")
+    try:
+        moving.advance_to(0.3)
+        world = moving.scene_ring.ordered(moving.scene_ring.positions).copy()
+        app.toggle_cloud_frame()
+        sensor = moving.scene_ring.ordered(moving.scene_ring.positions)
+        assert world.shape == sensor.shape and not np.array_equal(world, sensor)
+    finally:
+        app.close()
+
+
+def plain_cell_index(grid: CoverageGrid, xy: np.ndarray) -> np.ndarray:
+    """The cell of each point the obvious way, point by point (the reference for the block version)."""
+    half = grid.cells_per_side
+    out = np.full(xy.shape[0], -1, dtype=np.int64)
+    for k, (x, y) in enumerate(xy):
+        if not (np.isfinite(x) and np.isfinite(y)):
+            continue
+        i, j = math.floor(x / grid.cell_deg) + half, math.floor(y / grid.cell_deg) + half
+        if 0 <= i < 2 * half and 0 <= j < 2 * half and grid.inside_mask[i, j]:
+            out[k] = i * 2 * half + j
+    return out
+
+
+def test_cells_of_points_in_blocks_match_the_plain_rule() -> None:
+    grid = CoverageGrid(35.2, LIVOX_CELL_DEG)
+    rng = np.random.default_rng(8)
+    xy = rng.uniform(-40, 40, size=(70_000, 2))  # more than one block, some outside the FOV and the grid
+    xy[:5] = [[np.nan, 0.0], [0.0, np.inf], [-1e9, 3.0], [0.0, 0.0], [-grid.cells_per_side * grid.cell_deg, 0]]
+    picked = np.r_[0:5, rng.choice(70_000, 3000, replace=False)]
+    np.testing.assert_array_equal(grid.cell_index(xy)[picked], plain_cell_index(grid, xy[picked]))
