@@ -97,18 +97,26 @@ def test_a_large_cloud_is_drawn_thinned_and_every_point_on_request(app: LivoxViz
 
 
 def test_guides_follow_the_fov(app: LivoxVizApp) -> None:
+    """The grid and the outline stay two actors, handed new meshes when the FOV changes; the wire follows."""
+    app.plotter.subplot(*app.pattern_view.subplot)
+    grid_actor, outline_actor = app.plotter.actors["grid"], app.plotter.actors["fov-outline"]
     app.on_param("camera_fov", 40.0)
     app.plotter.subplot(*app.pattern_view.subplot)
-    fov_ring = app.plotter.actors["fov-ring"]
-    bounds = fov_ring.mapper.GetInput().GetBounds()
-    assert bounds[1] == pytest.approx(20.0) and bounds[3] == pytest.approx(20.0)
-    grid = app.plotter.actors["guides"].mapper.GetInput()
-    radii = np.unique(np.round(np.hypot(*np.asarray(grid.points)[:, :2].T), 6))
+    assert app.plotter.actors["grid"] is grid_actor and app.plotter.actors["fov-outline"] is outline_actor
+    outline = np.asarray(outline_actor.mapper.GetInput().points)
+    np.testing.assert_allclose(np.hypot(outline[:, 0], outline[:, 1]), 20.0, rtol=1e-9)
+    grid = np.asarray(grid_actor.mapper.GetInput().points)
+    radii = np.unique(np.round(np.hypot(grid[:, 0], grid[:, 1]), 6))
     assert 10.0 in radii and 20.0 in radii  # the 10-degree ring and the cross hairs' ends
     app.plotter.subplot(*app.scene_view.subplot)
-    cone = app.plotter.actors["fov-cone"].mapper.GetInput()
-    rim = np.asarray(cone.points)[:-1]
-    np.testing.assert_allclose(np.hypot(rim[:, 1], rim[:, 2]) / rim[:, 0], math.tan(math.radians(20.0)))
+    wire = app.plotter.actors["fov-cone"].mapper.GetInput()
+    rim = np.asarray(wire.points)
+    off_axis = rim[np.linalg.norm(rim, axis=1) > 1.0]  # the rim at 1.6 m (the apex is at 0)
+    np.testing.assert_allclose(np.hypot(off_axis[:, 1], off_axis[:, 2]) / off_axis[:, 0],
+                               math.tan(math.radians(20.0)), rtol=1e-6)  # pv.Line ends are float32
+    apex = np.flatnonzero(np.linalg.norm(rim, axis=1) < 1e-12)
+    segments = pv.convert_array(wire.GetLines().GetConnectivityArray()).reshape(-1, 2)
+    assert np.isin(segments, apex).any(axis=1).sum() == 8  # eight rays from the apex, the rest the rim
 
 
 def test_the_screenshot_key_writes_behind_and_close_waits(app: LivoxVizApp, tmp_path: Path) -> None:
@@ -151,14 +159,15 @@ def test_the_cloud_frame_key_recasts_only_for_a_moving_sensor(urban) -> None:
 
 def plain_cell_index(grid: CoverageGrid, xy: np.ndarray) -> np.ndarray:
     """The cell of each point the obvious way, point by point (the reference for the block version)."""
-    half = grid.cells_per_side
+    x0, nx, y0, ny, cell_x, cell_y = grid._axes
     out = np.full(xy.shape[0], -1, dtype=np.int64)
     for k, (x, y) in enumerate(xy):
-        if not (np.isfinite(x) and np.isfinite(y)):
+        column, row = (x - x0) * (1.0 / cell_x), (y - y0) * (1.0 / cell_y)
+        if not (0 <= column < nx and 0 <= row < ny):  # NaN fails too
             continue
-        i, j = math.floor(x / grid.cell_deg) + half, math.floor(y / grid.cell_deg) + half
-        if 0 <= i < 2 * half and 0 <= j < 2 * half and grid.inside_mask[i, j]:
-            out[k] = i * 2 * half + j
+        i, j = math.floor(column), math.floor(row)
+        if grid.inside_mask[i, j]:
+            out[k] = i * ny + j
     return out
 
 
@@ -166,6 +175,6 @@ def test_cells_of_points_in_blocks_match_the_plain_rule() -> None:
     grid = CoverageGrid(35.2, LIVOX_CELL_DEG)
     rng = np.random.default_rng(8)
     xy = rng.uniform(-40, 40, size=(70_000, 2))  # more than one block, some outside the FOV and the grid
-    xy[:5] = [[np.nan, 0.0], [0.0, np.inf], [-1e9, 3.0], [0.0, 0.0], [-grid.cells_per_side * grid.cell_deg, 0]]
+    xy[:5] = [[np.nan, 0.0], [0.0, np.inf], [-1e9, 3.0], [0.0, 0.0], [-35.2, 0.0]]
     picked = np.r_[0:5, rng.choice(70_000, 3000, replace=False)]
     np.testing.assert_array_equal(grid.cell_index(xy)[picked], plain_cell_index(grid, xy[picked]))

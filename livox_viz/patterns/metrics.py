@@ -160,7 +160,8 @@ class CoverageGrid:
         row = (xy[:, 1] - y0) * (1.0 / cell_y)
         # Inside [0, n) truncation is the floor; anything outside is no cell.
         valid = (column >= 0) & (column < nx) & (row >= 0) & (row < ny)
-        candidate = column.astype(np.int64) * ny + row.astype(np.int64)
+        with np.errstate(invalid="ignore"):  # NaN or far-off points cast to junk; ``valid`` drops them
+            candidate = column.astype(np.int64) * ny + row.astype(np.int64)
         candidate[~valid] = 0
         inside = self.inside_mask.ravel()[candidate] & valid
         candidate[~inside] = -1
