@@ -49,21 +49,25 @@ def main() -> None:
 def child_peak_mib(argv: list[str], cwd: str) -> tuple[float, float]:
     """Peak RSS (MiB) and wall time of ``livox-viz ARGV`` in a fresh child process.
 
-    The child's own peak, from ``wait4`` (the peak over all children would hide a child smaller than an
-    earlier one).
+    The child reports its own VmHWM as it exits: the kernel's resource usage of a child (``wait4``,
+    ``RUSAGE_CHILDREN``) keeps the high-water mark of the process it was forked from, here this one's.
     """
-    import os
     import subprocess
 
+    report = Path(cwd) / "peak-kib"
+    code = (
+        "import atexit, runpy, sys\n"
+        "def peak():\n"
+        "    status = open('/proc/self/status').read()\n"
+        f"    open({str(report)!r}, 'w').write(status.split('VmHWM:')[1].split()[0])\n"
+        "atexit.register(peak)\n"
+        f"sys.argv = ['livox-viz', *{argv!r}]\n"
+        "runpy.run_module('livox_viz', run_name='__main__', alter_sys=True)\n"
+    )
     start = time.perf_counter()
-    child = subprocess.Popen([sys.executable, "-m", "livox_viz", *argv], cwd=cwd, stdout=subprocess.DEVNULL,
-                             stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(child.pid, 0)
-    child.returncode = os.waitstatus_to_exitcode(status)
-    if child.returncode:
-        raise RuntimeError(f"livox-viz {' '.join(argv)} failed: {child.stderr.read().decode()[-500:]}")
-    child.stderr.close()
-    return usage.ru_maxrss / 1024, time.perf_counter() - start
+    subprocess.run([sys.executable, "-c", code], cwd=cwd, check=True, capture_output=True)
+    wall = time.perf_counter() - start
+    return int(report.read_text()) / 1024, wall
 
 
 def pattern_memory() -> None:
