@@ -233,3 +233,19 @@ def test_a_failing_cast_reaches_the_caller_and_the_stream_is_put_back(mid70: Sen
             handed.append(frame.index)
     assert handed == [0, 1, 2, 3]
     assert scanner.pattern.position == 4 * mid70.points_per_frame
+
+
+def test_small_frames_go_a_few_to_a_worker_and_stay_in_order(urban) -> None:
+    from tests.conftest import small_config
+
+    cfg = small_config()  # 160 points a frame, 10 frames a second: 26 frames to a worker
+    caster = EmbreeCaster(urban.mesh)
+    piped = LidarScanner(cfg, caster, urban.vehicle_pose, seed=2)
+    frames = piped.frames(5.0)
+    first = [next(frames) for _ in range(30)]  # stops inside the second worker's batch
+    frames.close()
+    assert piped.pattern.position == 30 * cfg.points_per_frame
+    one_by_one = LidarScanner(cfg, caster, urban.vehicle_pose, seed=2)
+    expected = [one_by_one.next_frame() for _ in range(40)]
+    assert [frame_key(f) for f in first] == [frame_key(f) for f in expected[:30]]
+    assert [frame_key(f) for f in piped.frames(4.0)] == [frame_key(f) for f in expected[30:40]]

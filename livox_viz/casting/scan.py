@@ -50,6 +50,8 @@ CAST_PART = 1 << 20
 IDEAL_TAG = 0x10
 #: Frames :meth:`LidarScanner.frames` casts at once at most (one per core); one more is cut meanwhile.
 FRAME_WORKERS = 4
+#: Rays a worker of :meth:`LidarScanner.frames` casts at least per hand-over (small frames go a few at a time).
+TASK_RAYS = 4096
 
 
 @dataclass(frozen=True)
@@ -354,39 +356,43 @@ class LidarScanner:
         """Fire the rest of the current frame (W*H rays from a frame start) and return its returns."""
         return self.mounted.cast(self.pattern.next_frame())
 
-    def _cast_in_worker(self, chunk: PatternChunk) -> ScanFrame:
+    def _cast_in_worker(self, chunks: list[PatternChunk]) -> list[ScanFrame]:
         # The frames side by side already keep the cores busy: each casts its own rays in its own thread.
         with casting_in_this_thread():
-            return self.mounted.cast(chunk)
+            return [self.mounted.cast(chunk) for chunk in chunks]
 
     def frames(self, seconds: float) -> Iterator[ScanFrame]:
         """Frames until ``seconds`` of scan time (the last one partial if it does not fit).
 
         The frames are cast side by side, one per worker thread (one per core, up to
-        :data:`FRAME_WORKERS`), and the next is cut from the pattern while they run, so
-        every core is busy with everything a frame needs (directions, cast, encoding)
-        while the caller writes the frame it was handed. Frames are handed out in
-        order. The stream runs ahead of the caller by the frames in flight; if the
-        caller stops early, it is put back after the last frame handed out.
+        :data:`FRAME_WORKERS`; small frames a few to a thread, at least :data:`TASK_RAYS`
+        rays), and the next is cut from the pattern while they run, so every core is busy
+        with everything a frame needs (directions, cast, encoding) while the caller writes
+        the frame it was handed. Frames are handed out in order. The stream runs ahead of
+        the caller by the frames in flight; if the caller stops early, it is put back after
+        the last frame handed out.
         """
         total = points_before(seconds, self.config.point_rate)
         if self.mounted.trajectory is not None:
             self.mounted.trajectory.check_covers(self.pattern.time, total / self.config.point_rate)
         per_frame = self.config.points_per_frame
+        per_task = max(1, -(-TASK_RAYS // per_frame))
         workers = max(1, min(os.cpu_count() or 1, FRAME_WORKERS))
         pool = ThreadPoolExecutor(workers, thread_name_prefix="livox-viz-frame")
-        in_flight: deque[tuple[Future[ScanFrame], int]] = deque()
+        in_flight: deque[tuple[Future[list[ScanFrame]], list[int]]] = deque()
         self._handed_out = self.pattern.position
         try:
             while in_flight or self.pattern.position < total:
                 while self.pattern.position < total and len(in_flight) <= workers:
-                    frame_end = (self.pattern.position // per_frame + 1) * per_frame
-                    chunk = self.pattern.take(min(frame_end, total) - self.pattern.position)
-                    in_flight.append((pool.submit(self._cast_in_worker, chunk), chunk.stop))
-                future, stop = in_flight.popleft()
-                frame = future.result()
-                self._handed_out = stop
-                yield frame
+                    chunks = []
+                    while self.pattern.position < total and len(chunks) < per_task:
+                        frame_end = (self.pattern.position // per_frame + 1) * per_frame
+                        chunks.append(self.pattern.take(min(frame_end, total) - self.pattern.position))
+                    in_flight.append((pool.submit(self._cast_in_worker, chunks), [c.stop for c in chunks]))
+                future, stops = in_flight.popleft()
+                for frame, stop in zip(future.result(), stops, strict=True):
+                    self._handed_out = stop
+                    yield frame
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
             if self.pattern.position != self._handed_out:
