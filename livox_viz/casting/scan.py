@@ -177,12 +177,15 @@ def _hit_points(directions: np.ndarray, hit: np.ndarray, range_m: np.ndarray,
                 start: np.ndarray | None = None) -> np.ndarray:
     """``start + directions[hit] * range_m``, ``(M, 3)`` float64 (``start`` (3,) or (M, 3); none: from 0).
 
-    np.take and in-place arithmetic: fancy indexing an (n, 3) array and the temporaries took three times as long.
+    np.take, then in place column by column: fancy indexing an (n, 3) array and broadcasting over its rows of
+    three (numpy's inner loop then runs three values at a time) took three times as long.
     """
     points = np.take(directions, hit, axis=0)
-    points *= range_m[:, None]
-    if start is not None:
-        points += start
+    for axis in range(3):
+        column = points[:, axis]
+        column *= range_m
+        if start is not None:
+            column += start[axis] if start.ndim == 1 else start[:, axis]
     return points
 
 

@@ -453,7 +453,10 @@ class _Workspace:
         """``(rows, 3)`` float32 ``values - centre``, one origin per ray, in one pass (the shared-origin cache
         is dropped)."""
         self._origin_rows = 0
-        return np.subtract(values, centre, out=self._origins[: self.rows], casting="same_kind")
+        origins = self._origins[: self.rows]
+        for axis in range(3):  # column by column: a broadcast over rows of 3 runs numpy's loop 3 values at a time
+            np.subtract(values[:, axis], centre[axis], out=origins[:, axis], casting="same_kind")
+        return origins
 
     def f32_directions(self, values: np.ndarray) -> np.ndarray:
         """``(rows, 3)`` float32 copy of ``values``."""
