@@ -479,6 +479,7 @@ def test_charts_follow_the_sliders_and_the_reference(app: LivoxVizApp) -> None:
     assert not charts.reference_coverage.visible
     app.cycle_reference()
     app.refresh()
+    app.charts.finish()  # the reference's curves are made on a worker
     source = session.overlay.source
     first = app.reference_choices()[0]
     assert isinstance(source, PresetSource) and source.name == first

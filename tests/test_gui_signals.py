@@ -181,6 +181,7 @@ def test_density_axis_follows_the_curves_after_a_change(small_app: LivoxVizApp, 
     else:
         app.cycle_reference()
     app.refresh()
+    app.charts.finish()  # the reference's curves are made on a worker
     app.render()
     bottom, top = _density_axis(app)
     low, high = _curves_span(app)

@@ -25,6 +25,7 @@ import pyvista as pv
 
 from livox_viz import LivoxVizError, list_presets, load_config
 from livox_viz.config.sensor import PARAM_RANGES
+from livox_viz.core.blas import blas_threads
 
 from . import files
 from .charts import CurveCharts
@@ -103,6 +104,9 @@ class LivoxVizApp:
         session.subscribe(self._on_change)
         self._last_render: float | None = None
         self._writer: ThreadPoolExecutor | None = None  # screenshots being written
+        self._reference_choices: tuple[tuple, list[str]] | None = None
+        # Find numpy's BLAS now (80 ms among the VTK libraries), not in the first key that makes a Risley track.
+        blas_threads()
         self._preset_cursor = -1
         self._scene_cursor = -1
         self._ready = True
@@ -277,10 +281,25 @@ class LivoxVizApp:
         overlay.set_window((overlay.window_index + 1) % len(WINDOWS), self.session.scan_time)
 
     def reference_choices(self) -> list[str]:
-        """What ``e`` cycles through: the shipped and user presets with a track, in the pattern's plane."""
+        """What ``e`` cycles through: the shipped and user presets with a track, in the pattern's plane.
+
+        Kept until a preset file is added, removed or changed (reading and checking every preset took 250 ms
+        of each press).
+        """
         from livox_viz import load_preset
+        from livox_viz.config.presets import shipped_preset_dir, user_preset_dir
 
         plane = self.session.config.pattern_plane
+        files = []
+        for folder in (shipped_preset_dir(), user_preset_dir()):
+            try:
+                files += [(entry.path, entry.stat().st_mtime_ns) for entry in os.scandir(folder)
+                          if entry.name.endswith(".json")]
+            except OSError:
+                continue
+        key = (plane, tuple(sorted(files)))
+        if self._reference_choices is not None and self._reference_choices[0] == key:
+            return list(self._reference_choices[1])
         choices = []
         for info in list_presets():
             try:
@@ -289,7 +308,8 @@ class LivoxVizApp:
                 continue
             if config.pattern_model != "rflysim" and config.pattern_plane == plane:
                 choices.append(info.name)
-        return choices
+        self._reference_choices = (key, choices)
+        return list(choices)
 
     def cycle_reference(self) -> None:
         """The next reference: each preset with a Risley track in turn, then none."""
@@ -451,6 +471,8 @@ class LivoxVizApp:
         if self._writer is not None:
             self._writer.shutdown(wait=True)
             self._writer = None
+        if self.charts is not None:
+            self.charts.close()
         self.plotter.close()
 
 
@@ -470,6 +492,8 @@ def render_offscreen(session: Session, seconds: float, path: Path, views: str = 
         session.playback.paused = True
         session.advance_to(seconds)
         app.refresh()
+        if app.charts is not None:
+            app.charts.finish()  # the reference's curves are computed on a worker: the picture shows them
         app.render()
         files.write_png(app.plotter.screenshot(None, return_img=True), path)
     finally:

@@ -3,11 +3,16 @@
 Both curves of ours are recomputed whenever the configuration changes (the
 session tells us), from the pattern's first seconds (at most a million points,
 so a slider change redraws them in well under 100 ms); the reference's when
-the overlay's source changes. They are pyvista's own charts (VTK context 2D),
-drawn in the same window as the views.
+the overlay's source changes, on a worker thread: a reference at another
+sensor's rate is a million points of a longer series (100-400 ms), which the
+key that chose it would otherwise wait for. Its curves appear at the first
+refresh after they are ready (:meth:`CurveCharts.finish` waits for them). They
+are pyvista's own charts (VTK context 2D), drawn in the same window as the views.
 """
 
 from __future__ import annotations
+
+from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 import pyvista as pv
@@ -69,6 +74,8 @@ class CurveCharts:
         self.ours: PatternCurves | None = None
         self.reference: PatternCurves | None = None
         self._reference_source: object = _NOT_SHOWN
+        self._worker: ThreadPoolExecutor | None = None
+        self._pending: tuple[object, Future[PatternCurves]] | None = None
         session.subscribe(self._on_change)
         self.refresh_ours()
         self.update()
@@ -86,12 +93,38 @@ class CurveCharts:
         self._fit_density_axes()
 
     def update(self) -> None:
-        """Follow the overlay: the reference's curves when its source changed, hidden without one."""
+        """Follow the overlay: the reference's curves when its source changed (computed on the worker and drawn
+        once ready), hidden without one."""
         source = self.session.overlay.source
-        if source is self._reference_source:
-            return
-        self._reference_source = source
-        self.reference = reference_curves(source) if source is not None else None
+        if source is not self._reference_source:
+            self._reference_source = source
+            self.reference = None
+            self._pending = None
+            if source is not None:
+                if self._worker is None:
+                    self._worker = ThreadPoolExecutor(1, thread_name_prefix="livox-viz-curves")
+                self._pending = (source, self._worker.submit(reference_curves, source))
+            self._show_reference()
+        if self._pending is not None and self._pending[1].done():
+            source, future = self._pending
+            self._pending = None
+            if source is self._reference_source:
+                self.reference = future.result()
+                self._show_reference()
+
+    def finish(self) -> None:
+        """Wait for the reference's curves being computed, and draw them."""
+        if self._pending is not None:
+            self._pending[1].result()
+        self.update()
+
+    def close(self) -> None:
+        """Stop the worker (a computation under way is left to end on its own)."""
+        if self._worker is not None:
+            self._worker.shutdown(wait=False, cancel_futures=True)
+            self._worker = None
+
+    def _show_reference(self) -> None:
         shown = self.reference is not None
         self.reference_coverage.visible = shown
         self.reference_density.visible = shown

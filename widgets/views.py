@@ -180,6 +180,14 @@ class PatternView(_View):
         image.point_data.set_array(grid.display, "density")
         image.point_data.active_scalars_name = "density"
         self.density_image = image
+        x0, x1, y0, y1 = grid.bounds
+        quad = pv.Plane(center=((x0 + x1) / 2, (y0 + y1) / 2, -0.01), direction=(0, 0, 1),
+                        i_size=grid.nx * grid.cell, j_size=grid.ny * grid.cell, i_resolution=1, j_resolution=1)
+        if self.density_actor is not None:
+            # Another grid (the field of view changed): the same texture, lookup table and actor, new image and quad.
+            self.density_texture.SetInputData(image)
+            self.density_actor.mapper.SetInputData(quad)
+            return
         self.density_lut = pv.LookupTable(cmap="inferno", n_values=256)
         self.density_lut.scalar_range = (0.0, 1.0)
         colours = np.array(self.density_lut.values)
@@ -193,9 +201,6 @@ class PatternView(_View):
         texture.InterpolateOn()
         texture.MipmapOn()
         self.density_texture = texture
-        x0, x1, y0, y1 = grid.bounds
-        quad = pv.Plane(center=((x0 + x1) / 2, (y0 + y1) / 2, -0.01), direction=(0, 0, 1),
-                        i_size=grid.nx * grid.cell, j_size=grid.ny * grid.cell, i_resolution=1, j_resolution=1)
         self.plotter.subplot(*self.subplot)
         self.density_actor = self.plotter.add_mesh(quad, texture=texture, name="density", reset_camera=False,
                                                    lighting=False, show_scalar_bar=False)
@@ -451,8 +456,11 @@ class SceneView(_View):
         fov = self.session.config.field_of_view
         if getattr(self, "_cone_fov", None) != fov:
             self._cone_fov = fov
-            plotter.add_mesh(fov_wire(fov), color="#f2c14e", line_width=2, name="fov-cone", reset_camera=False,
-                             lighting=False)
+            if "fov-cone" in plotter.actors:  # the same actor, a new wire: no remove and add
+                plotter.actors["fov-cone"].mapper.SetInputData(fov_wire(fov))
+            else:
+                plotter.add_mesh(fov_wire(fov), color="#f2c14e", line_width=2, name="fov-cone", reset_camera=False,
+                                 lighting=False)
         self.place_vehicle()
         self.draw_path()
 

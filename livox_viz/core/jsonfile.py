@@ -51,13 +51,21 @@ def read_json_file(path: str | os.PathLike[str]) -> Any:
         raise ConfigError(f"{path}: cannot read ({exc})") from None
     if not text.strip():
         raise ConfigError(f"{path}: is empty, expected a JSON object")
+    constants: list[str] = []
+
+    def mark(word: str) -> _NonFinite:
+        constants.append(word)
+        return _mark_constant(word)
+
     try:
-        data = json.loads(text, parse_constant=_mark_constant)
+        data = json.loads(text, parse_constant=mark)
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{path}: malformed JSON at line {exc.lineno} column {exc.colno}: {exc.msg}") from None
     except RecursionError:
         raise ConfigError(f"{path}: JSON nested too deeply; allowed: a sensor object a few levels deep") from None
-    where = _find_non_finite(data, "")
+    # The tree is searched for the key only when the parser met a NaN or Infinity: walking a track preset's
+    # thousand coefficients cost 5-10 ms a file, and the window's reference key reads every preset.
+    where = _find_non_finite(data, "") if constants else None
     if where is not None:
         key, word = where
         raise ConfigError(f"{path}: {key or 'the top level'} = {word}, which JSON does not allow; "
