@@ -422,3 +422,22 @@ def test_the_compiled_random_numbers_are_streamrandoms() -> None:
     # And they are normal and uniform: moments of 200 000 draws.
     many = stream_normal(9, 2, np.arange(200_000), 2)
     assert abs(many.mean()) < 0.01 and abs(many.std() - 1) < 0.01 and abs(np.corrcoef(many.T)[0, 1]) < 0.01
+
+
+def test_frames_cast_side_by_side_are_those_cast_one_by_one_on_a_fast_flight() -> None:
+    """Worker threads share the scene's broad-phase boxes, placed for each frame's sensor positions: a flight
+    fast enough to move them every few frames must still give each frame the returns of a serial cast."""
+    from livox_viz.motion.flights import builtin_trajectory
+    from livox_viz.scene.scenes import open_scene
+
+    urban = open_scene("urban")
+    cfg = load_preset("livox_mid70_risley")
+    caster = EmbreeCaster(urban.mesh)
+    flight = builtin_trajectory("line", 40.0, urban.vehicle_pose, 1.2)
+    threaded = list(LidarScanner(cfg, caster, trajectory=flight, seed=4).frames(1.0))
+    assert len(threaded) >= 8
+    mounted = MountedCaster(cfg, caster, trajectory=flight, seed=4)
+    pattern = make_pattern(cfg, seed=4)
+    serial = [mounted.cast(pattern.take(frame.ray_count)) for frame in threaded]
+    for name in ("stream_index", "xyz_int16", "reflectivity", "tag", "return_number"):
+        assert np.array_equal(joined(threaded, name), joined(serial, name)), name

@@ -41,6 +41,7 @@ tests from cheapest to dearest:
 from __future__ import annotations
 
 import math
+import threading
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -229,6 +230,8 @@ class TileProxy:
         self._tree: BoxTree | None = None
         self._grid: DirectionGrid | None = None
         self._rotation: np.ndarray | None = None
+        #: Held by a caller from :meth:`place` to the end of its :meth:`near`: the boxes are placed for one caller.
+        self.lock = threading.Lock()
 
     @property
     def tiles(self) -> int:

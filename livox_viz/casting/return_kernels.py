@@ -15,11 +15,14 @@ implementations to each other.
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 
 _KERNELS: dict[str, object] = {}
 #: The small functions the loops call: compiled (in this module's namespace) before the first loop is.
+#: Frames are cast on worker threads: the first loop of each is compiled by one of them, once.
+_COMPILING = threading.Lock()
 _HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab", "_basis_at", "_any_chosen", "_byte")
 
 
@@ -40,15 +43,19 @@ def _compile(function, parallel: bool = False):
 def kernel(name: str):
     """The compiled loop ``name`` (compiled, or loaded from numba's cache, on first use)."""
     found = _KERNELS.get(name)
-    if found is None:
-        if not _KERNELS:
-            namespace = globals()
-            import numba
+    if found is not None:
+        return found
+    with _COMPILING:
+        found = _KERNELS.get(name)
+        if found is None:
+            if not _KERNELS:
+                namespace = globals()
+                import numba
 
-            namespace["prange"] = numba.prange
-            for helper in _HELPERS:
-                namespace[helper] = _compile(namespace[helper])
-        found = _KERNELS[name] = _compile(globals()[f"_{name}"], name in _PARALLEL)
+                namespace["prange"] = numba.prange
+                for helper in _HELPERS:
+                    namespace[helper] = _compile(namespace[helper])
+            found = _KERNELS[name] = _compile(globals()[f"_{name}"], name in _PARALLEL)
     return found
 
 

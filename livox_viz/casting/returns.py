@@ -41,6 +41,7 @@ Embree casts the central rays, the broad phase's boxes, the probes and the sub-r
 
 from __future__ import annotations
 
+import threading
 import time
 import weakref
 from collections.abc import Callable
@@ -186,27 +187,29 @@ class ReturnModel:
         self.last_counts: dict[str, int] = {}
         #: Wall time spent in each step since the model was made, seconds (for benchmarks).
         self.stage_seconds: dict[str, float] = dict.fromkeys(STAGES, 0.0)
-        self._clock = 0.0
+        self._laps = threading.local()  # each worker thread times its own frame
 
     def _lap(self, stage: str) -> None:
         now = time.perf_counter()
-        self.stage_seconds[stage] += now - self._clock
-        self._clock = now
+        self.stage_seconds[stage] += now - self._laps.clock
+        self._laps.clock = now
 
     @property
     def edges(self) -> TriangleEdges:
         """The triangles' edge lines and smooth neighbours (made on first use, once per scene)."""
-        if "edges" not in self._tables:
-            self._tables["edges"] = TriangleEdges(self.caster.mesh)
-        return self._tables["edges"]
+        with _TABLES_MADE:
+            if "edges" not in self._tables:
+                self._tables["edges"] = TriangleEdges(self.caster.mesh)
+            return self._tables["edges"]
 
     @property
     def proxy(self) -> TileProxy:
         """The broad phase's boxes (made on first use, once per scene and beam divergence)."""
         key = ("proxy", self.footprint.tan_half_max)
-        if key not in self._tables:
-            self._tables[key] = TileProxy(self.caster.mesh, self.footprint.tan_half_max)
-        return self._tables[key]
+        with _TABLES_MADE:
+            if key not in self._tables:
+                self._tables[key] = TileProxy(self.caster.mesh, self.footprint.tan_half_max)
+            return self._tables[key]
 
     # The run ------------------------------------------------------------------------------------------
     def cast(self, start: int, xy_deg: np.ndarray, directions_sensor: np.ndarray, directions_world: np.ndarray,
@@ -229,7 +232,7 @@ class ReturnModel:
             A moving sensor: ``turn(vectors, rows)`` gives the sensor-frame ``vectors`` of the pulses ``rows``
             in the world frame, each with its pulse's pose.
         """
-        self._clock = time.perf_counter()
+        self._laps.clock = time.perf_counter()
         params, footprint = self.params, self.footprint
         n = xy_deg.shape[0]
         index = start + np.arange(n, dtype=np.int64)
@@ -306,11 +309,14 @@ class ReturnModel:
                  directions_sensor: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         """Of the ``candidate`` pulses, those whose footprint something nearer covers in part (sorted rows)."""
         proxy = self.proxy
-        proxy.place(origins[0] if not moving else origins[:: max(1, origins.shape[0] // 64)], self.range_max,
-                    None if moving else rotation)
-        # A fixed sensor's beams look up their direction's boxes (a boresight grid: not for a panoramic head).
-        rows = np.flatnonzero(proxy.near(candidate, origins, directions_world, reach, triangle,
-                                         None if moving or self.plane != "boresight" else directions_sensor))
+        # Frames are cast side by side and the boxes are placed for one frame's sensor positions: placing and
+        # asking go together, one frame at a time.
+        with proxy.lock:
+            proxy.place(origins[0] if not moving else origins[:: max(1, origins.shape[0] // 64)], self.range_max,
+                        None if moving else rotation)
+            # A fixed sensor's beams look up their direction's boxes (a boresight grid: not for a panoramic head).
+            rows = np.flatnonzero(proxy.near(candidate, origins, directions_world, reach, triangle,
+                                             None if moving or self.plane != "boresight" else directions_sensor))
         self.last_counts["near"] = int(rows.size)
         self._lap("broad phase")
         if rows.size == 0:
@@ -409,6 +415,8 @@ def reflectivity_byte(reflectance: np.ndarray) -> np.ndarray:
 #: Per ray caster (one scene): the tables a return model makes from its mesh, kept while the caster lives, so a
 #: restart (a slider, a new preset) does not make them again.
 _TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: Held while a scene's table is looked up or made: frames cast on worker threads share them.
+_TABLES_MADE = threading.RLock()
 
 
 def _scene_tables(caster) -> dict:

@@ -208,6 +208,8 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: flo
 
 def _join(parts: list[trimesh.Trimesh]) -> trimesh.Trimesh:
     """One mesh of ``parts`` (no vertex merging), their per-face materials and part numbers kept."""
+    import trimesh
+
     offsets = np.cumsum([0] + [len(p.vertices) for p in parts[:-1]])
     vertices = np.concatenate([np.asarray(p.vertices, dtype=np.float64) for p in parts])
     faces = np.concatenate([np.asarray(p.faces, dtype=np.int64) + o for p, o in zip(parts, offsets, strict=True)])
@@ -220,7 +222,6 @@ def _join(parts: list[trimesh.Trimesh]) -> trimesh.Trimesh:
 
 # Scene descriptions ------------------------------------------------------------------
 def _scene_from_json(path: Path, reflectance: float = DEFAULT_REFLECTANCE) -> Scene:
-    import trimesh
 
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
