@@ -58,14 +58,21 @@ def test_colour_keys_give_the_scalars_of_each_point_as_written(app: LivoxVizApp)
         if scene.tail + scene.count > scene.capacity:
             break
     assert scene.tail + scene.count > scene.capacity
-    for _ in range(3):
+    seen = set()
+    for _ in range(5):
         app.cycle_scene_colour()
         live = scene.live_slots()
         world = scene.positions[live].astype(np.float64)
         mode = session.display.scene_colour
+        seen.add(mode)
+        # A Livox tag: return number in bits 4-5, spatial noise in 0-1 (mixed), intensity noise in 2-3 (noise).
+        by_tag = [5 if tag & 0x0C else 4 if tag & 0x03 else (tag >> 4) & 3 for tag in scene.tag[live].tolist()]
         expected = {"range": np.linalg.norm(world - session.sensor_pose.origin, axis=1),
-                    "height": -world[:, 2], "time": scene.times[live]}[mode]
+                    "height": -world[:, 2], "time": scene.times[live],
+                    "reflectivity": scene.reflectivity[live].astype(np.float64),
+                    "return/tag": np.array(by_tag, dtype=np.float64)}[mode]
         np.testing.assert_allclose(scene.scalars[live], expected, rtol=2e-6, atol=2e-5)
+    assert seen == {"range", "height", "time", "reflectivity", "return/tag"}
     app.cycle_pattern_colour()
     ring = session.pattern_ring
     live = ring.live_slots()
