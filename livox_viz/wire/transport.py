@@ -102,20 +102,23 @@ class ShmSender:
 
 def publish(frames: Iterable[ScanFrame], sender: UdpSender | ShmSender, speed: float | None,
             on_progress: Callable[[PublishReport], None] | None = None,
-            stop: Callable[[], bool] | None = None) -> PublishReport:
+            stop: Callable[[], bool] | None = None, *,
+            clock: Callable[[], float] = time.monotonic,
+            sleep: Callable[[float], None] = time.sleep) -> PublishReport:
     """Send each frame at its scan time divided by ``speed`` (None: as fast as possible).
 
     Pacing is against the clock (frame k is due at start + t_k / speed), so
     sleeping never accumulates drift. ``stop()`` true ends publishing before
-    the next frame (``frames`` may be endless).
+    the next frame (``frames`` may be endless). ``clock`` (seconds) and
+    ``sleep`` are the wall clock's, replaceable so that a test can check the schedule.
     """
     report = PublishReport()
-    start = time.monotonic()
+    start = clock()
     for frame in frames:
         if speed is not None:
             due = start + frame.timestamp / speed
-            while (delay := due - time.monotonic()) > 0 and not (stop is not None and stop()):
-                time.sleep(min(delay, 0.1))
+            while (delay := due - clock()) > 0 and not (stop is not None and stop()):
+                sleep(min(delay, 0.1))
         if stop is not None and stop():
             break
         points = frame.wire_xyz_int16
@@ -126,7 +129,7 @@ def publish(frames: Iterable[ScanFrame], sender: UdpSender | ShmSender, speed: f
         if on_progress is not None:
             on_progress(report)
     report.send_errors = sender.errors
-    report.wall_seconds = time.monotonic() - start
+    report.wall_seconds = clock() - start
     return report
 
 
