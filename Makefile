@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: venv run test lint bench screenshots clean
+.PHONY: venv run test lint bench screenshots baselines mutate clean
 
 venv: $(STAMP)
 
@@ -30,6 +30,14 @@ lint: venv
 
 bench: venv
 	@for script in benchmarks/bench_*.py; do echo "== $$script"; $(BIN)/python $$script || exit 1; done
+
+# The GUI image test's reference images, renewed on purpose (the test itself only compares): look at them after.
+baselines: venv
+	$(BIN)/python -m tests.baseline_images
+
+# Mutation run (slow: not part of `make test` or CI). MUTATE_ARGS, e.g. "--sample 400 --seed 3" or "--bugs-only".
+mutate: venv
+	$(BIN)/python scripts/mutate.py $(MUTATE_ARGS)
 
 screenshots: venv
 	$(BIN)/livox-viz render --view both --seconds 1 --preset livox_mid70_fitted --reference livox_mid70_risley --out screenshots/both.png
