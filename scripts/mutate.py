@@ -11,15 +11,19 @@ tree is never touched):
   the AST at each run (no line numbers are stored), then ``--sample`` of
   them are drawn with ``--seed``. A site is a comparison, an arithmetic or
   boolean operator, a number, a unary minus, a ``.T`` transpose or a slice
-  bound; its mutant swaps the operator, adds one to the number or the bound,
-  or drops the minus or the transpose. Type annotations, docstrings and
-  f-strings are not mutated.
+  bound; its mutant swaps the operator, adds one to an integer or the bound,
+  doubles a float, or drops the minus or the transpose. Type annotations,
+  docstrings, f-strings and ``strict=``/``flush=`` flags are not mutated.
 
-Each mutant first runs the test files that import its module, then the rest
-of the suite, stopping at the first failure (``pytest -x``), with a time
-limit of a few times the clean suite's (a mutant that hangs counts as
-killed). ``tests/test_lint.py`` is left out: a mutant that only upsets the
-linter is not a behaviour a test caught.
+The clean suite runs first under coverage, one context per test (the
+subprocesses a test starts included), to learn which tests run each line; the
+map is kept in ``build/mutate-map.json`` until a source changes. A mutant then
+runs the tests that ran its line, then the rest of their files, stopping at
+the first failure (``pytest -x``), within a time limit of a few times the
+clean suite's (a mutant that hangs counts as killed). Code run at import
+(module constants, default arguments) and the deliberate bugs run the files
+that import the module first, then the whole suite. ``tests/test_lint.py`` is
+left out: a mutant that only upsets the linter is not a behaviour a test caught.
 
 Survivors judged equivalent (no test could tell them from the original) are
 listed, with the reason, in ``scripts/mutate_equivalent.txt`` by file,
@@ -59,6 +63,8 @@ COPIED = ("livox_viz", "widgets", "presets", "tests", "benchmarks", "scripts", "
 PACKAGE_DIRS = {"livox_viz": "livox_viz", "livox_viz.widgets": "widgets", "livox_viz.shipped_presets": "presets"}
 LEFT_OUT_TESTS = ("tests/test_lint.py",)
 EQUIVALENT_FILE = ROOT / "scripts" / "mutate_equivalent.txt"
+#: Keyword arguments whose constant is not mutated.
+NEUTRAL_KEYWORDS = frozenset({"strict", "flush"})
 
 COMPARE_SWAP = {ast.Lt: ast.LtE, ast.LtE: ast.Lt, ast.Gt: ast.GtE, ast.GtE: ast.Gt, ast.Eq: ast.NotEq,
                 ast.NotEq: ast.Eq, ast.Is: ast.IsNot, ast.IsNot: ast.Is, ast.In: ast.NotIn, ast.NotIn: ast.In}
@@ -167,6 +173,12 @@ class _SiteFinder(ast.NodeVisitor):
 
     def visit_JoinedStr(self, node: ast.JoinedStr) -> None:
         return
+
+    def visit_keyword(self, node: ast.keyword) -> None:
+        # zip(strict=True) and print(flush=True) guard against other bugs or pace output: no behaviour to test.
+        if node.arg in NEUTRAL_KEYWORDS and isinstance(node.value, ast.Constant):
+            return
+        self.visit(node.value)
 
     def visit_ImportFrom(self, node: ast.ImportFrom) -> None:
         return
