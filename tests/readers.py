@@ -45,6 +45,9 @@ def read_pcd(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
                  ("U", "1"): "u1", ("I", "2"): "<i2", ("U", "2"): "<u2", ("I", "1"): "i1"}
         dtype = np.dtype([(n, kinds[(t, s)]) for n, t, s in zip(names, header["TYPE"], header["SIZE"], strict=True)])
         points = int(header["POINTS"][0])
+        # PCD v0.7: POINTS is WIDTH * HEIGHT (PCL refuses a file where they disagree).
+        if int(header["WIDTH"][0]) * int(header["HEIGHT"][0]) != points:
+            raise LivoxVizError(f"{path}: WIDTH {header['WIDTH'][0]} x HEIGHT {header['HEIGHT'][0]} != POINTS {points}")
         mode = header["DATA"][0]
         if mode == "binary":
             data = np.frombuffer(handle.read(points * dtype.itemsize), dtype=dtype, count=points)

@@ -9,6 +9,8 @@ clock, or a reader in another process.
 from __future__ import annotations
 
 import json
+import re
+import struct
 import subprocess
 import sys
 import textwrap
@@ -169,11 +171,15 @@ def test_publish_sends_frame_k_at_its_scan_time_over_the_speed(speed: float) -> 
 def test_publish_does_not_drift_and_never_waits_when_late() -> None:
     """Each frame is due at start + t_k / speed: a slow send delays only itself, sleeps do not pile up."""
     frames = list(LidarScanner(small_config(), open_scene("open_field").mesh, seed=0).frames(1.0))
+    # At 2x a frame is due every 0.05 s: a send of 0.03 s is absorbed by the next sleep.
     clock = _FakeClock()
-    sender = _RecordingSender(clock, cost=0.15)  # slower than the 0.1 s frame period at speed 1
-    publish(frames, sender, 1.0, clock=clock, sleep=clock.sleep)
-    times = np.array(sender.sent_at) - 1000.0
-    np.testing.assert_allclose(times, 0.15 * np.arange(10), atol=1e-9)  # always late: back to back
+    publish(frames, _RecordingSender(clock, cost=0.03), 2.0, clock=clock, sleep=clock.sleep)
+    np.testing.assert_allclose(np.array(clock.sleeps), [0.02] * 9, atol=1e-9)
+    # A send of 0.08 s is always late: frames go back to back and nothing sleeps.
+    clock = _FakeClock()
+    sender = _RecordingSender(clock, cost=0.08)
+    publish(frames, sender, 2.0, clock=clock, sleep=clock.sleep)
+    np.testing.assert_allclose(np.array(sender.sent_at) - 1000.0, 0.08 * np.arange(10), atol=1e-9)
     assert clock.sleeps == []
     unpaced_clock = _FakeClock()
     publish(frames, _RecordingSender(unpaced_clock, cost=0.0), None, clock=unpaced_clock, sleep=unpaced_clock.sleep)
@@ -230,12 +236,25 @@ def test_ply_header_and_properties_through_plyfile(tmp_path: Path, scanned_frame
 
 
 # The GUI's charts after a FOV change ----------------------------------------------------------------
+def _coverage(xy: np.ndarray, half_fov_deg: float) -> float:
+    """Coverage as scan-model.md section 7 defines it, written here with a 2-D histogram.
+
+    5 mrad cells with a corner on the boresight; of the cells whose centre lies
+    inside the FOV circle, the share holding at least one point.
+    """
+    cell = np.degrees(0.005)
+    per_side = int(np.ceil(half_fov_deg / cell))
+    edges = np.arange(-per_side, per_side + 1) * cell
+    occupied, _, _ = np.histogram2d(xy[:, 0], xy[:, 1], bins=[edges, edges])
+    centres = (edges[:-1] + edges[1:]) / 2
+    inside = np.hypot(*np.meshgrid(centres, centres, indexing="ij")) <= half_fov_deg
+    return np.count_nonzero((occupied > 0) & inside) / np.count_nonzero(inside)
+
+
 def test_density_and_coverage_grids_follow_the_fov() -> None:
     """Bug: the density and coverage grids are not rebuilt when the FOV changes (coverage 0.117, not 0.639)."""
     pytest.importorskip("pyvista")
     from livox_viz.widgets.session import Session
-
-    from livox_viz.patterns.metrics import LIVOX_CELL_DEG
 
     session = Session(load_preset("livox_mid70"), open_scene("open_field"), seed=0)
     session.advance_to(0.2)
@@ -246,15 +265,7 @@ def test_density_and_coverage_grids_follow_the_fov() -> None:
     ring = session.pattern_ring
     xy = ring.ordered(ring.positions)[:, :2].astype(np.float64)
     assert ring.count == 50_000 and np.hypot(*xy.T).max() <= half + 1e-4
-    # Coverage as scan-model.md section 7 defines it: 5 mrad cells with a corner on the boresight; of
-    # the cells whose centre lies inside the FOV circle, the share holding a point.
-    per_side = int(np.ceil(half / LIVOX_CELL_DEG))
-    edges = np.arange(-per_side, per_side + 1) * LIVOX_CELL_DEG
-    occupied, _, _ = np.histogram2d(xy[:, 0], xy[:, 1], bins=[edges, edges])
-    centres = (edges[:-1] + edges[1:]) / 2
-    inside = np.hypot(*np.meshgrid(centres, centres, indexing="ij")) <= half
-    expected = np.count_nonzero((occupied > 0) & inside) / np.count_nonzero(inside)
-    assert session.visible_coverage() == pytest.approx(expected, abs=1e-3)
+    assert session.visible_coverage() == pytest.approx(_coverage(xy, half), abs=1e-3)
     assert session.visible_coverage() > 0.5
     # The density image spans the new FOV: each point counted in its cell of a +-15 degree grid (a
     # point on a cell edge may fall either side of it).
@@ -262,6 +273,29 @@ def test_density_and_coverage_grids_follow_the_fov() -> None:
     counts, _, _ = np.histogram2d(xy[:, 1], xy[:, 0], bins=density.side, range=[[-half, half], [-half, half]])
     assert density.counts.sum() == ring.count
     assert np.abs(density.counts - counts).sum() <= 1e-3 * ring.count
+
+
+def test_the_window_draws_density_and_coverage_for_the_new_fov() -> None:
+    """The same bug seen in the window: the density image and the heads-up coverage after the FOV slider."""
+    pytest.importorskip("pyvista")
+    from livox_viz.widgets.app import LivoxVizApp
+    from livox_viz.widgets.session import Session
+
+    session = Session(load_preset("livox_mid70"), open_scene("open_field"), seed=0)
+    app = LivoxVizApp(session, off_screen=True, window_size=(320, 240), views="pattern")
+    try:
+        app.on_param("camera_fov", 30.0)
+        session.advance_to(0.5)
+        session.display.drawing = "density"
+        app.refresh()
+        bounds = app.pattern_view.density_actor.GetBounds()
+        np.testing.assert_allclose(bounds[:4], [-15.0, 15.0, -15.0, 15.0], atol=1e-6)
+        shown = re.search(r"coverage ([\d.]+) %", app.hud.state.GetText(2))
+        assert shown is not None
+        xy = session.pattern_ring.ordered(session.pattern_ring.positions)[:, :2].astype(np.float64)
+        assert float(shown.group(1)) == pytest.approx(100 * _coverage(xy, 15.0), abs=0.1)
+    finally:
+        app.close()
 
 
 # Received frames in the world -------------------------------------------------------------------
@@ -359,3 +393,45 @@ def test_a_concurrent_shared_memory_reader_never_sees_a_torn_frame(tmp_path: Pat
     result = json.loads(out.strip().splitlines()[-1])
     assert result["torn"] == [], f"torn frames {result['torn'][:10]}"
     assert result["seen"] == list(range(frames))
+
+
+class _WatchedBlock:
+    """Stands in for the writer's mapped block: what a reader would find the moment the flag says "written"."""
+
+    def __init__(self, block) -> None:
+        self.block = block
+        self.seen_when_flagged: list[bytes] = []
+
+    def __getitem__(self, key):
+        return self.block[key]
+
+    def __setitem__(self, key, value) -> None:
+        self.block[key] = value
+        if key == 0 and value == 2:
+            self.seen_when_flagged.append(bytes(self.block))
+
+
+def test_the_written_flag_is_raised_after_the_whole_frame(tmp_path: Path) -> None:
+    """The same bug, deterministically: the block as it is at the instant the flag becomes 2."""
+    path = tmp_path / "RflySim3DImg_0"
+    size = 3000 * 6 + 37
+    writer = SharedMemoryLink(path, size, create=True)
+    reader = SharedMemoryLink(path, size)
+    assert hasattr(writer, "_map"), "SharedMemoryLink keeps its block elsewhere now: update this test"
+    watched = writer._map = _WatchedBlock(writer._map)
+    try:
+        for k, count in enumerate((3000, 10, 1700)):
+            points = np.full((count, 3), 11 * (k + 1), dtype=np.int16)
+            assert writer.write(0.1 * k, np.full(6, float(k)), points)
+            snapshot = watched.seen_when_flagged[-1]
+            # What a reader decodes from that instant's bytes: the whole new frame.
+            flag, stamp, *pose, number = struct.unpack_from("<Bd6fi", snapshot)
+            assert (flag, stamp, pose, number) == (2, 0.1 * k, [float(k)] * 6, count)
+            got = np.frombuffer(snapshot, dtype="<i2", count=3 * count, offset=37).reshape(count, 3)
+            np.testing.assert_array_equal(got, points)
+            assert np.array_equal(reader.read().xyz_int16, points)
+        assert len(watched.seen_when_flagged) == 3
+    finally:
+        writer._map = watched.block
+        writer.close()
+        reader.close()
