@@ -367,6 +367,10 @@ class Worker:
             os.killpg(process.pid, signal.SIGKILL)
             output, _ = process.communicate()
             return None, output, time.monotonic() - started
+        finally:
+            if process.poll() is None:  # interrupted: its whole group goes with us
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait()
 
     def coverage_map(self) -> tuple[dict[str, dict[int, set[str]]], float]:
         """Run the clean suite under coverage, one context per test; returns which tests run each line.
@@ -573,6 +577,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="where the line -> tests map is kept between runs (redone when a source changes); "
                         "default build/mutate-map.json")
     args = parser.parse_args(argv)
+    # A terminated run unwinds like Ctrl-C: the pytest process groups are killed, the copies removed.
+    signal.signal(signal.SIGTERM, lambda number, frame: sys.exit(128 + number))
 
     bugs = [] if args.no_bugs else _bug_mutants()
     sampled, site_count = ([], 0) if args.bugs_only else sample_sites(args.sample, args.seed, args.only)
