@@ -358,8 +358,10 @@ class Worker:
         command = [sys.executable, "-m", "pytest", *extra, "-q", "--no-header", "-p", "no:cacheprovider",
                    *[f"--ignore={t}" for t in LEFT_OUT_TESTS], *arguments]
         started = time.monotonic()
-        process = subprocess.Popen(command, cwd=self.directory, env=env or self.env, stdout=subprocess.PIPE,
+        env = {**(env or self.env), "LIVOX_VIZ_MUTATE_DEFAULT_SIGHUP": "1"}
+        process = subprocess.Popen(command, cwd=self.directory, env=env, stdout=subprocess.PIPE,
                                    stderr=subprocess.STDOUT, text=True, start_new_session=True)
+        RUNNING.add(process)
         try:
             output, _ = process.communicate(timeout=limit)
             return process.returncode, output, time.monotonic() - started
@@ -368,9 +370,9 @@ class Worker:
             output, _ = process.communicate()
             return None, output, time.monotonic() - started
         finally:
+            RUNNING.discard(process)
             if process.poll() is None:  # interrupted: its whole group goes with us
-                os.killpg(process.pid, signal.SIGKILL)
-                process.wait()
+                _kill_group(process)
 
     def coverage_map(self) -> tuple[dict[str, dict[int, set[str]]], float]:
         """Run the clean suite under coverage, one context per test; returns which tests run each line.
@@ -385,8 +387,11 @@ class Worker:
         env = {**self.env, "COVERAGE_PROCESS_START": str(boot / "coveragerc")}
         code, output, seconds = self.pytest(["-p", "_mutate_plugin", "tests"], 7200, env, extra=())
         if code != 0:
-            print(output[-4000:])
-            raise SystemExit("mutate: the suite fails without any mutant; fix that first")
+            log = ROOT / "build" / "mutate-clean.log"
+            log.parent.mkdir(parents=True, exist_ok=True)
+            log.write_text(output)
+            print(output[-3000:])
+            raise SystemExit(f"mutate: the suite fails without any mutant (whole output in {log}); fix that first")
         measured = coverage.Coverage(config_file=str(boot / "coveragerc"))
         measured.combine(strict=True)
         data = measured.get_data()
@@ -397,6 +402,18 @@ class Worker:
             for line, contexts in data.contexts_by_lineno(filename).items():
                 by_line.setdefault(line, set()).update(c.split("[", 1)[0] for c in contexts)
         return lines, seconds
+
+
+#: The pytest processes running now (each the leader of its own process group).
+RUNNING: set[subprocess.Popen] = set()
+
+
+def _kill_group(process: subprocess.Popen) -> None:
+    try:
+        os.killpg(process.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    process.wait()
 
 
 _BOOT = '''"""Written by scripts/mutate.py: the package names resolve to this copy of the tree."""
@@ -418,6 +435,13 @@ class _CopyFinder:
 
 
 sys.meta_path.insert(0, _CopyFinder)
+
+# A run started under nohup ignores SIGHUP, and children inherit that: give the suite the default back (once:
+# a test may itself start a child that ignores it).
+if os.environ.pop("LIVOX_VIZ_MUTATE_DEFAULT_SIGHUP", ""):
+    import signal
+
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
 
 if os.environ.get("COVERAGE_PROCESS_START"):
     import coverage
@@ -616,8 +640,15 @@ def main(argv: list[str] | None = None) -> int:
                   f"{'  <- ' + outcome.by if outcome.by else ''}  ({outcome.seconds:.0f} s)", flush=True)
             return outcome
 
-        with ThreadPoolExecutor(len(workers)) as pool:
+        pool = ThreadPoolExecutor(len(workers))
+        try:
             outcomes = list(pool.map(run, [*bugs, *sampled]))
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)
+            for process in list(RUNNING):
+                _kill_group(process)
+            raise
+        pool.shutdown()
 
     return report(outcomes, bugs, args.json)
 
