@@ -595,7 +595,7 @@ def sample_sites(count: int, seed: int, only: str | None) -> tuple[list[Mutant],
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--sample", type=int, default=200, help="sampled sites (0: every site); default 200")
+    parser.add_argument("--sample", type=int, default=100, help="sampled sites (0: every site); default 100")
     parser.add_argument("--seed", type=int, default=0, help="seed of the sample; default 0")
     parser.add_argument("--jobs", type=int, default=2, help="mutants run at once, each in its own copy; default 2")
     parser.add_argument("--only", help="regular expression: mutate only files whose path matches")
