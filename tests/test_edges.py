@@ -79,3 +79,21 @@ def test_just_past_the_ends_is_refused(parser, argv: list[str], capsys: pytest.C
     with pytest.raises(SystemExit) as exit_status:
         parser.parse_args(argv)
     assert exit_status.value.code == 2 and "allowed" in capsys.readouterr().err
+
+
+# fit --model risley from the command line ------------------------------------------------------------
+def test_fit_risley_command_replays_the_preset_it_was_fitted_to(tmp_path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``fit --to PRESET --model risley --out`` writes a preset whose track is the preset's own."""
+    from livox_viz import load_config
+    from livox_viz.cli import main
+
+    out = tmp_path / "fitted.json"
+    assert main(["fit", "--to", "livox_mid70_risley", "--model", "risley", "--seconds", "0.5", "--beams", "1",
+                 "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "lasers           1 (forced; the step pattern says 1)" in printed
+    fitted, source = load_config(out), load_preset("livox_mid70_risley")
+    assert fitted.pattern_model == "risley" and fitted.risley.lasers == 1
+    ours = make_pattern(fitted, seed=0).take(20_000).xy_deg
+    theirs = make_pattern(source, seed=0).take(20_000).xy_deg
+    assert np.abs(ours - theirs).max() < 1e-3
