@@ -584,10 +584,12 @@ def _bug_mutants() -> list[Mutant]:
     return mutants
 
 
-def sample_sites(count: int, seed: int, only: str | None) -> tuple[list[Mutant], int]:
+def sample_sites(count: int, seed: int, only: str | None, match: str | None = None) -> tuple[list[Mutant], int]:
     sites = find_sites()
     if only:
         sites = [s for s in sites if re.search(only, s.path)]
+    if match:
+        sites = [s for s in sites if re.search(match, f"{s.path}:{s.line}: {s.description}")]
     chosen = sites if count <= 0 or count >= len(sites) else random.Random(seed).sample(sites, count)
     return sorted(chosen, key=lambda m: (m.path, m.start)), len(sites)
 
@@ -599,6 +601,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the sample; default 0")
     parser.add_argument("--jobs", type=int, default=2, help="mutants run at once, each in its own copy; default 2")
     parser.add_argument("--only", help="regular expression: mutate only files whose path matches")
+    parser.add_argument("--match", help="regular expression on 'path:line: mutation': only the sites it finds "
+                        "(with --sample 0, every one of them), e.g. to check that a new test kills a survivor")
     parser.add_argument("--bugs-only", action="store_true", help="run only the deliberate bugs")
     parser.add_argument("--no-bugs", action="store_true", help="skip the deliberate bugs")
     parser.add_argument("--list", action="store_true", help="list the sampled mutants and stop")
@@ -613,7 +617,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, lambda number, frame: sys.exit(128 + number))
 
     bugs = [] if args.no_bugs else _bug_mutants()
-    sampled, site_count = ([], 0) if args.bugs_only else sample_sites(args.sample, args.seed, args.only)
+    sampled, site_count = ([], 0) if args.bugs_only else sample_sites(args.sample, args.seed, args.only, args.match)
     if args.list:
         for mutant in [*bugs, *sampled]:
             print(f"{mutant.path}:{mutant.line}: {mutant.description}")

@@ -97,3 +97,31 @@ def test_fit_risley_command_replays_the_preset_it_was_fitted_to(tmp_path, capsys
     ours = make_pattern(fitted, seed=0).take(20_000).xy_deg
     theirs = make_pattern(source, seed=0).take(20_000).xy_deg
     assert np.abs(ours - theirs).max() < 1e-3
+
+
+# Validation limits ---------------------------------------------------------------------------------------
+def _risley(term: tuple[int, int] = (2, -1), **changes):
+    from livox_viz.config.risley_params import RisleyParams
+
+    return RisleyParams((50.0, -80.0), (0.0, 0.0), ((1, 0), (0, 1), term), np.array([[9.0, 9.5, 0.3 + 0.1j]]),
+                        **changes)
+
+
+def test_risley_term_orders_up_to_32_are_allowed_and_33_is_not() -> None:
+    from livox_viz import ConfigError
+
+    assert _risley((32, -32)).terms[-1] == (32, -32)
+    for term in ((33, 0), (0, -33)):
+        with pytest.raises(ConfigError, match=r"\|m\|, \|l\| <= 32"):
+            _risley(term)
+
+
+def test_risley_deflection_and_spacing_limits_are_inclusive() -> None:
+    from livox_viz import ConfigError
+
+    assert _risley(deflection_deg=(45.0, 45.0)).deflection_deg == (45.0, 45.0)
+    assert _risley(laser_spacing=10.0).laser_spacing == 10.0 and _risley(laser_spacing=0.0).laser_spacing == 0.0
+    for changes in ({"deflection_deg": (45.001, 9.0)}, {"deflection_deg": (9.0, 0.0)}, {"laser_spacing": 10.001},
+                    {"laser_spacing": -0.001}):
+        with pytest.raises(ConfigError, match="allowed"):
+            _risley(**changes)
