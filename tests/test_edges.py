@@ -125,3 +125,38 @@ def test_risley_deflection_and_spacing_limits_are_inclusive() -> None:
                     {"laser_spacing": -0.001}):
         with pytest.raises(ConfigError, match="allowed"):
             _risley(**changes)
+
+
+def test_fitted_coefficients_cannot_be_changed_in_place() -> None:
+    """The params are frozen (and keyed for caches by their values): so are their coefficient arrays."""
+    params = _risley()
+    assert not params.base_coefficients.flags.writeable
+    with pytest.raises(ValueError, match="read-only"):
+        params.base_coefficients[0, 0] = 1.0
+
+
+# Defaults -----------------------------------------------------------------------------------------------
+def test_a_configuration_made_from_scratch_is_the_documents_seed() -> None:
+    """SensorConfig() with no arguments is the seed configuration of the spec (tests/conftest.py holds its JSON)."""
+    from livox_viz import SensorConfig
+
+    from .conftest import SEED_JSON
+
+    assert SensorConfig() == SensorConfig.from_json_dict(SEED_JSON)
+
+
+# Files --------------------------------------------------------------------------------------------------
+def test_las_points_claim_no_colour(tmp_path) -> None:
+    """LAS 1.4 point format 6: no RGB channel a viewer would paint the cloud black from."""
+    import laspy
+
+    from livox_viz.files.export import PointCloudWriter
+
+    config = load_preset("livox_mid70")
+    scene = open_scene("urban")
+    path = tmp_path / "cloud.las"
+    with PointCloudWriter(path, "world") as writer:
+        writer.write(LidarScanner(config, scene.mesh, scene.vehicle_pose, seed=1).next_frame())
+    las = laspy.read(path)
+    assert las.header.point_format.id == 6
+    assert not {"red", "green", "blue"} & set(las.point_format.dimension_names)
