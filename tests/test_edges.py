@@ -6,6 +6,8 @@ the frame cast whole; the ends of a documented option range are inside it.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -160,3 +162,96 @@ def test_las_points_claim_no_colour(tmp_path) -> None:
     las = laspy.read(path)
     assert las.header.point_format.id == 6
     assert not {"red", "green", "blue"} & set(las.point_format.dimension_names)
+
+
+def test_every_bag_message_is_canonical_cdr_and_clouds_declare_their_layout(tmp_path) -> None:
+    """Each message's bytes are exactly what rosbags serialises (no byte too many or too few), and
+    every PointCloud2 field lies inside the point, apart from the others, where it says."""
+    pytest.importorskip("rosbags")
+    from rosbags.rosbag2 import Reader
+
+    from livox_viz.cli import main
+
+    from .test_rosbag import typestore
+
+    bag, npz = tmp_path / "bag", tmp_path / "cloud.npz"
+    assert main(["scan", "--seconds", "0.3", "--trajectory", "line", "--trajectory-speed", "6", "--rosbag", str(bag),
+                 "--out", str(npz)]) == 0
+    store = typestore()
+    sizes = {1: 1, 2: 1, 3: 2, 4: 2, 5: 4, 6: 4, 7: 4, 8: 8}  # PointField datatypes
+    seen: dict[str, int] = {}
+    clouds = []
+    with Reader(bag) as reader:
+        for connection, _, raw in reader.messages():
+            message = store.deserialize_cdr(raw, connection.msgtype)
+            assert bytes(store.serialize_cdr(message, connection.msgtype)) == bytes(raw), connection.topic
+            seen[connection.topic] = seen.get(connection.topic, 0) + 1
+            if connection.msgtype == "sensor_msgs/msg/PointCloud2":
+                clouds.append(message)
+    assert {"/livox/imu", "/odom", "/livox/points", "/livox/lidar"} <= set(seen) and seen["/livox/imu"] > 10
+    data = np.load(npz)
+    for index, cloud in enumerate(clouds):
+        spans = sorted((f.offset, f.offset + sizes[f.datatype] * f.count) for f in cloud.fields)
+        assert all(end <= start for (_, end), (start, _) in itertools.pairwise(spans))
+        assert spans[-1][1] <= cloud.point_step and len(cloud.data) == cloud.point_step * cloud.width * cloud.height
+        names = [f.name for f in cloud.fields]
+        layout = np.dtype({"names": names, "offsets": [f.offset for f in cloud.fields], "itemsize": cloud.point_step,
+                           "formats": [{7: "<f4", 8: "<f8", 2: "u1"}[f.datatype] for f in cloud.fields]})
+        decoded = np.frombuffer(bytes(cloud.data), dtype=layout)
+        mine = data["frame"] == index
+        # Nanoseconds as float64, the Livox ROS driver 2's convention (256 ns resolution at this epoch).
+        np.testing.assert_allclose((decoded["timestamp"] - 1.7e18) / 1e9, data["t"][mine], atol=1e-6)
+        np.testing.assert_allclose(np.column_stack([decoded["x"], decoded["y"], decoded["z"]]),
+                                   data["xyz_sensor"][mine] * [1, -1, -1], atol=1e-5)
+
+
+# compare: its times and its picture --------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def comparison():
+    from livox_viz import ScanPattern
+    from livox_viz.fitting.compare import compare
+    from livox_viz.fitting.reference import ReferencePattern
+
+    config = load_preset("livox_mid70")
+    xy = ScanPattern(config.with_param("petal_height", 3.5), seed=1).take(400_000).xy_deg
+    return compare(config, ReferencePattern("other", xy, np.arange(len(xy)) / 1e5, 1e5), seed=0)
+
+
+def test_compare_integration_times_increase_and_coverage_grows(comparison) -> None:
+    assert np.all(np.diff(comparison.seconds) > 0) and comparison.seconds[-1] == 4.0
+    for curve in (comparison.coverage_ours, comparison.coverage_reference):
+        assert np.all(np.diff(curve) >= 0) and 0 < curve[0] < curve[-1] <= 1
+
+
+def test_the_comparison_picture_shows_what_its_labels_say(comparison, tmp_path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each panel's curves are the numbers its axis names (the PNG itself is only looked at by people)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from livox_viz.fitting.plot import plot_comparison
+
+    drawn = []
+    close = plt.close
+    monkeypatch.setattr(plt, "close", lambda figure=None: (drawn.append(figure), close(figure)))
+    plot_comparison(comparison, tmp_path / "c.png", "a title")
+    assert (tmp_path / "c.png").stat().st_size > 10_000 and len(drawn) == 1
+    axes = np.array(drawn[0].axes).reshape(2, 2)
+    c, centres = comparison, 0.5 * (comparison.density_edges_deg[1:] + comparison.density_edges_deg[:-1])
+    panels = {
+        (0, 0): [(c.seconds, 100 * c.coverage_reference), (c.seconds, 100 * c.coverage_ours)],
+        (1, 0): [(c.seconds, 100 * (c.coverage_ours - c.coverage_reference))],
+        (0, 1): [(centres, c.density_reference / 1e6), (centres, c.density_ours / 1e6)],
+        (1, 1): [(centres, (c.density_ours - c.density_reference) / 1e6)],
+    }
+    for (row, column), curves in panels.items():
+        lines = [line for line in axes[row, column].get_lines() if len(line.get_xdata()) > 2]
+        assert len(lines) == len(curves), (row, column)
+        for line, (x, y) in zip(lines, curves, strict=True):
+            np.testing.assert_allclose(line.get_xdata(), x)
+            np.testing.assert_allclose(line.get_ydata(), y)
+    assert "coverage" in axes[0, 0].get_ylabel() and "density" in axes[0, 1].get_ylabel()
+    assert axes[0, 0].get_xscale() == "log" and axes[0, 1].get_yscale() == "log"
+    assert [t.get_text() for t in axes[0, 0].get_legend().get_texts()] == ["reference", "ours"]
