@@ -255,3 +255,61 @@ def test_the_comparison_picture_shows_what_its_labels_say(comparison, tmp_path,
     assert "coverage" in axes[0, 0].get_ylabel() and "density" in axes[0, 1].get_ylabel()
     assert axes[0, 0].get_xscale() == "log" and axes[0, 1].get_yscale() == "log"
     assert [t.get_text() for t in axes[0, 0].get_legend().get_texts()] == ["reference", "ours"]
+
+
+# Built-in flights and trajectories -----------------------------------------------------------------------
+@pytest.mark.parametrize("name", ["line", "circle", "figure8"])
+def test_a_built_in_flight_looks_where_it_flies(name: str) -> None:
+    """The vehicle's forward axis (body x, in the world) points along its horizontal velocity."""
+    from livox_viz.core.rotations import quat_rotate
+    from livox_viz.motion.flights import builtin_trajectory
+
+    flight = builtin_trajectory(name, 6.0, Pose((3.0, -2.0, -5.0), 0.0, 0.0, 0.7), 12.0)
+    velocity = np.gradient(flight.position, flight.t, axis=0)[5:-5, :2]
+    forward = quat_rotate(flight.quaternion[5:-5], np.tile([1.0, 0.0, 0.0], (len(velocity), 1)))[:, :2]
+    along = np.einsum("ij,ij->i", forward, velocity) / np.linalg.norm(velocity, axis=1)
+    assert along.min() > 0.999
+
+
+@pytest.mark.parametrize("name", ["line", "circle", pytest.param("figure8", marks=pytest.mark.xfail(
+    strict=True, reason="bug found here, left to the owners of motion/flights.py: the figure-8's mean speed "
+                        "factor is taken as 1.22 a w, it is about 0.985 a w, so it flies at 4.84 m/s when asked 6"))])
+def test_a_built_in_flight_flies_at_the_speed_asked(name: str) -> None:
+    from livox_viz.motion.flights import builtin_trajectory
+
+    flight = builtin_trajectory(name, 6.0, Pose((0.0, 0.0, -2.0)), 20.0)
+    speed = np.linalg.norm(np.diff(flight.position, axis=0), axis=1) / np.diff(flight.t)
+    assert speed.mean() == pytest.approx(6.0, rel=0.02)
+
+
+def test_between_keeps_the_poses_around_the_span_and_no_more() -> None:
+    """``between(a, b)``: from the last pose at or before a to the first at or after b (two at least)."""
+    t = np.array([0.0, 0.1, 0.25, 0.4, 0.6, 0.7])
+    quaternion = Rotation.from_rotvec(np.outer(t, [0.0, 0.0, 1.0])).as_quat()
+    flight = Trajectory("steps", t, np.column_stack([t, t, t]), quaternion)
+    for start, stop, expected in [(0.1, 0.4, [0.1, 0.25, 0.4]), (0.12, 0.39, [0.1, 0.25, 0.4]),
+                                  (0.25, 0.25, [0.25, 0.4]), (0.3, 0.3, [0.25, 0.4]), (0.0, 0.7, list(t)),
+                                  (0.69, 0.7, [0.6, 0.7]), (0.0, 0.0, [0.0, 0.1])]:
+        assert flight.between(start, stop).t.tolist() == expected, (start, stop)
+
+
+# Reference tables and the pattern factory -------------------------------------------------------------------
+@pytest.mark.parametrize("rate", [0.0, -5.0, float("nan"), float("inf")])
+def test_a_table_rate_must_be_a_positive_number(tmp_path, rate: float) -> None:
+    from livox_viz import LivoxVizError
+    from livox_viz.fitting.reference import load_reference
+
+    path = tmp_path / "table.npy"
+    np.save(path, np.zeros((100, 2)))
+    with pytest.raises(LivoxVizError, match="allowed: points per second > 0"):
+        load_reference(path, rate=rate)
+    assert len(load_reference(path, rate=1e-3).t) == 100
+
+
+def test_the_pattern_seed_defaults_to_zero() -> None:
+    """What ``scan``, ``publish`` and the window use without --seed: the same stream as seed 0."""
+    config = load_preset("livox_mid70")
+    np.testing.assert_array_equal(make_pattern(config).take(5_000).xy_deg,
+                                  make_pattern(config, seed=0).take(5_000).xy_deg)
+    assert not np.array_equal(make_pattern(config, seed=1).take(5_000).xy_deg,
+                              make_pattern(config, seed=0).take(5_000).xy_deg)
