@@ -313,3 +313,15 @@ def test_the_pattern_seed_defaults_to_zero() -> None:
                                   make_pattern(config, seed=0).take(5_000).xy_deg)
     assert not np.array_equal(make_pattern(config, seed=1).take(5_000).xy_deg,
                               make_pattern(config, seed=0).take(5_000).xy_deg)
+
+
+def test_terrain_hills_rise_from_its_centre_by_up_to_the_amplitude(tmp_path) -> None:
+    """A terrain object's surface lies between its centre height and ``amplitude`` metres above it (NED: -z)."""
+    import json
+
+    path = tmp_path / "hills.json"
+    path.write_text(json.dumps({"objects": [{"type": "terrain", "center": [10, 0, 0], "size": [200, 200],
+                                             "cells": 80, "amplitude": 4.0, "wavelength": 25.0}]}))
+    z = np.asarray(open_scene(path).mesh.vertices)[:, 2]
+    assert z.max() <= 1e-9 and z.min() >= -4.0 - 1e-9
+    assert z.max() - z.min() > 3.0
