@@ -322,6 +322,12 @@ def test_terrain_hills_rise_from_its_centre_by_up_to_the_amplitude(tmp_path) -> 
     path = tmp_path / "hills.json"
     path.write_text(json.dumps({"objects": [{"type": "terrain", "center": [10, 0, 0], "size": [200, 200],
                                              "cells": 80, "amplitude": 4.0, "wavelength": 25.0}]}))
-    z = np.asarray(open_scene(path).mesh.vertices)[:, 2]
+    vertices = np.asarray(open_scene(path).mesh.vertices)
+    z = vertices[:, 2]
     assert z.max() <= 1e-9 and z.min() >= -4.0 - 1e-9
     assert z.max() - z.min() > 3.0
+    # Hills about a wavelength apart: along 200 m the surface crosses its mean about 2 x 200 / 25 times.
+    row = vertices[np.abs(vertices[:, 1]) < 1e-9]
+    heights = row[np.argsort(row[:, 0]), 2]
+    crossings = np.count_nonzero(np.diff(np.sign(heights - heights.mean())))
+    assert 10 <= crossings <= 22
