@@ -331,3 +331,15 @@ def test_terrain_hills_rise_from_its_centre_by_up_to_the_amplitude(tmp_path) -> 
     heights = row[np.argsort(row[:, 0]), 2]
     crossings = np.count_nonzero(np.diff(np.sign(heights - heights.mean())))
     assert 10 <= crossings <= 22
+
+
+def test_risley_spectral_peaks_find_slow_and_fast_lines_between_bins() -> None:
+    """The frequency search behind the Risley fit: two lines, one slow, both off the FFT grid, found to 1 mHz."""
+    from livox_viz.fitting.risley_fit import _spectral_peaks
+
+    rate = 10_000.0
+    t = np.arange(40_000) / rate  # 4 s: 0.25 Hz bins
+    z = 3.0 * np.exp(2j * np.pi * 5.31 * t) + 2.0 * np.exp(-2j * np.pi * 41.17 * t) + 0.4
+    (f1, a1), (f2, a2) = _spectral_peaks(z, rate)
+    assert f1 == pytest.approx(5.31, abs=1e-3) and f2 == pytest.approx(-41.17, abs=1e-3)
+    assert a1 / a2 == pytest.approx(1.5, rel=0.01)
