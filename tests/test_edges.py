@@ -343,3 +343,13 @@ def test_risley_spectral_peaks_find_slow_and_fast_lines_between_bins() -> None:
     (f1, a1), (f2, a2) = _spectral_peaks(z, rate)
     assert f1 == pytest.approx(5.31, abs=1e-3) and f2 == pytest.approx(-41.17, abs=1e-3)
     assert a1 / a2 == pytest.approx(1.5, rel=0.01)
+
+
+def test_ground_and_box_have_the_size_asked(tmp_path) -> None:
+    import json
+
+    path = tmp_path / "flat.json"
+    path.write_text(json.dumps({"objects": [{"type": "ground", "center": [5, -3, 0], "size": [120, 40]},
+                                            {"type": "box", "center": [20, 0, -1], "size": [2, 4, 2]}]}))
+    low, high = open_scene(path).mesh.bounds
+    np.testing.assert_allclose([low, high], [[-55.0, -23.0, -2.0], [65.0, 17.0, 0.0]], atol=1e-9)
