@@ -353,3 +353,15 @@ def test_ground_and_box_have_the_size_asked(tmp_path) -> None:
                                             {"type": "box", "center": [20, 0, -1], "size": [2, 4, 2]}]}))
     low, high = open_scene(path).mesh.bounds
     np.testing.assert_allclose([low, high], [[-55.0, -23.0, -2.0], [65.0, 17.0, 0.0]], atol=1e-9)
+
+
+def test_a_roof_is_a_closed_gable_of_the_size_asked(tmp_path) -> None:
+    """A roof object is a closed prism: base size[0] x size[1], ridge size[2] above it, half the box's volume."""
+    import json
+
+    path = tmp_path / "roof.json"
+    path.write_text(json.dumps({"objects": [{"type": "roof", "center": [0, 0, -3], "size": [8, 6, 2.5]}]}))
+    roof = open_scene(path).mesh
+    assert roof.is_watertight and roof.is_winding_consistent
+    assert abs(roof.volume) == pytest.approx(8 * 6 * 2.5 / 2)
+    np.testing.assert_allclose(roof.bounds, [[-4, -3, -5.5], [4, 3, -3]], atol=1e-12)
