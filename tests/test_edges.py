@@ -365,3 +365,75 @@ def test_a_roof_is_a_closed_gable_of_the_size_asked(tmp_path) -> None:
     assert roof.is_watertight and roof.is_winding_consistent
     assert abs(roof.volume) == pytest.approx(8 * 6 * 2.5 / 2)
     np.testing.assert_allclose(roof.bounds, [[-4, -3, -5.5], [4, 3, -3]], atol=1e-12)
+
+
+# Live receivers -------------------------------------------------------------------------------------------
+def test_shared_memory_refuses_a_point_count_past_the_block_and_takes_an_empty_frame(tmp_path) -> None:
+    from livox_viz import LivoxVizError
+    from livox_viz.wire.rflysim import SharedMemoryLink
+
+    path = tmp_path / "RflySim3DImg_0"
+    size = 100 * 6 + 37  # room for 100 points
+    writer, reader = SharedMemoryLink(path, size, create=True), SharedMemoryLink(path, size)
+    try:
+        assert writer.write(0.5, np.zeros(6), np.zeros((0, 3), np.int16))
+        frame = reader.read()
+        assert frame is not None and frame.xyz_int16.shape == (0, 3) and frame.timestamp == 0.5
+        assert writer.write(0.6, np.zeros(6), np.ones((100, 3), np.int16))
+        block = bytearray(path.read_bytes())
+        block[33:37] = (101).to_bytes(4, "little", signed=True)  # PointNum one past the block
+        path.write_bytes(bytes(block))
+        with pytest.raises(LivoxVizError, match="PointNum 101; allowed: 0 to 100"):
+            reader.read()
+    finally:
+        writer.close()
+        reader.close()
+
+
+def test_shared_memory_receiver_counts_frames_and_points(tmp_path) -> None:
+    from livox_viz.wire.transport import ShmReceiver, ShmSender
+
+    from .conftest import small_config
+
+    config = small_config()
+    sender = ShmSender(config, str(tmp_path))
+    receiver = ShmReceiver(config, str(tmp_path))
+    try:
+        got = []
+        for k, count in enumerate((7, 0, 30)):
+            assert sender.send(0.1 * k, np.zeros(6), np.full((count, 3), k, np.int16)) == 1
+            got += receiver.poll()
+        assert [len(f.xyz_int16) for f in got] == [7, 0, 30]
+        assert (receiver.report.frames, receiver.report.points) == (3, 37)
+        assert sender.send(0.4, np.zeros(6), np.full((5, 3), 9, np.int16)) == 1
+        streamed = list(receiver.frames(lambda: receiver.report.frames >= 4))
+        assert [len(f.xyz_int16) for f in streamed] == [5] and receiver.report.points == 42
+    finally:
+        sender.close()
+        receiver.close()
+
+
+def test_udp_receiver_counts_only_its_own_cpu_time() -> None:
+    """The listen report's CPU seconds are the time spent on datagrams, never more than the process used."""
+    import socket
+    import time
+
+    from livox_viz.wire.rflysim import pack_payload, split_datagrams
+    from livox_viz.wire.transport import UdpReceiver
+
+    receiver = UdpReceiver("127.0.0.1", 0)
+    started = time.process_time()
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+            for k in range(20):
+                # 6 kB each, 120 kB in all: inside the smallest socket buffer a system gives.
+                for datagram in split_datagrams(pack_payload(np.zeros(6), np.ones((1_000, 3), np.int16)), 0.1 * k):
+                    sender.sendto(datagram, ("127.0.0.1", receiver.port))
+        deadline = time.monotonic() + 10
+        frames = []
+        while len(frames) < 20 and time.monotonic() < deadline:
+            frames += receiver.poll()
+        assert len(frames) == 20 and receiver.report.points == 20_000
+        assert 0 < receiver.report.cpu_seconds <= time.process_time() - started
+    finally:
+        receiver.close()
