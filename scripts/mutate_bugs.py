@@ -36,8 +36,8 @@ DELIBERATE_BUGS: list[dict[str, str]] = [
     {
         "name": "GUI: density and coverage grids not rebuilt when the FOV changes",
         "path": "widgets/session.py",
-        "old": "resize = config.point_rate != self.config.point_rate or config.half_fov_deg != "
-               "self.config.half_fov_deg",
+        "old": "resize = config.point_rate != self.config.point_rate or config.field_of_view != "
+               "self.config.field_of_view",
         "new": "resize = config.point_rate != self.config.point_rate",
     },
     {
@@ -57,8 +57,8 @@ DELIBERATE_BUGS: list[dict[str, str]] = [
         "name": "moving cast: each ray uses the pose one sample late",
         "owner": "h-motion",
         "path": "livox_viz/casting/scan.py",
-        "old": "self.sensor_poses_at(chunk.t[first : first + CAST_PART])",
-        "new": "self.sensor_poses_at(chunk.t[first : first + CAST_PART] + 1.0 / config.point_rate)",
+        "old": "self.track.rays(chunk.t[first : first + CAST_PART], directions_sensor)",
+        "new": "self.track.rays(chunk.t[first : first + CAST_PART] + 1.0 / config.point_rate, directions_sensor)",
     },
     {
         "name": "odometry: the twist in the world frame instead of the body frame",

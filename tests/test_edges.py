@@ -29,13 +29,7 @@ def _turning_flight() -> Trajectory:
     return Trajectory("turning", t, position, Rotation.from_rotvec(np.outer(0.8 * t, [0.2, 0.1, 1.0])).as_quat())
 
 
-@pytest.mark.parametrize("moving", [
-    pytest.param(False, marks=pytest.mark.xfail(
-        strict=True, raises=ValueError,
-        reason="bug found here, left to the owners of casting/scan.py: a fixed-pose frame of more than CAST_PART "
-               "rays (W x H > 1 048 576, allowed up to 10 million) fails to concatenate its per-point poses (None)")),
-    True,
-])
+@pytest.mark.parametrize("moving", [False, True])
 def test_a_frame_cast_in_parts_is_the_frame_cast_whole(monkeypatch: pytest.MonkeyPatch, moving: bool) -> None:
     """Frames longer than CAST_PART rays are cast part by part: every ray keeps its own time and pose."""
     config = load_preset("livox_mid70")
@@ -272,25 +266,18 @@ def test_a_built_in_flight_looks_where_it_flies(name: str) -> None:
 
 
 @pytest.mark.parametrize("name", ["line", "circle", pytest.param("figure8", marks=pytest.mark.xfail(
-    strict=True, reason="bug found here, left to the owners of motion/flights.py: the figure-8's mean speed "
-                        "factor is taken as 1.22 a w, it is about 0.985 a w, so it flies at 4.84 m/s when asked 6"))])
-def test_a_built_in_flight_flies_at_the_speed_asked(name: str) -> None:
-    from livox_viz.motion.flights import builtin_trajectory
+    strict=True, reason="bug found here, left to the owners of motion/flights.py: the figure-8 takes its mean "
+                        "speed as 1.22 a du/dt; it is about 0.985 a du/dt, so it cruises at 4.84 m/s when asked 6"))])
+def test_a_built_in_flight_cruises_at_the_speed_asked(name: str) -> None:
+    """Between its ramps (from rest and back to rest) a built-in flight flies at the speed asked, on average."""
+    from livox_viz.motion.flights import RAMP_SECONDS, builtin_trajectory
 
     flight = builtin_trajectory(name, 6.0, Pose((0.0, 0.0, -2.0)), 20.0)
     speed = np.linalg.norm(np.diff(flight.position, axis=0), axis=1) / np.diff(flight.t)
-    assert speed.mean() == pytest.approx(6.0, rel=0.02)
-
-
-def test_between_keeps_the_poses_around_the_span_and_no_more() -> None:
-    """``between(a, b)``: from the last pose at or before a to the first at or after b (two at least)."""
-    t = np.array([0.0, 0.1, 0.25, 0.4, 0.6, 0.7])
-    quaternion = Rotation.from_rotvec(np.outer(t, [0.0, 0.0, 1.0])).as_quat()
-    flight = Trajectory("steps", t, np.column_stack([t, t, t]), quaternion)
-    for start, stop, expected in [(0.1, 0.4, [0.1, 0.25, 0.4]), (0.12, 0.39, [0.1, 0.25, 0.4]),
-                                  (0.25, 0.25, [0.25, 0.4]), (0.3, 0.3, [0.25, 0.4]), (0.0, 0.7, list(t)),
-                                  (0.69, 0.7, [0.6, 0.7]), (0.0, 0.0, [0.0, 0.1])]:
-        assert flight.between(start, stop).t.tolist() == expected, (start, stop)
+    cruising = (flight.t[1:] > RAMP_SECONDS + 0.1) & (flight.t[1:] < 20.0 - RAMP_SECONDS - 0.1)
+    assert speed[cruising].mean() == pytest.approx(6.0, rel=0.02)
+    if name != "figure8":
+        np.testing.assert_allclose(speed[cruising], 6.0, rtol=0.01)
 
 
 # Reference tables and the pattern factory -------------------------------------------------------------------
@@ -335,12 +322,12 @@ def test_terrain_hills_rise_from_its_centre_by_up_to_the_amplitude(tmp_path) -> 
 
 def test_risley_spectral_peaks_find_slow_and_fast_lines_between_bins() -> None:
     """The frequency search behind the Risley fit: two lines, one slow, both off the FFT grid, found to 1 mHz."""
-    from livox_viz.fitting.risley_fit import _spectral_peaks
+    from livox_viz.fitting.track_fit import spectral_peaks
 
     rate = 10_000.0
     t = np.arange(40_000) / rate  # 4 s: 0.25 Hz bins
     z = 3.0 * np.exp(2j * np.pi * 5.31 * t) + 2.0 * np.exp(-2j * np.pi * 41.17 * t) + 0.4
-    (f1, a1), (f2, a2) = _spectral_peaks(z, rate)
+    (f1, a1), (f2, a2) = spectral_peaks(z, rate)
     assert f1 == pytest.approx(5.31, abs=1e-3) and f2 == pytest.approx(-41.17, abs=1e-3)
     assert a1 / a2 == pytest.approx(1.5, rel=0.01)
 
