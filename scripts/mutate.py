@@ -461,6 +461,8 @@ if os.environ.get("COVERAGE_PROCESS_START"):
 
 _PLUGIN = '''"""Written by scripts/mutate.py: each test runs in its own coverage context (its subprocesses too)."""
 import os
+import sys
+import warnings
 
 import coverage
 import pytest
@@ -471,6 +473,11 @@ def pytest_runtest_protocol(item, nextitem):
     measuring = coverage.Coverage.current()
     os.environ["LIVOX_VIZ_MUTATE_TEST"] = item.nodeid
     if measuring is not None:
+        if sys.gettrace() is None:  # a test set its own tracer and then None: measure again from here
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                measuring.stop()
+                measuring.start()
         measuring.switch_context(item.nodeid)
     yield
     os.environ["LIVOX_VIZ_MUTATE_TEST"] = ""
@@ -518,7 +525,8 @@ def test_stages(mutant: Mutant, lines: dict[str, dict[int, set[str]]] | None, ro
     """Which tests to run for a mutant, in stages, each stopping at its first failure.
 
     A line run inside a test (not at import) takes the tests that ran it, then the rest of their
-    files (a module-scoped fixture runs once, for its first test). Import-time code, and the
+    files (a module-scoped fixture runs once, for its first test), then the other files that import
+    the module. Import-time code, and the
     deliberate bugs, take the files that import the module, then the rest of the suite. A line
     no test runs takes the files that import the module only.
     """
@@ -534,7 +542,10 @@ def test_stages(mutant: Mutant, lines: dict[str, dict[int, set[str]]] | None, ro
     tests = sorted(contexts)
     files = sorted({t.split("::", 1)[0] for t in tests})
     rest = [f"--deselect={t}" for t in tests]
-    return [tests, [*files, *rest]]
+    # Last, for a survivor only: the other files that import the module (a test may have hidden its
+    # lines from coverage, e.g. by setting its own tracer).
+    others = [f for f in first if f not in files]
+    return [tests, [*files, *rest], *([others] if others else [])]
 
 
 def _failed_tests(output: str) -> list[str]:
@@ -625,6 +636,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
 
     with tempfile.TemporaryDirectory(prefix="livox-viz-mutate-") as scratch:
+        os.chmod(scratch, 0o755)  # a test may run the copy as another user (nobody), as the real tree allows
         workers = [Worker.create(Path(scratch), i) for i in range(max(1, args.jobs))]
         workers[0].check_imports()
         print(f"mutate: {len(bugs)} deliberate bugs, {len(sampled)} of {site_count} sites (seed {args.seed}); "
