@@ -409,6 +409,7 @@ def set_up_interrupted_everywhere(make, folder: Path, files: tuple[str, ...]) ->
     from livox_viz.core.atomic import remove_unfinished
 
     step = 1
+    previous = sys.gettrace()  # coverage's, when measured: given back after each try
     while True:
         tracer, seen = interrupt_at(step, files)
         sys.settrace(tracer)
@@ -417,7 +418,7 @@ def set_up_interrupted_everywhere(make, folder: Path, files: tuple[str, ...]) ->
         except Interrupted:
             writer = None
         finally:
-            sys.settrace(None)
+            sys.settrace(previous)
         if writer is not None:
             assert seen[0] < step  # ran whole: every step was tried
             writer.abort()
