@@ -207,7 +207,7 @@ def test_builtin_flights_start_and_end_at_rest_with_a_smooth_ramp() -> None:
         # From the 100 Hz samples themselves (not the spline): speed by finite differences.
         speed = np.linalg.norm(np.diff(flight.position, axis=0), axis=1) / np.diff(flight.t)
         assert speed[0] < 1e-3 and speed[-1] < 1e-3, name
-        assert speed.max() == pytest.approx(6.0 if name != "figure8" else speed.max(), rel=0.02)
+        assert speed.max() == pytest.approx(6.0, rel=0.02), name
         accel = np.diff(speed) / np.diff(flight.t)[1:]
         assert np.abs(np.diff(accel)).max() < 0.2, name  # no step in the acceleration
         # The IMU at both ends reads a vehicle at rest: gravity in the tilted body, no rotation.

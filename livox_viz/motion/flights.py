@@ -63,6 +63,42 @@ def path_length(t: np.ndarray, speed: float, seconds: float) -> np.ndarray:
     return np.where(t < ramp, rising, np.where(t > seconds - ramp, falling, cruise))
 
 
+#: Nodes per turn of the lemniscate for its arc-length table (the speed is analytic: the error is ~h^4).
+FIGURE8_NODES = 1024
+
+
+def figure8_parameter(s: np.ndarray, a: float) -> np.ndarray:
+    """``(n,)`` the parameter u of Gerono's lemniscate ``(a sin u, a sin u cos u)`` after ``s`` metres along it.
+
+    Its speed ``|dr/du| = a sqrt(cos^2 u + cos^2 2u)`` is never zero (between 0.66 a
+    and 1.41 a), so the arc length L(u) is smooth and increasing: it is
+    integrated once as a periodic spline of the speed, and ``L(u) = s`` is solved by
+    Newton steps from a table lookup. A constant parameter rate would fly the
+    curve's loops and crossing at different speeds (and its mean is not ``a du/dt``).
+
+    Parameters
+    ----------
+    s : (n,) float64
+        Metres along the path from u = 0, >= 0.
+    a : float
+        Half the lemniscate's length, metres.
+    """
+    from scipy.interpolate import CubicSpline
+
+    def speed(u: np.ndarray) -> np.ndarray:
+        return a * np.hypot(np.cos(u), np.cos(2.0 * u))
+
+    nodes = np.linspace(0.0, 2.0 * np.pi, FIGURE8_NODES + 1)
+    length = CubicSpline(nodes, speed(nodes), bc_type="periodic").antiderivative()
+    turn = float(length(2.0 * np.pi))
+    s = np.asarray(s, dtype=np.float64)
+    turns, rest = np.divmod(s, turn)
+    u = np.interp(rest, length(nodes), nodes)
+    for _ in range(2):  # quadratic convergence: from ~1e-5 rad to rounding
+        u -= (length(u) - rest) / speed(u)
+    return u + 2.0 * np.pi * turns
+
+
 def builtin_trajectory(name: str, speed: float, start: Pose, seconds: float) -> Trajectory:
     """A built-in flight from ``start``, ``seconds`` long, from rest to rest, sampled at :data:`BUILTIN_RATE`.
 
@@ -71,7 +107,7 @@ def builtin_trajectory(name: str, speed: float, start: Pose, seconds: float) -> 
     name : {"hover", "line", "circle", "figure8"}
         ``hover`` stays; ``line`` flies straight ahead; ``circle`` turns right on a
         15 m circle facing along the path; ``figure8`` flies a 20 m lemniscate
-        (Gerono's, at a mean cruising speed of about ``speed``).
+        (Gerono's, by arc length: at ``speed`` all along it while cruising).
     speed : float
         Cruising speed, m/s.
     start : Pose
@@ -100,9 +136,9 @@ def builtin_trajectory(name: str, speed: float, start: Pose, seconds: float) -> 
         local = CIRCLE_RADIUS * np.column_stack([np.sin(angle), 1.0 - np.cos(angle)])
         yaw = heading + angle
     else:
-        # Gerono's lemniscate x = a sin(u), y = a sin(u) cos(u); its mean speed is about 1.22 a du/dt.
+        # Gerono's lemniscate x = a sin(u), y = a sin(u) cos(u), at the parameter u whose arc length is s.
         a = FIGURE8_SIZE / 2
-        u = s / (1.22 * a)
+        u = figure8_parameter(s, a)
         local = np.column_stack([a * np.sin(u), a * np.sin(u) * np.cos(u)])
         yaw = heading + np.unwrap(np.arctan2(np.cos(2 * u), np.cos(u)))
     position = start.origin + local[:, :1] * forward + local[:, 1:] * right
