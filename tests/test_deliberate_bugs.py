@@ -194,6 +194,18 @@ def scanned_frames() -> list:
     return list(LidarScanner(config, scene.mesh, scene.vehicle_pose, seed=2).frames(0.25))
 
 
+#: The per-point fields of the Livox SDK after x, y, z, range, time and frame, in the order files carry them.
+LIVOX_FIELDS = ("reflectivity", "tag", "return_number", "number_of_returns")
+
+
+def _assert_livox_fields(read, frames: list) -> None:
+    """Each Livox field as read by the third-party reader, one byte per point, against the frames'."""
+    for name in LIVOX_FIELDS:
+        values = np.asarray(read[name])
+        assert values.dtype == np.uint8, name
+        assert values.tolist() == np.concatenate([getattr(f, name) for f in frames]).tolist(), name
+
+
 @pytest.mark.parametrize("ascii_mode", [False, True])
 def test_pcd_header_and_points_through_pypcd4(tmp_path: Path, scanned_frames: list, ascii_mode: bool) -> None:
     """Bug: a PCD header whose WIDTH is one short (our own reader only looks at POINTS)."""
@@ -207,7 +219,7 @@ def test_pcd_header_and_points_through_pypcd4(tmp_path: Path, scanned_frames: li
     meta = cloud.metadata
     # An unorganised cloud (PCD v0.7): WIDTH is the point count, HEIGHT 1, and WIDTH * HEIGHT = POINTS.
     assert (meta.width, meta.height, meta.points) == (total, 1, total)
-    assert meta.fields == ("x", "y", "z", "range", "time", "frame")
+    assert meta.fields == ("x", "y", "z", "range", "time", "frame", *LIVOX_FIELDS)
     data = cloud.pc_data
     xyz = np.column_stack([data["x"], data["y"], data["z"]])
     np.testing.assert_allclose(xyz, np.concatenate([f.xyz_decoded for f in scanned_frames]), atol=1e-4)
@@ -215,6 +227,7 @@ def test_pcd_header_and_points_through_pypcd4(tmp_path: Path, scanned_frames: li
     np.testing.assert_allclose(data["range"], np.linalg.norm(decoded, axis=1), rtol=1e-6)  # of the points it holds
     np.testing.assert_allclose(data["time"], np.concatenate([f.t for f in scanned_frames]), atol=1e-9)
     assert data["frame"].tolist() == np.concatenate([np.full(len(f), f.index) for f in scanned_frames]).tolist()
+    _assert_livox_fields(data, scanned_frames)
 
 
 @pytest.mark.parametrize("ascii_mode", [False, True])
@@ -228,12 +241,13 @@ def test_ply_header_and_properties_through_plyfile(tmp_path: Path, scanned_frame
     ply = plyfile.PlyData.read(str(path))
     vertex = ply["vertex"]
     assert vertex.count == sum(len(f) for f in scanned_frames)
-    assert [p.name for p in vertex.properties] == ["x", "y", "z", "range", "time", "frame"]
+    assert [p.name for p in vertex.properties] == ["x", "y", "z", "range", "time", "frame", *LIVOX_FIELDS]
     assert any("frame sensor" in comment for comment in ply.comments)
     xyz = np.column_stack([vertex["x"], vertex["y"], vertex["z"]])
     np.testing.assert_allclose(xyz, np.concatenate([f.xyz_decoded for f in scanned_frames]), atol=1e-4)
     np.testing.assert_allclose(vertex["time"], np.concatenate([f.t for f in scanned_frames]), atol=1e-9)
     assert vertex["frame"].tolist() == np.concatenate([np.full(len(f), f.index) for f in scanned_frames]).tolist()
+    _assert_livox_fields(vertex, scanned_frames)
 
 
 # The GUI's charts after a FOV change ----------------------------------------------------------------
