@@ -441,3 +441,38 @@ def test_frames_cast_side_by_side_are_those_cast_one_by_one_on_a_fast_flight() -
     serial = [mounted.cast(pattern.take(frame.ray_count)) for frame in threaded]
     for name in ("stream_index", "xyz_int16", "reflectivity", "tag", "return_number"):
         assert np.array_equal(joined(threaded, name), joined(serial, name)), name
+
+
+@pytest.mark.parametrize(("distance", "sigma"), [(40.0, 0.02), (95.0, 0.03)])
+def test_the_tele15s_range_noise_grows_with_range_as_its_sheet_says(distance: float, sigma: float) -> None:
+    """The Tele-15's sheet: 2 cm to 70 m, 4 cm at 120 m (linear between, the preset's description says)."""
+    cfg = at_origin("livox_tele15")
+    frames, _ = scan(cfg, wall(distance, 0.5), 0.2)
+    xy = joined(frames, "xy_deg")
+    residual = joined(frames, "range_m") - distance / np.cos(np.radians(off_axis_deg(xy)))
+    assert residual.size > 20_000
+    assert np.std(residual) == pytest.approx(sigma, rel=0.10)
+
+
+def test_a_footprint_on_three_surfaces_gives_the_avias_triple_returns_in_range_order() -> None:
+    """A plate at 15 m below the boresight, one at 20 m to its right above it, a wall at 25 m: a footprint at
+    the corner sees all three, and the Avia reports up to three returns, nearest first."""
+    cfg = at_origin("livox_avia", divergence_deg=(0.28, 0.28))
+    below = surface(trimesh.creation.box((0.5, 400, 200), trimesh.transformations.translation_matrix(
+        (15.25, 0, 100))), 0.5)
+    right = surface(trimesh.creation.box((0.5, 200, 400), trimesh.transformations.translation_matrix(
+        (20.25, 100, 0))), 0.5)
+    frames, _ = scan(cfg, trimesh.util.concatenate([below, right, wall(25.0, 0.5)]), 1.0)
+    stream, number = joined(frames, "stream_index"), joined(frames, "return_number")
+    returns, tag = joined(frames, "number_of_returns"), joined(frames, "tag")
+    x = joined(frames, "xyz_sensor")[:, 0]
+    assert returns.max() == 3 and number.max() == 3
+    triple = returns == 3
+    assert np.unique(stream[triple]).size >= 5
+    for k, surface_x in enumerate((15.0, 20.0, 25.0), start=1):
+        rows = triple & (number == k)
+        assert np.allclose(x[rows], surface_x, atol=0.15), k
+        assert np.all(tag[rows] & 0x30 == k << 4)
+    # Each pulse's returns are listed once, numbered 1..n.
+    for index in np.unique(stream[triple])[:20]:
+        assert sorted(number[stream == index].tolist()) == [1, 2, 3]
