@@ -274,7 +274,8 @@ class MountedCaster:
         xyz_int16 = encode_int16(xyz_sensor, config.range_max)
         # A point nearer than half an int16 step would be published as (0, 0, 0), which a client reads as
         # "no return": it is left out, like a ray that returns nothing.
-        at_zero = ~xyz_int16.any(axis=1)
+        # (columns or-ed: any(axis=1) over rows of three int16 runs ten times slower)
+        at_zero = (xyz_int16[:, 0] | xyz_int16[:, 1] | xyz_int16[:, 2]) == 0
         if at_zero.any():
             keep = ~at_zero
             rows, range_m, xyz_sensor, xyz_world, xyz_int16 = (rows[keep], range_m[keep], xyz_sensor[keep],

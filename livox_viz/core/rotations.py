@@ -85,8 +85,32 @@ def rotate_rows(vectors: np.ndarray, rotation: np.ndarray) -> np.ndarray:
 
     Not ``vectors @ rotation.T``: BLAS may round a row differently with the number of rows, and a ray's
     direction must not depend on how a scan is cut (the return model's noise and footprint follow it).
+    Each output column is ``(x * R[i, 0] + y * R[i, 1]) + z * R[i, 2]`` in that order (the same rounding as
+    the broadcast it replaces), over the input's columns made contiguous once: a broadcast over rows of three
+    runs numpy's inner loop three values at a time, four times slower (the scan turns every ray with it).
+
+    Parameters
+    ----------
+    vectors : (n, 3) float64
+    rotation : (3, 3) float64
+
+    Returns
+    -------
+    turned : (n, 3) float64
+        ``rotation @ v`` for each row ``v``.
     """
-    return (vectors[:, 0:1] * rotation[:, 0] + vectors[:, 1:2] * rotation[:, 1]) + vectors[:, 2:3] * rotation[:, 2]
+    vectors = np.asarray(vectors, dtype=np.float64)
+    rotation = np.asarray(rotation, dtype=np.float64)
+    count = vectors.shape[0]
+    out = np.empty((count, 3), dtype=np.float64)
+    x, y, z = np.ascontiguousarray(vectors.T)
+    column, term = np.empty(count), np.empty(count)
+    for axis in range(3):
+        np.multiply(x, rotation[axis, 0], out=column)
+        column += np.multiply(y, rotation[axis, 1], out=term)
+        column += np.multiply(z, rotation[axis, 2], out=term)
+        out[:, axis] = column
+    return out
 
 
 def quat_conjugate(q: np.ndarray) -> np.ndarray:
