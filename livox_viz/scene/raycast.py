@@ -420,6 +420,8 @@ class _Workspace:
         self._origins = np.empty((capacity, 3), dtype=np.float32)
         self._origin_value: tuple[float, float, float] | None = None
         self._origin_rows = 0  # rows of _origins holding _origin_value
+        self._centre = np.empty(0, dtype=np.float64)
+        self._centre_value: tuple[float, float, float] | None = None
         self._directions = np.empty((capacity, 3), dtype=np.float32)
         self._limits = np.empty(capacity, dtype=np.float32)
         self._hits = np.empty(capacity, dtype=np.float32)
@@ -454,9 +456,23 @@ class _Workspace:
         is dropped)."""
         self._origin_rows = 0
         origins = self._origins[: self.rows]
+        if values.dtype == np.float64 and values.flags.c_contiguous:
+            # One unit-stride pass over the 3 n values against the centre repeated n times (kept): the same
+            # subtraction for every value, in half the time of three strided columns.
+            np.subtract(values.reshape(-1), self._repeated_centre(centre), out=origins.reshape(-1),
+                        casting="same_kind")
+            return origins
         for axis in range(3):  # column by column: a broadcast over rows of 3 runs numpy's loop 3 values at a time
             np.subtract(values[:, axis], centre[axis], out=origins[:, axis], casting="same_kind")
         return origins
+
+    def _repeated_centre(self, centre: np.ndarray) -> np.ndarray:
+        """``(3 rows,)`` float64 ``centre`` repeated once per row (made again only when the centre changes)."""
+        key = (float(centre[0]), float(centre[1]), float(centre[2]))
+        if self._centre_value != key:
+            self._centre = np.tile(np.asarray(centre, dtype=np.float64), self.capacity)
+            self._centre_value = key
+        return self._centre[: 3 * self.rows]
 
     def f32_directions(self, values: np.ndarray) -> np.ndarray:
         """``(rows, 3)`` float32 copy of ``values``."""
