@@ -131,3 +131,26 @@ def test_returns_flag_and_reflectance_default_on_the_command_line(tmp_path: Path
     assert main(["info", "--preset", "livox_mid70", "--returns", "datasheet", "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["returns_model"] == "datasheet" and info["returns_detection_range_m"] == [[0.1, 90], [0.8, 260]]
+
+
+def test_the_bags_line_field_is_each_points_laser(tmp_path: Path) -> None:
+    """The Avia fires six lasers in turn (sample k on laser k mod 6): CustomMsg and PointCloud2 carry it."""
+    from livox_viz import load_preset
+    from livox_viz.casting.scan import LidarScanner
+    from livox_viz.scene.scenes import open_scene
+
+    bag = tmp_path / "bag"
+    assert main(["scan", "--preset", "livox_avia", "--seconds", "0.2", "--seed", "4", "--rosbag", str(bag)]) == 0
+    urban = open_scene("urban")
+    frames = list(LidarScanner(load_preset("livox_avia"), urban.mesh, urban.vehicle_pose, seed=4).frames(0.2))
+    laser = np.concatenate([f.stream_index for f in frames]) % 6
+    messages = read_bag(bag)
+    line = np.array([p.line for _, m in messages["/livox/lidar"] for p in m.points])
+    np.testing.assert_array_equal(line, laser)
+    assert set(line.tolist()) == set(range(6))
+    cloud = messages["/livox/points"][1][1]
+    (offset,) = [f.offset for f in cloud.fields if f.name == "line"]  # where the message says it is
+    layout = np.dtype({"names": ["line"], "formats": ["u1"], "offsets": [offset], "itemsize": cloud.point_step})
+    first = len(frames[0])
+    np.testing.assert_array_equal(np.frombuffer(cloud.data.tobytes(), dtype=layout)["line"],
+                                  laser[first : first + len(frames[1])])
