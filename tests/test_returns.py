@@ -476,3 +476,19 @@ def test_a_footprint_on_three_surfaces_gives_the_avias_triple_returns_in_range_o
     # Each pulse's returns are listed once, numbered 1..n.
     for index in np.unique(stream[triple])[:20]:
         assert sorted(number[stream == index].tolist()) == [1, 2, 3]
+
+
+def test_angular_noise_turns_each_point_by_its_sigma() -> None:
+    """Angular noise (0 in every sheet, a slider) turns a point's direction by a 2-D normal of its sigma: the
+    angle to the same pulse's noiseless direction is Rayleigh, its rms sqrt(2) sigma."""
+    sigma = 0.2
+    clean, _ = scan(at_origin("livox_mid70_risley"), wall(20.0, 0.5), 0.2)
+    noisy, _ = scan(at_origin("livox_mid70_risley", angular_sigma_deg=sigma), wall(20.0, 0.5), 0.2)
+    np.testing.assert_array_equal(joined(clean, "stream_index"), joined(noisy, "stream_index"))
+    a, b = joined(clean, "xyz_sensor"), joined(noisy, "xyz_sensor")
+    cosine = np.einsum("ij,ij->i", a, b) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
+    angle = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+    assert angle.size > 15_000
+    assert math.sqrt(np.mean(angle**2)) == pytest.approx(math.sqrt(2) * sigma, rel=0.05)
+    assert np.median(angle) == pytest.approx(sigma * math.sqrt(2 * math.log(2)), rel=0.05)
+    np.testing.assert_allclose(np.linalg.norm(b, axis=1), joined(noisy, "range_m"), rtol=1e-3)
