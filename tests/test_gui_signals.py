@@ -170,7 +170,7 @@ def _curves_span(app: LivoxVizApp) -> tuple[float, float]:
     return float(values[values > 0].min()), float(values.max())
 
 
-@pytest.mark.parametrize("change", ["slider", "preset", "reference"])
+@pytest.mark.parametrize("change", ["slider", "preset", "reference", "fit"])
 def test_density_axis_follows_the_curves_after_a_change(small_app: LivoxVizApp, tmp_path: Path, change: str) -> None:
     app = small_app
     app.render()  # VTK turns the log axis on at the first render: every later range must survive it
@@ -180,6 +180,11 @@ def test_density_axis_follows_the_curves_after_a_change(small_app: LivoxVizApp, 
         app.next_preset()
     else:
         app.cycle_reference()
+    if change == "fit":  # f: the rosette fitted to the reference moves every slider at once
+        app.refresh()
+        app.charts.finish()
+        app.fit_to_reference()
+        assert "fitted to" in app.session.message
     app.refresh()
     app.charts.finish()  # the reference's curves are made on a worker
     app.render()
