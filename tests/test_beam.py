@@ -1,0 +1,63 @@
+"""The beam's footprint sampling and its broad phase, against closed forms (issue 17)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+from scipy import integrate
+
+from livox_viz.casting.beam import SUBRAY_UNIT, SUBRAY_WEIGHTS, TILE_SIZE, WHOLE_CONVEX, TileProxy
+from livox_viz.scene.materials import set_face_materials
+
+
+def test_sub_rays_carry_the_gaussian_energy_of_their_rings() -> None:
+    """19 sub-rays: the centre, a ring of 6 and a ring of 12 on the 1/e^2 contour; each carries the energy of
+    its Voronoi annulus (bounded half-way between the ring radii) of a Gaussian beam I ~ exp(-2 r^2),
+    integrated here numerically."""
+    radius = np.hypot(SUBRAY_UNIT[:, 0], SUBRAY_UNIT[:, 1])
+    rings = np.unique(np.round(radius, 12))
+    assert rings.tolist() == [0.0, 0.5, 1.0]
+    assert [int(np.sum(np.isclose(radius, r))) for r in rings] == [1, 6, 12]
+    assert radius[0] == 0.0  # the central ray first
+    bounds = [0.0, *((rings[:-1] + rings[1:]) / 2), math.inf]
+    density = 2.0 / math.pi  # exp(-2 r^2) normalised: its integral over the plane is pi / 2
+
+    def energy(low: float, high: float) -> float:
+        return integrate.quad(lambda r: density * math.exp(-2 * r * r) * 2 * math.pi * r, low, high)[0]
+
+    for k, ring in enumerate(rings):
+        members = np.isclose(radius, ring)
+        np.testing.assert_allclose(SUBRAY_WEIGHTS[members], energy(bounds[k], bounds[k + 1]) / members.sum(),
+                                   rtol=1e-9)
+    assert SUBRAY_WEIGHTS.sum() == pytest.approx(1.0, abs=1e-12)
+    # Each ring's angles are evenly spread and include both axes (an edge along an axis is met exactly).
+    for ring, count in ((0.5, 6), (1.0, 12)):
+        angles = np.sort(np.degrees(np.arctan2(*SUBRAY_UNIT[np.isclose(radius, ring)][:, ::-1].T)) % 360)
+        np.testing.assert_allclose(np.diff(angles), 360 / count, atol=1e-9)
+    ring = SUBRAY_UNIT[np.isclose(radius, 1.0)]
+    for axis_point in ([1, 0], [0, 1], [-1, 0], [0, -1]):
+        assert np.any(np.all(np.isclose(ring, axis_point, atol=1e-12), axis=1))
+
+
+def box_object(length: float) -> trimesh.Trimesh:
+    mesh = trimesh.creation.box((length, 2.0, 2.0))
+    faces = len(mesh.faces)
+    return set_face_materials(mesh, np.full(faces, 0.5), np.ones(faces), np.zeros(faces))
+
+
+@pytest.mark.parametrize("length", [20.0, 45.0, 60.0, 120.0])
+def test_a_convex_object_is_one_box_up_to_its_size_limit_and_tiles_beyond(length: float) -> None:
+    proxy = TileProxy(box_object(length), math.tan(math.radians(0.14)))
+    extent = (proxy.high - proxy.low).max(axis=1)
+    if length <= WHOLE_CONVEX:
+        assert proxy.tiles == 1
+        assert extent[0] == pytest.approx(length)
+    else:
+        assert proxy.tiles >= math.ceil(length / TILE_SIZE)
+        assert extent.max() <= TILE_SIZE + 1e-9
+        # The tiles cover the object: together they reach from one end to the other.
+        assert proxy.low[:, 0].min() == pytest.approx(-length / 2) and proxy.high[:, 0].max() == pytest.approx(
+            length / 2)
