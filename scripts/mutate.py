@@ -96,6 +96,9 @@ class Mutant:
     #: statement runs when the module is imported (module or class level, a default argument).
     statement_line: int = 0
     import_time: bool = True
+    #: Inside a function compiled by numba (``# pragma: no cover - compiled``): coverage never sees its
+    #: lines run, so the map cannot name the tests that run it.
+    compiled: bool = False
 
     def apply(self, source: str) -> str:
         """The mutated source; raises ValueError if the mutant no longer fits the code."""
@@ -122,6 +125,8 @@ class _SiteFinder(ast.NodeVisitor):
         self.mutants: list[Mutant] = []
         self._statement = 0
         self._function_depth = 0
+        self._source_lines = source.splitlines()
+        self._compiled_depth = 0
 
     def visit(self, node: ast.AST) -> None:
         if not isinstance(node, ast.stmt):
@@ -137,7 +142,7 @@ class _SiteFinder(ast.NodeVisitor):
         start, end = _span(node)
         self.mutants.append(Mutant(self.path, node.lineno, description, start, end,  # type: ignore[attr-defined]
                                    f"({text})" if parenthesize else text, statement_line=self._statement,
-                                   import_time=self._function_depth == 0))
+                                   import_time=self._function_depth == 0, compiled=self._compiled_depth > 0))
 
     # What is never mutated: annotations, docstrings, f-strings.
     def visit_FunctionDef(self, node: ast.FunctionDef | ast.AsyncFunctionDef) -> None:
@@ -146,11 +151,16 @@ class _SiteFinder(ast.NodeVisitor):
         arguments = node.args
         for default in [*arguments.defaults, *[d for d in arguments.kw_defaults if d is not None]]:
             self.visit(default)
+        header = " ".join(self._source_lines[node.lineno - 1 : node.body[0].lineno - 1] or
+                          [self._source_lines[node.lineno - 1]])
+        compiled = "pragma: no cover - compiled" in header
         self._function_depth += 1
+        self._compiled_depth += compiled
         try:
             self._body(node.body)
         finally:
             self._function_depth -= 1
+            self._compiled_depth -= compiled
 
     visit_AsyncFunctionDef = visit_FunctionDef
 
@@ -526,12 +536,14 @@ def test_stages(mutant: Mutant, lines: dict[str, dict[int, set[str]]] | None, ro
 
     A line run inside a test (not at import) takes the tests that ran it, then the rest of their
     files (a module-scoped fixture runs once, for its first test), then the other files that import
-    the module. Import-time code, and the
-    deliberate bugs, take the files that import the module, then the rest of the suite. A line
+    the module. Import-time code, code compiled by numba (coverage cannot see it run), and the
+    deliberate bugs take the files that import the module, then the rest of the suite. A line
     no test runs takes the files that import the module only.
     """
     first = first_tests(mutant.path, root)
     everything = [["tests", *[f"--ignore={t}" for t in first]]]
+    if mutant.compiled:  # coverage is blind inside numba's compiled loops: the importers, then the whole suite
+        return [first, *everything] if first else everything
     contexts = None if lines is None or mutant.old else lines.get(mutant.path, {}).get(mutant.statement_line)
     if contexts is None:
         if lines is not None and not mutant.old and not mutant.import_time:

@@ -492,3 +492,32 @@ def test_angular_noise_turns_each_point_by_its_sigma() -> None:
     assert math.sqrt(np.mean(angle**2)) == pytest.approx(math.sqrt(2) * sigma, rel=0.05)
     assert np.median(angle) == pytest.approx(sigma * math.sqrt(2 * math.log(2)), rel=0.05)
     np.testing.assert_allclose(np.linalg.norm(b, axis=1), joined(noisy, "range_m"), rtol=1e-3)
+
+
+@pytest.mark.parametrize("moving", [False, True])
+def test_a_sensor_off_the_origin_and_turned_gets_its_points_on_a_slanted_wall(moving: bool) -> None:
+    """Every test above fires from the world's origin at walls facing an axis, where a mixed-up component of
+    the origin or the normal is multiplied by zero: here the sensor stands at (1.5, -4, -2.5) m, turned on all
+    three axes, before a wall slanted on two axes; each point must lie on the wall's plane within the range
+    noise, at its measured range from where the sensor was."""
+    from livox_viz.core.poses import Pose
+    from livox_viz.motion.flights import builtin_trajectory
+
+    cfg = at_origin("livox_mid70_risley")
+    turn = trimesh.transformations.euler_matrix(0.0, math.radians(12.0), math.radians(25.0))
+    slab = trimesh.creation.box((0.5, 4000, 4000), turn @ trimesh.transformations.translation_matrix((30.25, 0, 0)))
+    normal = turn[:3, :3] @ np.array([1.0, 0.0, 0.0])
+    offset = 30.0  # the face towards the sensor: normal . p = 30
+    start = Pose((1.5, -4.0, -2.5), 0.2, -0.15, 0.3)
+    flight = builtin_trajectory("line", 4.0, start, 0.6) if moving else None
+    scanner = LidarScanner(cfg, EmbreeCaster(surface(slab, 0.5)), start, trajectory=flight, seed=6)
+    frames = list(scanner.frames(0.4))
+    world = joined(frames, "xyz_world")
+    assert world.shape[0] > 20_000
+    height = world @ normal - offset
+    assert np.abs(height).max() < 6 * 0.02
+    assert np.median(np.abs(height)) < 0.02
+    times = joined(frames, "t")[:200]
+    sensor_at = np.array([flight.pose_at(t).origin if moving else start.origin for t in times])
+    ranges = joined(frames, "range_m")[:200]
+    np.testing.assert_allclose(np.linalg.norm(world[:200] - sensor_at, axis=1), ranges, atol=2e-3 if moving else 1e-9)
