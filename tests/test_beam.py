@@ -85,3 +85,40 @@ def test_a_rays_derivatives_by_pattern_angle_are_its_finite_differences(xy_deg: 
     return_kernels.kernel("offset_rays")  # the helpers compiled, as the model runs them
     one = np.array(return_kernels._basis_at(*xy_deg))
     np.testing.assert_allclose(one, np.concatenate(numeric), atol=1e-7)
+
+
+def test_the_broad_phases_ray_box_test_against_points_along_the_ray() -> None:
+    """The compiled slab test (does the ray from o meet the box before ``limit``?) against a brute-force
+    answer: 4000 points along each segment, any inside the box (rays and boxes random, origins far from 0;
+    the rare ray that only grazes within a step of the box is left out)."""
+    from livox_viz.casting import return_kernels
+
+    return_kernels.kernel("near_boxes")  # the helpers compiled, as the model runs them
+    slab = return_kernels._slab
+    rng = np.random.default_rng(7)
+    agree = hits = 0
+    for _ in range(3000):
+        origin = rng.uniform(-60, 60, 3)
+        low = rng.uniform(-60, 60, 3)
+        high = low + rng.uniform(0.5, 30, 3)
+        # Half the rays aim near the box, the others anywhere.
+        aim = rng.uniform(low - 5, high + 5) - origin if rng.random() < 0.5 else rng.normal(size=3)
+        direction = aim / np.linalg.norm(aim)
+        if rng.random() < 0.15:  # rays along the axes: an inverse component is infinite
+            direction[rng.integers(3)] = 0.0
+            direction /= np.linalg.norm(direction)
+        limit = rng.uniform(1, 150)
+        t = np.linspace(0.0, limit, 4000)
+        points = origin + t[:, None] * direction
+        inside = np.all((points >= low) & (points <= high), axis=1)
+        # Within a sampling step of the box's surface the brute force cannot tell: leave those rays out.
+        step = limit / 4000
+        margin = np.all((points >= low - step) & (points <= high + step), axis=1)
+        if inside.any() != margin.any():
+            continue
+        inverse = [1.0 / d if d != 0.0 else np.inf for d in direction]
+        got = slab(*origin, *inverse, limit, *low, *high)
+        assert got == inside.any(), (origin, direction, low, high, limit)
+        agree += 1
+        hits += bool(got)
+    assert agree > 2800 and 200 < hits < agree - 200
