@@ -226,3 +226,10 @@ def test_listen_port_zero_says_which_port(capsys: pytest.CaptureFixture[str]) ->
     err = capsys.readouterr().err
     port = int(err.split("udp 127.0.0.1:")[1].split()[0])
     assert 0 < port <= 65535
+
+
+def test_coverage_cells_up_to_the_fovs_half_angle_are_allowed(capsys: pytest.CaptureFixture[str]) -> None:
+    """--cell-deg may reach the FOV's half-angle itself (livox_mid70: 70.432 / 2 deg), not a hair more."""
+    assert main(["coverage", "--preset", "livox_mid70", "--seconds", "0.05", "--cell-deg", "35.216"]) == 0
+    assert main(["coverage", "--preset", "livox_mid70", "--seconds", "0.05", "--cell-deg", "35.2161"]) == 2
+    assert "allowed: up to 35.216" in capsys.readouterr().err
