@@ -100,3 +100,15 @@ def test_a_tum_file_past_the_pose_limit_is_refused(inputs: Path, monkeypatch: py
     assert main(["scan", "--seconds", "10", "--trajectory", "turns.txt", "--out", "c.npz"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "more than 5 poses in the scan's span; allowed: at most 5" in err
+
+
+def test_publish_along_a_tum_file_runs_to_its_end_without_seconds(tmp_path: Path,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """No --seconds: a TUM trajectory sets the length (0.5 s: five frames), not the 10 s default it cannot cover."""
+    tum = tmp_path / "short.txt"
+    tum.write_text("0 0 0 -2 0 0 0 1\n0.25 1 0 -2 0 0 0 1\n0.5 2 0 -2 0 0 0 1\n")
+    assert main(["publish", "--trajectory", str(tum), "--to", "127.0.0.1:9", "--unpaced"]) == 0
+    captured = capsys.readouterr()
+    assert "to the trajectory's end at 0.5 s" in captured.err and "sent 5 frames" in captured.out
+    assert main(["publish", "--trajectory", str(tum), "--to", "127.0.0.1:9", "--unpaced", "--seconds", "2"]) == 2
+    assert "spans 0 to 0.5 s" in capsys.readouterr().err

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import socket
 import sys
@@ -50,11 +51,13 @@ from .common import (
 from .signals import StopRequests, signal_name, signal_status
 
 SPEED_RANGE = (0.01, 1000.0)
+#: Seconds published when --seconds is not given (and no TUM trajectory sets the length).
+DEFAULT_PUBLISH_SECONDS = 10.0
 
 
-def _seconds_or_forever(text: str) -> float | None:
+def _seconds_or_forever(text: str) -> float:
     if text.strip().lower() == "forever":
-        return None
+        return math.inf
     return positive_float(text)
 
 
@@ -94,14 +97,26 @@ def endless_frames(scanner: LidarScanner, chunk_frames: int = 600) -> Iterator[S
         yield from scanner.frames((end - 0.5) / rate)
 
 
+def _publish_seconds(args: argparse.Namespace) -> float | None:
+    """Seconds to publish: as given ('forever': None); not given, a TUM file's whole span (None), else 10 s."""
+    from livox_viz.motion.flights import BUILTIN_TRAJECTORIES
+
+    if args.seconds is not None:
+        return None if math.isinf(args.seconds) else args.seconds
+    if args.trajectory is not None and args.trajectory.strip().lower() not in BUILTIN_TRAJECTORIES:
+        return None
+    return DEFAULT_PUBLISH_SECONDS
+
+
 def cmd_publish(args: argparse.Namespace) -> int:
     cfg = config_from_args(args)
-    if args.seconds is not None:
-        check_points(args.seconds * cfg.point_rate, f"publish --seconds {args.seconds:g}", force=args.force)
+    seconds = _publish_seconds(args)
+    if seconds is not None:
+        check_points(seconds * cfg.point_rate, f"publish --seconds {seconds:g}", force=args.force)
     _, pose, caster = scene_from_args(args)
-    trajectory = trajectory_from_args(args, pose, args.seconds)
-    if trajectory is not None and args.seconds is not None:
-        trajectory.check_covers(0.0, args.seconds)
+    trajectory = trajectory_from_args(args, pose, seconds)
+    if trajectory is not None and seconds is not None:
+        trajectory.check_covers(0.0, seconds)
     if args.to:
         host, port = parse_host_port(args.to)
         sender = UdpSender(host, port)
@@ -115,8 +130,8 @@ def cmd_publish(args: argparse.Namespace) -> int:
             sender = ShmSender(cfg, args.shm_dir)
             where = f"shared memory {sender.link.path} (SendProtocol[0] = 0)"
     scanner = LidarScanner(cfg, caster, pose, seed=args.seed, trajectory=trajectory)
-    if args.seconds is not None:
-        frames, until = scanner.frames(args.seconds), f"for {args.seconds:g} s"
+    if seconds is not None:
+        frames, until = scanner.frames(seconds), f"for {seconds:g} s"
     elif trajectory is not None:
         frames, until = scanner.frames(trajectory.span[1]), f"to the trajectory's end at {trajectory.span[1]:g} s"
     else:
@@ -157,8 +172,9 @@ def _publish_arguments(parser: argparse.ArgumentParser) -> None:
     add_trajectory_arguments(parser)
     add_seed_argument(parser)
     parser.add_argument("--to", help="HOST:PORT for UDP (default: the config's SendProtocol)")
-    parser.add_argument("--seconds", type=_seconds_or_forever, default=10.0,
-                        help="scan time, or 'forever' (default 10)")
+    parser.add_argument("--seconds", type=_seconds_or_forever,
+                        help=f"scan time, or 'forever' (default {DEFAULT_PUBLISH_SECONDS:g}; with a TUM "
+                             "--trajectory, to its end)")
     parser.add_argument("--speed", type=_speed, default=1.0,
                         help=f"times real time, {SPEED_RANGE[0]:g} to {SPEED_RANGE[1]:g} (default 1)")
     parser.add_argument("--unpaced", action="store_true", help="send as fast as possible")
