@@ -224,3 +224,22 @@ def test_imu_frame_lidar_is_the_lidars_own_motion_in_livox_frame(tmp_path: Path)
     body_force = odom["rotation"][inner].inv().apply(
         (odom["position"][2:] - 2 * odom["position"][1:-1] + odom["position"][:-2]) / dt**2 - [0.0, 0.0, -GRAVITY])
     assert np.abs(force[inner] - mount_r.inv().apply(body_force)).max() > 0.05
+
+
+def test_a_moving_scanners_pose_before_the_first_ray_is_the_flights_start() -> None:
+    """sensor_pose of a scanner on a flight is where the scan starts (the flight's first pose with the mount),
+    the same as its track at t = 0, not anywhere else along the flight."""
+    import trimesh
+
+    from livox_viz.config.mount import sensor_world_pose
+    from livox_viz.core.poses import Pose
+    from livox_viz.motion.flights import builtin_trajectory
+
+    cfg = load_preset("livox_mid70")
+    flight = builtin_trajectory("circle", 6.0, Pose((3.0, -2.0, -5.0), 0.0, 0.0, 0.4), 4.0)
+    scanner = LidarScanner(cfg, trimesh.creation.box((1, 1, 1)), trajectory=flight)
+    expected = sensor_world_pose(cfg, flight.pose_at(flight.span[0]))
+    np.testing.assert_allclose(scanner.sensor_pose.origin, expected.origin, atol=1e-12)
+    np.testing.assert_allclose(scanner.sensor_pose.rotation, expected.rotation, atol=1e-12)
+    np.testing.assert_allclose(scanner.mounted.sensor_pose_at(0.0).origin, expected.origin, atol=1e-9)
+    assert np.linalg.norm(flight.pose_at(flight.span[1]).origin - expected.origin) > 1.0
