@@ -94,3 +94,12 @@ class Pose:
 def pose_quaternion(pose: Pose) -> np.ndarray:
     """``(4,)`` the orientation of a :class:`Pose` as [x, y, z, w]."""
     return quat_from_matrix(pose.rotation)
+
+
+def pose_from_quaternion(position: np.ndarray, quaternion: np.ndarray) -> Pose:
+    """A :class:`Pose` from a position ``(3,)`` and a unit quaternion ``(4,)`` [x, y, z, w] (Z-Y-X Euler angles)."""
+    x, y, z, w = (float(v) for v in quaternion)
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return Pose(tuple(float(v) for v in position), roll, pitch, yaw)

@@ -113,6 +113,18 @@ def rotate_rows(vectors: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     return out
 
 
+def quat_conjugate_product_vector(p: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``(m, 3)`` the vector part of ``p* r`` for ``(m, 4)`` quaternions [x, y, z, w]."""
+    u, w = p[:, :3], p[:, 3:]
+    v, s = r[:, :3], r[:, 3:]
+    return w * v - s * u - np.cross(u, v)
+
+
+def quat_right_multiplier(q: np.ndarray) -> np.ndarray:
+    """``(4, 4)`` M with ``p q = M @ p`` for quaternions [x, y, z, w] (right multiplication is linear)."""
+    return np.stack([quat_multiply(column, q) for column in np.eye(4)], axis=1)
+
+
 def quat_conjugate(q: np.ndarray) -> np.ndarray:
     """The inverse of unit quaternions ``(..., 4)``."""
     return np.asarray(q, dtype=np.float64) * np.array([-1.0, -1.0, -1.0, 1.0])

@@ -25,14 +25,9 @@ import math
 
 import numpy as np
 
-from livox_viz.core.poses import Pose, pose_quaternion
-from livox_viz.core.rotations import quat_multiply, quat_rotate
-from livox_viz.motion.trajectory import Trajectory, pose_from_quaternion
-
-
-def _right_multiplier(q: np.ndarray) -> np.ndarray:
-    """``(4, 4)`` M with ``p q = M @ p`` for quaternions [x, y, z, w] (right multiplication is linear)."""
-    return np.stack([quat_multiply(column, q) for column in np.eye(4)], axis=1)
+from livox_viz.core.poses import Pose, pose_from_quaternion, pose_quaternion
+from livox_viz.core.rotations import quat_multiply, quat_right_multiplier, quat_rotate
+from livox_viz.motion.trajectory import Trajectory
 
 
 class SensorTrack:
@@ -53,7 +48,7 @@ class SensorTrack:
         self._mount_origin = mount.origin
         coefficients = np.array(trajectory.coefficients)
         # Right-multiplying every power coefficient of p by q_m gives the coefficients of p q_m.
-        coefficients[:, :, 3:] = coefficients[:, :, 3:] @ _right_multiplier(self._mount_quaternion).T
+        coefficients[:, :, 3:] = coefficients[:, :, 3:] @ quat_right_multiplier(self._mount_quaternion).T
         self._coefficients = np.ascontiguousarray(coefficients)
         self._lever = np.ascontiguousarray(mount.rotation.T @ mount.origin)
         self._last_pose: tuple[float, Pose] | None = None

@@ -35,13 +35,13 @@ the numpy evaluation here. Sources: :mod:`~livox_viz.motion.tum`,
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from livox_viz.core.errors import LivoxVizError
-from livox_viz.core.poses import Pose
+from livox_viz.core.poses import Pose, pose_from_quaternion
+from livox_viz.core.rotations import quat_conjugate_product_vector
 
 #: Neighbouring orientations at most this far apart, degrees (beyond it the turn's direction is a guess).
 MAX_TURN_DEG = 120.0
@@ -218,16 +218,16 @@ class Trajectory:
         """``(m, 3)`` rad/s in the body FRD frame: ``2 vec(p* p') / |p|^2``."""
         t = self._times(t)
         p, dp = self._components(t, 0)[:, 3:], self._components(t, 1)[:, 3:]
-        return 2.0 * _conjugate_product_vector(p, dp) / np.einsum("ij,ij->i", p, p)[:, None]
+        return 2.0 * quat_conjugate_product_vector(p, dp) / np.einsum("ij,ij->i", p, p)[:, None]
 
     def angular_acceleration_at(self, t) -> np.ndarray:
         """``(m, 3)`` rad/s^2 in the body FRD frame (the derivative of :meth:`angular_velocity_at`)."""
         t = self._times(t)
         p, dp, ddp = (self._components(t, k)[:, 3:] for k in range(3))
         length2 = np.einsum("ij,ij->i", p, p)[:, None]
-        omega = 2.0 * _conjugate_product_vector(p, dp) / length2
-        return 2.0 * _conjugate_product_vector(p, ddp) / length2 - omega * (2.0 * np.einsum("ij,ij->i", p, dp)[:, None]
-                                                                            / length2)
+        omega = 2.0 * quat_conjugate_product_vector(p, dp) / length2
+        stretch = 2.0 * np.einsum("ij,ij->i", p, dp)[:, None] / length2
+        return 2.0 * quat_conjugate_product_vector(p, ddp) / length2 - omega * stretch
 
     def poses_at(self, t) -> tuple[np.ndarray, np.ndarray]:
         """Position ``(m, 3)`` and orientation ``(m, 4)`` [x, y, z, w] at times ``t`` ``(m,)`` seconds."""
@@ -239,19 +239,3 @@ class Trajectory:
         """The :class:`Pose` at one time."""
         position, quaternion = self.poses_at(np.array([float(t)]))
         return pose_from_quaternion(position[0], quaternion[0])
-
-
-def _conjugate_product_vector(p: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """``(m, 3)`` the vector part of ``p* r`` for ``(m, 4)`` quaternions [x, y, z, w]."""
-    u, w = p[:, :3], p[:, 3:]
-    v, s = r[:, :3], r[:, 3:]
-    return w * v - s * u - np.cross(u, v)
-
-
-def pose_from_quaternion(position: np.ndarray, quaternion: np.ndarray) -> Pose:
-    """A :class:`Pose` from a position ``(3,)`` and a unit quaternion ``(4,)`` [x, y, z, w] (Z-Y-X Euler angles)."""
-    x, y, z, w = (float(v) for v in quaternion)
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return Pose(tuple(float(v) for v in position), roll, pitch, yaw)
