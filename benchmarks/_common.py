@@ -23,3 +23,23 @@ def rss_mib() -> float:
     import os
 
     return pages * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+#: Runs the livox-viz command line in a child and prints the child's own peak RSS (VmHWM, kB) as its last line.
+_PEAK_CHILD = ("import sys\nfrom livox_viz.cli import main\n"
+               "assert main(sys.argv[1:]) == 0\n"
+               "print([line.split()[1] for line in open('/proc/self/status') if line.startswith('VmHWM')][0])\n")
+
+
+def command_peak_mib(argv: list[str]) -> tuple[float, float]:
+    """Run ``livox-viz argv`` in a child process: its own peak resident set (MiB) and its wall time (s).
+
+    The child reads its VmHWM itself: getrusage's ``ru_maxrss`` (and ``RUSAGE_CHILDREN``) keeps the larger
+    peak of the process it was forked from across fork and exec, so every child would report the parent's.
+    """
+    import subprocess
+    import sys
+
+    start = time.perf_counter()
+    result = subprocess.run([sys.executable, "-c", _PEAK_CHILD, *argv], check=True, capture_output=True, text=True)
+    return int(result.stdout.strip().splitlines()[-1]) / 1024, time.perf_counter() - start

@@ -18,7 +18,6 @@
 from __future__ import annotations
 
 import os
-import resource
 import subprocess
 import sys
 import tempfile
@@ -27,7 +26,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import numpy as np
-from _common import best_of
+from _common import best_of, command_peak_mib
 
 from livox_viz import load_preset
 from livox_viz.casting.scan import LidarScanner
@@ -155,15 +154,13 @@ def bag_speed() -> None:
 def flight_memory() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for seconds in (60, 600):
-            before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-            start = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "livox_viz", "scan", "--trajectory", "circle", "--seconds",
-                            str(seconds), "--rosbag", f"{tmp}/bag{seconds}"], check=True, capture_output=True)
-            peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-            size = sum(p.stat().st_size for p in Path(f"{tmp}/bag{seconds}").iterdir()) / 2**30
-            print(f"  {seconds:3d} s circle flight to a bag ({size:.1f} GiB) in {time.perf_counter() - start:.0f} s: "
-                  f"peak RSS {max(peak, before) / 1024:.0f} MiB")
-            subprocess.run(["rm", "-rf", f"{tmp}/bag{seconds}"], check=True)
+            bag = f"{tmp}/bag{seconds}"
+            peak, wall = command_peak_mib(["scan", "--trajectory", "circle", "--seconds", str(seconds),
+                                           "--rosbag", bag])
+            size = sum(p.stat().st_size for p in Path(bag).iterdir()) / 2**30
+            print(f"  {seconds:3d} s circle flight to a bag ({size:.1f} GiB) in {wall:.0f} s: peak RSS {peak:.0f} MiB "
+                  "(the child's own VmHWM)")
+            subprocess.run(["rm", "-rf", bag], check=True)
 
 
 if __name__ == "__main__":

@@ -30,6 +30,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np
+from _common import command_peak_mib
 
 from livox_viz import load_preset
 from livox_viz.casting.scan import MountedCaster
@@ -99,24 +100,16 @@ def report(preset: str, scene_name: str, figures: dict, note: str = "") -> None:
 
 
 def memory() -> None:
-    # The child's own peak (VmHWM, kB): getrusage's ru_maxrss would keep this process's larger peak across the
-    # fork and exec that start it.
-    code = ("import sys\nfrom livox_viz.cli import main\n"
-            "assert main(sys.argv[1:]) == 0\n"
-            "print([line.split()[1] for line in open('/proc/self/status') if line.startswith('VmHWM')][0])\n")
     with tempfile.TemporaryDirectory() as tmp:
         for model in ("ideal", "datasheet"):
             for seconds in (60, 600):
-                start = time.perf_counter()
-                result = subprocess.run([sys.executable, "-c", code, "scan", "--preset", "livox_mid70_risley",
-                                         "--returns", model, "--trajectory", "circle", "--seconds", str(seconds),
-                                         "--rosbag", f"{tmp}/bag{seconds}"], check=True, capture_output=True,
-                                        text=True)
-                peak = int(result.stdout.strip().splitlines()[-1])
-                size = sum(p.stat().st_size for p in Path(f"{tmp}/bag{seconds}").iterdir()) / 2**30
+                bag = f"{tmp}/bag{seconds}"
+                peak, wall = command_peak_mib(["scan", "--preset", "livox_mid70_risley", "--returns", model,
+                                               "--trajectory", "circle", "--seconds", str(seconds), "--rosbag", bag])
+                size = sum(p.stat().st_size for p in Path(bag).iterdir()) / 2**30
                 print(f"  {seconds:3d} s circle flight, {model} returns, to a bag ({size:.1f} GiB) in "
-                      f"{time.perf_counter() - start:.0f} s: peak RSS {peak / 1024:.0f} MiB")
-                subprocess.run(["rm", "-rf", f"{tmp}/bag{seconds}"], check=True)
+                      f"{wall:.0f} s: peak RSS {peak:.0f} MiB")
+                subprocess.run(["rm", "-rf", bag], check=True)
 
 
 def main() -> None:
