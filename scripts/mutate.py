@@ -348,7 +348,9 @@ class Worker:
         (boot / "_mutate_plugin.py").write_text(_PLUGIN)
         (boot / "coveragerc").write_text(_COVERAGERC.format(data=boot / "coverage" / "data",
                                                             model=directory / "livox_viz", gui=directory / "widgets"))
-        env = {**os.environ, "PYTHONPATH": str(boot), "PYTHONDONTWRITEBYTECODE": "1"}
+        # NUMBA_BOUNDSCHECK: a mutated index in a compiled loop raises IndexError, as it would in Python, instead of
+        # reading whatever lies past the array (a mutant that passes or fails by the memory's luck).
+        env = {**os.environ, "PYTHONPATH": str(boot), "PYTHONDONTWRITEBYTECODE": "1", "NUMBA_BOUNDSCHECK": "1"}
         env.pop("COVERAGE_PROCESS_START", None)
         return cls(directory, env)
 
