@@ -233,3 +233,17 @@ def test_coverage_cells_up_to_the_fovs_half_angle_are_allowed(capsys: pytest.Cap
     assert main(["coverage", "--preset", "livox_mid70", "--seconds", "0.05", "--cell-deg", "35.216"]) == 0
     assert main(["coverage", "--preset", "livox_mid70", "--seconds", "0.05", "--cell-deg", "35.2161"]) == 2
     assert "allowed: up to 35.216" in capsys.readouterr().err
+
+
+def test_a_dead_runs_leftover_link_is_removed_and_never_followed(tmp_path: Path) -> None:
+    """A leftover name that is a symbolic link to a folder: the link goes, the folder it points at stays whole."""
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    users = tmp_path / "users_folder"
+    users.mkdir()
+    (users / "data.las").write_bytes(b"keep me")
+    link = tmp_path / f".cloud.npz.livox-viz-{dead.pid}.xyz789.work"
+    link.symlink_to(users, target_is_directory=True)
+    assert remove_dead_leftovers(tmp_path) == [link]
+    assert not link.is_symlink() and not link.exists()
+    assert (users / "data.las").read_bytes() == b"keep me"

@@ -538,3 +538,18 @@ def test_the_step_edge_looks_the_same_from_a_sensor_far_from_the_origin() -> Non
     assert dual_here.size > 500
     assert len(np.intersect1d(dual_here, dual_there)) >= 0.97 * dual_here.size
     assert dual_there.size == pytest.approx(dual_here.size, rel=0.03)
+
+
+@pytest.mark.parametrize("sheet", sorted(SHEET))
+def test_the_built_in_sheets_are_the_issues_table(sheet: str) -> None:
+    """DATASHEETS (what make_sensor_presets writes, and what --returns datasheet gives a rosette) against the
+    figures typed above from the issue's table."""
+    params = DATASHEETS[sheet]
+    detection, sigma, h, v, blind, returns = SHEET[sheet]
+    assert params.model == "datasheet"
+    assert params.detection_range_m == detection and params.range_sigma_m == sigma
+    assert params.returns_per_pulse == returns and params.false_alarm_rate == pytest.approx(1e-4)
+    if h is not None:
+        assert params.divergence_deg == (h, v)
+    if blind is not None:
+        assert params.blind_zone_m == blind

@@ -359,3 +359,43 @@ def test_track_params_are_validated() -> None:
                             ({"coefficients": np.array([[100.0, 100.0]])}, "add up to 200")):
         with pytest.raises(ConfigError, match=message):
             TrackParams(**{**good, **change})
+
+
+@pytest.mark.parametrize("form", ["plane", "spin"])
+def test_a_track_is_its_series_written_out_term_by_term(form: str) -> None:
+    """x + i y = sum_j c_kj exp(i (2 pi (m_j f_A + l_j f_B) t + m_j a0 + l_j b0)) for laser k, plus the spin's
+    turning azimuth 360 (f_A t + a0 / 2 pi) degrees: written out here with its own loops, at phases that differ."""
+    from livox_viz.patterns.track import wrap_azimuth
+
+    terms = ((1, 0), (0, 1), (2, -1), (-1, 3))
+    coefficients = np.array([[3.0 + 1.0j, -0.5j, 0.25, 0.1 - 0.2j], [2.0, 1.0 + 1.0j, -0.3, 0.05j]])
+    params = TrackParams(form, (37.3, -11.9), (0.7, -1.3), terms, coefficients)
+    rng = np.random.default_rng(3)
+    t = rng.uniform(0.0, 2.0, 500)
+    laser = rng.integers(0, 2, 500)
+    expected = np.zeros((500, 2))
+    for row in range(500):
+        w = 0j
+        for j, (m, n) in enumerate(terms):
+            angle = 2 * math.pi * (m * 37.3 + n * -11.9) * t[row] + m * 0.7 + n * -1.3
+            w += coefficients[laser[row], j] * complex(math.cos(angle), math.sin(angle))
+        expected[row] = w.real, w.imag
+    if form == "spin":
+        expected[:, 0] += np.degrees(2 * math.pi * 37.3 * t + 0.7)
+        wrap_azimuth(expected[:, 0])
+    np.testing.assert_allclose(track_xy(params, t, laser), expected, atol=1e-9)
+
+
+@pytest.mark.parametrize("fov", [FieldOfView.cone(35.2), FieldOfView.ellipse(70.4, 77.2), FieldOfView.band(-7.0, 52.0),
+                                 FieldOfView.outline(np.array([[-40.0, -10.0], [40.0, -12.0], [30.0, 15.0],
+                                                               [-20.0, 12.0]]))])
+def test_a_fields_reach_is_its_farthest_direction_from_the_boresight(fov: FieldOfView) -> None:
+    """reach_deg against the directions inside, sampled: the angle between each and the boresight from the unit
+    vectors (a band holds azimuth and elevation, so the direction straight behind is 180 deg off)."""
+    x, y = np.meshgrid(np.linspace(-180, 180, 1441), np.linspace(-90, 90, 721))
+    xy = np.column_stack([x.ravel(), y.ravel()])
+    inside = xy[fov.contains(xy)]
+    directions = directions_from_xy(inside, fov.plane)
+    off = np.degrees(np.arccos(np.clip(directions[:, 0], -1.0, 1.0)))
+    assert inside.shape[0] > 100
+    assert fov.reach_deg == pytest.approx(off.max(), abs=0.5)
