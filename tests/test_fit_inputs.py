@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 import textwrap
@@ -12,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from livox_viz import load_config
+from livox_viz import LivoxVizError, load_config
 from livox_viz.cli import main
 from livox_viz.fitting.reference import MAX_TABLE_ROWS, load_reference
 from livox_viz.fitting.risley_fit import fit_risley
@@ -160,3 +161,27 @@ def test_absurd_risley_coefficients_are_refused_when_loaded(tmp_path: Path, caps
         assert main(command) == 2
         assert message in one_line_error(capsys)
     assert not (tmp_path / "p.npz").exists()
+
+
+@pytest.mark.parametrize("model", ["track", "risley", "rflysim"])
+def test_a_table_that_does_not_move_is_refused_in_words(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                        model: str) -> None:
+    """Every row the same direction: not a percentage of a zero spread (it printed a 300-digit one), but why."""
+    still = tmp_path / "still.npy"
+    np.save(still, np.tile([[0.1, 1.2]], (200_000, 1)))
+    out = tmp_path / "fitted.json"
+    assert main(["fit", "--model", model, str(still), "--rate", "100000", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "every row points within 0 deg of one direction" in err
+    assert "allowed:" in err and len(err) < 300 and not out.exists()
+
+
+def test_a_csv_in_radians_is_refused_however_long_its_time_column(tmp_path: Path) -> None:
+    """The radians check looks at the angles only: 20 s of Time/s (past 2 pi) must not hide radians."""
+    table = np.load(PRESETS / "tables" / "mid40.npy")[:30_000].astype(np.float64)
+    path = tmp_path / "radians.csv"
+    lines = ["Time/s,Azimuth/deg,Zenith/deg"]
+    lines += [f"{k / 1500:.9f},{a:.6f},{math.pi / 2 - e:.6f}" for k, (a, e) in enumerate(table)]
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(LivoxVizError, match="look like radians"):
+        load_reference(path)

@@ -42,6 +42,10 @@ MAX_CSV_BYTES = 256 * 1024 * 1024
 PANORAMA_FRACTION = 0.01
 
 
+#: A table whose rows all lie within this many degrees of one direction does not scan.
+STILL_DEG = 1e-3
+
+
 @dataclass(frozen=True)
 class ReferencePattern:
     """A measured pattern.
@@ -79,6 +83,13 @@ class ReferencePattern:
     def field_of_view(self) -> FieldOfView:
         """What the table's rays fill: a cone when round, else their outline; a band in the panorama plane."""
         return FieldOfView.of_points(self.xy_deg, self.plane)
+
+    def require_a_scan(self) -> None:
+        """Refuse a table whose rows all point one way (within :data:`STILL_DEG`): there is no track to fit."""
+        extent = float(np.ptp(self.xy_deg, axis=0).max()) if len(self.xy_deg) else 0.0
+        if not extent > STILL_DEG:
+            raise LivoxVizError(f"{self.name}: every row points within {extent:.3g} deg of one direction; allowed: a "
+                                "table whose rows trace the scan (the angles of consecutive firings)")
 
 
 def xy_from_zup(azimuth: np.ndarray, elevation: np.ndarray, plane: str | None = None) -> tuple[np.ndarray, str]:

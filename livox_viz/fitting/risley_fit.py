@@ -153,6 +153,7 @@ def _fit_risley(table: ReferencePattern, beams: int | None) -> RisleyFit:
         raise LivoxVizError(f"{table.name}: {z.size} rows; allowed: at least 1000 (two turns of the slower prism)")
     if not np.all(np.isfinite(z)):
         raise LivoxVizError(f"{table.name}: holds NaN or infinite angles; allowed: finite numbers")
+    table.require_a_scan()
     found = find_lasers(z)
     if beams is not None and not 1 <= beams <= MAX_LASERS:
         raise LivoxVizError(f"--beams {beams}; allowed: 1 to {MAX_LASERS}")

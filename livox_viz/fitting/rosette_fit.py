@@ -282,6 +282,7 @@ class FitResult:
 def fit_reference(reference: ReferencePattern, base: SensorConfig | None = None) -> FitResult:
     """Fit every model parameter to a measured pattern and build a valid configuration."""
     base = base or SensorConfig()
+    reference.require_a_scan()
     if reference.plane != "boresight":
         raise LivoxVizError(f"{reference.name}: its rays go all around the sensor; RflySim's rosette looks one way "
                             "(no rosette fits a 360-degree head)")

@@ -347,6 +347,7 @@ def _fit_track(table: ReferencePattern, beams: int | None, tolerance_deg: float)
         raise LivoxVizError(f"{table.name}: {rows} rows; allowed: at least 1000 (two turns of the slowest part)")
     if not np.all(np.isfinite(xy)):
         raise LivoxVizError(f"{table.name}: holds NaN or infinite angles; allowed: finite numbers")
+    table.require_a_scan()
     if beams is not None and not 1 <= beams <= MAX_LASERS:
         raise LivoxVizError(f"--beams {beams}; allowed: 1 to {MAX_LASERS}")
     if not 1e-12 < tolerance_deg <= 1.0:
