@@ -286,3 +286,34 @@ def test_publish_sends_each_frames_own_pose(tmp_path: Path) -> None:
     expected = np.array([flight.pose_at(0.1 * k).origin for k in range(5)]) + np.array([0.0, 0.0, -0.3])
     np.testing.assert_allclose(poses[:, 1:4], expected, atol=1e-5)
     assert np.all(np.diff(poses[:, 1]) > 0.05)  # each frame its own pose
+
+
+@pytest.mark.parametrize("sign", [-1.0, 1.0])
+def test_a_pose_looking_straight_up_or_down_survives_rounding(sign: float) -> None:
+    """A quaternion for pitch +-90 deg whose sine rounds past +-1 (2 sqrt(0.5)^2 = 1.0000000000000002): the
+    pose is made, with that pitch, instead of a math domain error."""
+    from livox_viz.core.poses import pose_from_quaternion
+
+    half = math.sqrt(0.5)
+    pose = pose_from_quaternion(np.zeros(3), np.array([0.0, sign * half, 0.0, half]))
+    assert pose.pitch == pytest.approx(sign * math.pi / 2)
+    np.testing.assert_allclose(pose.rotation @ [1.0, 0.0, 0.0], [0.0, 0.0, -sign], atol=1e-7)
+
+
+def test_the_built_in_circle_and_figure8_have_the_sizes_the_readme_gives() -> None:
+    """README: `circle` (15 m) and `figure8` (20 m): the circle's points lie 15 m from one centre, the figure-8
+    spans 20 m along its axis."""
+    from livox_viz.core.poses import Pose
+    from livox_viz.motion.flights import builtin_trajectory
+
+    circle = builtin_trajectory("circle", 6.0, Pose((4.0, -3.0, -10.0), 0.0, 0.0, 0.5), 40.0).position_at(
+        np.linspace(0.0, 40.0, 4001))[:, :2]
+    # The centre from three points far apart on it (circumcentre), then every point's distance to it.
+    a, b, c = circle[0], circle[len(circle) // 3], circle[2 * len(circle) // 3]
+    d = 2 * (a[0] * (b[1] - c[1]) + b[0] * (c[1] - a[1]) + c[0] * (a[1] - b[1]))
+    centre = np.array([
+        (a @ a * (b[1] - c[1]) + b @ b * (c[1] - a[1]) + c @ c * (a[1] - b[1])) / d,
+        (a @ a * (c[0] - b[0]) + b @ b * (a[0] - c[0]) + c @ c * (b[0] - a[0])) / d])
+    np.testing.assert_allclose(np.linalg.norm(circle - centre, axis=1), 15.0, atol=1e-3)
+    eight = builtin_trajectory("figure8", 6.0, Pose((0.0, 0.0, -10.0)), 60.0).position_at(np.linspace(0, 60, 6001))
+    assert np.ptp(eight[:, 0]) == pytest.approx(20.0, abs=0.05)
