@@ -249,3 +249,25 @@ def test_small_frames_go_a_few_to_a_worker_and_stay_in_order(urban) -> None:
     expected = [one_by_one.next_frame() for _ in range(40)]
     assert [frame_key(f) for f in first] == [frame_key(f) for f in expected[:30]]
     assert [frame_key(f) for f in piped.frames(4.0)] == [frame_key(f) for f in expected[30:40]]
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_a_caster_asked_from_an_origin_moved_along_one_axis_casts_from_it(axis: int) -> None:
+    """The caster keeps its float32 origins between calls from one origin: moving it along any single axis must
+    be seen (a key made of the wrong components casts later calls from the first origin). Inside a 100 m box,
+    the distance along d from o is min over the axes of (50 - o_i) / d_i, here in closed form."""
+    import trimesh
+
+    from livox_viz.scene.raycast import EmbreeCaster
+
+    caster = EmbreeCaster(trimesh.creation.box((100.0, 100.0, 100.0)))
+    other = (axis + 1) % 3
+    direction = np.zeros(3)
+    direction[axis], direction[other] = 0.6, 0.8
+    directions = np.tile(direction, (5000, 1))
+    moved = np.zeros(3)
+    moved[axis] = 20.0
+    # Alternate the two origins: whichever worker thread casts a part, some call finds the other origin kept.
+    for origin in (np.zeros(3), moved) * 4:
+        expected = min((50.0 - origin[axis]) / 0.6, (50.0 - origin[other]) / 0.8)
+        np.testing.assert_allclose(caster.distances(origin, directions), expected, rtol=1e-5)
