@@ -306,8 +306,14 @@ def load_equivalent() -> list[tuple[str, str, str, str]]:
     return rows
 
 
+#: The sources as the run found them (a report after edits to the work tree still names the mutated lines).
+_SOURCES: dict[str, list[str]] = {}
+
+
 def source_line(mutant: Mutant, root: Path = ROOT) -> str:
-    return (root / mutant.path).read_text(encoding="utf-8").splitlines()[mutant.line - 1].strip()
+    if mutant.path not in _SOURCES:
+        _SOURCES[mutant.path] = (root / mutant.path).read_text(encoding="utf-8").splitlines()
+    return _SOURCES[mutant.path][mutant.line - 1].strip()
 
 
 # Running ---------------------------------------------------------------------------------------------------
@@ -643,6 +649,8 @@ def main(argv: list[str] | None = None) -> int:
 
     bugs = [] if args.no_bugs else _bug_mutants()
     sampled, site_count = ([], 0) if args.bugs_only else sample_sites(args.sample, args.seed, args.only, args.match)
+    for mutant in [*bugs, *sampled]:  # read now: the work tree may change while the run goes on
+        source_line(mutant)
     if args.list:
         for mutant in [*bugs, *sampled]:
             print(f"{mutant.path}:{mutant.line}: {mutant.description}")
