@@ -249,3 +249,31 @@ def test_request_dry_run(capsys: pytest.CaptureFixture[str], mid70: SensorConfig
     assert main(["request", "--to", "127.0.0.1", "--dry-run"]) == 0
     out = capsys.readouterr().out
     assert bytes.fromhex(out.split()[-1]) == sensor_request(mid70)
+
+
+def test_a_frame_whose_point_count_lies_is_counted_once_and_the_next_arrives() -> None:
+    """A datagram that reassembles but whose PointNum claims more points than it holds: one bad payload in the
+    receiver's report and in the drops, then the next good frame is received as sent."""
+    import time
+
+    from livox_viz.wire.transport import UdpReceiver
+
+    receiver = UdpReceiver("127.0.0.1", 0)
+    good = random_points(10)
+    lying = bytearray(pack_payload(np.zeros(6), good))
+    struct.pack_into("<i", lying, len(lying) - 6 * 10 - 4, 11)  # PointNum: 11 points, 10 in the payload
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        for payload, t in ((bytes(lying), 0.1), (pack_payload(np.ones(6), good), 0.2)):
+            for datagram in split_datagrams(payload, t):
+                sender.sendto(datagram, ("127.0.0.1", receiver.port))
+        deadline = time.monotonic() + 10
+        frames = []
+        for frame in receiver.frames(lambda: bool(frames) or time.monotonic() > deadline):
+            frames.append(frame)
+    finally:
+        sender.close()
+        receiver.socket.close()
+    assert len(frames) == 1 and frames[0].timestamp == pytest.approx(0.2)
+    np.testing.assert_array_equal(frames[0].xyz_int16, good)
+    assert receiver.report.bad_payloads == 1 and receiver.assembler.drops["bad payload"] == 1
