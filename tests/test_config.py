@@ -181,13 +181,14 @@ def test_save_is_atomic_and_keeps_old_file_on_failure(tmp_path: Path, mid70: Sen
     assert [p.name for p in tmp_path.iterdir()] == ["keep.json"]
 
 
-def test_frame_layout_takes_the_width_asked_up_to_rflysims_limit() -> None:
-    """DataWidth may be 5000 itself (RflySim's upper limit): a million points a second at 10 frames a second
-    with 5000 asked is 5000 x 20 x 10; and every layout multiplies back to the rate within the limits."""
+def test_frame_layout_takes_the_width_asked_up_to_rflysims_limits() -> None:
+    """DataWidth may be 5000 and DataHeight 2000 themselves (RflySim's limits): a million points a second at
+    10 frames a second with 5000 asked is 5000 x 20 x 10; every layout multiplies back to the rate."""
     from livox_viz.config.sensor import frame_layout
 
     assert frame_layout(1_000_000, width=5000) == (5000, 20, 10)
     assert frame_layout(1_000_000, width=4000) == (4000, 25, 10)
+    assert frame_layout(20_000_000, width=1000) == (1000, 2000, 10)  # DataHeight at its limit, 2000, itself
     for rate, lasers in ((100_000, 1), (240_000, 6), (452_000, 6), (200_000, 4), (10_000_000, 1)):
         w, h, f = frame_layout(rate, lasers)
         assert w * h * f == rate and w <= 5000 and h <= 2000 and f <= 1000
