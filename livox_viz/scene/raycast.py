@@ -182,8 +182,7 @@ class EmbreeCaster:
         def run(bounds: tuple[int, int]) -> None:
             start, stop = bounds
             rows = stop - start
-            part_origins = np.ascontiguousarray(
-                np.broadcast_to(local[0] if shared_origin else local[start:stop], (rows, 3)), dtype=np.float32)
+            part_origins = _part_origins(local, start, stop)
             dists = (np.ascontiguousarray(limits[start:stop], dtype=np.float32) if per_ray
                      else np.full(rows, limits, dtype=np.float32))
             found = self._scene.run(part_origins, np.ascontiguousarray(directions[start:stop], dtype=np.float32),
@@ -226,13 +225,10 @@ class EmbreeCaster:
         blocked = np.zeros(count, dtype=bool)
         limits = np.broadcast_to(np.minimum(np.asarray(max_distance, dtype=np.float64), 1e37), (count,))
         local = origins - self.local_origin
-        shared_origin = local.shape[0] == 1
 
         def run(bounds: tuple[int, int]) -> None:
             start, stop = bounds
-            rows = stop - start
-            part_origins = np.ascontiguousarray(
-                np.broadcast_to(local[0] if shared_origin else local[start:stop], (rows, 3)), dtype=np.float32)
+            part_origins = _part_origins(local, start, stop)
             found = self._scene.run(part_origins, np.ascontiguousarray(directions[start:stop], dtype=np.float32),
                                     dists=np.ascontiguousarray(limits[start:stop], dtype=np.float32),
                                     query="OCCLUDED")
@@ -504,6 +500,12 @@ class _Workspace:
     def facing(self) -> np.ndarray:
         """``(rows,)`` float64 scratch."""
         return self._facing[: self.rows]
+
+
+def _part_origins(local: np.ndarray, start: int, stop: int) -> np.ndarray:
+    """``(stop - start, 3)`` float32 origins of rays ``start:stop``: the one origin repeated, or their own rows."""
+    rows = local[0] if local.shape[0] == 1 else local[start:stop]
+    return np.ascontiguousarray(np.broadcast_to(rows, (stop - start, 3)), dtype=np.float32)
 
 
 def _split(count: int, threads: int) -> list[tuple[int, int]]:
