@@ -438,9 +438,37 @@ def test_frames_cast_side_by_side_are_those_cast_one_by_one_on_a_fast_flight() -
     assert len(threaded) >= 8
     mounted = MountedCaster(cfg, caster, trajectory=flight, seed=4)
     pattern = make_pattern(cfg, seed=4)
+    # Cast from this thread, a frame is cut in one part per core (each from its own pulses' poses); in a
+    # worker, it is cast whole.
     serial = [mounted.cast(pattern.take(frame.ray_count)) for frame in threaded]
     for name in ("stream_index", "xyz_int16", "reflectivity", "tag", "return_number"):
         assert np.array_equal(joined(threaded, name), joined(serial, name)), name
+    np.testing.assert_allclose(joined(threaded, "xyz_world"), joined(serial, "xyz_world"), rtol=0, atol=1e-9)
+
+
+def test_a_frame_cut_over_the_cores_is_the_frame_cast_whole_on_a_turning_flight() -> None:
+    """A run cast from the caller's thread goes in one part per core, each turning its own pulses' vectors with
+    their own poses (the footprint's spread, the angular noise): the same cloud as the run cast whole."""
+    from livox_viz.motion.flights import builtin_trajectory
+    from livox_viz.scene.raycast import casting_in_this_thread
+    from livox_viz.scene.scenes import open_scene
+
+    urban = open_scene("urban")
+    cfg = load_preset("livox_mid70_risley")
+    cfg = replace(cfg, returns=replace(cfg.returns, angular_sigma_deg=0.05))
+    caster = EmbreeCaster(urban.mesh, threads=2)
+    flight = builtin_trajectory("circle", 12.0, urban.vehicle_pose, 2.0)  # 0.8 rad/s while cruising
+    mounted = MountedCaster(cfg, caster, trajectory=flight, seed=4)
+    pattern = make_pattern(cfg, seed=4)
+    pattern.skip(round(0.8 * cfg.point_rate))
+    chunk = pattern.take(3 * cfg.points_per_frame)
+    cut = mounted.cast(chunk)
+    with casting_in_this_thread():
+        whole = mounted.cast(chunk)
+    for name in ("stream_index", "xyz_int16", "reflectivity", "tag", "return_number", "number_of_returns"):
+        assert np.array_equal(getattr(whole, name), getattr(cut, name)), name
+    np.testing.assert_allclose(cut.xyz_world, whole.xyz_world, rtol=0, atol=1e-9)
+    assert len(set(whole.tag.tolist())) >= 3
 
 
 @pytest.mark.parametrize(("distance", "sigma"), [(40.0, 0.02), (95.0, 0.03)])

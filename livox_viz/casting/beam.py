@@ -244,7 +244,7 @@ class TileProxy:
         return 0 if self._tree is None else int(self._tree.tile.size)
 
     def place(self, positions: np.ndarray, range_max: float, rotation: np.ndarray | None = None,
-              margin: float = 10.0) -> None:
+              margin: float = 10.0) -> tuple[BoxTree | None, DirectionGrid | None]:
         """Make sure the inflated boxes cover beams fired from ``positions`` ``(k, 3)`` (world, metres).
 
         The boxes are inflated for a sphere of sensor positions: a fixed sensor's point, or the
@@ -252,6 +252,9 @@ class TileProxy:
         Tiles wholly beyond ``range_max`` metres from it are left out (nothing there is in front of a hit).
         A fixed sensor's ``rotation`` (sensor FRD -> world) also files the boxes by direction
         (:class:`DirectionGrid`), so a beam tests only those in its own direction.
+
+        Returns the boxes placed, for :meth:`near`: a later placing replaces them but never changes them,
+        so runs cast side by side each ask their own (the placing itself goes under :attr:`lock`).
         """
         positions = np.atleast_2d(np.asarray(positions, dtype=np.float64))
         inside = self.centre is not None and np.all(
@@ -259,7 +262,7 @@ class TileProxy:
         same_rotation = (rotation is None and self._rotation is None) or (
             rotation is not None and self._rotation is not None and np.array_equal(rotation, self._rotation))
         if inside and same_rotation:
-            return
+            return self._tree, self._grid
         centre = positions.mean(axis=0) if not inside else self.centre
         spread = float(np.linalg.norm(positions - centre, axis=1).max())
         radius = self.radius if inside else (0.0 if spread == 0.0 and self.centre is None else spread + margin)
@@ -278,9 +281,11 @@ class TileProxy:
                     self._grid = DirectionGrid(self._tree.box_low, self._tree.box_high, centre, rotation)
         self.centre, self.radius = centre, radius
         self._rotation = None if rotation is None else np.array(rotation, dtype=np.float64)
+        return self._tree, self._grid
 
     def near(self, candidate: np.ndarray, origins: np.ndarray, directions: np.ndarray, reach: np.ndarray,
-             triangle: np.ndarray, directions_sensor: np.ndarray | None = None) -> np.ndarray:
+             triangle: np.ndarray, directions_sensor: np.ndarray | None = None,
+             boxes: tuple[BoxTree | None, DirectionGrid | None] | None = None) -> np.ndarray:
         """Whether a box other than the hit's own lies along each ``candidate`` beam before ``reach``.
 
         Parameters
@@ -296,9 +301,11 @@ class TileProxy:
             The central ray's triangle, -1 for a miss.
         directions_sensor : (n, 3) float64, optional
             The same in the sensor frame (a fixed sensor's beams then look up their direction's boxes).
+        boxes : tuple, optional
+            What :meth:`place` returned; default the boxes placed last.
         """
         near = np.zeros(directions.shape[0], dtype=np.bool_)
-        tree = self._tree
+        tree, grid = boxes if boxes is not None else (self._tree, self._grid)
         if tree is None or near.size == 0:
             return near
         arguments = (np.ascontiguousarray(candidate, dtype=np.bool_),
@@ -306,7 +313,6 @@ class TileProxy:
                      np.ascontiguousarray(directions, dtype=np.float64),
                      np.ascontiguousarray(reach, dtype=np.float64), np.asarray(triangle, dtype=np.int64))
         own = (self.tile_part, self.tile_convex, self.tile_triangle, self.triangle_tile, self.triangle_part)
-        grid = self._grid
         if grid is not None and directions_sensor is not None:
             kernel("near_grid")(*arguments, np.ascontiguousarray(directions_sensor, dtype=np.float64), grid.bounds,
                                 grid.cell_start, grid.cell_boxes, grid.always, tree.box_low, tree.box_high, tree.tile,

@@ -67,7 +67,9 @@ SPATIAL_HIGH, SPATIAL_MODERATE, SPATIAL_LOW = 0x01, 0x02, 0x03
 INTENSITY_NOISE = 0x04
 #: Least depth off its surface that makes a point mixed, metres (3 range sigmas when larger).
 MIX_FLOOR_M = 0.05
-#: The steps :attr:`ReturnModel.stage_seconds` times.
+#: Pulses a part of :meth:`ReturnModel.cast` has at least when a run is cut over the caster's threads.
+SPLIT_PULSES = 2048
+#: The steps :attr:`ReturnModel.stage_seconds` times (summed over the threads that ran them).
 STAGES = ("central rays", "materials, edges and reach", "broad phase", "probes", "footprint sub-rays",
           "detection, noise, tags")
 #: Turns sensor-frame vectors of some pulses (rows of the run) into the world frame: a moving sensor's own pose
@@ -188,10 +190,12 @@ class ReturnModel:
         #: Wall time spent in each step since the model was made, seconds (for benchmarks).
         self.stage_seconds: dict[str, float] = dict.fromkeys(STAGES, 0.0)
         self._laps = threading.local()  # each worker thread times its own frame
+        self._laps_lock = threading.Lock()
 
     def _lap(self, stage: str) -> None:
         now = time.perf_counter()
-        self.stage_seconds[stage] += now - self._laps.clock
+        with self._laps_lock:
+            self.stage_seconds[stage] += now - self._laps.clock
         self._laps.clock = now
 
     @property
@@ -216,6 +220,11 @@ class ReturnModel:
              origin: np.ndarray, rotation: np.ndarray | None = None, turn: Turn | None = None) -> ReturnPoints:
         """The returns of ``n`` consecutive pulses.
 
+        A long run is cut into one part per thread of the caster (at least :data:`SPLIT_PULSES` pulses each),
+        each part cast start to finish on its own thread: every step, not only Embree's, then uses both
+        cores. Each pulse's returns depend only on the seed and its stream index, so the parts give the
+        cloud the whole run would.
+
         Parameters
         ----------
         start : int
@@ -232,6 +241,40 @@ class ReturnModel:
             A moving sensor: ``turn(vectors, rows)`` gives the sensor-frame ``vectors`` of the pulses ``rows``
             in the world frame, each with its pulse's pose.
         """
+        n = xy_deg.shape[0]
+        origins = np.asarray(origin, dtype=np.float64).reshape(-1, 3)
+        map_parts = getattr(self.caster, "map_parts", None)
+
+        def part(bounds: tuple[int, int]) -> tuple[ReturnPoints, dict[str, int]]:
+            low, high = bounds
+            if (low, high) == (0, n):
+                return self._cast_run(start, xy_deg, directions_sensor, directions_world, origins, rotation, turn)
+            shifted = None if turn is None else (lambda vectors, rows: turn(vectors, rows + low))
+            points, counts = self._cast_run(start + low, xy_deg[low:high], directions_sensor[low:high],
+                                            directions_world[low:high],
+                                            origins if origins.shape[0] == 1 else origins[low:high], rotation,
+                                            shifted)
+            np.add(points.beam, low, out=points.beam)  # rows of the whole run
+            return points, counts
+
+        found = map_parts(part, n, SPLIT_PULSES) if map_parts is not None else [part((0, n))]
+        counts: dict[str, int] = {}
+        for _, part_counts in found:
+            for name, value in part_counts.items():
+                counts[name] = counts.get(name, 0) + value
+        self.last_counts = counts
+        if len(found) == 1:
+            return found[0][0]
+        points = [p for p, _ in found]
+        return ReturnPoints(np.concatenate([p.beam for p in points]),
+                            *(np.concatenate([getattr(p, name) for p in points]) for name in (
+                                "range_m", "xyz_sensor", "xyz_world", "reflectivity", "tag", "return_number",
+                                "number_of_returns")))
+
+    def _cast_run(self, start: int, xy_deg: np.ndarray, directions_sensor: np.ndarray,
+                  directions_world: np.ndarray, origin: np.ndarray, rotation: np.ndarray | None,
+                  turn: Turn | None) -> tuple[ReturnPoints, dict[str, int]]:
+        """:meth:`cast` of one part in the calling thread, with what its footprint tests sent on."""
         self._laps.clock = time.perf_counter()
         params, footprint = self.params, self.footprint
         n = xy_deg.shape[0]
@@ -262,13 +305,12 @@ class ReturnModel:
                           footprint.tan_half_max, self._calibration, self.range_max, power, cosine, leaves, reach)
         rows_basis = _Basis(xy_deg, rotation, basis_x, basis_y)
         self._lap("materials, edges and reach")
-        covered = self._covered(~leaves, directions_world, origins, rows_basis, reach, triangle, moving,
-                                directions_sensor, rotation)
+        covered, near = self._covered(~leaves, directions_world, origins, rows_basis, reach, triangle, moving,
+                                      directions_sensor, rotation)
         sampled_mask = leaves.copy()
         sampled_mask[covered] = True
         sampled = np.flatnonzero(sampled_mask)
-        self.last_counts = {"pulses": n, "leaves": int(leaves.sum()), "near": self.last_counts.get("near", 0),
-                            "covered": int(covered.size)}
+        counts = {"pulses": n, "leaves": int(leaves.sum()), "near": near, "covered": int(covered.size)}
         whole = (triangle >= 0) & (distance >= params.blind_zone_m)
         whole[sampled] = False
         first, count = np.zeros(n, np.int64), np.zeros(n, np.int64)
@@ -284,7 +326,7 @@ class ReturnModel:
         points = self._points(whole, power, distance, first, count, footprint_echoes, index, directions_sensor,
                               directions_world, origins, rotation, turn)
         self._lap("detection, noise, tags")
-        return points
+        return points, counts
 
     def _central_hits(self, origins: np.ndarray, directions_world: np.ndarray,
                       moving: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -306,21 +348,21 @@ class ReturnModel:
     # Step 2: footprints something nearer covers --------------------------------------------------------------
     def _covered(self, candidate: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
                  rows_basis: _Basis, reach: np.ndarray, triangle: np.ndarray, moving: bool,
-                 directions_sensor: np.ndarray, rotation: np.ndarray) -> np.ndarray:
-        """Of the ``candidate`` pulses, those whose footprint something nearer covers in part (sorted rows)."""
+                 directions_sensor: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, int]:
+        """Of the ``candidate`` pulses, those whose footprint something nearer covers in part (sorted rows), and
+        how many the broad phase named."""
         proxy = self.proxy
-        # Frames are cast side by side and the boxes are placed for one frame's sensor positions: placing and
-        # asking go together, one frame at a time.
+        # Frames (and parts of one) are cast side by side, and the boxes are placed for one run's sensor
+        # positions: each run asks the boxes placed for it, which a later placing replaces but does not change.
         with proxy.lock:
-            proxy.place(origins[0] if not moving else origins[:: max(1, origins.shape[0] // 64)], self.range_max,
-                        None if moving else rotation)
-            # A fixed sensor's beams look up their direction's boxes (a boresight grid: not for a panoramic head).
-            rows = np.flatnonzero(proxy.near(candidate, origins, directions_world, reach, triangle,
-                                             None if moving or self.plane != "boresight" else directions_sensor))
-        self.last_counts["near"] = int(rows.size)
+            boxes = proxy.place(origins[0] if not moving else origins[:: max(1, origins.shape[0] // 64)],
+                                self.range_max, None if moving else rotation)
+        # A fixed sensor's beams look up their direction's boxes (a boresight grid: not for a panoramic head).
+        rows = np.flatnonzero(proxy.near(candidate, origins, directions_world, reach, triangle,
+                                         None if moving or self.plane != "boresight" else directions_sensor, boxes))
         self._lap("broad phase")
         if rows.size == 0:
-            return rows
+            return rows, 0
         # Probe rays at the corners of the footprint's bounding box: is anything in front of the hit's plane?
         probes = rows_basis.rays(rows, directions_world, self.footprint.probe_offsets)
         limit = np.empty((rows.size, 4))
@@ -328,7 +370,7 @@ class ReturnModel:
         ray_origin = origins[0] if not moving else np.repeat(origins[rows], 4, axis=0)
         blocked = self.caster.occluded(ray_origin, probes.reshape(-1, 3), limit.reshape(-1))
         self._lap("probes")
-        return rows[blocked.reshape(-1, 4).any(axis=1)]
+        return rows[blocked.reshape(-1, 4).any(axis=1)], int(rows.size)
 
     # Step 3: echoes of sampled footprints ------------------------------------------------------------------
     def _footprint_echoes(self, rows: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,

@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import numpy as np
 
@@ -35,6 +35,7 @@ if TYPE_CHECKING:
 PART_RAYS = 65_536
 
 _this_thread = threading.local()
+T = TypeVar("T")
 
 
 @contextmanager
@@ -238,10 +239,29 @@ class EmbreeCaster:
             self._run_split(run, count)
         return blocked
 
+    def map_parts(self, function: Callable[[tuple[int, int]], T], count: int, least: int) -> list[T]:
+        """``function((start, stop))`` over contiguous parts of ``0..count``, one per worker thread, in order.
+
+        For work that casts rays among other per-ray steps (the return model's): each part runs start to
+        finish on one thread, its own casts inside it (:func:`casting_in_this_thread`), so every step uses
+        both cores with one hand-over. One part in the calling thread when ``count`` is under twice ``least``,
+        when the caster has one thread, or when the calling thread already casts inline (a frame cast beside
+        others).
+        """
+        parts = min(self.threads, count // max(least, 1))
+        if self._pool is None or parts < 2 or getattr(_this_thread, "inline", False):
+            return [function((0, count))]
+
+        def inline(bounds: tuple[int, int]) -> T:
+            with casting_in_this_thread():
+                return function(bounds)
+
+        return list(self._pool.map(inline, [(count * k // parts, count * (k + 1) // parts) for k in range(parts)]))
+
     def _run_split(self, run, count: int) -> None:
         """``run((start, stop))`` over contiguous parts of ``count`` rays on the worker threads."""
         parts = _split(count, self.threads)
-        if self._pool is None or len(parts) == 1:
+        if self._pool is None or len(parts) == 1 or getattr(_this_thread, "inline", False):
             for part in parts:
                 run(part)
         else:
