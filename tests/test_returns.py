@@ -253,6 +253,32 @@ def test_a_step_edge_gives_mixed_or_dual_returns_where_footprints_straddle_it(pr
     assert measured == pytest.approx(expected, rel=0.20)
 
 
+@pytest.mark.parametrize(("depth", "sampled"), [(0.005, False), (0.015, False), (0.08, True), (0.5, True)])
+def test_the_footprint_is_sampled_where_a_nearer_surface_can_change_the_point(depth: float, sampled: bool) -> None:
+    """A plate ``depth`` in front of a wall at 20 m over half the view: a beam on the wall whose footprint
+    reaches over the plate's edge is sampled when the plate stands out by more than the range sigma (2 cm at
+    20 m), not when it is closer to the wall (a poster)."""
+    from livox_viz.scene.raycast import casting_in_this_thread
+
+    cfg = at_origin("livox_mid70_risley")
+    plate = surface(trimesh.creation.box((0.002, 40, 80), trimesh.transformations.translation_matrix(
+        (20.0 - depth + 0.001, 20.0, 0.0))), 0.5)
+    mounted = MountedCaster(cfg, EmbreeCaster(trimesh.util.concatenate([plate, wall(20.0, 0.5)])), seed=1)
+    chunk = make_pattern(cfg, seed=1).take(60_000)
+    with casting_in_this_thread():  # one run, so last_counts is the whole chunk's
+        frame = mounted.cast(chunk)
+    counts = mounted.returns.last_counts
+    # Closed form: the edge is the plane y = 0, pattern x = 0; wall beams (x < 0) reach over it within the
+    # footprint's half-width (0.03 deg / 2 horizontally).
+    reaching = int(np.count_nonzero((chunk.xy_deg[:, 0] < 0) & (chunk.xy_deg[:, 0] > -0.015)))
+    assert reaching > 20
+    if sampled:
+        assert counts["covered"] == pytest.approx(reaching, rel=0.25)
+    else:
+        assert counts["covered"] == 0
+    assert len(frame) > 0.9 * len(chunk)
+
+
 def test_a_panoramic_head_spreads_its_footprint_along_azimuth_and_elevation() -> None:
     # The footprint's axes of a head that scans azimuth and elevation: the unit tangents of its rays.
     from livox_viz.casting.returns import sensor_basis

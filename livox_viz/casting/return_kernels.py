@@ -419,13 +419,16 @@ def _slab(ox, oy, oz, ix, iy, iz, limit, lx, ly, lz, hx, hy, hz):  # pragma: no 
     return near_t <= far_t
 
 
-def _probe_limits(rows, probes, triangle, planes, origins, range_max, out):  # pragma: no cover - compiled
-    """How far each probe ray may look: just short of the hit's own plane (the whole range for a miss)."""
+def _probe_limits(rows, probes, triangle, distance, planes, origins, range_max, sigma_table,
+                  out):  # pragma: no cover - compiled
+    """How far each probe ray may look: short of the hit's own plane by the range sigma at the hit (the whole
+    range for a miss)."""
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
     for r in prange(rows.shape[0]):
         i = rows[r]
         t = triangle[i]
         o = i * stride
+        margin = max(_sigma(distance[i], sigma_table), 1e-3) if t >= 0 else 0.0
         for k in range(probes.shape[1]):
             out[r, k] = range_max
             if t < 0:
@@ -435,7 +438,7 @@ def _probe_limits(rows, probes, triangle, planes, origins, range_max, out):  # p
             along = nx * probes[r, k, 0] + ny * probes[r, k, 1] + nz * probes[r, k, 2]
             if along == 0.0:
                 continue
-            short = height / along * (1.0 - 1e-4) - 1e-3
+            short = height / along * (1.0 - 1e-4) - margin
             if short > 0.0:
                 out[r, k] = min(short, range_max)
 

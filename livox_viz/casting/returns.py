@@ -305,8 +305,8 @@ class ReturnModel:
                           footprint.tan_half_max, self._calibration, self.range_max, power, cosine, leaves, reach)
         rows_basis = _Basis(xy_deg, rotation, basis_x, basis_y)
         self._lap("materials, edges and reach")
-        covered, near = self._covered(~leaves, directions_world, origins, rows_basis, reach, triangle, moving,
-                                      directions_sensor, rotation)
+        covered, near = self._covered(~leaves, directions_world, origins, rows_basis, reach, triangle, distance,
+                                      moving, directions_sensor, rotation)
         sampled_mask = leaves.copy()
         sampled_mask[covered] = True
         sampled = np.flatnonzero(sampled_mask)
@@ -347,10 +347,16 @@ class ReturnModel:
 
     # Step 2: footprints something nearer covers --------------------------------------------------------------
     def _covered(self, candidate: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
-                 rows_basis: _Basis, reach: np.ndarray, triangle: np.ndarray, moving: bool,
+                 rows_basis: _Basis, reach: np.ndarray, triangle: np.ndarray, distance: np.ndarray, moving: bool,
                  directions_sensor: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, int]:
         """Of the ``candidate`` pulses, those whose footprint something nearer covers in part (sorted rows), and
-        how many the broad phase named."""
+        how many the broad phase named.
+
+        Nearer means in front of the hit's plane by more than the range sigma at the hit: a surface closer
+        to the plane than that (a crease of a terrain, a poster on a wall) moves the point by less than its
+        range noise and can neither make it mixed (3 sigmas) nor a return of its own (the echo separation),
+        so its footprint is not sampled; what it leaves out is that surface's share of the energy.
+        """
         proxy = self.proxy
         # Frames (and parts of one) are cast side by side, and the boxes are placed for one run's sensor
         # positions: each run asks the boxes placed for it, which a later placing replaces but does not change.
@@ -366,7 +372,8 @@ class ReturnModel:
         # Probe rays at the corners of the footprint's bounding box: is anything in front of the hit's plane?
         probes = rows_basis.rays(rows, directions_world, self.footprint.probe_offsets)
         limit = np.empty((rows.size, 4))
-        kernel("probe_limits")(rows, probes, triangle, self.caster.face_planes, origins, self.range_max, limit)
+        kernel("probe_limits")(rows, probes, triangle, distance, self.caster.face_planes, origins, self.range_max,
+                               self._sigma_table, limit)
         ray_origin = origins[0] if not moving else np.repeat(origins[rows], 4, axis=0)
         blocked = self.caster.occluded(ray_origin, probes.reshape(-1, 3), limit.reshape(-1))
         self._lap("probes")
