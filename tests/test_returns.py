@@ -305,12 +305,14 @@ def test_a_panoramic_head_spreads_its_footprint_along_azimuth_and_elevation() ->
     assert np.unique(stream[mixed]).size == pytest.approx(expected, rel=0.20)
 
 
-def test_a_pole_thinner_than_the_footprint_is_seen_with_the_energy_it_intercepts() -> None:
-    # A 2 cm bar across the boresight at 10 m (the footprint is 4.9 cm tall there) in front of a wall at 80 m.
+@pytest.mark.parametrize("behind", ["wall", "sky"])
+def test_a_pole_thinner_than_the_footprint_is_seen_with_the_energy_it_intercepts(behind: str) -> None:
+    # A 2 cm bar across the boresight at 10 m (the footprint is 4.9 cm tall there) in front of a wall at 80 m, or
+    # of nothing (a central ray beside the bar then meets nothing at all).
     cfg = at_origin("livox_mid40_risley")
     bar = surface(trimesh.creation.box((0.02, 40, 0.02), trimesh.transformations.translation_matrix((10, 0, 0.05))),
                   0.8)
-    frames, fired = scan(cfg, trimesh.util.concatenate([bar, wall(80.0, 0.05)]), 1.0)
+    frames, fired = scan(cfg, trimesh.util.concatenate([bar, wall(80.0, 0.05)]) if behind == "wall" else bar, 1.0)
     x = joined(frames, "xyz_sensor")[:, 0]
     byte = joined(frames, "reflectivity")
     near = x < 40
@@ -470,6 +472,32 @@ def test_frames_cast_side_by_side_are_those_cast_one_by_one_on_a_fast_flight() -
     for name in ("stream_index", "xyz_int16", "reflectivity", "tag", "return_number"):
         assert np.array_equal(joined(threaded, name), joined(serial, name)), name
     np.testing.assert_allclose(joined(threaded, "xyz_world"), joined(serial, "xyz_world"), rtol=0, atol=1e-9)
+
+
+def test_sub_rays_taken_from_their_own_triangle_are_those_embree_casts(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A footprint leaving its triangle with nothing else near takes the sub-rays that stay on the triangle from
+    its plane instead of casting them: the urban scan's cloud is the one every sub-ray cast gives."""
+    from livox_viz.casting import return_kernels
+    from livox_viz.scene.scenes import open_scene
+
+    urban = open_scene("urban")
+    cfg = load_preset("livox_mid70_risley")
+    caster = EmbreeCaster(urban.mesh)
+    taken = []
+    own_subrays = return_kernels.kernel("own_subrays")
+
+    def counted(*arguments: object) -> None:
+        own_subrays(*arguments)
+        taken.append(int(arguments[-1].sum()))
+
+    monkeypatch.setitem(return_kernels._KERNELS, "own_subrays", counted)
+    shortcut = list(LidarScanner(cfg, caster, urban.vehicle_pose, seed=8).frames(0.3))
+    assert sum(taken) > 1000
+    monkeypatch.setitem(return_kernels._KERNELS, "own_subrays", lambda *arguments: None)
+    every_ray_cast = list(LidarScanner(cfg, caster, urban.vehicle_pose, seed=8).frames(0.3))
+    for name in ("stream_index", "xyz_int16", "reflectivity", "tag", "return_number", "number_of_returns"):
+        assert np.array_equal(joined(shortcut, name), joined(every_ray_cast, name)), name
+    np.testing.assert_allclose(joined(shortcut, "range_m"), joined(every_ray_cast, "range_m"), rtol=0, atol=1e-9)
 
 
 def test_a_frame_cut_over_the_cores_is_the_frame_cast_whole_on_a_turning_flight() -> None:

@@ -444,6 +444,42 @@ def _probe_limits(rows, probes, triangle, distance, planes, origins, range_max, 
 
 
 # Step 3: echoes of sampled footprints ------------------------------------------------------------------------------
+def _own_subrays(rows, clear, rays, triangle, planes, origins, inward, offset, range_max, ranges, triangles,
+                 own):  # pragma: no cover - compiled
+    """Sub-rays ``rays (m, k, 3)`` (ray 0 the central one) of the ``clear`` pulses ``rows`` that land inside their
+    pulse's own triangle, strictly (a micrometre per metre of range inside every edge): their range from its
+    plane and its index into ``ranges`` and ``triangles``, and ``own`` set."""
+    stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
+    for m in range(rows.shape[0]):
+        if not clear[m]:
+            continue
+        i = rows[m]
+        t = triangle[i]
+        if t < 0:
+            continue
+        o = i * stride
+        nx, ny, nz = planes[t, 0], planes[t, 1], planes[t, 2]
+        height = planes[t, 3] - (nx * origins[o, 0] + ny * origins[o, 1] + nz * origins[o, 2])
+        for k in range(1, rays.shape[1]):
+            ux, uy, uz = float(rays[m, k, 0]), float(rays[m, k, 1]), float(rays[m, k, 2])
+            along = nx * ux + ny * uy + nz * uz
+            if abs(along) <= 1e-9:
+                continue
+            d = height / along
+            if not (0.0 <= d <= range_max):
+                continue
+            px, py, pz = origins[o, 0] + ux * d, origins[o, 1] + uy * d, origins[o, 2] + uz * d
+            inside = True
+            for e in range(3):
+                if inward[t, e, 0] * px + inward[t, e, 1] * py + inward[t, e, 2] * pz - offset[t, e] < 1e-6 * d:
+                    inside = False
+                    break
+            if inside:
+                ranges[m, k] = d
+                triangles[m, k] = t
+                own[m, k] = True
+
+
 def _footprint_echoes(rows, ranges, triangles, rays, weights, planes, brightness, origins, blind, separate,
                       separation, sigma_table, mix_floor, calibration,
                       written, slot, power, range_m, spatial, unit_power):  # pragma: no cover - compiled

@@ -305,18 +305,19 @@ class ReturnModel:
                           footprint.tan_half_max, self._calibration, self.range_max, power, cosine, leaves, reach)
         rows_basis = _Basis(xy_deg, rotation, basis_x, basis_y)
         self._lap("materials, edges and reach")
-        covered, near = self._covered(~leaves, directions_world, origins, rows_basis, reach, triangle, distance,
+        covered, near = self._covered(leaves, directions_world, origins, rows_basis, reach, triangle, distance,
                                       moving, directions_sensor, rotation)
         sampled_mask = leaves.copy()
         sampled_mask[covered] = True
         sampled = np.flatnonzero(sampled_mask)
-        counts = {"pulses": n, "leaves": int(leaves.sum()), "near": near, "covered": int(covered.size)}
+        counts = {"pulses": n, "leaves": int(leaves.sum()), "near": int(np.count_nonzero(near & ~leaves)),
+                  "covered": int(covered.size)}
         whole = (triangle >= 0) & (distance >= params.blind_zone_m)
         whole[sampled] = False
         first, count = np.zeros(n, np.int64), np.zeros(n, np.int64)
         if sampled.size:
             footprint_echoes = self._footprint_echoes(sampled, directions_world, origins, rows_basis, distance,
-                                                      triangle, moving)
+                                                      triangle, moving, ~near[sampled])
             first[sampled] = np.arange(sampled.size) * SUBRAY_WEIGHTS.size
             count[sampled] = footprint_echoes[0]
             footprint_echoes = footprint_echoes[1:]
@@ -346,11 +347,13 @@ class ReturnModel:
         return distance, triangle
 
     # Step 2: footprints something nearer covers --------------------------------------------------------------
-    def _covered(self, candidate: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
+    def _covered(self, leaves: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
                  rows_basis: _Basis, reach: np.ndarray, triangle: np.ndarray, distance: np.ndarray, moving: bool,
-                 directions_sensor: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, int]:
-        """Of the ``candidate`` pulses, those whose footprint something nearer covers in part (sorted rows), and
-        how many the broad phase named.
+                 directions_sensor: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The pulses whose footprint stays on its triangle (or whose ray meets nothing) but something nearer covers
+        in part (sorted rows), and
+        for every pulse whether the broad phase names anything but its own surface along the beam (``(n,)``
+        bool: a footprint leaving its triangle with nothing named needs no cast for its sub-rays that stay on it).
 
         Nearer means in front of the hit's plane by more than the range sigma at the hit: a surface closer
         to the plane than that (a crease of a terrain, a poster on a wall) moves the point by less than its
@@ -364,11 +367,12 @@ class ReturnModel:
             boxes = proxy.place(origins[0] if not moving else origins[:: max(1, origins.shape[0] // 64)],
                                 self.range_max, None if moving else rotation)
         # A fixed sensor's beams look up their direction's boxes (a boresight grid: not for a panoramic head).
-        rows = np.flatnonzero(proxy.near(candidate, origins, directions_world, reach, triangle,
-                                         None if moving or self.plane != "boresight" else directions_sensor, boxes))
+        near = proxy.near(np.ones(triangle.size, dtype=np.bool_), origins, directions_world, reach, triangle,
+                          None if moving or self.plane != "boresight" else directions_sensor, boxes)
+        rows = np.flatnonzero(near & ~leaves)
         self._lap("broad phase")
         if rows.size == 0:
-            return rows, 0
+            return rows, near
         # Probe rays at the corners of the footprint's bounding box: is anything in front of the hit's plane?
         probes = rows_basis.rays(rows, directions_world, self.footprint.probe_offsets)
         limit = np.empty((rows.size, 4))
@@ -377,14 +381,19 @@ class ReturnModel:
         ray_origin = origins[0] if not moving else np.repeat(origins[rows], 4, axis=0)
         blocked = self.caster.occluded(ray_origin, probes.reshape(-1, 3), limit.reshape(-1))
         self._lap("probes")
-        return rows[blocked.reshape(-1, 4).any(axis=1)], int(rows.size)
+        return rows[blocked.reshape(-1, 4).any(axis=1)], near
 
     # Step 3: echoes of sampled footprints ------------------------------------------------------------------
     def _footprint_echoes(self, rows: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
                           rows_basis: _Basis, distance: np.ndarray, triangle: np.ndarray,
-                          moving: bool) -> list[np.ndarray]:
+                          moving: bool, clear: np.ndarray) -> list[np.ndarray]:
         """The echoes of pulses sampled with all 19 sub-rays: how many each has, then, in 19 slots a pulse, their
-        power, range, spatial bits and the reflectance one unit of power means at their range."""
+        power, range, spatial bits and the reflectance one unit of power means at their range.
+
+        A sub-ray of a ``clear`` pulse (the broad phase named nothing but its own surface before the footprint's
+        reach) that lands inside the pulse's own triangle meets that triangle: its range comes from the plane,
+        without a cast. The others are cast.
+        """
         params = self.params
         m = rows.size
         count = SUBRAY_WEIGHTS.size
@@ -392,8 +401,14 @@ class ReturnModel:
         ranges = np.empty((m, count))
         triangles = np.empty((m, count), dtype=np.int64)
         ranges[:, 0], triangles[:, 0] = distance[rows], triangle[rows]
-        ray_origin = origins[0] if not moving else np.repeat(origins[rows], count - 1, axis=0)
-        sub_rays = rays[:, 1:].reshape(-1, 3)
+        own = np.zeros((m, count), dtype=np.bool_)
+        edges = self.edges
+        kernel("own_subrays")(rows, np.ascontiguousarray(clear, dtype=np.bool_), rays, triangle,
+                              self.caster.face_planes, origins, edges.inward, edges.offset, self.range_max, ranges,
+                              triangles, own)
+        cast = np.flatnonzero(~own[:, 1:].reshape(-1))
+        ray_origin = origins[0] if not moving else np.repeat(origins[rows], count - 1, axis=0)[cast]
+        sub_rays = rays[:, 1:].reshape(-1, 3)[cast]
         if hasattr(self.caster, "triangle_ids"):
             # The sub-rays' triangles from Embree, their ranges from those triangles' planes (a sub-ray along its
             # plane carries no energy back: cos 0).
@@ -404,7 +419,10 @@ class ReturnModel:
             more_tri[more_r < 0] = -1
         else:
             more_r, more_tri = self.caster.hits(ray_origin, sub_rays, self.range_max)
-        ranges[:, 1:], triangles[:, 1:] = more_r.reshape(m, count - 1), more_tri.reshape(m, count - 1)
+        later_ranges, later_triangles = ranges[:, 1:], triangles[:, 1:]
+        flat_ranges, flat_triangles = later_ranges.copy().reshape(-1), later_triangles.copy().reshape(-1)
+        flat_ranges[cast], flat_triangles[cast] = more_r, more_tri
+        later_ranges[:], later_triangles[:] = flat_ranges.reshape(m, count - 1), flat_triangles.reshape(m, count - 1)
         written = np.empty(m, np.int64)
         slot = np.empty(m * count, np.int64)
         power, range_m, unit = np.empty(m * count), np.empty(m * count), np.empty(m * count)
