@@ -438,7 +438,9 @@ def test_the_compiled_random_numbers_are_streamrandoms() -> None:
     from livox_viz.core.streamrandom import stream_key, stream_normal, stream_uniform
 
     return_kernels.kernel("detect")  # compiles the shared helpers too
-    index = np.array([0, 1, 7, 123_456_789, 2**40 + 3])
+    # Indices spread over the whole 24-bit angle and radius (the compiled angle comes from a table and a series).
+    index = np.concatenate([[0, 1, 7, 123_456_789, 2**40 + 3],
+                            np.random.default_rng(1).integers(0, 2**40, 3000)])
     key = np.uint64(stream_key(9, 2))
     normal = stream_normal(9, 2, index, 4)
     uniform = stream_uniform(9, 2, index, 3)
@@ -446,7 +448,8 @@ def test_the_compiled_random_numbers_are_streamrandoms() -> None:
         for pair in (0, 1):
             got = return_kernels._normal_pair(key, int(i), pair)
             np.testing.assert_allclose(got, normal[row, 2 * pair : 2 * pair + 2], rtol=0, atol=1e-12)
-        assert [return_kernels._uniform(key, int(i), c) for c in range(3)] == uniform[row].tolist()
+        if row < 5:
+            assert [return_kernels._uniform(key, int(i), c) for c in range(3)] == uniform[row].tolist()
     # And they are normal and uniform: moments of 200 000 draws.
     many = stream_normal(9, 2, np.arange(200_000), 2)
     assert abs(many.mean()) < 0.01 and abs(many.std() - 1) < 0.01 and abs(np.corrcoef(many.T)[0, 1]) < 0.01

