@@ -91,6 +91,42 @@ def test_threads_do_not_change_results(threads: int) -> None:
     assert np.array_equal(EmbreeCaster(mesh, threads=threads).distances(origin, directions), reference)
 
 
+def test_a_split_call_runs_every_part_once_in_order_on_the_caller_and_the_workers() -> None:
+    import threading
+    import time
+
+    from livox_viz.scene.raycast import casting_in_this_thread
+
+    caster = EmbreeCaster(trimesh.creation.box((2, 2, 2)), threads=2)
+    inline = []
+
+    def part(bounds: tuple[int, int]) -> tuple[tuple[int, int], int]:
+        time.sleep(0.002)  # long enough that both threads take parts
+        inline.append(caster.map_parts(lambda b: b, 100_000, 2048) == [(0, 100_000)])  # no nested split
+        return bounds, threading.get_ident()
+
+    found = caster.map_parts(part, 1_000_000, 2048)
+    assert [f[0] for f in found] == [(0, 500_000), (500_000, 1_000_000)]  # one part a thread, in order
+    assert len({f[1] for f in found}) == 2 and threading.get_ident() in {f[1] for f in found}
+    assert all(inline)
+    # Many parts: the caller and the worker take them in turn, each once, results in order.
+    many = [(k, k + 1) for k in range(40)]
+    taken = caster._share(part, many)
+    assert [t[0] for t in taken] == many and len({t[1] for t in taken}) == 2
+    assert len(caster.map_parts(part, 4000, 2048)) == 1  # under twice the least part: one part, here
+    with casting_in_this_thread():
+        assert [f[1] for f in caster.map_parts(part, 1_000_000, 2048)] == [threading.get_ident()]
+
+    def failing(bounds: tuple[int, int]) -> None:
+        if bounds[0] > 0:
+            raise ValueError("part failed")
+
+    with pytest.raises(ValueError, match="part failed"):
+        caster.map_parts(failing, 100_000, 2048)
+    # The caster still casts after a failed call.
+    assert caster.distances(np.zeros(3), np.array([[1.0, 0, 0]])).tolist() == [1.0]
+
+
 def test_far_scene_keeps_float64_precision() -> None:
     # The same wall, 100 km from the world origin: Embree's float32 must not show.
     offset = np.array([1e5, -2e5, 0.0])
