@@ -362,10 +362,17 @@ class LidarScanner:
         """Fire the rest of the current frame (W*H rays from a frame start) and return its returns."""
         return self.mounted.cast(self.pattern.next_frame())
 
-    def _cast_in_worker(self, chunks: list[PatternChunk]) -> list[ScanFrame]:
-        # The frames side by side already keep the cores busy: each casts its own rays in its own thread.
+    def _cast_in_worker(self, chunks: list[PatternChunk]) -> tuple[list[ScanFrame], Exception | None]:
+        # The frames side by side already keep the cores busy: each casts its own rays in its own thread. A
+        # failing frame ends the batch, but the frames cast before it are still handed out.
+        frames: list[ScanFrame] = []
         with casting_in_this_thread():
-            return [self.mounted.cast(chunk) for chunk in chunks]
+            try:
+                for chunk in chunks:
+                    frames.append(self.mounted.cast(chunk))
+            except Exception as error:  # raised again in the caller's thread, after those frames
+                return frames, error
+        return frames, None
 
     def frames(self, seconds: float) -> Iterator[ScanFrame]:
         """Frames until ``seconds`` of scan time (the last one partial if it does not fit).
@@ -385,7 +392,7 @@ class LidarScanner:
         per_task = max(1, -(-TASK_RAYS // per_frame))
         workers = max(1, min(os.cpu_count() or 1, FRAME_WORKERS))
         pool = ThreadPoolExecutor(workers, thread_name_prefix="livox-viz-frame")
-        in_flight: deque[tuple[Future[list[ScanFrame]], list[int]]] = deque()
+        in_flight: deque[tuple[Future[tuple[list[ScanFrame], Exception | None]], list[int]]] = deque()
         self._handed_out = self.pattern.position
         try:
             while in_flight or self.pattern.position < total:
@@ -396,9 +403,12 @@ class LidarScanner:
                         chunks.append(self.pattern.take(min(frame_end, total) - self.pattern.position))
                     in_flight.append((pool.submit(self._cast_in_worker, chunks), [c.stop for c in chunks]))
                 future, stops = in_flight.popleft()
-                for frame, stop in zip(future.result(), stops, strict=True):
+                cast, error = future.result()
+                for frame, stop in zip(cast, stops[: len(cast)], strict=True):
                     self._handed_out = stop
                     yield frame
+                if error is not None:
+                    raise error
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
             if self.pattern.position != self._handed_out:
