@@ -293,7 +293,7 @@ class ReturnModel:
         else:
             basis_x, basis_y = sensor_basis(xy_deg, self.plane)
             if turn is None:
-                basis_x, basis_y = basis_x @ rotation.T, basis_y @ rotation.T
+                basis_x, basis_y = rotate_rows(basis_x, rotation), rotate_rows(basis_y, rotation)
             else:
                 every = np.arange(n)
                 basis_x, basis_y = turn(basis_x, every), turn(basis_y, every)
