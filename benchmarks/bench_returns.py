@@ -9,8 +9,9 @@
    (``MountedCaster.cast``: each model uses both cores within the frame). Both
    interleaved, best of each.
 2. The cost of each part: the return model's own clock per step
-   (``ReturnModel.stage_seconds``), in ms per second of scan, and how many pulses
-   each footprint test sent on.
+   (``ReturnModel.stage_seconds``), in ms per second of scan, on one thread (as
+   each worker of ``scan`` casts its frames) and frame by frame, and how many
+   pulses each footprint test sent on.
 3. Memory over a 10-minute flight written to a bag, in child processes: peak
    RSS of 60 s against 600 s (target: flat), the ideal model's beside it.
 
@@ -104,6 +105,43 @@ def scan_speed(preset: str, scene_name: str, seconds: float = 2.0, runs: int = 1
             "paired": float(np.median(times[:, 0] / times[:, 1]))}
 
 
+def one_thread_parts(preset: str, scene_name: str, runs: int = 9) -> None:
+    """Each step's cost on one thread (frames cast inline, as each worker of ``scan`` casts its frame), against
+    the ideal scan's on one thread: ms per second of scan, best of ``runs`` interleaved."""
+    from livox_viz.scene.raycast import casting_in_this_thread
+
+    config = load_preset(preset)
+    scene = open_scene(scene_name)
+    caster = EmbreeCaster(scene.mesh)
+    mounted = {m: MountedCaster(config.with_returns_model(m), caster, scene.vehicle_pose, seed=1)
+               for m in ("ideal", "datasheet")}
+    returns = mounted["datasheet"].returns
+    pattern = make_pattern(config, seed=1)
+    per_frame = config.points_per_frame
+    chunks = [pattern.points(k * per_frame, per_frame) for k in range(round(SECONDS * config.data_check_freq))]
+    best = dict.fromkeys(mounted, np.inf)
+    stages = dict.fromkeys(returns.stage_seconds, np.inf)
+    with casting_in_this_thread():
+        for chunk in chunks:
+            mounted["datasheet"].cast(chunk)
+        for _ in range(runs):
+            for model, caster_of_model in mounted.items():
+                before = dict(returns.stage_seconds)
+                start = time.perf_counter()
+                for chunk in chunks:
+                    caster_of_model.cast(chunk)
+                best[model] = min(best[model], time.perf_counter() - start)
+                if model == "datasheet":
+                    for name in stages:
+                        stages[name] = min(stages[name], returns.stage_seconds[name] - before[name])
+    rest = best["datasheet"] - sum(stages.values())
+    print(f"{preset} in {scene_name} on one thread (each frame as a worker of scan casts it): ideal "
+          f"{best['ideal'] / SECONDS * 1e3:.1f}, datasheet {best['datasheet'] / SECONDS * 1e3:.1f} ms per second of "
+          f"scan ({best['ideal'] / best['datasheet']:.2f} x); its steps: "
+          + ", ".join(f"{name} {seconds / SECONDS * 1e3:.1f}" for name, seconds in stages.items())
+          + f", the rest of the scan (pattern, rays, int16, frames) {rest / SECONDS * 1e3:.1f}")
+
+
 def report(preset: str, scene_name: str, figures: dict, note: str = "") -> None:
     scanned = figures["scan"]
     print(f"{preset} in {scene_name}{note}: as scan runs it (frames side by side): ideal "
@@ -147,6 +185,7 @@ def main() -> None:
     if "--child" in sys.argv:
         print(json.dumps(speed(sys.argv[2], sys.argv[3])))
         return
+    one_thread_parts("livox_mid70_risley", "urban")
     for preset, scene_name in (("livox_mid70_risley", "urban"), ("livox_mid40_risley", "urban"),
                                ("livox_mid70_risley", "dense_terrain"), ("livox_avia", "urban"),
                                ("livox_mid360", "urban")):
