@@ -84,7 +84,7 @@ def speed(preset: str, scene_name: str) -> dict:
             "counts": dict(returns.last_counts, points_per_s=int(points / SECONDS))}
 
 
-def scan_speed(preset: str, scene_name: str, seconds: float = 2.0, runs: int = 15) -> dict[str, float]:
+def scan_speed(preset: str, scene_name: str, seconds: float = 4.0, runs: int = 15) -> dict[str, float]:
     """Seconds per second of scan of both models' scans of ``seconds`` of scan as ``scan`` runs it (frames side by
     side): the best of ``runs`` interleaved, and the median of each pair of runs' ratio (ideal / datasheet)."""
     config = load_preset(preset)
