@@ -58,7 +58,7 @@ def test_lying_point_count_is_rejected() -> None:
     payload = bytearray(pack_payload(np.zeros(6), random_points(10)))
     struct.pack_into("<i", payload, 24, 11)
     with pytest.raises(LivoxVizError, match="PointNum 11 but the payload holds 10"):
-        unpack_payload(bytes(payload))
+        unpack_payload(bytes(payload), 0.0)
 
 
 def test_datagrams_have_the_header_and_size() -> None:

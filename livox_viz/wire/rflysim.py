@@ -86,8 +86,9 @@ def pack_payload(pos_ang: np.ndarray, xyz_int16: np.ndarray) -> bytes:
     return PAYLOAD_HEADER.pack(*pose.tolist(), points.shape[0]) + points.tobytes()
 
 
-def unpack_payload(payload: bytes, timestamp: float = 0.0, source: str = "") -> LivoxFrame:
-    """Read a frame payload; raises :class:`LivoxVizError` if it is short or its PointNum lies."""
+def unpack_payload(payload: bytes, timestamp: float, source: str = "") -> LivoxFrame:
+    """Read a frame payload (``timestamp``: its datagrams' header time, seconds); raises :class:`LivoxVizError`
+    if it is short or its PointNum lies."""
     if len(payload) < PAYLOAD_HEADER.size:
         raise LivoxVizError(f"payload of {len(payload)} bytes; allowed: at least {PAYLOAD_HEADER.size}")
     *pose, count = PAYLOAD_HEADER.unpack_from(payload, 0)
