@@ -211,3 +211,14 @@ def test_fit_to_a_preset_and_compare_presets(tmp_path: Path, capsys: pytest.Capt
     assert "track residual" not in capsys.readouterr().out  # a random rosette is not sample-exact
     assert main(["fit", "--to", "../nowhere.npy"]) == 2
     assert main(["fit"]) == 2
+
+
+def test_a_risley_chunk_has_no_figure8_rotations() -> None:
+    """The figure-8 rotations are the rosette's; a Risley track's chunk (and one made by hand) has none."""
+    from livox_viz import load_preset, make_pattern
+    from livox_viz.patterns.stream import PatternChunk
+
+    config = load_preset("livox_mid70_risley")
+    chunk = make_pattern(config).take(1000)
+    assert chunk.figure8_angle_deg.shape == (0,)
+    assert PatternChunk(config, 0, chunk.xy_deg).figure8_angle_deg.shape == (0,)
