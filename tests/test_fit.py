@@ -141,3 +141,17 @@ def test_fit_cli_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     np.save(bad, np.ones((10, 4)))
     assert main(["fit", str(bad)]) == 2
     assert "allowed: (n, 2)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("alpha", "petals"), [
+    ([0, 5, 10, 5, 0, 10, 5, 0, 3], [(0, 2, 4)]),  # a rise of one sample to the tip is no whole petal
+    ([0, 5, 10, 5, 0, 5, 10, 0, 3], [(0, 2, 4)]),  # nor is a fall of one sample from it
+    ([0, 5, 10, 5, 0, 5, 10, 5, 0, 3], [(0, 2, 4), (4, 6, 8)]),  # two samples each way are
+    ([0, 5, 10, 5, 0, 5, 7, 5, 0, 3], [(0, 2, 4)]),  # a tip under three quarters of the top is no petal
+])
+def test_petals_need_two_samples_each_side_of_a_tip_near_the_top(alpha: list[float],
+                                                                 petals: list[tuple[int, int, int]]) -> None:
+    from livox_viz.fitting.rosette_fit import find_petals
+
+    found = find_petals(np.column_stack([np.asarray(alpha, dtype=float), np.zeros(len(alpha))]))
+    assert list(zip(found.start.tolist(), found.tip.tolist(), found.end.tolist(), strict=True)) == petals
