@@ -191,6 +191,11 @@ def _hit_points(directions: np.ndarray, hit: np.ndarray, range_m: np.ndarray,
     return points
 
 
+#: The per-point arrays of a :class:`ScanFrame`.
+_RETURN_ARRAYS = ("stream_index", "t", "xy_deg", "range_m", "xyz_sensor", "xyz_int16", "xyz_world", "reflectivity",
+                  "tag", "return_number", "number_of_returns")
+
+
 class MountedCaster:
     """Casts pattern chunks from a sensor mounted on a vehicle into a scene.
 
@@ -284,28 +289,20 @@ class MountedCaster:
                                                               xyz_world[keep], xyz_int16[keep])
             reflectivity, tag, return_number, number_of_returns = (
                 None if a is None else a[keep] for a in (reflectivity, tag, return_number, number_of_returns))
-        return ScanFrame(
-            index=chunk.start // config.points_per_frame,
-            ray_count=len(chunk),
-            stream_index=chunk.start + rows,
-            t=chunk.t[rows],
-            xy_deg=np.take(chunk.xy_deg, rows, axis=0),
-            range_m=range_m,
-            xyz_sensor=xyz_sensor,
-            xyz_int16=xyz_int16,
-            xyz_world=xyz_world,
-            sensor_pose=self.sensor_pose_at(chunk.start / config.point_rate),
-            timestamp=chunk.start / config.point_rate,
-            end_time=chunk.stop / config.point_rate,
-            range_max=config.range_max,
-            end_pose=self.sensor_pose_at(chunk.stop / config.point_rate),
-            track=self.track,
-            reflectivity=reflectivity,
-            tag=tag,
-            return_number=return_number,
-            number_of_returns=number_of_returns,
-        )
+        return self._frame(chunk, stream_index=chunk.start + rows, t=chunk.t[rows],
+                           xy_deg=np.take(chunk.xy_deg, rows, axis=0), range_m=range_m, xyz_sensor=xyz_sensor,
+                           xyz_int16=xyz_int16, xyz_world=xyz_world, reflectivity=reflectivity, tag=tag,
+                           return_number=return_number, number_of_returns=number_of_returns)
 
+    def _frame(self, chunk: PatternChunk, **returns: np.ndarray | None) -> ScanFrame:
+        """The frame of the chunk's ``returns`` (the arrays of :class:`ScanFrame`), with the chunk's times and
+        poses."""
+        config = self.config
+        return ScanFrame(index=chunk.start // config.points_per_frame, ray_count=len(chunk),
+                         sensor_pose=self.sensor_pose_at(chunk.start / config.point_rate),
+                         timestamp=chunk.start / config.point_rate, end_time=chunk.stop / config.point_rate,
+                         range_max=config.range_max, end_pose=self.sensor_pose_at(chunk.stop / config.point_rate),
+                         track=self.track, **returns)
 
     def cast_frames(self, chunks: list[PatternChunk]) -> list[ScanFrame]:
         """The returns of consecutive chunks (published frames, in stream order), cast as one run.
@@ -317,8 +314,7 @@ class MountedCaster:
         """
         if len(chunks) == 1:
             return [self.cast(chunks[0])]
-        config = self.config
-        merged = PatternChunk(config, chunks[0].start, np.concatenate([chunk.xy_deg for chunk in chunks]),
+        merged = PatternChunk(self.config, chunks[0].start, np.concatenate([chunk.xy_deg for chunk in chunks]),
                               t=np.concatenate([chunk.t for chunk in chunks]))
         run = self.cast(merged)
         # Points are in stream order (a pulse's returns together), so each frame is one slice.
@@ -326,27 +322,7 @@ class MountedCaster:
         frames = []
         for chunk, low, high in zip(chunks, bounds[:-1], bounds[1:], strict=True):
             part = slice(int(low), int(high))
-            frames.append(ScanFrame(
-                index=chunk.start // config.points_per_frame,
-                ray_count=len(chunk),
-                stream_index=run.stream_index[part],
-                t=run.t[part],
-                xy_deg=run.xy_deg[part],
-                range_m=run.range_m[part],
-                xyz_sensor=run.xyz_sensor[part],
-                xyz_int16=run.xyz_int16[part],
-                xyz_world=run.xyz_world[part],
-                sensor_pose=self.sensor_pose_at(chunk.start / config.point_rate),
-                timestamp=chunk.start / config.point_rate,
-                end_time=chunk.stop / config.point_rate,
-                range_max=config.range_max,
-                end_pose=self.sensor_pose_at(chunk.stop / config.point_rate),
-                track=self.track,
-                reflectivity=run.reflectivity[part],
-                tag=run.tag[part],
-                return_number=run.return_number[part],
-                number_of_returns=run.number_of_returns[part],
-            ))
+            frames.append(self._frame(chunk, **{name: getattr(run, name)[part] for name in _RETURN_ARRAYS}))
         return frames
 
 
