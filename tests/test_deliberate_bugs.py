@@ -198,6 +198,22 @@ def scanned_frames() -> list:
 LIVOX_FIELDS = ("reflectivity", "tag", "return_number", "number_of_returns")
 
 
+def _written(path: Path, frames: list, ascii_mode: bool) -> Path:
+    """The frames written by :class:`PointCloudWriter` in the sensor frame to ``path``."""
+    with PointCloudWriter(path, "sensor", ascii=ascii_mode) as writer:
+        for frame in frames:
+            writer.write(frame)
+    return path
+
+
+def _assert_points_times_frames(read, frames: list) -> None:
+    """x, y, z (the decoded points), time and frame as read by the third-party reader, against the frames'."""
+    xyz = np.column_stack([read["x"], read["y"], read["z"]])
+    np.testing.assert_allclose(xyz, np.concatenate([f.xyz_decoded for f in frames]), atol=1e-4)
+    np.testing.assert_allclose(read["time"], np.concatenate([f.t for f in frames]), atol=1e-9)
+    assert read["frame"].tolist() == np.concatenate([np.full(len(f), f.index) for f in frames]).tolist()
+
+
 def _assert_livox_fields(read, frames: list) -> None:
     """Each Livox field as read by the third-party reader, one byte per point, against the frames'."""
     for name in LIVOX_FIELDS:
@@ -210,23 +226,16 @@ def _assert_livox_fields(read, frames: list) -> None:
 def test_pcd_header_and_points_through_pypcd4(tmp_path: Path, scanned_frames: list, ascii_mode: bool) -> None:
     """Bug: a PCD header whose WIDTH is one short (our own reader only looks at POINTS)."""
     pypcd4 = pytest.importorskip("pypcd4")
-    path = tmp_path / "cloud.pcd"
-    with PointCloudWriter(path, "sensor", ascii=ascii_mode) as writer:
-        for frame in scanned_frames:
-            writer.write(frame)
-    cloud = pypcd4.PointCloud.from_path(path)
+    cloud = pypcd4.PointCloud.from_path(_written(tmp_path / "cloud.pcd", scanned_frames, ascii_mode))
     total = sum(len(f) for f in scanned_frames)
     meta = cloud.metadata
     # An unorganised cloud (PCD v0.7): WIDTH is the point count, HEIGHT 1, and WIDTH * HEIGHT = POINTS.
     assert (meta.width, meta.height, meta.points) == (total, 1, total)
     assert meta.fields == ("x", "y", "z", "range", "time", "frame", *LIVOX_FIELDS)
     data = cloud.pc_data
-    xyz = np.column_stack([data["x"], data["y"], data["z"]])
-    np.testing.assert_allclose(xyz, np.concatenate([f.xyz_decoded for f in scanned_frames]), atol=1e-4)
+    _assert_points_times_frames(data, scanned_frames)
     decoded = np.concatenate([f.xyz_decoded for f in scanned_frames])
     np.testing.assert_allclose(data["range"], np.linalg.norm(decoded, axis=1), rtol=1e-6)  # of the points it holds
-    np.testing.assert_allclose(data["time"], np.concatenate([f.t for f in scanned_frames]), atol=1e-9)
-    assert data["frame"].tolist() == np.concatenate([np.full(len(f), f.index) for f in scanned_frames]).tolist()
     _assert_livox_fields(data, scanned_frames)
 
 
@@ -234,19 +243,12 @@ def test_pcd_header_and_points_through_pypcd4(tmp_path: Path, scanned_frames: li
 def test_ply_header_and_properties_through_plyfile(tmp_path: Path, scanned_frames: list, ascii_mode: bool) -> None:
     """The PLY writer's header and every property, read by plyfile (trimesh's reader checks only x, y, z)."""
     plyfile = pytest.importorskip("plyfile")
-    path = tmp_path / "cloud.ply"
-    with PointCloudWriter(path, "sensor", ascii=ascii_mode) as writer:
-        for frame in scanned_frames:
-            writer.write(frame)
-    ply = plyfile.PlyData.read(str(path))
+    ply = plyfile.PlyData.read(str(_written(tmp_path / "cloud.ply", scanned_frames, ascii_mode)))
     vertex = ply["vertex"]
     assert vertex.count == sum(len(f) for f in scanned_frames)
     assert [p.name for p in vertex.properties] == ["x", "y", "z", "range", "time", "frame", *LIVOX_FIELDS]
     assert any("frame sensor" in comment for comment in ply.comments)
-    xyz = np.column_stack([vertex["x"], vertex["y"], vertex["z"]])
-    np.testing.assert_allclose(xyz, np.concatenate([f.xyz_decoded for f in scanned_frames]), atol=1e-4)
-    np.testing.assert_allclose(vertex["time"], np.concatenate([f.t for f in scanned_frames]), atol=1e-9)
-    assert vertex["frame"].tolist() == np.concatenate([np.full(len(f), f.index) for f in scanned_frames]).tolist()
+    _assert_points_times_frames(vertex, scanned_frames)
     _assert_livox_fields(vertex, scanned_frames)
 
 
