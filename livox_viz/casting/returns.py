@@ -45,7 +45,7 @@ import threading
 import time
 import weakref
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -247,8 +247,6 @@ class ReturnModel:
 
         def part(bounds: tuple[int, int]) -> tuple[ReturnPoints, dict[str, int]]:
             low, high = bounds
-            if (low, high) == (0, n):
-                return self._cast_run(start, xy_deg, directions_sensor, directions_world, origins, rotation, turn)
             shifted = None if turn is None else (lambda vectors, rows: turn(vectors, rows + low))
             points, counts = self._cast_run(start + low, xy_deg[low:high], directions_sensor[low:high],
                                             directions_world[low:high],
@@ -265,11 +263,8 @@ class ReturnModel:
         self.last_counts = counts
         if len(found) == 1:
             return found[0][0]
-        points = [p for p, _ in found]
-        return ReturnPoints(np.concatenate([p.beam for p in points]),
-                            *(np.concatenate([getattr(p, name) for p in points]) for name in (
-                                "range_m", "xyz_sensor", "xyz_world", "reflectivity", "tag", "return_number",
-                                "number_of_returns")))
+        return ReturnPoints(*(np.concatenate([getattr(p, column.name) for p, _ in found])
+                              for column in fields(ReturnPoints)))
 
     def _cast_run(self, start: int, xy_deg: np.ndarray, directions_sensor: np.ndarray,
                   directions_world: np.ndarray, origin: np.ndarray, rotation: np.ndarray | None,
@@ -419,10 +414,8 @@ class ReturnModel:
             more_tri[more_r < 0] = -1
         else:
             more_r, more_tri = self.caster.hits(ray_origin, sub_rays, self.range_max)
-        later_ranges, later_triangles = ranges[:, 1:], triangles[:, 1:]
-        flat_ranges, flat_triangles = later_ranges.copy().reshape(-1), later_triangles.copy().reshape(-1)
-        flat_ranges[cast], flat_triangles[cast] = more_r, more_tri
-        later_ranges[:], later_triangles[:] = flat_ranges.reshape(m, count - 1), flat_triangles.reshape(m, count - 1)
+        pulse, later = np.divmod(cast, count - 1)
+        ranges[pulse, later + 1], triangles[pulse, later + 1] = more_r, more_tri
         written = np.empty(m, np.int64)
         slot = np.empty(m * count, np.int64)
         power, range_m, unit = np.empty(m * count), np.empty(m * count), np.empty(m * count)
