@@ -221,8 +221,9 @@ def _plane_distance(triangle, directions, origins, planes, range_max, distance):
 
 def _central(distance, triangle, directions, origins, xy_deg, rotation, basis_x, basis_y, planes, brightness,
              incentre, inradius, inward, offset, neighbour, narrowest, half_x, half_y, tan_half, calibration,
-             range_max, power, cosine, leaves, reach):  # pragma: no cover - compiled
-    """Per pulse: echo power of the whole footprint on the hit triangle, the incidence cosine, whether the
+             range_max, power, unit, leaves, reach):  # pragma: no cover - compiled
+    """Per pulse: echo power of the whole footprint on the hit triangle, the reflectance one unit of power means at
+    its range (for its reflectivity byte), whether the
     footprint leaves the triangle (an edge that does not continue the surface within its reach), and how far
     along the beam the footprint can meet something.
 
@@ -239,7 +240,7 @@ def _central(distance, triangle, directions, origins, xy_deg, rotation, basis_x,
         leaves[i] = False
         if t < 0:
             power[i] = 0.0
-            cosine[i] = 0.0
+            unit[i] = 0.0
             continue
         o = i * stride
         d = distance[i]
@@ -249,9 +250,10 @@ def _central(distance, triangle, directions, origins, xy_deg, rotation, basis_x,
         if abs(facing) < 1e-6:
             facing = 1e-6 if facing >= 0 else -1e-6
         cos = abs(facing)
-        cosine[i] = cos
         near = max(d, 1e-3)  # a hit at the window itself (the sensor touching a surface) has no finite power
-        power[i] = brightness[t] * cos * (r_a * r_a / rho_a) / (near * near) * math.exp(-2.0 * alpha * (d - r_a))
+        loss = math.exp(-2.0 * alpha * (d - r_a))
+        power[i] = brightness[t] * cos * (r_a * r_a / rho_a) / (near * near) * loss
+        unit[i] = rho_a * (d / r_a) ** 2 / loss  # the inverse of power per brightness x cos, without a second exp
         sine = math.sqrt(max(1.0 - cos * cos, 0.0))
         reach[i] = min(d * (1.0 + 1.01 * tan_half * sine / cos) + 0.01, range_max)
         px = origins[o, 0] + ux * d
@@ -260,6 +262,14 @@ def _central(distance, triangle, directions, origins, xy_deg, rotation, basis_x,
         cx, cy, cz = px - incentre[t, 0], py - incentre[t, 1], pz - incentre[t, 2]
         if inradius[t] - math.sqrt(cx * cx + cy * cy + cz * cz) >= d * tan_half / cos:
             continue  # deep inside the incircle: the footprint stays on the triangle
+        # The footprint reaches at most d tan_half / cos from its centre on the plane (the bound the incircle test
+        # uses): farther than that from every edge line, it stays on the triangle too, without its ray's
+        # derivatives (a sine and a cosine; this took the loop from 27 to 19 ns a pulse on the default scene).
+        bound = d * tan_half / cos
+        if (inward[t, 0, 0] * px + inward[t, 0, 1] * py + inward[t, 0, 2] * pz - offset[t, 0] >= bound
+                and inward[t, 1, 0] * px + inward[t, 1, 1] * py + inward[t, 1, 2] * pz - offset[t, 1] >= bound
+                and inward[t, 2, 0] * px + inward[t, 2, 1] * py + inward[t, 2, 2] * pz - offset[t, 2] >= bound):
+            continue
         if fixed:
             ax, ay, az, bx, by, bz = _basis_at(xy_deg[i, 0], xy_deg[i, 1])
             bxx = rotation[0, 0] * ax + rotation[0, 1] * ay + rotation[0, 2] * az
@@ -361,16 +371,6 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
         near[i] = False
         if not candidate[i]:
             continue
-        o = i * stride
-        ox, oy, oz = origins[o, 0], origins[o, 1], origins[o, 2]
-        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
-        ix = 1.0 / dx if dx != 0.0 else np.inf
-        iy = 1.0 / dy if dy != 0.0 else np.inf
-        iz = 1.0 / dz if dz != 0.0 else np.inf
-        limit = reach[i]
-        hit = triangle[i]
-        part = triangle_part[hit] if hit >= 0 else -1
-        own_tile = triangle_tile[hit] if hit >= 0 else -1
         sx = directions_sensor[i, 0]
         cell = -1
         if sx > 1e-6:
@@ -382,6 +382,18 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
             first, stop, extra = cell_start[cell], cell_start[cell + 1], always.shape[0]
         else:
             first, stop, extra = 0, 0, boxes
+        if stop + extra == first:
+            continue  # no box in this direction (half the beams of the default scene): nothing more to look up
+        o = i * stride
+        ox, oy, oz = origins[o, 0], origins[o, 1], origins[o, 2]
+        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+        ix = 1.0 / dx if dx != 0.0 else np.inf
+        iy = 1.0 / dy if dy != 0.0 else np.inf
+        iz = 1.0 / dz if dz != 0.0 else np.inf
+        limit = reach[i]
+        hit = triangle[i]
+        part = triangle_part[hit] if hit >= 0 else -1
+        own_tile = triangle_tile[hit] if hit >= 0 else -1
         found = False
         for j in range(first, stop + extra):
             if j < stop:
@@ -633,21 +645,21 @@ def _detect(whole, power, distance, first, count, e_power, e_range, index, keys,
     return total
 
 
-def _emit(whole, first, count, e_power, e_range, e_spatial, e_unit, distance, seen, measured, chosen, points,
+def _emit(whole, first, count, e_power, e_range, e_spatial, e_unit, unit, distance, seen, measured, chosen, points,
           index, keys, multi, return0, false_reach, blind, directions_sensor, directions_world, origins, jitter,
-          calibration, beam, range_out, xyz_sensor, xyz_world, reflectivity, tag, number,
+          beam, range_out, xyz_sensor, xyz_world, reflectivity, tag, number,
           returns):  # pragma: no cover - compiled
     """Pass 2 over the pulses: their points, in pulse order and range order within a pulse.
 
     Each at its measured range along the pulse's direction (turned by the angular noise, ``keys[2]``); the
-    reflectivity byte from seen power x the reflectance one unit of power means at that range (0-150
+    reflectivity byte from seen power x the reflectance one unit of power means at that range (``unit`` for a
+    whole pulse, ``e_unit`` for a footprint echo; 0-150
     Lambertian, 151-255 logarithmic from twice to 1000 times a white target's power); the tag (spatial bits,
     return number: 1-3, or 0 for a first return nearer than ``return0``). A false alarm: a range uniform in
     [blind zone, ``false_reach``], byte 0-3, tag spatial 01 and intensity 01.
     """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
     echoes = e_power.shape[0]
-    rho_a, r_a, alpha = calibration[0], calibration[1], calibration[2]
     p = 0
     for i in range(whole.shape[0]):
         if points[i] == 0:
@@ -665,8 +677,7 @@ def _emit(whole, first, count, e_power, e_range, e_spatial, e_unit, distance, se
         if real and whole[i]:
             e = echoes + i
             range_out[p] = measured[e]
-            unit = rho_a * (distance[i] / r_a) ** 2 * math.exp(2.0 * alpha * (distance[i] - r_a))
-            reflectivity[p] = _byte(seen[e] * unit)
+            reflectivity[p] = _byte(seen[e] * unit[i])
             tag[p] = 0
             p += 1
         elif real:

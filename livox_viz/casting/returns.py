@@ -292,12 +292,12 @@ class ReturnModel:
             else:
                 every = np.arange(n)
                 basis_x, basis_y = turn(basis_x, every), turn(basis_y, every)
-        power, cosine, reach = np.empty(n), np.empty(n), np.empty(n)
+        power, unit, reach = np.empty(n), np.empty(n), np.empty(n)
         leaves = np.empty(n, dtype=np.bool_)
         kernel("central")(distance, triangle, directions_world, origins, xy_deg, rotation, basis_x, basis_y, planes,
                           self.brightness, edges.incentre, edges.inradius, edges.inward, edges.offset,
                           edges.neighbour, edges.narrowest, footprint.half_rad[0], footprint.half_rad[1],
-                          footprint.tan_half_max, self._calibration, self.range_max, power, cosine, leaves, reach)
+                          footprint.tan_half_max, self._calibration, self.range_max, power, unit, leaves, reach)
         rows_basis = _Basis(xy_deg, rotation, basis_x, basis_y)
         self._lap("materials, edges and reach")
         covered, near = self._covered(leaves, directions_world, origins, rows_basis, reach, triangle, distance,
@@ -319,8 +319,8 @@ class ReturnModel:
         else:
             footprint_echoes = [np.zeros(0), np.zeros(0), np.zeros(0, np.uint8), np.zeros(0)]
         self._lap("footprint sub-rays")
-        points = self._points(whole, power, distance, first, count, footprint_echoes, index, directions_sensor,
-                              directions_world, origins, rotation, turn)
+        points = self._points(whole, power, unit, distance, first, count, footprint_echoes, index,
+                              directions_sensor, directions_world, origins, rotation, turn)
         self._lap("detection, noise, tags")
         return points, counts
 
@@ -427,7 +427,7 @@ class ReturnModel:
         return [written, power, range_m, spatial, unit]
 
     # Steps 4 and 5: detection and the points -----------------------------------------------------------
-    def _points(self, whole: np.ndarray, power: np.ndarray, distance: np.ndarray, first: np.ndarray,
+    def _points(self, whole: np.ndarray, power: np.ndarray, unit: np.ndarray, distance: np.ndarray, first: np.ndarray,
                 count: np.ndarray, footprint_echoes: list[np.ndarray], index: np.ndarray,
                 directions_sensor: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
                 rotation: np.ndarray, turn: Turn | None) -> ReturnPoints:
@@ -446,11 +446,11 @@ class ReturnModel:
         reflectivity, tag = np.empty(total, np.uint8), np.empty(total, np.uint8)
         number, returns = np.empty(total, np.uint8), np.empty(total, np.uint8)
         jitter = float(np.radians(params.angular_sigma_deg))
-        kernel("emit")(whole, first, count, e_power, e_range, e_spatial, e_unit, distance, seen, measured, chosen,
-                       points, index, keys, params.returns_per_pulse > 1, params.return0_range_m,
+        kernel("emit")(whole, first, count, e_power, e_range, e_spatial, e_unit, unit, distance, seen, measured,
+                       chosen, points, index, keys, params.returns_per_pulse > 1, params.return0_range_m,
                        self.false_alarm_reach, params.blind_zone_m, np.ascontiguousarray(directions_sensor),
-                       directions_world, origins, jitter, self._calibration, beam, range_m, xyz_sensor, xyz_world,
-                       reflectivity, tag, number, returns)
+                       directions_world, origins, jitter, beam, range_m, xyz_sensor, xyz_world, reflectivity, tag,
+                       number, returns)
         if jitter > 0 and total:
             turned = rotate_rows(xyz_sensor, rotation) if turn is None else turn(xyz_sensor, beam)
             xyz_world = (origins[0] if origins.shape[0] == 1 else origins[beam]) + turned
