@@ -15,6 +15,7 @@ import pytest
 import trimesh
 
 from livox_viz import ConfigError, SensorConfig, load_preset
+from livox_viz.casting.beam import SUBRAY_WEIGHTS
 from livox_viz.casting.codec import decode_int16
 from livox_viz.casting.scan import LidarScanner, MountedCaster
 from livox_viz.config.returns_params import DATASHEETS, ReturnParams
@@ -490,18 +491,71 @@ def test_sub_rays_taken_from_their_own_triangle_are_those_embree_casts(monkeypat
     taken = []
     own_subrays = return_kernels.kernel("own_subrays")
 
-    def counted(*arguments: object) -> None:
-        own_subrays(*arguments)
-        taken.append(int(arguments[-1].sum()))
+    def counted(rows: np.ndarray, *arguments: object) -> int:
+        listed = own_subrays(rows, *arguments)
+        taken.append(rows.size * (SUBRAY_WEIGHTS.size - 1) - listed)
+        return listed
+
+    def none_clear(rows: np.ndarray, clear: np.ndarray, *arguments: object) -> int:
+        return own_subrays(rows, np.zeros_like(clear), *arguments)
 
     monkeypatch.setitem(return_kernels._KERNELS, "own_subrays", counted)
     shortcut = list(LidarScanner(cfg, caster, urban.vehicle_pose, seed=8).frames(0.3))
     assert sum(taken) > 1000
-    monkeypatch.setitem(return_kernels._KERNELS, "own_subrays", lambda *arguments: None)
+    monkeypatch.setitem(return_kernels._KERNELS, "own_subrays", none_clear)
     every_ray_cast = list(LidarScanner(cfg, caster, urban.vehicle_pose, seed=8).frames(0.3))
     for name in ("stream_index", "xyz_int16", "reflectivity", "tag", "return_number", "number_of_returns"):
         assert np.array_equal(joined(shortcut, name), joined(every_ray_cast, name)), name
     np.testing.assert_allclose(joined(shortcut, "range_m"), joined(every_ray_cast, "range_m"), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("moving", [False, True])
+def test_probes_go_to_embree_only_where_they_can_meet_something(monkeypatch: pytest.MonkeyPatch, moving: bool) -> None:
+    """The broad phase names a beam that passes within the footprint's reach of an inflated box; Embree takes the
+    beam's probes only when one crosses a tile itself or a flat object's box. Objects whose boxes hold much air
+    (a ball, a pole, a wedge) before a wall, over a ground that stops short of it, and one object made of all
+    of them (a mesh file without parts): the cloud is the one every named beam's probes give, for fewer probes."""
+    from livox_viz.casting.beam import TileProxy
+    from livox_viz.core.poses import Pose
+    from livox_viz.motion.flights import builtin_trajectory
+
+    wedge = trimesh.Trimesh([[16.0, 1.0, 1.0], [16.0, 2.5, 1.0], [16.0, 1.0, -1.0], [17.5, 1.0, 1.0]],
+                            [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    wedge.fix_normals()
+    ground = trimesh.Trimesh([[-5.0, -30.0, 1.2], [19.8, -30.0, 1.2], [19.8, 30.0, 1.2], [-5.0, 30.0, 1.2]],
+                             [[0, 1, 2], [0, 2, 3]])
+    objects = [trimesh.creation.icosphere(3, 0.6).apply_translation((12.0, 0.3, -0.2)),
+               trimesh.creation.cylinder(0.05, 6.0).apply_translation((14.0, -1.0, 0.0)), wedge, ground,
+               wall(20.0, 0.5)]
+    parts = trimesh.util.concatenate(objects)
+    set_face_materials(parts, np.full(len(parts.faces), 0.5), np.ones(len(parts.faces)),
+                       np.repeat(np.arange(len(objects)), [len(o.faces) for o in objects]))
+    one_object = surface(parts.copy(), 0.5)
+    cfg = at_origin("livox_mid70_risley")
+    flight = builtin_trajectory("line", 3.0, Pose(), 0.6) if moving else None
+    rays: list[int] = []
+
+    def cloud(mesh: trimesh.Trimesh) -> list:
+        caster = EmbreeCaster(mesh)
+        occluded = caster.occluded
+
+        def counted(origins: np.ndarray, directions: np.ndarray, limit: np.ndarray) -> np.ndarray:
+            rays.append(len(directions))
+            return occluded(origins, directions, limit)
+
+        caster.occluded = counted
+        return list(LidarScanner(cfg, caster, seed=5, trajectory=flight).frames(0.4))
+
+    filtered = [cloud(parts), cloud(one_object)]
+    probed = sum(rays)
+    rays.clear()
+    monkeypatch.setattr(TileProxy, "probes_named", lambda self, rows, *arguments: np.ones(rows.size, dtype=bool))
+    every_named = [cloud(parts), cloud(one_object)]
+    assert probed < 0.5 * sum(rays)
+    for mine, theirs in zip(filtered, every_named, strict=True):
+        for name in ("stream_index", "xyz_int16", "reflectivity", "tag", "return_number", "number_of_returns"):
+            assert np.array_equal(joined(mine, name), joined(theirs, name)), name
+        assert np.count_nonzero(joined(mine, "number_of_returns") == 2) > 200  # the objects' edges: two returns
 
 
 def test_a_frame_cut_over_the_cores_is_the_frame_cast_whole_on_a_turning_flight() -> None:

@@ -225,6 +225,12 @@ class TileProxy:
         #: (F,) each small triangle's tile, -1 for a large one (its pieces name it) or a flat object's.
         self.triangle_tile = triangle_tile
         self.triangle_part = parts.astype(np.int64)
+        #: (G, 3) each flat object's box and (G,) its object: what a probe can meet outside the tiles.
+        in_flat = kind[parts] == 0 if parts.size else np.zeros(0, dtype=bool)
+        self.flat_part, which = np.unique(parts[in_flat].astype(np.int64), return_inverse=True)
+        self.flat_low, self.flat_high = (_group_boxes(triangles[in_flat].min(axis=1), triangles[in_flat].max(axis=1),
+                                                      which.reshape(-1)) if self.flat_part.size
+                                         else (np.zeros((0, 3)), np.zeros((0, 3))))
         self.centre: np.ndarray | None = None
         self.radius = 0.0
         self._tree: BoxTree | None = None
@@ -321,6 +327,52 @@ class TileProxy:
             kernel("near_boxes")(*arguments, tree.node_low, tree.node_high, tree.node_link, tree.box_low,
                                  tree.box_high, tree.tile, *own, near)
         return near
+
+
+    def probes_named(self, rows: np.ndarray, probes: np.ndarray, limit: np.ndarray, triangle: np.ndarray,
+                     origins: np.ndarray, directions_sensor: np.ndarray | None,
+                     boxes: tuple[BoxTree | None, DirectionGrid | None]) -> np.ndarray:
+        """Whether any probe ray of the named beams ``rows`` can meet something before its limit: ``(m,)`` bool.
+
+        :meth:`near` names a beam whose central ray passes within the footprint's reach of a box, a box
+        inflated for the farthest beam that can reach it; a probe can only meet what lies in a tile itself (not
+        inflated) or a flat object's box that it crosses. Tiles that cannot lie in front of the hit's plane
+        (pieces of the hit triangle, tiles of its convex object) and its own flat object are left out, so the
+        answer is False only where Embree's probes would find nothing.
+
+        Parameters
+        ----------
+        rows : (m,) int
+            The named beams.
+        probes : (m, k, 3) float32
+            Their probe rays, world frame.
+        limit : (m, k) float64
+            How far each probe looks, metres.
+        triangle : (n,) int
+            Every beam's hit triangle, -1 for a miss.
+        origins : (1, 3) or (n, 3) float64
+        directions_sensor : (n, 3) float64, optional
+            A fixed sensor's beams, sensor frame (their grid cell), as given to :meth:`near`.
+        boxes : tuple
+            What :meth:`place` returned.
+        """
+        worth = np.zeros(rows.size, dtype=np.bool_)
+        tree, grid = boxes
+        if tree is None or rows.size == 0:
+            return worth
+        if grid is None or directions_sensor is None:
+            grid_arrays = (np.zeros((0, 3)), np.zeros(3), np.zeros(0, np.int64), np.zeros(0, np.int64),
+                           np.zeros(0, np.int64))
+        else:
+            grid_arrays = (np.ascontiguousarray(directions_sensor, dtype=np.float64), grid.bounds, grid.cell_start,
+                           grid.cell_boxes, grid.always)
+        kernel("probes_named")(np.asarray(rows, dtype=np.int64), probes, np.ascontiguousarray(limit),
+                               np.asarray(triangle, dtype=np.int64),
+                               np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
+                               *grid_arrays, tree.node_low, tree.node_high, tree.node_link, tree.tile, self.low,
+                               self.high, self.tile_part, self.tile_convex, self.tile_triangle, self.triangle_part,
+                               self.flat_low, self.flat_high, self.flat_part, worth)
+        return worth
 
 
 class DirectionGrid:

@@ -32,13 +32,13 @@ _HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab", "_basis_at",
 _PARALLEL: tuple[str, ...] = ()
 
 
-def _compile(function, parallel: bool = False):
+def _compile(function, parallel: bool = False, inline: str = "never"):
     import numba
 
     try:
-        return numba.njit(cache=True, nogil=True, parallel=parallel)(function)
+        return numba.njit(cache=True, nogil=True, parallel=parallel, inline=inline)(function)
     except RuntimeError:  # no writable cache folder: compile in each process
-        return numba.njit(nogil=True, parallel=parallel)(function)
+        return numba.njit(nogil=True, parallel=parallel, inline=inline)(function)
 
 
 def kernel(name: str):
@@ -55,7 +55,7 @@ def kernel(name: str):
 
                 namespace["prange"] = numba.prange
                 for helper in _HELPERS:
-                    namespace[helper] = _compile(namespace[helper])
+                    namespace[helper] = _compile(namespace[helper], inline="always")
             found = _KERNELS[name] = _compile(globals()[f"_{name}"], name in _PARALLEL)
     return found
 
@@ -413,6 +413,97 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
         near[i] = found
 
 
+def _probes_named(rows, probes, limit, triangle, origins, directions_sensor, bounds, cell_start, cell_boxes, always,
+                  node_low, node_high, node_link, box_tile, tile_low, tile_high, tile_part, tile_convex, tile_triangle,
+                  triangle_part, flat_low, flat_high, flat_part, worth):  # pragma: no cover - compiled
+    """Per named pulse ``rows``: can one of its probe rays (``probes (m, k, 3)``, each to its own ``limit``) meet
+    anything? Only where it passes through a tile itself (``tile_low``, ``tile_high``: not inflated) or a flat
+    object's box (``flat_low``, ``flat_high``), except the tiles that cannot lie in front of the hit's plane
+    (pieces of the hit triangle, tiles of the hit's convex object) and the hit's own flat object.
+
+    The tile boxes are filed by their inflated extent, which holds every ray of the footprint: a fixed sensor
+    (``cell_start`` not empty) tests those of its central beam's grid cell as :func:`_near_grid` does, a moving
+    one walks the tree as :func:`_near_boxes` does; every beam tests the flat objects' boxes.
+    """
+    stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
+    grid = cell_start.shape[0] > 0
+    low, per_unit, side = bounds[0], bounds[1], int(bounds[2])
+    boxes = box_tile.shape[0]
+    stack = np.empty(128, dtype=np.int64)
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        worth[r] = False
+        hit = triangle[i]
+        part = triangle_part[hit] if hit >= 0 else -1
+        o = i * stride
+        ox, oy, oz = origins[o, 0], origins[o, 1], origins[o, 2]
+        first, stop, extra = 0, 0, boxes
+        cell = -1
+        if grid:
+            sx = directions_sensor[i, 0]
+            if sx > 1e-6:
+                cu = math.floor((directions_sensor[i, 1] / sx - low) * per_unit)
+                cv = math.floor((directions_sensor[i, 2] / sx - low) * per_unit)
+                if 0 <= cu < side and 0 <= cv < side:
+                    cell = cu * side + cv
+            if cell >= 0:
+                first, stop, extra = cell_start[cell], cell_start[cell + 1], always.shape[0]
+        for k in range(probes.shape[1]):
+            dx, dy, dz = float(probes[r, k, 0]), float(probes[r, k, 1]), float(probes[r, k, 2])
+            ix = 1.0 / dx if dx != 0.0 else np.inf
+            iy = 1.0 / dy if dy != 0.0 else np.inf
+            iz = 1.0 / dz if dz != 0.0 else np.inf
+            reach = limit[r, k]
+            for f in range(flat_part.shape[0]):
+                if flat_part[f] != part and _slab(ox, oy, oz, ix, iy, iz, reach, flat_low[f, 0], flat_low[f, 1],
+                                                  flat_low[f, 2], flat_high[f, 0], flat_high[f, 1], flat_high[f, 2]):
+                    worth[r] = True
+                    break
+            if worth[r]:
+                break
+            if grid:
+                for j in range(first, stop + extra):
+                    if j < stop:
+                        b = cell_boxes[j]
+                    elif cell >= 0:
+                        b = always[j - stop]
+                    else:
+                        b = j - stop
+                    tile = box_tile[b]
+                    # (scalars only: a call taking the tile arrays costs their reference counts, five times this)
+                    if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part)):
+                        continue
+                    if _slab(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1], tile_low[tile, 2],
+                             tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2]):
+                        worth[r] = True
+                        break
+            else:
+                stack[0] = 0
+                top = 1
+                while top > 0 and not worth[r]:
+                    top -= 1
+                    node = stack[top]
+                    if not _slab(ox, oy, oz, ix, iy, iz, reach, node_low[node, 0], node_low[node, 1],
+                                 node_low[node, 2], node_high[node, 0], node_high[node, 1], node_high[node, 2]):
+                        continue
+                    if node_link[node, 0] >= 0:
+                        stack[top] = node_link[node, 0]
+                        stack[top + 1] = node_link[node, 1]
+                        top += 2
+                        continue
+                    for b in range(node_link[node, 1], node_link[node, 1] + node_link[node, 2]):
+                        tile = box_tile[b]
+                        if hit >= 0 and (tile_triangle[tile] == hit or (
+                                tile_convex[tile] and tile_part[tile] == part)):
+                            continue
+                        if _slab(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1],
+                                 tile_low[tile, 2], tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2]):
+                            worth[r] = True
+                            break
+            if worth[r]:
+                break
+
+
 def _slab(ox, oy, oz, ix, iy, iz, limit, lx, ly, lz, hx, hy, hz):  # pragma: no cover - compiled
     """Whether the ray from o (inverse direction i, infinite along an axis it does not move on) meets the box
     [l, h] between 0 and ``limit``."""
@@ -470,40 +561,74 @@ def _probe_limits(rows, probes, triangle, distance, planes, origins, range_max, 
 
 
 # Step 3: echoes of sampled footprints ------------------------------------------------------------------------------
-def _own_subrays(rows, clear, rays, triangle, planes, origins, inward, offset, range_max, ranges, triangles,
-                 own):  # pragma: no cover - compiled
+def _own_subrays(rows, clear, rays, triangle, planes, origins, inward, offset, range_max, ranges, triangles, slots,
+                 cast_rays):  # pragma: no cover - compiled
     """Sub-rays ``rays (m, k, 3)`` (ray 0 the central one) of the ``clear`` pulses ``rows`` that land inside their
     pulse's own triangle, strictly (a micrometre per metre of range inside every edge): their range from its
-    plane and its index into ``ranges`` and ``triangles``, and ``own`` set."""
+    plane and its index into ``ranges`` and ``triangles``. Every other sub-ray (1 to k - 1) is listed for Embree,
+    in pulse then sub-ray order: its flat index into ``ranges`` in ``slots`` and its direction in ``cast_rays``.
+    Returns how many are listed."""
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
+    count = rays.shape[1]
+    listed = 0
     for m in range(rows.shape[0]):
-        if not clear[m]:
-            continue
         i = rows[m]
         t = triangle[i]
-        if t < 0:
-            continue
+        check = clear[m] and t >= 0
         o = i * stride
-        nx, ny, nz = planes[t, 0], planes[t, 1], planes[t, 2]
-        height = planes[t, 3] - (nx * origins[o, 0] + ny * origins[o, 1] + nz * origins[o, 2])
-        for k in range(1, rays.shape[1]):
-            ux, uy, uz = float(rays[m, k, 0]), float(rays[m, k, 1]), float(rays[m, k, 2])
-            along = nx * ux + ny * uy + nz * uz
-            if abs(along) <= 1e-9:
-                continue
-            d = height / along
-            if not (0.0 <= d <= range_max):
-                continue
-            px, py, pz = origins[o, 0] + ux * d, origins[o, 1] + uy * d, origins[o, 2] + uz * d
-            inside = True
-            for e in range(3):
-                if inward[t, e, 0] * px + inward[t, e, 1] * py + inward[t, e, 2] * pz - offset[t, e] < 1e-6 * d:
-                    inside = False
-                    break
-            if inside:
-                ranges[m, k] = d
-                triangles[m, k] = t
-                own[m, k] = True
+        nx = ny = nz = height = 0.0
+        if check:
+            nx, ny, nz = planes[t, 0], planes[t, 1], planes[t, 2]
+            height = planes[t, 3] - (nx * origins[o, 0] + ny * origins[o, 1] + nz * origins[o, 2])
+        for k in range(1, count):
+            if check:
+                ux, uy, uz = float(rays[m, k, 0]), float(rays[m, k, 1]), float(rays[m, k, 2])
+                along = nx * ux + ny * uy + nz * uz
+                if abs(along) > 1e-9:
+                    d = height / along
+                    if 0.0 <= d <= range_max:
+                        px, py, pz = origins[o, 0] + ux * d, origins[o, 1] + uy * d, origins[o, 2] + uz * d
+                        inside = True
+                        for e in range(3):
+                            if (inward[t, e, 0] * px + inward[t, e, 1] * py + inward[t, e, 2] * pz - offset[t, e]
+                                    < 1e-6 * d):
+                                inside = False
+                                break
+                        if inside:
+                            ranges[m, k] = d
+                            triangles[m, k] = t
+                            continue
+            slots[listed] = m * count + k
+            cast_rays[listed, 0] = rays[m, k, 0]
+            cast_rays[listed, 1] = rays[m, k, 1]
+            cast_rays[listed, 2] = rays[m, k, 2]
+            listed += 1
+    return listed
+
+
+def _cast_subrays(slots, hit, cast_rays, rows, origins, planes, range_max, ranges, triangles):  # pragma: no cover
+    """Embree's triangles ``hit`` of the sub-rays :func:`_own_subrays` listed, put back at their ``slots`` of
+    ``ranges`` and ``triangles`` (``(m, k)``), each range from its triangle's plane as :func:`_plane_distance`
+    gives it (a sub-ray along its plane, -1 there, carries no energy back: its triangle is -1 too)."""
+    stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
+    count = ranges.shape[1]
+    for j in range(slots.shape[0]):
+        m = slots[j] // count
+        k = slots[j] - m * count
+        t = hit[j]
+        if t < 0:
+            ranges[m, k] = np.inf
+            triangles[m, k] = -1
+            continue
+        o = rows[m] * stride
+        along = planes[t, 0] * cast_rays[j, 0] + planes[t, 1] * cast_rays[j, 1] + planes[t, 2] * cast_rays[j, 2]
+        height = planes[t, 3] - (planes[t, 0] * origins[o, 0] + planes[t, 1] * origins[o, 1]
+                                 + planes[t, 2] * origins[o, 2])
+        d = height / along if abs(along) > 1e-9 else -1.0
+        if not (0.0 <= d <= range_max * (1.0 + 1e-9)):
+            d = -1.0
+        ranges[m, k] = min(d, range_max) if d >= 0.0 else -1.0
+        triangles[m, k] = t if d >= 0.0 else -1
 
 
 def _footprint_echoes(rows, ranges, triangles, rays, weights, planes, brightness, origins, blind, separate,
