@@ -86,6 +86,8 @@ WHOLE_CONVEX = 50.0
 CUT_CELLS = 24
 #: Objects of more triangles than this are not tested for convexity (taken as not convex).
 CONVEX_TEST_MAX = 4000
+#: A convex object with at most this many distinct face planes keeps them for the probes' test (a box, a roof).
+HULL_PLANES_MAX = 16
 
 
 class Footprint:
@@ -231,6 +233,10 @@ class TileProxy:
         self.flat_low, self.flat_high = (_group_boxes(triangles[in_flat].min(axis=1), triangles[in_flat].max(axis=1),
                                                       which.reshape(-1)) if self.flat_part.size
                                          else (np.zeros((0, 3)), np.zeros((0, 3))))
+        #: Per object: its bounding sphere ``(P, 4)`` (centre, radius; infinite unless convex) and, for a convex
+        #: one of few faces, its face planes (outward normal, offset) from row ``hull_start[p]`` of ``hull_planes``:
+        #: a probe that passes a convex object's tile box can still miss the object (a ball, a roof).
+        self.part_sphere, self.hull_start, self.hull_planes = _convex_hulls(triangles, parts, kind)
         self.centre: np.ndarray | None = None
         self.radius = 0.0
         self._tree: BoxTree | None = None
@@ -336,7 +342,8 @@ class TileProxy:
 
         :meth:`near` names a beam whose central ray passes within the footprint's reach of a box, a box
         inflated for the farthest beam that can reach it; a probe can only meet what lies in a tile itself (not
-        inflated) or a flat object's box that it crosses. Tiles that cannot lie in front of the hit's plane
+        inflated; for a convex object, also inside its bounding sphere and its faces' planes) or a flat object's
+        box that it crosses. Tiles that cannot lie in front of the hit's plane
         (pieces of the hit triangle, tiles of its convex object) and its own flat object are left out, so the
         answer is False only where Embree's probes would find nothing.
 
@@ -371,7 +378,8 @@ class TileProxy:
                                np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
                                *grid_arrays, tree.node_low, tree.node_high, tree.node_link, tree.tile, self.low,
                                self.high, self.tile_part, self.tile_convex, self.tile_triangle, self.triangle_part,
-                               self.flat_low, self.flat_high, self.flat_part, worth)
+                               self.flat_low, self.flat_high, self.flat_part, self.part_sphere, self.hull_start,
+                               self.hull_planes, worth)
         return worth
 
 
@@ -553,6 +561,42 @@ def _tiles(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray):
         return np.zeros((0, 3)), np.zeros((0, 3)), empty, empty, triangle_tile
     return (np.concatenate(lows), np.concatenate(highs), np.concatenate(tile_parts), np.concatenate(tile_triangles),
             triangle_tile)
+
+
+def _convex_hulls(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each object's bounding sphere ``(P, 4)`` (radius inf unless convex), and the outward face planes of the
+    convex ones with at most :data:`HULL_PLANES_MAX` distinct planes: ``(P + 1,)`` starts into ``(K, 4)`` rows
+    (unit normal, offset; a point inside has ``n . x <= offset``)."""
+    count = kind.shape[0]
+    sphere = np.zeros((count, 4))
+    sphere[:, 3] = np.inf
+    planes: list[np.ndarray] = []
+    start = np.zeros(count + 1, dtype=np.int64)
+    order = np.argsort(parts, kind="stable")
+    bounds = np.searchsorted(parts[order], np.arange(count + 1))
+    rows = 0
+    for part in range(count):
+        start[part] = rows
+        if kind[part] != 1:
+            continue
+        tri = triangles[order[bounds[part]:bounds[part + 1]]]
+        vertices = tri.reshape(-1, 3)
+        centre = (vertices.min(axis=0) + vertices.max(axis=0)) / 2.0
+        sphere[part, :3] = centre
+        sphere[part, 3] = float(np.linalg.norm(vertices - centre, axis=1).max())
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(normal, axis=1)
+        normal = normal[length > 0] / length[length > 0, None]
+        offset = np.einsum("ij,ij->i", normal, tri[length > 0, 0])
+        inside = np.unique(vertices, axis=0).mean(axis=0)  # (the box's centre need not be inside: a wedge)
+        outward = np.where(normal @ inside > offset, -1.0, 1.0)
+        hull = np.unique(np.round(np.column_stack([normal, offset]) * outward[:, None], 9), axis=0)
+        if len(hull) <= HULL_PLANES_MAX:
+            planes.append(hull)
+            rows += len(hull)
+    start[count] = rows
+    return sphere, start, np.concatenate(planes) if planes else np.zeros((0, 4))
 
 
 def _group_boxes(low: np.ndarray, high: np.ndarray, group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

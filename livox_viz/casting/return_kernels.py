@@ -24,7 +24,8 @@ _KERNELS: dict[str, object] = {}
 #: The small functions the loops call: compiled (in this module's namespace) before the first loop is.
 #: Frames are cast on worker threads: the first loop of each is compiled by one of them, once.
 _COMPILING = threading.Lock()
-_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab", "_basis_at", "_any_chosen", "_byte")
+_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab", "_in_hull", "_basis_at", "_any_chosen",
+            "_byte")
 
 
 #: The loops that would run their pulses on every core (``prange``). None does: on this 2-core machine shared
@@ -415,10 +416,12 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
 
 def _probes_named(rows, probes, limit, triangle, origins, directions_sensor, bounds, cell_start, cell_boxes, always,
                   node_low, node_high, node_link, box_tile, tile_low, tile_high, tile_part, tile_convex, tile_triangle,
-                  triangle_part, flat_low, flat_high, flat_part, worth):  # pragma: no cover - compiled
+                  triangle_part, flat_low, flat_high, flat_part, part_sphere, hull_start, hull_planes,
+                  worth):  # pragma: no cover - compiled
     """Per named pulse ``rows``: can one of its probe rays (``probes (m, k, 3)``, each to its own ``limit``) meet
-    anything? Only where it passes through a tile itself (``tile_low``, ``tile_high``: not inflated) or a flat
-    object's box (``flat_low``, ``flat_high``), except the tiles that cannot lie in front of the hit's plane
+    anything? Only where it passes through a tile itself (``tile_low``, ``tile_high``: not inflated; for a convex
+    object also its bounding sphere, ``part_sphere``, and its face planes, ``hull_planes`` from ``hull_start``) or
+    a flat object's box (``flat_low``, ``flat_high``), except the tiles that cannot lie in front of the hit's plane
     (pieces of the hit triangle, tiles of the hit's convex object) and the hit's own flat object.
 
     The tile boxes are filed by their inflated extent, which holds every ray of the footprint: a fixed sensor
@@ -474,7 +477,8 @@ def _probes_named(rows, probes, limit, triangle, origins, directions_sensor, bou
                     if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part)):
                         continue
                     if _slab(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1], tile_low[tile, 2],
-                             tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2]):
+                             tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2]) and _in_hull(
+                                 ox, oy, oz, dx, dy, dz, reach, tile_part[tile], part_sphere, hull_start, hull_planes):
                         worth[r] = True
                         break
             else:
@@ -497,11 +501,41 @@ def _probes_named(rows, probes, limit, triangle, origins, directions_sensor, bou
                                 tile_convex[tile] and tile_part[tile] == part)):
                             continue
                         if _slab(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1],
-                                 tile_low[tile, 2], tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2]):
+                                 tile_low[tile, 2], tile_high[tile, 0], tile_high[tile, 1],
+                                 tile_high[tile, 2]) and _in_hull(ox, oy, oz, dx, dy, dz, reach, tile_part[tile],
+                                                                  part_sphere, hull_start, hull_planes):
                             worth[r] = True
                             break
             if worth[r]:
                 break
+
+
+def _in_hull(ox, oy, oz, dx, dy, dz, reach, part, sphere, start, planes):  # pragma: no cover - compiled
+    """Whether the ray from o along d (unit) meets object ``part``'s bounding sphere and the inside of its face
+    planes between 0 and ``reach`` (always True for an object that is not convex: infinite sphere, no planes).
+    Both a millimetre larger than the object (so a ray that grazes it is kept)."""
+    radius = sphere[part, 3]
+    if radius < np.inf:
+        cx, cy, cz = sphere[part, 0] - ox, sphere[part, 1] - oy, sphere[part, 2] - oz
+        along = min(max(cx * dx + cy * dy + cz * dz, 0.0), reach)
+        ex, ey, ez = cx - along * dx, cy - along * dy, cz - along * dz
+        if ex * ex + ey * ey + ez * ez > (radius + 1e-3) ** 2:
+            return False
+    enter = 0.0
+    leave = reach
+    for k in range(start[part], start[part + 1]):
+        facing = planes[k, 0] * dx + planes[k, 1] * dy + planes[k, 2] * dz
+        room = planes[k, 3] + 1e-3 - (planes[k, 0] * ox + planes[k, 1] * oy + planes[k, 2] * oz)
+        if facing == 0.0:
+            if room < 0.0:
+                return False
+        elif facing > 0.0:
+            leave = min(leave, room / facing)
+        else:
+            enter = max(enter, room / facing)
+        if enter > leave:
+            return False
+    return True
 
 
 def _slab(ox, oy, oz, ix, iy, iz, limit, lx, ly, lz, hx, hy, hz):  # pragma: no cover - compiled
