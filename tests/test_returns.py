@@ -510,11 +510,13 @@ def test_sub_rays_taken_from_their_own_triangle_are_those_embree_casts(monkeypat
 
 
 @pytest.mark.parametrize("moving", [False, True])
-def test_probes_go_to_embree_only_where_they_can_meet_something(monkeypatch: pytest.MonkeyPatch, moving: bool) -> None:
+def test_footprint_rays_go_to_embree_only_where_they_can_meet_something(monkeypatch: pytest.MonkeyPatch,
+                                                                        moving: bool) -> None:
     """The broad phase names a beam that passes within the footprint's reach of an inflated box; Embree takes the
-    beam's probes only when one crosses a tile itself or a flat object's box. Objects whose boxes hold much air
-    (a ball, a pole, a wedge) before a wall, over a ground that stops short of it, and one object made of all
-    of them (a mesh file without parts): the cloud is the one every named beam's probes give, for fewer probes."""
+    beam's probes, and its sub-rays that land on its own triangle, only when they cross a tile itself (inside a
+    convex object's sphere and planes) or a flat object's box. Objects whose boxes hold much air (a ball, a pole, a
+    wedge, a small box grazed at its edges) before a wall, over a ground that stops short of it, and the same as
+    one object (a mesh file without parts): the cloud is the one casting all of them gives, for far fewer rays."""
     from livox_viz.casting.beam import TileProxy
     from livox_viz.core.poses import Pose
     from livox_viz.motion.flights import builtin_trajectory
@@ -526,33 +528,39 @@ def test_probes_go_to_embree_only_where_they_can_meet_something(monkeypatch: pyt
                              [[0, 1, 2], [0, 2, 3]])
     objects = [trimesh.creation.icosphere(3, 0.6).apply_translation((12.0, 0.3, -0.2)),
                trimesh.creation.cylinder(0.05, 6.0).apply_translation((14.0, -1.0, 0.0)), wedge, ground,
-               wall(20.0, 0.5)]
+               trimesh.creation.box((0.15, 0.15, 0.15)).apply_translation((0.8, -0.4, 0.1)), wall(20.0, 0.5)]
     parts = trimesh.util.concatenate(objects)
     set_face_materials(parts, np.full(len(parts.faces), 0.5), np.ones(len(parts.faces)),
                        np.repeat(np.arange(len(objects)), [len(o.faces) for o in objects]))
     one_object = surface(parts.copy(), 0.5)
     cfg = at_origin("livox_mid70_risley")
     flight = builtin_trajectory("line", 3.0, Pose(), 0.6) if moving else None
-    rays: list[int] = []
+    rays = {"probes": 0, "sub-rays": 0}
 
     def cloud(mesh: trimesh.Trimesh) -> list:
         caster = EmbreeCaster(mesh)
-        occluded = caster.occluded
+        occluded, triangle_ids = caster.occluded, caster.triangle_ids
 
-        def counted(origins: np.ndarray, directions: np.ndarray, limit: np.ndarray) -> np.ndarray:
-            rays.append(len(directions))
+        def probes(origins: np.ndarray, directions: np.ndarray, limit: np.ndarray) -> np.ndarray:
+            rays["probes"] += len(directions)
             return occluded(origins, directions, limit)
 
-        caster.occluded = counted
+        def sub_rays(origins: np.ndarray, directions: np.ndarray, limit: float) -> np.ndarray:
+            if directions.dtype == np.float32:  # a footprint's rays (a run's central rays are float64)
+                rays["sub-rays"] += len(directions)
+            return triangle_ids(origins, directions, limit)
+
+        caster.occluded, caster.triangle_ids = probes, sub_rays
         return list(LidarScanner(cfg, caster, seed=5, trajectory=flight).frames(0.4))
 
     filtered = [cloud(parts), cloud(one_object)]
-    probed = sum(rays)
-    rays.clear()
-    monkeypatch.setattr(TileProxy, "probes_named", lambda self, rows, *arguments: np.ones(rows.size, dtype=bool))
-    every_named = [cloud(parts), cloud(one_object)]
-    assert probed < 0.5 * sum(rays)
-    for mine, theirs in zip(filtered, every_named, strict=True):
+    cast = dict(rays)
+    rays.update(dict.fromkeys(rays, 0))
+    monkeypatch.setattr(TileProxy, "rays_may_meet", lambda self, pulse, *arguments: np.ones(len(pulse), dtype=bool))
+    all_cast = [cloud(parts), cloud(one_object)]
+    assert cast["probes"] < 0.3 * rays["probes"]
+    assert cast["sub-rays"] < 0.85 * rays["sub-rays"]
+    for mine, theirs in zip(filtered, all_cast, strict=True):
         for name in ("stream_index", "xyz_int16", "reflectivity", "tag", "return_number", "number_of_returns"):
             assert np.array_equal(joined(mine, name), joined(theirs, name)), name
         assert np.count_nonzero(joined(mine, "number_of_returns") == 2) > 200  # the objects' edges: two returns

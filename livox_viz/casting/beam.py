@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from livox_viz.casting.return_kernels import kernel
+from livox_viz.casting.return_kernels import HULL_PAD_M, kernel
 from livox_viz.scene.materials import face_materials, face_parts
 
 if TYPE_CHECKING:
@@ -237,6 +237,10 @@ class TileProxy:
         #: one of few faces, its face planes (outward normal, offset) from row ``hull_start[p]`` of ``hull_planes``:
         #: a probe that passes a convex object's tile box can still miss the object (a ball, a roof).
         self.part_sphere, self.hull_start, self.hull_planes = _convex_hulls(triangles, parts, kind)
+        # The tiles and flat objects a millimetre larger for :meth:`rays_may_meet`: a ray along a box's face or edge
+        # rounds either way, and Embree may still meet what lies there.
+        self._padded = (self.low - HULL_PAD_M, self.high + HULL_PAD_M, self.flat_low - HULL_PAD_M,
+                        self.flat_high + HULL_PAD_M)
         self.centre: np.ndarray | None = None
         self.radius = 0.0
         self._tree: BoxTree | None = None
@@ -335,52 +339,55 @@ class TileProxy:
         return near
 
 
-    def probes_named(self, rows: np.ndarray, probes: np.ndarray, limit: np.ndarray, triangle: np.ndarray,
-                     origins: np.ndarray, directions_sensor: np.ndarray | None,
-                     boxes: tuple[BoxTree | None, DirectionGrid | None]) -> np.ndarray:
-        """Whether any probe ray of the named beams ``rows`` can meet something before its limit: ``(m,)`` bool.
+    def rays_may_meet(self, pulse: np.ndarray, rays: np.ndarray, limit: np.ndarray, triangle: np.ndarray,
+                      origins: np.ndarray, directions_sensor: np.ndarray | None,
+                      boxes: tuple[BoxTree | None, DirectionGrid | None]) -> np.ndarray:
+        """Whether each ray of a footprint (a probe, a sub-ray) can meet anything but its pulse's hit before its
+        limit: ``(r,)`` bool.
 
         :meth:`near` names a beam whose central ray passes within the footprint's reach of a box, a box
-        inflated for the farthest beam that can reach it; a probe can only meet what lies in a tile itself (not
-        inflated; for a convex object, also inside its bounding sphere and its faces' planes) or a flat object's
-        box that it crosses. Tiles that cannot lie in front of the hit's plane
-        (pieces of the hit triangle, tiles of its convex object) and its own flat object are left out, so the
-        answer is False only where Embree's probes would find nothing.
+        inflated for the farthest beam that can reach it; a ray of its footprint can only meet what lies in a
+        tile itself (not inflated; for a convex object, also inside its bounding sphere and its faces' planes)
+        or a flat object's box that it crosses. Tiles that cannot lie in front of the hit's plane (pieces of the
+        hit triangle, tiles of its convex object) and its own flat object are left out, so the answer is False
+        only where Embree would find nothing before the limit but, at most, the hit's own surface.
 
         Parameters
         ----------
-        rows : (m,) int
-            The named beams.
-        probes : (m, k, 3) float32
-            Their probe rays, world frame.
-        limit : (m, k) float64
-            How far each probe looks, metres.
+        pulse : (r,) int
+            The pulse (row of the run) of each ray.
+        rays : (r, 3) float32
+            Unit directions, world frame.
+        limit : (r,) float64
+            How far each ray looks, metres.
         triangle : (n,) int
-            Every beam's hit triangle, -1 for a miss.
+            Every pulse's hit triangle, -1 for a miss.
         origins : (1, 3) or (n, 3) float64
         directions_sensor : (n, 3) float64, optional
             A fixed sensor's beams, sensor frame (their grid cell), as given to :meth:`near`.
         boxes : tuple
             What :meth:`place` returned.
         """
-        worth = np.zeros(rows.size, dtype=np.bool_)
+        meet = np.zeros(len(rays), dtype=np.bool_)
         tree, grid = boxes
-        if tree is None or rows.size == 0:
-            return worth
+        if len(rays) == 0:
+            return meet
+        tree_arrays = ((tree.node_low, tree.node_high, tree.node_link, tree.tile) if tree is not None else
+                       (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64)))
         if grid is None or directions_sensor is None:
             grid_arrays = (np.zeros((0, 3)), np.zeros(3), np.zeros(0, np.int64), np.zeros(0, np.int64),
                            np.zeros(0, np.int64))
         else:
             grid_arrays = (np.ascontiguousarray(directions_sensor, dtype=np.float64), grid.bounds, grid.cell_start,
                            grid.cell_boxes, grid.always)
-        kernel("probes_named")(np.asarray(rows, dtype=np.int64), probes, np.ascontiguousarray(limit),
-                               np.asarray(triangle, dtype=np.int64),
-                               np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
-                               *grid_arrays, tree.node_low, tree.node_high, tree.node_link, tree.tile, self.low,
-                               self.high, self.tile_part, self.tile_convex, self.tile_triangle, self.triangle_part,
-                               self.flat_low, self.flat_high, self.flat_part, self.part_sphere, self.hull_start,
-                               self.hull_planes, worth)
-        return worth
+        kernel("rays_may_meet")(np.asarray(pulse, dtype=np.int64), np.ascontiguousarray(rays, dtype=np.float32),
+                                np.ascontiguousarray(limit, dtype=np.float64), np.asarray(triangle, dtype=np.int64),
+                                np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
+                                *grid_arrays, *tree_arrays, self._padded[0], self._padded[1], self.tile_part,
+                                self.tile_convex, self.tile_triangle, self.triangle_part, self._padded[2],
+                                self._padded[3], self.flat_part, self.part_sphere, self.hull_start, self.hull_planes,
+                                meet)
+        return meet
 
 
 class DirectionGrid:

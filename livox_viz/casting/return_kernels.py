@@ -61,6 +61,10 @@ def kernel(name: str):
     return found
 
 
+#: How much larger than an object its boxes, sphere and planes are when a ray of a footprint is tested against
+#: them, metres (a ray along a face or an edge rounds either way, and Embree may still meet it there).
+HULL_PAD_M = 1e-3
+
 #: ``numba.prange`` once the loops are compiled (plain ``range`` before, so the module imports without numba).
 prange = range
 
@@ -414,35 +418,48 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
         near[i] = found
 
 
-def _probes_named(rows, probes, limit, triangle, origins, directions_sensor, bounds, cell_start, cell_boxes, always,
-                  node_low, node_high, node_link, box_tile, tile_low, tile_high, tile_part, tile_convex, tile_triangle,
-                  triangle_part, flat_low, flat_high, flat_part, part_sphere, hull_start, hull_planes,
-                  worth):  # pragma: no cover - compiled
-    """Per named pulse ``rows``: can one of its probe rays (``probes (m, k, 3)``, each to its own ``limit``) meet
-    anything? Only where it passes through a tile itself (``tile_low``, ``tile_high``: not inflated; for a convex
-    object also its bounding sphere, ``part_sphere``, and its face planes, ``hull_planes`` from ``hull_start``) or
-    a flat object's box (``flat_low``, ``flat_high``), except the tiles that cannot lie in front of the hit's plane
-    (pieces of the hit triangle, tiles of the hit's convex object) and the hit's own flat object.
+def _rays_may_meet(pulse, rays, limit, triangle, origins, directions_sensor, bounds, cell_start, cell_boxes, always,
+                   node_low, node_high, node_link, box_tile, tile_low, tile_high, tile_part, tile_convex,
+                   tile_triangle, triangle_part, flat_low, flat_high, flat_part, part_sphere, hull_start, hull_planes,
+                   meet):  # pragma: no cover - compiled
+    """Per ray of a footprint (``rays (r, 3)``, of the pulses ``pulse``, each to its own ``limit``): can it meet
+    anything but its pulse's hit? Only where it passes through a tile itself (``tile_low``, ``tile_high``: not
+    inflated; for a convex object also its bounding sphere, ``part_sphere``, and its face planes, ``hull_planes``
+    from ``hull_start``) or a flat object's box (``flat_low``, ``flat_high``), except the tiles that cannot lie in
+    front of the hit's plane (pieces of the hit triangle, tiles of the hit's convex object) and the hit's own
+    flat object.
 
     The tile boxes are filed by their inflated extent, which holds every ray of the footprint: a fixed sensor
-    (``cell_start`` not empty) tests those of its central beam's grid cell as :func:`_near_grid` does, a moving
-    one walks the tree as :func:`_near_boxes` does; every beam tests the flat objects' boxes.
+    (``cell_start`` not empty) tests those of its pulse's grid cell as :func:`_near_grid` does, a moving one
+    walks the tree as :func:`_near_boxes` does; every ray tests the flat objects' boxes.
     """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
     grid = cell_start.shape[0] > 0
     low, per_unit, side = bounds[0], bounds[1], int(bounds[2])
     boxes = box_tile.shape[0]
     stack = np.empty(128, dtype=np.int64)
-    for r in range(rows.shape[0]):
-        i = rows[r]
-        worth[r] = False
+    for r in range(rays.shape[0]):
+        i = pulse[r]
+        meet[r] = False
         hit = triangle[i]
         part = triangle_part[hit] if hit >= 0 else -1
         o = i * stride
         ox, oy, oz = origins[o, 0], origins[o, 1], origins[o, 2]
-        first, stop, extra = 0, 0, boxes
-        cell = -1
+        dx, dy, dz = float(rays[r, 0]), float(rays[r, 1]), float(rays[r, 2])
+        ix = 1.0 / dx if dx != 0.0 else np.inf
+        iy = 1.0 / dy if dy != 0.0 else np.inf
+        iz = 1.0 / dz if dz != 0.0 else np.inf
+        reach = limit[r]
+        for f in range(flat_part.shape[0]):
+            if flat_part[f] != part and _slab(ox, oy, oz, ix, iy, iz, reach, flat_low[f, 0], flat_low[f, 1],
+                                              flat_low[f, 2], flat_high[f, 0], flat_high[f, 1], flat_high[f, 2]):
+                meet[r] = True
+                break
+        if meet[r]:
+            continue
         if grid:
+            first, stop, extra = 0, 0, boxes
+            cell = -1
             sx = directions_sensor[i, 0]
             if sx > 1e-6:
                 cu = math.floor((directions_sensor[i, 1] / sx - low) * per_unit)
@@ -451,81 +468,64 @@ def _probes_named(rows, probes, limit, triangle, origins, directions_sensor, bou
                     cell = cu * side + cv
             if cell >= 0:
                 first, stop, extra = cell_start[cell], cell_start[cell + 1], always.shape[0]
-        for k in range(probes.shape[1]):
-            dx, dy, dz = float(probes[r, k, 0]), float(probes[r, k, 1]), float(probes[r, k, 2])
-            ix = 1.0 / dx if dx != 0.0 else np.inf
-            iy = 1.0 / dy if dy != 0.0 else np.inf
-            iz = 1.0 / dz if dz != 0.0 else np.inf
-            reach = limit[r, k]
-            for f in range(flat_part.shape[0]):
-                if flat_part[f] != part and _slab(ox, oy, oz, ix, iy, iz, reach, flat_low[f, 0], flat_low[f, 1],
-                                                  flat_low[f, 2], flat_high[f, 0], flat_high[f, 1], flat_high[f, 2]):
-                    worth[r] = True
+            for j in range(first, stop + extra):
+                if j < stop:
+                    b = cell_boxes[j]
+                elif cell >= 0:
+                    b = always[j - stop]
+                else:
+                    b = j - stop
+                tile = box_tile[b]
+                # (scalars only: a call taking the tile arrays would pay their reference counts, five times this)
+                if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part)):
+                    continue
+                if _slab(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1], tile_low[tile, 2],
+                         tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2]) and _in_hull(
+                             ox, oy, oz, dx, dy, dz, reach, tile_part[tile], part_sphere, hull_start, hull_planes):
+                    meet[r] = True
                     break
-            if worth[r]:
-                break
-            if grid:
-                for j in range(first, stop + extra):
-                    if j < stop:
-                        b = cell_boxes[j]
-                    elif cell >= 0:
-                        b = always[j - stop]
-                    else:
-                        b = j - stop
+        elif node_low.shape[0] > 0:
+            stack[0] = 0
+            top = 1
+            while top > 0 and not meet[r]:
+                top -= 1
+                node = stack[top]
+                if not _slab(ox, oy, oz, ix, iy, iz, reach, node_low[node, 0], node_low[node, 1], node_low[node, 2],
+                             node_high[node, 0], node_high[node, 1], node_high[node, 2]):
+                    continue
+                if node_link[node, 0] >= 0:
+                    stack[top] = node_link[node, 0]
+                    stack[top + 1] = node_link[node, 1]
+                    top += 2
+                    continue
+                for b in range(node_link[node, 1], node_link[node, 1] + node_link[node, 2]):
                     tile = box_tile[b]
-                    # (scalars only: a call taking the tile arrays costs their reference counts, five times this)
                     if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part)):
                         continue
                     if _slab(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1], tile_low[tile, 2],
                              tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2]) and _in_hull(
-                                 ox, oy, oz, dx, dy, dz, reach, tile_part[tile], part_sphere, hull_start, hull_planes):
-                        worth[r] = True
+                                 ox, oy, oz, dx, dy, dz, reach, tile_part[tile], part_sphere, hull_start,
+                                 hull_planes):
+                        meet[r] = True
                         break
-            else:
-                stack[0] = 0
-                top = 1
-                while top > 0 and not worth[r]:
-                    top -= 1
-                    node = stack[top]
-                    if not _slab(ox, oy, oz, ix, iy, iz, reach, node_low[node, 0], node_low[node, 1],
-                                 node_low[node, 2], node_high[node, 0], node_high[node, 1], node_high[node, 2]):
-                        continue
-                    if node_link[node, 0] >= 0:
-                        stack[top] = node_link[node, 0]
-                        stack[top + 1] = node_link[node, 1]
-                        top += 2
-                        continue
-                    for b in range(node_link[node, 1], node_link[node, 1] + node_link[node, 2]):
-                        tile = box_tile[b]
-                        if hit >= 0 and (tile_triangle[tile] == hit or (
-                                tile_convex[tile] and tile_part[tile] == part)):
-                            continue
-                        if _slab(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1],
-                                 tile_low[tile, 2], tile_high[tile, 0], tile_high[tile, 1],
-                                 tile_high[tile, 2]) and _in_hull(ox, oy, oz, dx, dy, dz, reach, tile_part[tile],
-                                                                  part_sphere, hull_start, hull_planes):
-                            worth[r] = True
-                            break
-            if worth[r]:
-                break
 
 
 def _in_hull(ox, oy, oz, dx, dy, dz, reach, part, sphere, start, planes):  # pragma: no cover - compiled
     """Whether the ray from o along d (unit) meets object ``part``'s bounding sphere and the inside of its face
     planes between 0 and ``reach`` (always True for an object that is not convex: infinite sphere, no planes).
-    Both a millimetre larger than the object (so a ray that grazes it is kept)."""
+    Both :data:`HULL_PAD_M` larger than the object (so a ray that grazes it is kept)."""
     radius = sphere[part, 3]
     if radius < np.inf:
         cx, cy, cz = sphere[part, 0] - ox, sphere[part, 1] - oy, sphere[part, 2] - oz
         along = min(max(cx * dx + cy * dy + cz * dz, 0.0), reach)
         ex, ey, ez = cx - along * dx, cy - along * dy, cz - along * dz
-        if ex * ex + ey * ey + ez * ez > (radius + 1e-3) ** 2:
+        if ex * ex + ey * ey + ez * ez > (radius + HULL_PAD_M) ** 2:
             return False
     enter = 0.0
     leave = reach
     for k in range(start[part], start[part + 1]):
         facing = planes[k, 0] * dx + planes[k, 1] * dy + planes[k, 2] * dz
-        room = planes[k, 3] + 1e-3 - (planes[k, 0] * ox + planes[k, 1] * oy + planes[k, 2] * oz)
+        room = planes[k, 3] + HULL_PAD_M - (planes[k, 0] * ox + planes[k, 1] * oy + planes[k, 2] * oz)
         if facing == 0.0:
             if room < 0.0:
                 return False
@@ -596,11 +596,12 @@ def _probe_limits(rows, probes, triangle, distance, planes, origins, range_max, 
 
 # Step 3: echoes of sampled footprints ------------------------------------------------------------------------------
 def _own_subrays(rows, clear, rays, triangle, planes, origins, inward, offset, range_max, ranges, triangles, slots,
-                 cast_rays):  # pragma: no cover - compiled
-    """Sub-rays ``rays (m, k, 3)`` (ray 0 the central one) of the ``clear`` pulses ``rows`` that land inside their
-    pulse's own triangle, strictly (a micrometre per metre of range inside every edge): their range from its
-    plane and its index into ``ranges`` and ``triangles``. Every other sub-ray (1 to k - 1) is listed for Embree,
-    in pulse then sub-ray order: its flat index into ``ranges`` in ``slots`` and its direction in ``cast_rays``.
+                 cast_rays, on_own):  # pragma: no cover - compiled
+    """Sub-rays ``rays (m, k, 3)`` (ray 0 the central one) of the pulses ``rows`` that land inside their pulse's own
+    triangle, strictly (a micrometre per metre of range inside every edge): for a ``clear`` pulse, their range
+    from its plane and its index go into ``ranges`` and ``triangles``. Every other sub-ray (1 to k - 1) is listed
+    for Embree, in pulse then sub-ray order: its flat index into ``ranges`` in ``slots``, its direction in
+    ``cast_rays``, and in ``on_own`` the range at which it lands inside its own triangle (-1 where it does not).
     Returns how many are listed."""
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
     count = rays.shape[1]
@@ -608,34 +609,35 @@ def _own_subrays(rows, clear, rays, triangle, planes, origins, inward, offset, r
     for m in range(rows.shape[0]):
         i = rows[m]
         t = triangle[i]
-        check = clear[m] and t >= 0
         o = i * stride
         nx = ny = nz = height = 0.0
-        if check:
+        if t >= 0:
             nx, ny, nz = planes[t, 0], planes[t, 1], planes[t, 2]
             height = planes[t, 3] - (nx * origins[o, 0] + ny * origins[o, 1] + nz * origins[o, 2])
         for k in range(1, count):
-            if check:
+            landing = -1.0
+            if t >= 0:
                 ux, uy, uz = float(rays[m, k, 0]), float(rays[m, k, 1]), float(rays[m, k, 2])
                 along = nx * ux + ny * uy + nz * uz
                 if abs(along) > 1e-9:
                     d = height / along
                     if 0.0 <= d <= range_max:
                         px, py, pz = origins[o, 0] + ux * d, origins[o, 1] + uy * d, origins[o, 2] + uz * d
-                        inside = True
+                        landing = d
                         for e in range(3):
                             if (inward[t, e, 0] * px + inward[t, e, 1] * py + inward[t, e, 2] * pz - offset[t, e]
                                     < 1e-6 * d):
-                                inside = False
+                                landing = -1.0
                                 break
-                        if inside:
-                            ranges[m, k] = d
-                            triangles[m, k] = t
-                            continue
+            if landing >= 0.0 and clear[m]:
+                ranges[m, k] = landing
+                triangles[m, k] = t
+                continue
             slots[listed] = m * count + k
             cast_rays[listed, 0] = rays[m, k, 0]
             cast_rays[listed, 1] = rays[m, k, 1]
             cast_rays[listed, 2] = rays[m, k, 2]
+            on_own[listed] = landing
             listed += 1
     return listed
 
