@@ -401,7 +401,8 @@ class ReturnModel:
         A sub-ray that lands inside its pulse's own triangle meets that triangle when nothing else can be in
         front: for a ``clear`` pulse (the broad phase named nothing but its own surface before the footprint's
         reach), and for another where ``may_meet`` says the sub-ray can meet nothing before the plane. Its range
-        comes from the plane, without a cast. The others are cast.
+        comes from the plane, without a cast. A sub-ray of a pulse whose central ray met nothing, and which
+        ``may_meet`` says can meet nothing within the range, is a miss without a cast. The others are cast.
         """
         params = self.params
         m = rows.size
@@ -418,12 +419,17 @@ class ReturnModel:
                                        self.caster.face_planes, origins, edges.inward, edges.offset, self.range_max,
                                        ranges, triangles, slots, listed_rays, on_own)
         slots, sub_rays, on_own = slots[:listed], listed_rays[:listed], on_own[:listed]
-        landing = np.flatnonzero(on_own >= 0)
-        if landing.size:
-            # (a millimetre beyond the plane: what touches it could still be the nearer hit)
-            free = landing[~may_meet(rows[slots[landing] // count], sub_rays[landing], on_own[landing] + 1e-3)]
-            ranges.reshape(-1)[slots[free]] = on_own[free]
-            triangles.reshape(-1)[slots[free]] = triangle[rows[slots[free] // count]]
+        # A sub-ray that lands on its own triangle, or one of a pulse whose central ray met nothing, and that can
+        # meet nothing else before there (a millimetre beyond the plane: what touches it could still be nearer),
+        # resp. before the range: the plane's range, resp. a miss, without a cast.
+        pulse = rows[slots // count]
+        missed = triangle[pulse] < 0
+        asked = np.flatnonzero((on_own >= 0) | missed)
+        if asked.size:
+            free = asked[~may_meet(pulse[asked], sub_rays[asked],
+                                   np.where(missed[asked], self.range_max, on_own[asked] + 1e-3))]
+            ranges.reshape(-1)[slots[free]] = np.where(missed[free], np.inf, on_own[free])
+            triangles.reshape(-1)[slots[free]] = np.where(missed[free], -1, triangle[pulse[free]])
             kept = np.ones(listed, dtype=np.bool_)
             kept[free] = False
             slots, sub_rays = slots[kept], sub_rays[kept]
