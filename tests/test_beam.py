@@ -63,10 +63,13 @@ def test_a_convex_object_is_one_box_up_to_its_size_limit_and_tiles_beyond(length
             length / 2)
 
 
+@pytest.mark.parametrize("plane", ["boresight", "panorama"])
 @pytest.mark.parametrize("xy_deg", [(0.0, 0.0), (0.02, -0.03), (12.0, 5.0), (-30.0, 20.0), (3.0, -35.0)])
-def test_a_rays_derivatives_by_pattern_angle_are_its_finite_differences(xy_deg: tuple[float, float]) -> None:
-    """The footprint spreads along d(direction)/dx and d/dy per radian: the compiled closed forms (both the
-    per-pulse loop's and the one-ray helper's) against central differences of the directions themselves."""
+def test_a_rays_derivatives_by_pattern_angle_are_its_finite_differences(xy_deg: tuple[float, float],
+                                                                       plane: str) -> None:
+    """The footprint spreads along d(direction)/dx and d/dy per radian (boresight), or along their unit vectors
+    (a panoramic head: the azimuth and elevation tangents): the compiled closed forms (both the per-pulse loop's
+    and the one-ray helper's) against central differences of the directions themselves."""
     from livox_viz.casting import return_kernels
     from livox_viz.casting.returns import sensor_basis
     from livox_viz.patterns.planes import directions_from_xy
@@ -77,13 +80,14 @@ def test_a_rays_derivatives_by_pattern_angle_are_its_finite_differences(xy_deg: 
     for axis in (0, 1):
         shift = np.zeros((1, 2))
         shift[0, axis] = step_deg
-        delta = directions_from_xy(point + shift) - directions_from_xy(point - shift)
-        numeric.append(delta[0] / (2 * math.radians(step_deg)))
-    basis_x, basis_y = sensor_basis(point)
+        delta = directions_from_xy(point + shift, plane) - directions_from_xy(point - shift, plane)
+        along = delta[0] / (2 * math.radians(step_deg))
+        numeric.append(along / np.linalg.norm(along) if plane == "panorama" else along)
+    basis_x, basis_y = sensor_basis(point, plane)
     np.testing.assert_allclose(basis_x[0], numeric[0], atol=1e-7)
     np.testing.assert_allclose(basis_y[0], numeric[1], atol=1e-7)
     return_kernels.kernel("offset_rays")  # the helpers compiled, as the model runs them
-    one = np.array(return_kernels._basis_at(*xy_deg))
+    one = np.array(return_kernels._basis_at(*xy_deg, plane == "panorama"))
     np.testing.assert_allclose(one, np.concatenate(numeric), atol=1e-7)
 
 

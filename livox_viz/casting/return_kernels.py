@@ -129,36 +129,29 @@ def _sigma(range_m, table):  # pragma: no cover - compiled
 
 
 # The rays ----------------------------------------------------------------------------------------------------------
-def _sensor_basis(xy_deg, out_x, out_y):  # pragma: no cover - compiled
-    """The derivatives of each ray's sensor-frame direction by pattern x and y, per radian.
-
-    The ray is ``(cos a, s x, -s y)``, ``a = |(x, y)|``, ``s = sin(a)/a``; with ``q = (a cos a - sin a)/a^3``
-    (-1/3 at the boresight): ``d/dx = (-s x, s + x^2 q, -x y q)``, ``d/dy = (-s y, x y q, -(s + y^2 q))``.
-    """
-    scale = math.pi / 180.0
+def _sensor_basis(xy_deg, panorama, out_x, out_y):  # pragma: no cover - compiled
+    """The directions each ray's footprint spreads along, sensor frame (:func:`_basis_at` of every row)."""
     for i in range(xy_deg.shape[0]):
-        x = xy_deg[i, 0] * scale
-        y = xy_deg[i, 1] * scale
-        alpha = math.sqrt(x * x + y * y)
-        if alpha < 1e-3:
-            s = 1.0 - alpha * alpha / 6.0
-            q = -1.0 / 3.0 + alpha * alpha / 30.0
-        else:
-            s = math.sin(alpha) / alpha
-            q = (alpha * math.cos(alpha) - math.sin(alpha)) / (alpha * alpha * alpha)
-        out_x[i, 0] = -s * x
-        out_x[i, 1] = s + x * x * q
-        out_x[i, 2] = -x * y * q
-        out_y[i, 0] = -s * y
-        out_y[i, 1] = x * y * q
-        out_y[i, 2] = -(s + y * y * q)
+        out_x[i, 0], out_x[i, 1], out_x[i, 2], out_y[i, 0], out_y[i, 1], out_y[i, 2] = _basis_at(
+            xy_deg[i, 0], xy_deg[i, 1], panorama)
 
 
-def _basis_at(x_deg, y_deg):  # pragma: no cover - compiled
-    """One ray's :func:`_sensor_basis` (six numbers: d/dx, then d/dy)."""
+def _basis_at(x_deg, y_deg, panorama):  # pragma: no cover - compiled
+    """The directions one ray's footprint spreads along, sensor frame (six numbers: along x, then along y).
+
+    Boresight plane: the derivatives of the ray by pattern x and y, per radian. The ray is ``(cos a, s x, -s y)``,
+    ``a = |(x, y)|``, ``s = sin(a)/a``; with ``q = (a cos a - sin a)/a^3`` (-1/3 at the boresight):
+    ``d/dx = (-s x, s + x^2 q, -x y q)``, ``d/dy = (-s y, x y q, -(s + y^2 q))``. Panorama plane (x the azimuth,
+    y the elevation): the unit azimuth and elevation tangents, ``(-sin x, cos x, 0)`` and
+    ``(-sin y cos x, -sin y sin x, -cos y)`` (a panoramic head's divergence is H along the azimuth, V along the
+    elevation).
+    """
     scale = math.pi / 180.0
     x = x_deg * scale
     y = y_deg * scale
+    if panorama:
+        sin_x, cos_x, sin_y = math.sin(x), math.cos(x), math.sin(y)
+        return -sin_x, cos_x, 0.0, -sin_y * cos_x, -sin_y * sin_x, -math.cos(y)
     alpha = math.sqrt(x * x + y * y)
     if alpha < 1e-3:
         s = 1.0 - alpha * alpha / 6.0
@@ -169,17 +162,19 @@ def _basis_at(x_deg, y_deg):  # pragma: no cover - compiled
     return -s * x, s + x * x * q, -x * y * q, -s * y, x * y * q, -(s + y * y * q)
 
 
-def _offset_rays(rows, directions, xy_deg, rotation, basis_x, basis_y, offsets, out):  # pragma: no cover - compiled
+def _offset_rays(rows, directions, xy_deg, panorama, rotation, basis_x, basis_y, offsets,
+                 out):  # pragma: no cover - compiled
     """Unit directions of the rays at ``offsets`` ``(k, 2)`` radians around each beam ``rows``: ``out (m, k, 3)``.
 
-    The derivatives of a beam's direction by pattern x and y come from its pattern angles and ``rotation``
-    (a fixed sensor: ``basis_x`` empty), else from ``basis_x``, ``basis_y`` (per pulse, world frame).
+    The directions a beam's footprint spreads along come from its pattern angles (in the ``panorama`` plane or
+    the boresight one) and ``rotation`` (a fixed sensor: ``basis_x`` empty), else from ``basis_x``, ``basis_y``
+    (per pulse, world frame).
     """
     fixed = basis_x.shape[0] == 0
     for r in range(rows.shape[0]):
         i = rows[r]
         if fixed:
-            ax, ay, az, bx, by, bz = _basis_at(xy_deg[i, 0], xy_deg[i, 1])
+            ax, ay, az, bx, by, bz = _basis_at(xy_deg[i, 0], xy_deg[i, 1], panorama)
             wx0 = rotation[0, 0] * ax + rotation[0, 1] * ay + rotation[0, 2] * az
             wx1 = rotation[1, 0] * ax + rotation[1, 1] * ay + rotation[1, 2] * az
             wx2 = rotation[2, 0] * ax + rotation[2, 1] * ay + rotation[2, 2] * az
@@ -224,7 +219,7 @@ def _plane_distance(triangle, directions, origins, planes, range_max, distance):
 
 
 
-def _central(distance, triangle, directions, origins, xy_deg, rotation, basis_x, basis_y, planes, brightness,
+def _central(distance, triangle, directions, origins, xy_deg, panorama, rotation, basis_x, basis_y, planes, brightness,
              incentre, inradius, inward, offset, neighbour, narrowest, half_x, half_y, tan_half, calibration,
              range_max, power, unit, leaves, reach):  # pragma: no cover - compiled
     """Per pulse: echo power of the whole footprint on the hit triangle, the reflectance one unit of power means at
@@ -232,8 +227,9 @@ def _central(distance, triangle, directions, origins, xy_deg, rotation, basis_x,
     footprint leaves the triangle (an edge that does not continue the surface within its reach), and how far
     along the beam the footprint can meet something.
 
-    ``origins`` is ``(1, 3)`` for a fixed sensor, whose ray derivatives come from ``xy_deg`` and ``rotation``;
-    a moving one gives them per pulse (``basis_x``, ``basis_y``, world frame). ``calibration`` = (reflectivity a,
+    ``origins`` is ``(1, 3)`` for a fixed sensor, whose footprint's directions come from ``xy_deg`` (in the
+    ``panorama`` plane or the boresight one) and ``rotation``; a moving one gives them per pulse (``basis_x``,
+    ``basis_y``, world frame). ``calibration`` = (reflectivity a,
     range a, alpha): power = rho cos (r_a^2 / rho_a) / r^2 exp(-2 alpha (r - r_a)).
     """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
@@ -276,7 +272,7 @@ def _central(distance, triangle, directions, origins, xy_deg, rotation, basis_x,
                 and inward[t, 2, 0] * px + inward[t, 2, 1] * py + inward[t, 2, 2] * pz - offset[t, 2] >= bound):
             continue
         if fixed:
-            ax, ay, az, bx, by, bz = _basis_at(xy_deg[i, 0], xy_deg[i, 1])
+            ax, ay, az, bx, by, bz = _basis_at(xy_deg[i, 0], xy_deg[i, 1], panorama)
             bxx = rotation[0, 0] * ax + rotation[0, 1] * ay + rotation[0, 2] * az
             bxy = rotation[1, 0] * ax + rotation[1, 1] * ay + rotation[1, 2] * az
             bxz = rotation[2, 0] * ax + rotation[2, 1] * ay + rotation[2, 2] * az

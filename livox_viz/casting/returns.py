@@ -116,14 +116,8 @@ def sensor_basis(xy_deg: np.ndarray, plane: str = "boresight") -> tuple[np.ndarr
     pattern x and y per radian (boresight plane), or the unit azimuth and elevation tangents (panorama, whose
     beams' divergence is H along the azimuth, V along the elevation)."""
     xy_deg = np.ascontiguousarray(xy_deg, dtype=np.float64)
-    if plane == "panorama":
-        x, y = np.radians(xy_deg[:, 0]), np.radians(xy_deg[:, 1])
-        zero = np.zeros_like(x)
-        along_x = np.column_stack([-np.sin(x), np.cos(x), zero])
-        along_y = np.column_stack([-np.sin(y) * np.cos(x), -np.sin(y) * np.sin(x), -np.cos(y)])
-        return along_x, along_y
     along_x, along_y = np.empty((xy_deg.shape[0], 3)), np.empty((xy_deg.shape[0], 3))
-    kernel("sensor_basis")(xy_deg, along_x, along_y)
+    kernel("sensor_basis")(xy_deg, plane == "panorama", along_x, along_y)
     return along_x, along_y
 
 
@@ -131,15 +125,17 @@ class _Basis:
     """What gives beams' ray derivatives by pattern x and y: a fixed sensor's pattern angles and rotation, or a
     moving one's per-pulse world vectors (``basis_x``, ``basis_y``; empty for a fixed sensor)."""
 
-    def __init__(self, xy_deg: np.ndarray, rotation: np.ndarray, basis_x: np.ndarray, basis_y: np.ndarray) -> None:
-        self.xy_deg, self.rotation, self.basis_x, self.basis_y = xy_deg, rotation, basis_x, basis_y
+    def __init__(self, xy_deg: np.ndarray, panorama: bool, rotation: np.ndarray, basis_x: np.ndarray,
+                 basis_y: np.ndarray) -> None:
+        self.xy_deg, self.panorama, self.rotation, self.basis_x, self.basis_y = (xy_deg, panorama, rotation, basis_x,
+                                                                                 basis_y)
 
     def rays(self, rows: np.ndarray, directions_world: np.ndarray, offsets: np.ndarray) -> np.ndarray:
         """Unit directions ``(len(rows), k, 3)`` float32 of the rays at ``offsets`` ``(k, 2)`` radians around the
         beams ``rows``."""
         out = np.empty((rows.size, offsets.shape[0], 3), dtype=np.float32)
-        kernel("offset_rays")(rows, directions_world, self.xy_deg, self.rotation, self.basis_x, self.basis_y,
-                              offsets, out)
+        kernel("offset_rays")(rows, directions_world, self.xy_deg, self.panorama, self.rotation, self.basis_x,
+                              self.basis_y, offsets, out)
         return out
 
 
@@ -283,22 +279,20 @@ class ReturnModel:
         edges = self.edges
         xy_deg = np.ascontiguousarray(xy_deg, dtype=np.float64)
         rotation = np.eye(3) if rotation is None else np.ascontiguousarray(rotation, dtype=np.float64)
-        if turn is None and self.plane == "boresight":
+        panorama = self.plane == "panorama"
+        if turn is None:
             basis_x = basis_y = np.empty((0, 3))  # a fixed sensor's come from the pattern angles and the rotation
         else:
             basis_x, basis_y = sensor_basis(xy_deg, self.plane)
-            if turn is None:
-                basis_x, basis_y = rotate_rows(basis_x, rotation), rotate_rows(basis_y, rotation)
-            else:
-                every = np.arange(n)
-                basis_x, basis_y = turn(basis_x, every), turn(basis_y, every)
+            every = np.arange(n)
+            basis_x, basis_y = turn(basis_x, every), turn(basis_y, every)
         power, unit, reach = np.empty(n), np.empty(n), np.empty(n)
         leaves = np.empty(n, dtype=np.bool_)
-        kernel("central")(distance, triangle, directions_world, origins, xy_deg, rotation, basis_x, basis_y, planes,
-                          self.brightness, edges.incentre, edges.inradius, edges.inward, edges.offset,
+        kernel("central")(distance, triangle, directions_world, origins, xy_deg, panorama, rotation, basis_x, basis_y,
+                          planes, self.brightness, edges.incentre, edges.inradius, edges.inward, edges.offset,
                           edges.neighbour, edges.narrowest, footprint.half_rad[0], footprint.half_rad[1],
                           footprint.tan_half_max, self._calibration, self.range_max, power, unit, leaves, reach)
-        rows_basis = _Basis(xy_deg, rotation, basis_x, basis_y)
+        rows_basis = _Basis(xy_deg, panorama, rotation, basis_x, basis_y)
         self._lap("materials, edges and reach")
         covered, near, may_meet = self._covered(leaves, directions_world, origins, rows_basis, reach, triangle,
                                                 distance, moving, directions_sensor, rotation)
