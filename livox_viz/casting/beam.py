@@ -341,7 +341,7 @@ class TileProxy:
 
     def rays_may_meet(self, pulse: np.ndarray, rays: np.ndarray, limit: np.ndarray, triangle: np.ndarray,
                       origins: np.ndarray, directions_sensor: np.ndarray | None,
-                      boxes: tuple[BoxTree | None, DirectionGrid | None]) -> np.ndarray:
+                      boxes: tuple[BoxTree | None, DirectionGrid | None], group: int = 1) -> np.ndarray:
         """Whether each ray of a footprint (a probe, a sub-ray) can meet anything but its pulse's hit before its
         limit: ``(r,)`` bool.
 
@@ -367,6 +367,9 @@ class TileProxy:
             A fixed sensor's beams, sensor frame (their grid cell), as given to :meth:`near`.
         boxes : tuple
             What :meth:`place` returned.
+        group : int
+            The rays come in runs of this many whose answers are wanted together (a pulse's probes): after one
+            that may meet, the rest of its run is True without a test.
         """
         meet = np.zeros(len(rays), dtype=np.bool_)
         tree, grid = boxes
@@ -381,7 +384,8 @@ class TileProxy:
             grid_arrays = (np.ascontiguousarray(directions_sensor, dtype=np.float64), grid.bounds, grid.cell_start,
                            grid.cell_boxes, grid.always)
         kernel("rays_may_meet")(np.asarray(pulse, dtype=np.int64), np.ascontiguousarray(rays, dtype=np.float32),
-                                np.ascontiguousarray(limit, dtype=np.float64), np.asarray(triangle, dtype=np.int64),
+                                np.ascontiguousarray(limit, dtype=np.float64), group,
+                                np.asarray(triangle, dtype=np.int64),
                                 np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
                                 *grid_arrays, *tree_arrays, self._padded[0], self._padded[1], self.tile_part,
                                 self.tile_convex, self.tile_triangle, self.triangle_part, self._padded[2],
@@ -572,9 +576,10 @@ def _tiles(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray):
 
 def _convex_hulls(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each object's bounding sphere ``(P, 4)`` (radius inf unless convex), and the outward face planes of the
-    convex ones with at most :data:`HULL_PLANES_MAX` distinct planes: ``(P + 1,)`` starts into ``(K, 4)`` rows
-    (unit normal, offset; a point inside has ``n . x <= offset``)."""
+    """Each object's bounding sphere ``(P, 4)`` (radius inf unless convex and the sphere is smaller than the
+    object's box), and the outward face planes of the convex ones with at most :data:`HULL_PLANES_MAX` distinct
+    planes not along an axis (those are the box's faces): ``(P + 1,)`` starts into ``(K, 4)`` rows (unit normal,
+    offset; a point inside has ``n . x <= offset``)."""
     count = kind.shape[0]
     sphere = np.zeros((count, 4))
     sphere[:, 3] = np.inf
@@ -590,8 +595,9 @@ def _convex_hulls(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray
         tri = triangles[order[bounds[part]:bounds[part + 1]]]
         vertices = tri.reshape(-1, 3)
         centre = (vertices.min(axis=0) + vertices.max(axis=0)) / 2.0
-        sphere[part, :3] = centre
-        sphere[part, 3] = float(np.linalg.norm(vertices - centre, axis=1).max())
+        radius = float(np.linalg.norm(vertices - centre, axis=1).max())
+        if 4.0 / 3.0 * math.pi * radius**3 < np.prod(np.ptp(vertices, axis=0)):  # only where tighter than the box
+            sphere[part] = (*centre, radius)
         normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         length = np.linalg.norm(normal, axis=1)
         normal = normal[length > 0] / length[length > 0, None]
@@ -599,6 +605,7 @@ def _convex_hulls(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray
         inside = np.unique(vertices, axis=0).mean(axis=0)  # (the box's centre need not be inside: a wedge)
         outward = np.where(normal @ inside > offset, -1.0, 1.0)
         hull = np.unique(np.round(np.column_stack([normal, offset]) * outward[:, None], 9), axis=0)
+        hull = hull[np.abs(hull[:, :3]).max(axis=1) < 1.0 - 1e-9]  # an axis-aligned face is the box's own
         if len(hull) <= HULL_PLANES_MAX:
             planes.append(hull)
             rows += len(hull)

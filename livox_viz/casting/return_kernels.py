@@ -414,8 +414,8 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
         near[i] = found
 
 
-def _rays_may_meet(pulse, rays, limit, triangle, origins, directions_sensor, bounds, cell_start, cell_boxes, always,
-                   node_low, node_high, node_link, box_tile, tile_low, tile_high, tile_part, tile_convex,
+def _rays_may_meet(pulse, rays, limit, group, triangle, origins, directions_sensor, bounds, cell_start, cell_boxes,
+                   always, node_low, node_high, node_link, box_tile, tile_low, tile_high, tile_part, tile_convex,
                    tile_triangle, triangle_part, flat_low, flat_high, flat_part, part_sphere, hull_start, hull_planes,
                    meet):  # pragma: no cover - compiled
     """Per ray of a footprint (``rays (r, 3)``, of the pulses ``pulse``, each to its own ``limit``): can it meet
@@ -427,7 +427,8 @@ def _rays_may_meet(pulse, rays, limit, triangle, origins, directions_sensor, bou
 
     The tile boxes are filed by their inflated extent, which holds every ray of the footprint: a fixed sensor
     (``cell_start`` not empty) tests those of its pulse's grid cell as :func:`_near_grid` does, a moving one
-    walks the tree as :func:`_near_boxes` does; every ray tests the flat objects' boxes.
+    walks the tree as :func:`_near_boxes` does; every ray tests the flat objects' boxes. Rays come in runs of
+    ``group`` (a pulse's probes): after one that may meet, the rest of its run is True without a test.
     """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
     grid = cell_start.shape[0] > 0
@@ -435,6 +436,9 @@ def _rays_may_meet(pulse, rays, limit, triangle, origins, directions_sensor, bou
     boxes = box_tile.shape[0]
     stack = np.empty(128, dtype=np.int64)
     for r in range(rays.shape[0]):
+        if r % group != 0 and meet[r - 1]:
+            meet[r] = True
+            continue
         i = pulse[r]
         meet[r] = False
         hit = triangle[i]

@@ -364,8 +364,8 @@ class ReturnModel:
                           in_grid, boxes)
         rows = np.flatnonzero(near & ~leaves)
 
-        def may_meet(pulse: np.ndarray, rays: np.ndarray, limit: np.ndarray) -> np.ndarray:
-            return proxy.rays_may_meet(pulse, rays, limit, triangle, origins, in_grid, boxes)
+        def may_meet(pulse: np.ndarray, rays: np.ndarray, limit: np.ndarray, group: int = 1) -> np.ndarray:
+            return proxy.rays_may_meet(pulse, rays, limit, triangle, origins, in_grid, boxes, group)
 
         self._lap("broad phase")
         if rows.size == 0:
@@ -377,7 +377,7 @@ class ReturnModel:
                                self._sigma_table, limit)
         # Embree looks only where a probe can meet something (a tile itself, a convex object's hull, a flat
         # object): 758 of the default scene's 4 628 named beams a run of 65 536 pulses.
-        worth = may_meet(np.repeat(rows, 4), probes.reshape(-1, 3), limit.reshape(-1)).reshape(-1, 4).any(axis=1)
+        worth = may_meet(np.repeat(rows, 4), probes.reshape(-1, 3), limit.reshape(-1), 4).reshape(-1, 4).any(axis=1)
         rows, probes, limit = rows[worth], probes[worth], limit[worth]
         ray_origin = origins[0] if not moving else np.repeat(origins[rows], 4, axis=0)
         blocked = self.caster.occluded(ray_origin, probes.reshape(-1, 3), limit.reshape(-1))
