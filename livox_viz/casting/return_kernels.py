@@ -24,8 +24,8 @@ _KERNELS: dict[str, object] = {}
 #: The small functions the loops call: compiled (in this module's namespace) before the first loop is.
 #: Frames are cast on worker threads: the first loop of each is compiled by one of them, once.
 _COMPILING = threading.Lock()
-_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab", "_in_hull", "_basis_at", "_any_chosen",
-            "_byte")
+_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab", "_slab_span", "_in_hull", "_basis_at",
+            "_any_chosen", "_byte")
 
 
 #: The loops that would run their pulses on every core (``prange``). None does: on this 2-core machine shared
@@ -479,9 +479,10 @@ def _rays_may_meet(pulse, rays, limit, group, triangle, origins, directions_sens
                 # (scalars only: a call taking the tile arrays would pay their reference counts, five times this)
                 if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part)):
                     continue
-                if _slab(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1], tile_low[tile, 2],
-                         tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2]) and _in_hull(
-                             ox, oy, oz, dx, dy, dz, reach, tile_part[tile], part_sphere, hull_start, hull_planes):
+                enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1],
+                                          tile_low[tile, 2], tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2])
+                if enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile], part_sphere,
+                                               hull_start, hull_planes):
                     meet[r] = True
                     break
         elif node_low.shape[0] > 0:
@@ -502,27 +503,27 @@ def _rays_may_meet(pulse, rays, limit, group, triangle, origins, directions_sens
                     tile = box_tile[b]
                     if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part)):
                         continue
-                    if _slab(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1], tile_low[tile, 2],
-                             tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2]) and _in_hull(
-                                 ox, oy, oz, dx, dy, dz, reach, tile_part[tile], part_sphere, hull_start,
-                                 hull_planes):
+                    enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1],
+                                              tile_low[tile, 2], tile_high[tile, 0], tile_high[tile, 1],
+                                              tile_high[tile, 2])
+                    if enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile],
+                                                   part_sphere, hull_start, hull_planes):
                         meet[r] = True
                         break
 
 
-def _in_hull(ox, oy, oz, dx, dy, dz, reach, part, sphere, start, planes):  # pragma: no cover - compiled
-    """Whether the ray from o along d (unit) meets object ``part``'s bounding sphere and the inside of its face
-    planes between 0 and ``reach`` (always True for an object that is not convex: infinite sphere, no planes).
-    Both :data:`HULL_PAD_M` larger than the object (so a ray that grazes it is kept)."""
+def _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, part, sphere, start, planes):  # pragma: no cover - compiled
+    """Whether the ray from o along d (unit), between ``enter`` and ``leave`` (where it is inside the object's box),
+    meets object ``part``'s bounding sphere and the inside of its face planes (always True for an object that
+    is not convex: infinite sphere, no planes). Both :data:`HULL_PAD_M` larger than the object (so a ray that
+    grazes it is kept)."""
     radius = sphere[part, 3]
     if radius < np.inf:
         cx, cy, cz = sphere[part, 0] - ox, sphere[part, 1] - oy, sphere[part, 2] - oz
-        along = min(max(cx * dx + cy * dy + cz * dz, 0.0), reach)
+        along = min(max(cx * dx + cy * dy + cz * dz, enter), leave)
         ex, ey, ez = cx - along * dx, cy - along * dy, cz - along * dz
         if ex * ex + ey * ey + ez * ez > (radius + HULL_PAD_M) ** 2:
             return False
-    enter = 0.0
-    leave = reach
     for k in range(start[part], start[part + 1]):
         facing = planes[k, 0] * dx + planes[k, 1] * dy + planes[k, 2] * dz
         room = planes[k, 3] + HULL_PAD_M - (planes[k, 0] * ox + planes[k, 1] * oy + planes[k, 2] * oz)
@@ -536,6 +537,38 @@ def _in_hull(ox, oy, oz, dx, dy, dz, reach, part, sphere, start, planes):  # pra
         if enter > leave:
             return False
     return True
+
+
+def _slab_span(ox, oy, oz, ix, iy, iz, limit, lx, ly, lz, hx, hy, hz):  # pragma: no cover - compiled
+    """Where the ray from o (inverse direction i) is inside the box [l, h] between 0 and ``limit``: ``(enter,
+    leave)``, empty when enter > leave."""
+    near_t = 0.0
+    far_t = limit
+    if ix == np.inf:
+        if ox < lx or ox > hx:
+            return 1.0, 0.0
+    else:
+        a = (lx - ox) * ix
+        b = (hx - ox) * ix
+        near_t = max(near_t, min(a, b))
+        far_t = min(far_t, max(a, b))
+    if iy == np.inf:
+        if oy < ly or oy > hy:
+            return 1.0, 0.0
+    else:
+        a = (ly - oy) * iy
+        b = (hy - oy) * iy
+        near_t = max(near_t, min(a, b))
+        far_t = min(far_t, max(a, b))
+    if iz == np.inf:
+        if oz < lz or oz > hz:
+            return 1.0, 0.0
+    else:
+        a = (lz - oz) * iz
+        b = (hz - oz) * iz
+        near_t = max(near_t, min(a, b))
+        far_t = min(far_t, max(a, b))
+    return near_t, far_t
 
 
 def _slab(ox, oy, oz, ix, iy, iz, limit, lx, ly, lz, hx, hy, hz):  # pragma: no cover - compiled
