@@ -76,21 +76,32 @@ def bench_scene(name: str, mesh: trimesh.Trimesh, vehicle: Pose) -> None:
     m32 = np.ascontiguousarray(moving - shift, dtype=np.float32)
     moving_halves = [(m32[: RAYS // 2], d32[: RAYS // 2]), (m32[RAYS // 2 :], d32[RAYS // 2 :])]
 
-    # Interleaved, best of each: the machine's speed drifts between runs. CPU time (both threads) as well: what
-    # ours adds to Embree's work, whatever the scheduling of the two halves against our parts.
+    # Interleaved rounds: the machine's speed drifts and others' work lands on one run or another. Two figures from
+    # the same rounds: the best of each (what each costs when undisturbed) and the median of each round's ratio (a
+    # round's two runs share its conditions). CPU time (both threads) as well: what ours adds to Embree's work,
+    # whatever the scheduling of the two halves against our parts.
     runs = {"ours": lambda: ours.distances(origin, directions, cfg.range_max),
             "bare": lambda: bare_two_threads(halves),
             "ours moving": lambda: ours.distances(moving, directions, cfg.range_max),
             "bare moving": lambda: bare_two_threads(moving_halves),
             "exact": lambda: exact.distances(origin, directions, cfg.range_max)}
-    wall = dict.fromkeys(runs, float("inf"))
-    cpu = dict.fromkeys(runs, float("inf"))
-    for _ in range(11):
+    rounds = 21
+    walls = {name: np.empty(rounds) for name in runs}
+    cpus = {name: np.empty(rounds) for name in runs}
+    for k in range(rounds):
         for name, function in runs.items():
             start, start_cpu = time.perf_counter(), time.process_time()
             function()
-            wall[name] = min(wall[name], time.perf_counter() - start)
-            cpu[name] = min(cpu[name], time.process_time() - start_cpu)
+            walls[name][k] = time.perf_counter() - start
+            cpus[name][k] = time.process_time() - start_cpu
+    wall = {name: float(times.min()) for name, times in walls.items()}
+    cpu = {name: float(times.min()) for name, times in cpus.items()}
+
+    def speed(reference: str, name: str) -> str:
+        """``name``'s speed as a multiple of ``reference``'s: best of each, and the median of the rounds' ratios."""
+        return (f"{wall[reference] / wall[name]:.2f} x bare embreex (median of {rounds} rounds' ratios "
+                f"{np.median(walls[reference] / walls[name]):.2f}; target >= 0.95)")
+
     ours_s, bare_s, exact_s = wall["ours"], wall["bare"], wall["exact"]
     ours_moving_s, bare_moving_s = wall["ours moving"], wall["bare moving"]
     check = ours.distances(origin, directions, cfg.range_max)
@@ -99,10 +110,10 @@ def bench_scene(name: str, mesh: trimesh.Trimesh, vehicle: Pose) -> None:
     agree = np.abs(check[hit] - precise[hit]).max() if hit.any() else 0.0
     print(f"  bare embreex run(DISTANCE), 2 threads: {bare_s * 1e3:7.1f} ms  {RAYS / bare_s / 1e6:6.2f} M rays/s")
     print(f"  ours, default (float32, re-centred):   {ours_s * 1e3:7.1f} ms  {RAYS / ours_s / 1e6:6.2f} M rays/s "
-          f"= {bare_s / ours_s:.2f} x bare embreex (target >= 0.95); CPU time {cpu['ours'] / cpu['bare']:.3f} x its")
+          f"= {speed('bare', 'ours')}; CPU time {cpu['ours'] / cpu['bare']:.3f} x its")
     misses = int(np.count_nonzero(~np.isfinite(ours.distances(moving, directions, cfg.range_max))))
     print(f"  per-ray origins ({misses:,} misses among the rays): bare embreex {bare_moving_s * 1e3:7.1f} ms, ours "
-          f"{ours_moving_s * 1e3:7.1f} ms = {bare_moving_s / ours_moving_s:.2f} x bare embreex (target >= 0.95); "
+          f"{ours_moving_s * 1e3:7.1f} ms = {speed('bare moving', 'ours moving')}; "
           f"CPU time {cpu['ours moving'] / cpu['bare moving']:.3f} x its")
     print(f"  ours, exact=True (float64 ranges):     {exact_s * 1e3:7.1f} ms  = {bare_s / exact_s:.2f} x bare embreex;"
           f" default vs exact: max {agree * 1e3:.3f} mm on {hit.sum():,} hits "

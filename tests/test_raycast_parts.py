@@ -1,0 +1,124 @@
+"""EmbreeCaster's split of a call over threads: every ray cast once, the parts shrinking towards the end, and the
+distances bit for bit those of Embree run bare on the same float32 rays."""
+
+from __future__ import annotations
+
+import itertools
+import threading
+import time
+
+import numpy as np
+import pytest
+import trimesh
+
+from livox_viz.scene.raycast import LEAST_RAYS, PART_RAYS, EmbreeCaster, casting_in_this_thread
+
+
+def recorded_parts(caster: EmbreeCaster, count: int, pause: float = 0.0) -> list[tuple[int, int, int]]:
+    """The parts ``caster._run_split`` hands out for ``count`` rays: (start, stop, thread), in the order taken."""
+    taken: list[tuple[int, int, int]] = []
+    lock = threading.Lock()
+
+    def run(bounds: tuple[int, int]) -> None:
+        with lock:
+            taken.append((bounds[0], bounds[1], threading.get_ident()))
+        time.sleep(pause)
+
+    caster._run_split(run, count)
+    return taken
+
+
+def assert_covers_once(parts: list[tuple[int, int, int]], count: int) -> None:
+    bounds = sorted((start, stop) for start, stop, _ in parts)
+    assert bounds[0][0] == 0 and bounds[-1][1] == count
+    assert all(a[1] == b[0] for a, b in itertools.pairwise(bounds)), "a gap or an overlap"
+    assert all(stop > start for start, stop in bounds)
+
+
+@pytest.fixture(scope="module")
+def box() -> trimesh.Trimesh:
+    return trimesh.creation.box((2, 2, 2))
+
+
+@pytest.mark.parametrize("count", [1, LEAST_RAYS, 2 * LEAST_RAYS, 10_000, 3 * PART_RAYS + 1234, 1_000_000])
+def test_every_ray_is_in_one_part_and_no_part_is_past_the_largest(box: trimesh.Trimesh, count: int) -> None:
+    parts = recorded_parts(EmbreeCaster(box, threads=2), count)
+    assert_covers_once(parts, count)
+    assert max(stop - start for start, stop, _ in parts) <= PART_RAYS
+    if count < 2 * LEAST_RAYS:
+        assert len(parts) == 1  # too few rays to hand any to a worker
+
+
+def test_parts_shrink_towards_the_end_so_the_threads_finish_together(box: trimesh.Trimesh) -> None:
+    count = 1_000_000
+    parts = recorded_parts(EmbreeCaster(box, threads=2), count, pause=0.001)
+    sizes = [stop - start for start, stop, _ in sorted(parts)]
+    assert sizes[0] == PART_RAYS  # large while much is left
+    # The last parts are each at most a quarter of what was left when taken (down to the least part): the one
+    # the slower thread finishes last is small. Parts of one size would leave it a whole part behind.
+    left = count
+    for size in sizes:
+        assert size <= max(PART_RAYS if left > 4 * PART_RAYS else left // 4, LEAST_RAYS) + LEAST_RAYS // 2
+        left -= size
+    assert sizes[-1] <= LEAST_RAYS + LEAST_RAYS // 2
+    assert len({thread for _, _, thread in parts}) == 2  # the caller and the worker both took parts
+
+
+def test_one_thread_or_casting_inline_takes_every_part_on_the_caller(box: trimesh.Trimesh) -> None:
+    count = 3 * PART_RAYS + 5
+    here = threading.get_ident()
+    alone = recorded_parts(EmbreeCaster(box, threads=1), count)
+    assert_covers_once(alone, count)
+    assert [stop - start for start, stop, _ in alone] == [PART_RAYS] * 3 + [5]
+    assert {thread for _, _, thread in alone} == {here}
+    with casting_in_this_thread():
+        inline = recorded_parts(EmbreeCaster(box, threads=2), count)
+    assert {thread for _, _, thread in inline} == {here}
+
+
+def test_a_failing_part_stops_the_other_threads_taking_parts(box: trimesh.Trimesh) -> None:
+    caster = EmbreeCaster(box, threads=2)
+    ran: list[int] = []
+    lock = threading.Lock()
+
+    def run(bounds: tuple[int, int]) -> None:
+        with lock:
+            ran.append(bounds[0])
+            second = len(ran) == 2
+        if second:
+            raise ValueError("part failed")
+        time.sleep(0.002)
+
+    with pytest.raises(ValueError, match="part failed"):
+        caster._run_split(run, 1_000_000)
+    assert len(ran) <= 4  # not the 20-odd parts of the whole call
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_distances_are_bare_embrees_on_the_same_float32_rays(threads: int) -> None:
+    """Per-ray origins far from the scene's centre, scattered misses, a limit, directions float64, float32 and
+    strided: each distance is Embree's own float32 answer for the float32 ray, widened, or inf for a miss."""
+    rng = np.random.default_rng(11)
+    count = 2 * PART_RAYS + 777
+    mesh = trimesh.creation.icosphere(subdivisions=4, radius=30.0)
+    mesh.apply_translation((5000.0, -3000.0, 40.0))
+    caster = EmbreeCaster(mesh, threads=threads)
+    origins = np.array([5000.0, -3000.0, 40.0]) + rng.uniform(-45.0, 45.0, size=(count, 3))
+    directions = rng.normal(size=(count, 3))
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    limit = 70.0
+
+    o32 = (origins - caster.local_origin).astype(np.float32)
+    d32 = directions.astype(np.float32)
+    far = caster._scene.run(o32, d32, dists=np.full(count, np.float32(limit)), query="DISTANCE")
+    expected = np.where(far < np.float32(limit), far.astype(np.float64), np.inf)
+    assert 0.2 < np.isinf(expected).mean() < 0.8  # misses all through the rays
+
+    np.testing.assert_array_equal(caster.distances(origins, directions, limit), expected)
+    np.testing.assert_array_equal(caster.distances(origins, d32, limit), expected)
+    strided = np.asfortranarray(directions)
+    np.testing.assert_array_equal(caster.distances(origins, strided, limit), expected)
+    one = caster.distances(origins[3], directions, limit)
+    far_one = caster._scene.run(np.broadcast_to(o32[3], o32.shape).copy(), d32,
+                                dists=np.full(count, np.float32(limit)), query="DISTANCE")
+    np.testing.assert_array_equal(one, np.where(far_one < np.float32(limit), far_one.astype(np.float64), np.inf))
