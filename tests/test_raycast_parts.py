@@ -1,5 +1,5 @@
-"""EmbreeCaster's split of a call over threads: every ray cast once, the parts shrinking towards the end, and the
-distances bit for bit those of Embree run bare on the same float32 rays."""
+"""EmbreeCaster's split of a call over threads and its compiled steps around Embree: every ray cast once, the
+parts shrinking towards the end, and the distances bit for bit those of Embree run bare on the same float32 rays."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from livox_viz.scene.raycast import LEAST_RAYS, PART_RAYS, EmbreeCaster, casting_in_this_thread
+from livox_viz.scene.raycast import LEAST_RAYS, PART_RAYS, EmbreeCaster, _kernels, casting_in_this_thread
 
 
 def recorded_parts(caster: EmbreeCaster, count: int, pause: float = 0.0) -> list[tuple[int, int, int]]:
@@ -92,6 +92,28 @@ def test_a_failing_part_stops_the_other_threads_taking_parts(box: trimesh.Trimes
     with pytest.raises(ValueError, match="part failed"):
         caster._run_split(run, 1_000_000)
     assert len(ran) <= 4  # not the 20-odd parts of the whole call
+
+
+def test_the_compiled_steps_are_numpys_casts_and_the_miss_rule() -> None:
+    rng = np.random.default_rng(7)
+    n = 1000
+    origins = rng.uniform(-5e4, 5e4, size=(n, 3))
+    centre = np.array([1234.5678, -987.654321, 42.4242])
+    directions = rng.normal(size=(n, 3))
+    origins_out = np.empty((n, 3), np.float32)
+    directions_out = np.empty((n, 3), np.float32)
+    limits = np.empty(n, np.float32)
+    _kernels()["rays"](origins.reshape(-1), centre, directions.reshape(-1), origins_out.reshape(-1),
+                       directions_out.reshape(-1), limits, np.float32(123.25))
+    np.testing.assert_array_equal(origins_out, (origins - centre).astype(np.float32))
+    np.testing.assert_array_equal(directions_out, directions.astype(np.float32))
+    np.testing.assert_array_equal(limits, np.full(n, np.float32(123.25)))
+
+    limit = np.float32(60.0)
+    far = np.array([0.0, 1.5, np.nextafter(limit, np.float32(0)), limit, np.nan, 59.75], np.float32)
+    out = np.full(far.size, -1.0)
+    _kernels()["misses"](far, limit, out)
+    np.testing.assert_array_equal(out, [0.0, 1.5, float(np.nextafter(limit, np.float32(0))), np.inf, np.nan, 59.75])
 
 
 @pytest.mark.parametrize("threads", [1, 2])
