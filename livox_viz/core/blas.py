@@ -79,11 +79,13 @@ def _may_set_directly(library: Any) -> bool:
     state = getattr(type(library), "_SHARED_STATE", None)
     if state is None:
         return False
-    controlling = state.controlling_thread
+    controlling, current = state.controlling_thread, threading.current_thread()
+    if controlling is current:  # the usual answer, asked first: is_alive costs as much as a pin's C call
+        return True
     if controlling is None or not controlling.is_alive():
         library.set_num_threads(library.get_num_threads())  # threadpoolctl hands control to this thread
         controlling = state.controlling_thread
-    return controlling is threading.current_thread()
+    return controlling is current
 
 
 class _OneBlasThread:

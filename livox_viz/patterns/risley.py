@@ -25,11 +25,19 @@ into rows, so a frame is one product written straight into the chunk; a chunk
 that covers part of a block copies from the last block made, which is kept.
 Every sample is therefore computed by the same product however the stream is
 cut: bit for bit.
+
+Around the product a frame costs little more (issue 19: within 1.3 x the bare
+product's time): a stream read block after block makes the left sides P R of
+the next :data:`_BATCH` blocks in one numpy pass each (each block's P still from
+its own k0, the same arithmetic element by element), a block-sized chunk's
+arrays and views are made once and reused, and the chunk is filled in directly
+(:meth:`~livox_viz.patterns.stream.PatternChunk.from_stream`).
 """
 
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 
@@ -43,6 +51,11 @@ _ROW = 256
 #: Samples in a block, about; a frame of up to :data:`_FRAME_BLOCK` points is one block (or whole frames are).
 _BLOCK = 8192
 _FRAME_BLOCK = 65_536
+#: Blocks whose phasors are made together when the stream is read in order (see :meth:`RisleyPattern._left_side`).
+_BATCH = 16
+#: The figure-8 rotations of every Risley chunk: none (one shared empty array, read-only).
+_NO_ROTATIONS = np.zeros(0)
+_NO_ROTATIONS.flags.writeable = False
 
 
 def block_shape(points_per_frame: int, lasers: int) -> tuple[int, int]:
@@ -60,41 +73,14 @@ def block_shape(points_per_frame: int, lasers: int) -> tuple[int, int]:
         A block is ``rows * row`` samples.
     """
     shortest = lasers * max(1, _ROW // 4 // lasers)
-    dividing = [row for row in range(shortest, 4 * _ROW + 1, lasers) if points_per_frame % row == 0]
+    rows = np.arange(shortest, 4 * _ROW + 1, lasers)  # one numpy pass: a stream is made per slider move
+    dividing = rows[points_per_frame % rows == 0].tolist()
     if dividing and points_per_frame <= _FRAME_BLOCK:
         row = min(dividing, key=lambda r: abs(math.log(r / _ROW)))
         frames = max(1, _BLOCK // points_per_frame)
         return frames * points_per_frame // row, row
     row = lasers * max(1, round(_ROW / lasers))
     return max(1, _BLOCK // row), row
-
-
-def series_block(block_phasors: np.ndarray, row_steps: np.ndarray, table: np.ndarray, out: np.ndarray,
-                 work: np.ndarray) -> None:
-    """One block of the series: ``out = (row_steps * block_phasors) @ table``.
-
-    Parameters
-    ----------
-    block_phasors : (J,) complex128
-        exp(2 pi i frac(w_j k)) at the block's first sample k (the phases at k = 0 are in the table).
-    row_steps : (rows, J) complex128
-        exp(i w_j s L): each row's phase advance over the first.
-    table : (J, L) complex128
-        c_{laser(d), j} exp(i phi_j) exp(i w_j d), d = 0 .. L-1 (phi_j: the term's phase at k = 0).
-    out : (rows, L) complex128, C-contiguous
-        The block's points, degrees (x + iy).
-    work : (rows, J) complex128
-        Scratch.
-    """
-    with one_blas_thread():
-        _series_product(block_phasors, row_steps, table, out, work)
-
-
-def _series_product(block_phasors: np.ndarray, row_steps: np.ndarray, table: np.ndarray, out: np.ndarray,
-                    work: np.ndarray) -> None:
-    """:func:`series_block` for a caller already holding :func:`~livox_viz.core.blas.one_blas_thread`."""
-    np.multiply(row_steps, block_phasors, out=work)
-    np.matmul(work, table, out=out)
 
 
 class RisleyPattern(PatternStream):
@@ -126,40 +112,118 @@ class RisleyPattern(PatternStream):
                                            * np.exp(2j * np.pi * np.mod(cycles, 1.0)))
         advance = (np.arange(rows, dtype=np.float64) * row)[:, None] * self._cycles_per_sample[None, :]
         self._row_steps = np.exp(2j * np.pi * np.mod(advance, 1.0))
-        self._work = np.empty((rows, len(params.terms)), dtype=np.complex128)
-        # A block's phasors are made in these (a frame's product takes 30 us: fresh arrays here cost a tenth).
-        self._turns = np.empty(len(params.terms), dtype=np.float64)
-        self._phasors = np.empty(len(params.terms), dtype=np.complex128)
+        # The left-hand sides (row_steps * phasors) of up to _BATCH blocks in a row, made together.
+        terms = len(params.terms)
+        self._batch_steps = np.arange(_BATCH, dtype=np.int64) * self._block
+        self._batch_firsts = np.empty(_BATCH, dtype=np.float64)
+        self._batch_turns = np.empty((_BATCH, terms), dtype=np.float64)
+        self._batch_phasors = np.empty((_BATCH, terms), dtype=np.complex128)
+        self._batch_work = np.empty((_BATCH, rows, terms), dtype=np.complex128)
+        self._left_sides = list(self._batch_work)  # its blocks' (rows, J) views, made once
+        # The blocks held: from sample _held_first, _held of them (none yet; block 0 then starts a batch).
+        self._held_first, self._held = 0, 0
+        self._frames = _FrameBuffers(rows, row)
         self._kept = (-1, np.empty((rows, row), dtype=np.complex128))
         self._position = 0
 
     def points(self, start: int, count: int) -> PatternChunk:
         """Points ``start .. start+count-1`` (any range: the track is a function of k alone)."""
+        block = self._block
+        if count == block and start % block == 0:  # a whole block: one product (the Mid-70's frame by frame)
+            out, xy = self._frames.get()
+            index = (start - self._held_first) // block  # _left_side's first lines, spelled out: a call costs
+            left = self._left_sides[index] if 0 <= index < self._held else self._left_side(start)
+            with one_blas_thread():
+                np.matmul(left, self._table, out=out)
+            return PatternChunk.from_stream(self.config, start, xy, _NO_ROTATIONS)
         path = self._path_buffer(count)
-        block, stop = self._block, start + count
+        stop = start + count
         with one_blas_thread():  # once for the chunk: the blocks are made under it
             for first in range(start - start % block, stop, block):
                 if first >= start and first + block <= stop:
-                    self._make_block(first, path[first - start : first - start + block].reshape(self._rows,
-                                                                                                 self._row))
+                    out = path[first - start : first - start + block].reshape(self._rows, self._row)
+                    np.matmul(self._left_side(first), self._table, out=out)
                     continue
                 low, high = max(first, start), min(first + block, stop)
                 path[low - start : high - start] = self._kept_block(first).ravel()[low - first : high - first]
-        return PatternChunk(self.config, start, path.view(np.float64).reshape(count, 2))
+        return PatternChunk.from_stream(self.config, start, path.view(np.float64).reshape(count, 2), _NO_ROTATIONS)
 
-    def _make_block(self, first: int, out: np.ndarray) -> None:
-        """Block from sample ``first`` into ``out`` ``(rows, row)`` complex128 (the caller holds one BLAS thread)."""
-        turns = np.multiply(self._cycles_per_sample, float(first), out=self._turns)
+    def _left_side(self, first: int) -> np.ndarray:
+        """``(rows, J)`` complex128: ``row_steps * phasors`` of the block from sample ``first`` (a block start).
+
+        Each block's phasors are exp(2 pi i frac(w_j first)) from its own ``first``, element by element the
+        same arithmetic whether made alone or with others, so the points are the same bit for bit. A block
+        right after the ones held starts a batch of :data:`_BATCH` (a stream read in order: numpy's per-call
+        cost, 4 us for one block's six small passes, is then shared); any other block is made alone.
+        """
+        index = (first - self._held_first) // self._block
+        if 0 <= index < self._held:
+            return self._left_sides[index]
+        count = len(self._left_sides) if index == self._held else 1
+        firsts = np.add(self._batch_steps[:count], first, out=self._batch_firsts[:count])
+        turns = np.multiply(firsts[:, None], self._cycles_per_sample, out=self._batch_turns[:count])
         np.mod(turns, 1.0, out=turns)
-        phasors = np.multiply(turns, 2j * math.pi, out=self._phasors)
-        _series_product(np.exp(phasors, out=phasors), self._row_steps, self._table, out, self._work)
+        phasors = np.multiply(turns, 2j * math.pi, out=self._batch_phasors[:count])
+        np.exp(phasors, out=phasors)
+        np.multiply(self._row_steps, phasors[:, None, :], out=self._batch_work[:count])
+        self._held_first, self._held = first, count
+        return self._left_sides[0]
 
     def _kept_block(self, first: int) -> np.ndarray:
-        """The block starting at sample ``first``, made once and kept until another is asked for."""
+        """The block starting at sample ``first``, made once and kept until another is asked for (the caller
+        holds one BLAS thread)."""
         if self._kept[0] != first:
-            self._make_block(first, self._kept[1])
+            np.matmul(self._left_side(first), self._table, out=self._kept[1])
             self._kept = (first, self._kept[1])
         return self._kept[1]
+
+
+class _FrameBuffers:
+    """A stream's block-sized output arrays, each with the two views a chunk of one block needs, made once.
+
+    As :class:`~livox_viz.patterns.stream.PatternStream`'s pool does, an array is handed out again only once
+    nothing outside refers to it or its chunk's ``xy_deg`` (a view of either holds a reference to the
+    array), so a chunk a caller keeps is never overwritten. Kept here for one size with its views: making
+    the two views per chunk cost 0.6 us of a 30 us frame.
+
+    Parameters
+    ----------
+    rows, row : int
+        The block's shape.
+    """
+
+    _KEEP = 4
+
+    def __init__(self, rows: int, row: int) -> None:
+        self._shape = (rows, row)
+        self._free: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+
+    def get(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(out, xy)``: ``(rows, row)`` complex128 to fill (x + iy, degrees) and its ``(rows*row, 2)`` float64 view.
+
+        Their contents are undefined.
+        """
+        for buffer, out, xy in self._free:
+            if sys.getrefcount(buffer) <= _UNHELD_BUFFER and sys.getrefcount(xy) <= _UNHELD_VIEW:
+                return out, xy
+        buffer = np.empty(self._shape[0] * self._shape[1], dtype=np.complex128)
+        self._free.append((buffer, buffer.reshape(self._shape), buffer.view(np.float64).reshape(-1, 2)))
+        if len(self._free) > self._KEEP:
+            self._free.pop(0)
+        return self._free[-1][1:]
+
+
+def _unheld_refcounts() -> tuple[int, int]:
+    """The reference counts :meth:`_FrameBuffers.get` sees for an array and its ``xy`` view only it holds."""
+    buffer = np.empty(2, dtype=np.complex128)
+    free = [(buffer, buffer.reshape(1, 2), buffer.view(np.float64).reshape(-1, 2))]
+    del buffer
+    for buffer, _out, xy in free:
+        return sys.getrefcount(buffer), sys.getrefcount(xy)
+    raise AssertionError("unreachable")
+
+
+_UNHELD_BUFFER, _UNHELD_VIEW = _unheld_refcounts()
 
 
 def risley_xy(params, t: np.ndarray, laser: np.ndarray | None = None) -> np.ndarray:

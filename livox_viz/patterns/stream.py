@@ -100,6 +100,30 @@ class PatternChunk:
     t: np.ndarray = _TimesOnDemand()  # type: ignore[assignment]
     figure8_angle_deg: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
+    @classmethod
+    def from_stream(cls, config: SensorConfig, start: int, xy_deg: np.ndarray,
+                    figure8_angle_deg: np.ndarray) -> PatternChunk:
+        """The chunk a stream hands out, made without the dataclass's ``__init__`` (times made on first use).
+
+        A stream makes one per frame, and the frozen dataclass's ``__init__`` (a guarded ``object.__setattr__``
+        per field) cost 1.3 us of a Risley frame's 30 us; this fills the same fields directly in 0.5 us.
+
+        Parameters
+        ----------
+        config, start, xy_deg, figure8_angle_deg
+            As for the class.
+
+        Returns
+        -------
+        PatternChunk
+            Equal field for field to ``PatternChunk(config, start, xy_deg, None, figure8_angle_deg)``.
+        """
+        chunk = object.__new__(cls)
+        # ``_t_given``: where _TimesOnDemand keeps the field ``t`` (None: made on first use).
+        chunk.__dict__.update(config=config, start=start, xy_deg=xy_deg, _t_given=None,
+                              figure8_angle_deg=figure8_angle_deg)
+        return chunk
+
     def __len__(self) -> int:
         return int(self.xy_deg.shape[0])
 
