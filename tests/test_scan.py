@@ -93,15 +93,21 @@ def test_threads_do_not_change_results(threads: int) -> None:
 
 def test_a_split_call_runs_every_part_once_in_order_on_the_caller_and_the_workers() -> None:
     import threading
-    import time
 
     from livox_viz.scene.raycast import casting_in_this_thread
 
     caster = EmbreeCaster(trimesh.creation.box((2, 2, 2)), threads=2)
     inline = []
+    threads_seen: set[int] = set()
+    both_working = threading.Event()
 
     def part(bounds: tuple[int, int]) -> tuple[tuple[int, int], int]:
-        time.sleep(0.002)  # long enough that both threads take parts
+        # A part waits (up to 10 s) until a second thread has taken one: on a busy machine a worker can wake
+        # later than the caller finishes a short part, and then the caller rightly takes them all.
+        threads_seen.add(threading.get_ident())
+        if len(threads_seen) >= 2:
+            both_working.set()
+        both_working.wait(timeout=10.0)
         inline.append(caster.map_parts(lambda b: b, 100_000, 2048) == [(0, 100_000)])  # no nested split
         return bounds, threading.get_ident()
 
