@@ -24,7 +24,7 @@ _KERNELS: dict[str, object] = {}
 #: The small functions the loops call: compiled (in this module's namespace) before the first loop is.
 #: Frames are cast on worker threads: the first loop of each is compiled by one of them, once.
 _COMPILING = threading.Lock()
-_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab", "_slab_span", "_in_hull", "_basis_at",
+_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab_span", "_slab", "_in_hull", "_basis_at",
             "_any_chosen", "_byte")
 
 
@@ -540,8 +540,8 @@ def _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, part, sphere, start, planes):
 
 
 def _slab_span(ox, oy, oz, ix, iy, iz, limit, lx, ly, lz, hx, hy, hz):  # pragma: no cover - compiled
-    """Where the ray from o (inverse direction i) is inside the box [l, h] between 0 and ``limit``: ``(enter,
-    leave)``, empty when enter > leave."""
+    """Where the ray from o (inverse direction i, infinite along an axis it does not move on) is inside the box
+    [l, h] between 0 and ``limit``: ``(enter, leave)``, empty when enter > leave."""
     near_t = 0.0
     far_t = limit
     if ix == np.inf:
@@ -574,33 +574,8 @@ def _slab_span(ox, oy, oz, ix, iy, iz, limit, lx, ly, lz, hx, hy, hz):  # pragma
 def _slab(ox, oy, oz, ix, iy, iz, limit, lx, ly, lz, hx, hy, hz):  # pragma: no cover - compiled
     """Whether the ray from o (inverse direction i, infinite along an axis it does not move on) meets the box
     [l, h] between 0 and ``limit``."""
-    near_t = 0.0
-    far_t = limit
-    if ix == np.inf:
-        if ox < lx or ox > hx:
-            return False
-    else:
-        a = (lx - ox) * ix
-        b = (hx - ox) * ix
-        near_t = max(near_t, min(a, b))
-        far_t = min(far_t, max(a, b))
-    if iy == np.inf:
-        if oy < ly or oy > hy:
-            return False
-    else:
-        a = (ly - oy) * iy
-        b = (hy - oy) * iy
-        near_t = max(near_t, min(a, b))
-        far_t = min(far_t, max(a, b))
-    if iz == np.inf:
-        if oz < lz or oz > hz:
-            return False
-    else:
-        a = (lz - oz) * iz
-        b = (hz - oz) * iz
-        near_t = max(near_t, min(a, b))
-        far_t = min(far_t, max(a, b))
-    return near_t <= far_t
+    enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, limit, lx, ly, lz, hx, hy, hz)
+    return enter <= leave
 
 
 def _probe_limits(rows, probes, triangle, distance, planes, origins, range_max, sigma_table,
