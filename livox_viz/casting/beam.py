@@ -301,7 +301,8 @@ class TileProxy:
 
     def near(self, candidate: np.ndarray, origins: np.ndarray, directions: np.ndarray, reach: np.ndarray,
              triangle: np.ndarray, directions_sensor: np.ndarray | None = None,
-             boxes: tuple[BoxTree | None, DirectionGrid | None] | None = None) -> np.ndarray:
+             boxes: tuple[BoxTree | None, DirectionGrid | None] | None = None,
+             crossed: np.ndarray | None = None) -> np.ndarray:
         """Whether a box other than the hit's own lies along each ``candidate`` beam before ``reach``.
 
         Parameters
@@ -319,20 +320,29 @@ class TileProxy:
             The same in the sensor frame (a fixed sensor's beams then look up their direction's boxes).
         boxes : tuple, optional
             What :meth:`place` returned; default the boxes placed last.
+        crossed : (n, k) int64, optional
+            Filled, for :meth:`rays_may_meet`, with each beam's boxes a ray of its footprint could meet
+            something in (-1 after the last; -2 where not listed: more than k, or a moving or panoramic sensor,
+            whose rays then walk the tree).
         """
         near = np.zeros(directions.shape[0], dtype=np.bool_)
+        if crossed is not None:
+            crossed[:, 0] = -2
         tree, grid = boxes if boxes is not None else (self._tree, self._grid)
         if tree is None or near.size == 0:
+            if crossed is not None:
+                crossed[:, 0] = -1
             return near
         arguments = (np.ascontiguousarray(candidate, dtype=np.bool_),
                      np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
                      np.ascontiguousarray(directions, dtype=np.float64),
                      np.ascontiguousarray(reach, dtype=np.float64), np.asarray(triangle, dtype=np.int64))
-        own = (self.tile_part, self.tile_convex, self.tile_triangle, self.triangle_tile, self.triangle_part)
+        own = (self.tile_part, self.tile_convex, self.tile_triangle, self.triangle_tile, self.triangle_part, self.low,
+               self.part_sphere, self.hull_start, self.hull_planes)
         if grid is not None and directions_sensor is not None:
             kernel("near_grid")(*arguments, np.ascontiguousarray(directions_sensor, dtype=np.float64), grid.bounds,
                                 grid.cell_start, grid.cell_boxes, grid.always, tree.box_low, tree.box_high, tree.tile,
-                                *own, near)
+                                *own, near, crossed if crossed is not None else np.empty((near.size, 1), np.int64))
         else:
             kernel("near_boxes")(*arguments, tree.node_low, tree.node_high, tree.node_link, tree.box_low,
                                  tree.box_high, tree.tile, *own, near)
@@ -341,7 +351,8 @@ class TileProxy:
 
     def rays_may_meet(self, pulse: np.ndarray, rays: np.ndarray, limit: np.ndarray, triangle: np.ndarray,
                       origins: np.ndarray, directions_sensor: np.ndarray | None,
-                      boxes: tuple[BoxTree | None, DirectionGrid | None], group: int = 1) -> np.ndarray:
+                      boxes: tuple[BoxTree | None, DirectionGrid | None], group: int = 1,
+                      crossed: np.ndarray | None = None) -> np.ndarray:
         """Whether each ray of a footprint (a probe, a sub-ray) can meet anything but its pulse's hit before its
         limit: ``(r,)`` bool.
 
@@ -370,6 +381,8 @@ class TileProxy:
         group : int
             The rays come in runs of this many whose answers are wanted together (a pulse's probes): after one
             that may meet, the rest of its run is True without a test.
+        crossed : (n, k) int64, optional
+            What :meth:`near` listed for the pulses: only those boxes are tested where listed.
         """
         meet = np.zeros(len(rays), dtype=np.bool_)
         tree, grid = boxes
@@ -387,6 +400,7 @@ class TileProxy:
                                 np.ascontiguousarray(limit, dtype=np.float64), group,
                                 np.asarray(triangle, dtype=np.int64),
                                 np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
+                                crossed if crossed is not None else np.full((len(triangle), 1), -2, np.int64),
                                 *grid_arrays, *tree_arrays, self._padded[0], self._padded[1], self.tile_part,
                                 self.tile_convex, self.tile_triangle, self.triangle_part, self._padded[2],
                                 self._padded[3], self.flat_part, self.part_sphere, self.hull_start, self.hull_planes,

@@ -307,8 +307,8 @@ def _central(distance, triangle, directions, origins, xy_deg, panorama, rotation
 
 
 def _near_boxes(candidate, origins, directions, reach, triangle, node_low, node_high, node_link, box_low, box_high,
-                box_tile, tile_part, tile_convex, tile_triangle, triangle_tile, triangle_part,
-                near):  # pragma: no cover - compiled
+                box_tile, tile_part, tile_convex, tile_triangle, triangle_tile, triangle_part, tile_low, part_sphere,
+                hull_start, hull_planes, near):  # pragma: no cover - compiled
     """Per ``candidate`` beam: does it pass through a box, other than its hit's own, before ``reach``?
 
     A walk down the tree. A box is the hit's own when it is the hit triangle's tile, a piece of the hit
@@ -352,8 +352,11 @@ def _near_boxes(candidate, origins, directions, reach, triangle, node_low, node_
                     if hit >= 0 and (tile == own_tile or tile_triangle[tile] == hit or (
                             tile_convex[tile] and tile_part[tile] == part)):
                         continue
-                    if _slab(ox, oy, oz, ix, iy, iz, limit, box_low[b, 0], box_low[b, 1], box_low[b, 2],
-                             box_high[b, 0], box_high[b, 1], box_high[b, 2]):
+                    enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, limit, box_low[b, 0], box_low[b, 1],
+                                              box_low[b, 2], box_high[b, 0], box_high[b, 1], box_high[b, 2])
+                    if enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile],
+                                                   part_sphere, hull_start, hull_planes,
+                                                   tile_low[tile, 0] - box_low[b, 0]):
                         found = True
                         break
             near[i] = found
@@ -361,16 +364,27 @@ def _near_boxes(candidate, origins, directions, reach, triangle, node_low, node_
 
 def _near_grid(candidate, origins, directions, reach, triangle, directions_sensor, bounds, cell_start, cell_boxes,
                always, box_low, box_high, box_tile, tile_part, tile_convex, tile_triangle, triangle_tile,
-               triangle_part, near):  # pragma: no cover - compiled
+               triangle_part, tile_low, part_sphere, hull_start, hull_planes, near, crossed):  # pragma: no cover
     """:func:`_near_boxes` for a fixed sensor: a beam tests only the boxes filed in its direction's grid cell
     (``bounds`` = (lowest coordinate, cells per unit, cells a side)) and those reaching behind the sensor;
-    a beam outside the grid tests them all."""
+    a beam outside the grid tests them all. A convex object's box counts only where the beam also passes its
+    sphere and planes grown as much as the box (its inflation: ``box_low`` against ``tile_low``).
+
+    Each beam's boxes that a ray of its footprint could meet something in (every box it crosses before
+    ``reach`` but the pieces of its hit triangle and its convex object's: its own tile counts here) go to
+    ``crossed (n, k)``, -1 after the last; -2 in the first column when there were more than k (or the beam was
+    not asked). Every ray of the footprint lies within the inflation of the box it meets, so these are all the
+    boxes :func:`_rays_may_meet` needs to test for the beam.
+    """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
     low, per_unit, side = bounds[0], bounds[1], int(bounds[2])
     boxes = box_tile.shape[0]
+    most = crossed.shape[1]
     for i in range(directions.shape[0]):
         near[i] = False
+        crossed[i, 0] = -1
         if not candidate[i]:
+            crossed[i, 0] = -2
             continue
         sx = directions_sensor[i, 0]
         cell = -1
@@ -396,6 +410,7 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
         part = triangle_part[hit] if hit >= 0 else -1
         own_tile = triangle_tile[hit] if hit >= 0 else -1
         found = False
+        listed = 0
         for j in range(first, stop + extra):
             if j < stop:
                 b = cell_boxes[j]
@@ -404,20 +419,27 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
             else:
                 b = j - stop
             tile = box_tile[b]
-            if hit >= 0 and (tile == own_tile or tile_triangle[tile] == hit or (
-                    tile_convex[tile] and tile_part[tile] == part)):
+            if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part)):
                 continue
-            if _slab(ox, oy, oz, ix, iy, iz, limit, box_low[b, 0], box_low[b, 1], box_low[b, 2],
-                     box_high[b, 0], box_high[b, 1], box_high[b, 2]):
-                found = True
-                break
+            enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, limit, box_low[b, 0], box_low[b, 1], box_low[b, 2],
+                                      box_high[b, 0], box_high[b, 1], box_high[b, 2])
+            if enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile], part_sphere,
+                                           hull_start, hull_planes, tile_low[tile, 0] - box_low[b, 0]):
+                found = found or tile != own_tile
+                if listed < most:
+                    crossed[i, listed] = b
+                listed += 1
+        if listed < most:
+            crossed[i, listed] = -1
+        elif listed > most:
+            crossed[i, 0] = -2
         near[i] = found
 
 
-def _rays_may_meet(pulse, rays, limit, group, triangle, origins, directions_sensor, bounds, cell_start, cell_boxes,
-                   always, node_low, node_high, node_link, box_tile, tile_low, tile_high, tile_part, tile_convex,
-                   tile_triangle, triangle_part, flat_low, flat_high, flat_part, part_sphere, hull_start, hull_planes,
-                   meet):  # pragma: no cover - compiled
+def _rays_may_meet(pulse, rays, limit, group, triangle, origins, crossed, directions_sensor, bounds, cell_start,
+                   cell_boxes, always, node_low, node_high, node_link, box_tile, tile_low, tile_high, tile_part,
+                   tile_convex, tile_triangle, triangle_part, flat_low, flat_high, flat_part, part_sphere, hull_start,
+                   hull_planes, meet):  # pragma: no cover - compiled
     """Per ray of a footprint (``rays (r, 3)``, of the pulses ``pulse``, each to its own ``limit``): can it meet
     anything but its pulse's hit? Only where it passes through a tile itself (``tile_low``, ``tile_high``: not
     inflated; for a convex object also its bounding sphere, ``part_sphere``, and its face planes, ``hull_planes``
@@ -425,9 +447,10 @@ def _rays_may_meet(pulse, rays, limit, group, triangle, origins, directions_sens
     front of the hit's plane (pieces of the hit triangle, tiles of the hit's convex object) and the hit's own
     flat object.
 
-    The tile boxes are filed by their inflated extent, which holds every ray of the footprint: a fixed sensor
-    (``cell_start`` not empty) tests those of its pulse's grid cell as :func:`_near_grid` does, a moving one
-    walks the tree as :func:`_near_boxes` does; every ray tests the flat objects' boxes. Rays come in runs of
+    The tile boxes are inflated to hold every ray of the footprint: a ray tests the boxes its pulse's central ray
+    crossed (``crossed``, from :func:`_near_grid`), or where those were not listed (-2), those of its pulse's
+    grid cell (a fixed sensor: ``cell_start`` not empty), or walks the tree as :func:`_near_boxes` does; every
+    ray tests the flat objects' boxes. Rays come in runs of
     ``group`` (a pulse's probes): after one that may meet, the rest of its run is True without a test.
     """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
@@ -457,7 +480,19 @@ def _rays_may_meet(pulse, rays, limit, group, triangle, origins, directions_sens
                 break
         if meet[r]:
             continue
-        if grid:
+        if crossed[i, 0] != -2:
+            for k in range(crossed.shape[1]):
+                b = crossed[i, k]
+                if b < 0:
+                    break
+                tile = box_tile[b]
+                enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1],
+                                          tile_low[tile, 2], tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2])
+                if enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile], part_sphere,
+                                               hull_start, hull_planes, HULL_PAD_M):
+                    meet[r] = True
+                    break
+        elif grid:
             first, stop, extra = 0, 0, boxes
             cell = -1
             sx = directions_sensor[i, 0]
@@ -482,7 +517,7 @@ def _rays_may_meet(pulse, rays, limit, group, triangle, origins, directions_sens
                 enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1],
                                           tile_low[tile, 2], tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2])
                 if enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile], part_sphere,
-                                               hull_start, hull_planes):
+                                               hull_start, hull_planes, HULL_PAD_M):
                     meet[r] = True
                     break
         elif node_low.shape[0] > 0:
@@ -507,26 +542,26 @@ def _rays_may_meet(pulse, rays, limit, group, triangle, origins, directions_sens
                                               tile_low[tile, 2], tile_high[tile, 0], tile_high[tile, 1],
                                               tile_high[tile, 2])
                     if enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile],
-                                                   part_sphere, hull_start, hull_planes):
+                                                   part_sphere, hull_start, hull_planes, HULL_PAD_M):
                         meet[r] = True
                         break
 
 
-def _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, part, sphere, start, planes):  # pragma: no cover - compiled
+def _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, part, sphere, start, planes, pad):  # pragma: no cover - compiled
     """Whether the ray from o along d (unit), between ``enter`` and ``leave`` (where it is inside the object's box),
     meets object ``part``'s bounding sphere and the inside of its face planes (always True for an object that
-    is not convex: infinite sphere, no planes). Both :data:`HULL_PAD_M` larger than the object (so a ray that
-    grazes it is kept)."""
+    is not convex: infinite sphere, no planes), both ``pad`` metres larger than the object (at least
+    :data:`HULL_PAD_M`, so a ray that grazes it is kept; the broad phase's inflation for a central ray)."""
     radius = sphere[part, 3]
     if radius < np.inf:
         cx, cy, cz = sphere[part, 0] - ox, sphere[part, 1] - oy, sphere[part, 2] - oz
         along = min(max(cx * dx + cy * dy + cz * dz, enter), leave)
         ex, ey, ez = cx - along * dx, cy - along * dy, cz - along * dz
-        if ex * ex + ey * ey + ez * ez > (radius + HULL_PAD_M) ** 2:
+        if ex * ex + ey * ey + ez * ez > (radius + pad) ** 2:
             return False
     for k in range(start[part], start[part + 1]):
         facing = planes[k, 0] * dx + planes[k, 1] * dy + planes[k, 2] * dz
-        room = planes[k, 3] + HULL_PAD_M - (planes[k, 0] * ox + planes[k, 1] * oy + planes[k, 2] * oz)
+        room = planes[k, 3] + pad - (planes[k, 0] * ox + planes[k, 1] * oy + planes[k, 2] * oz)
         if facing == 0.0:
             if room < 0.0:
                 return False

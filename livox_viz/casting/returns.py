@@ -69,6 +69,8 @@ INTENSITY_NOISE = 0x04
 MIX_FLOOR_M = 0.05
 #: Pulses a part of :meth:`ReturnModel.cast` has at least when a run is cut over the caster's threads.
 SPLIT_PULSES = 2048
+#: Boxes the broad phase lists per beam for the narrow phase (a beam crossing more is tested against its cell's).
+CROSSED_LISTED = 4
 #: The steps :attr:`ReturnModel.stage_seconds` times (summed over the threads that ran them).
 STAGES = ("central rays", "materials, edges and reach", "broad phase", "probes", "footprint sub-rays",
           "detection, noise, tags")
@@ -360,12 +362,13 @@ class ReturnModel:
                                 self.range_max, None if moving else rotation)
         # A fixed sensor's beams look up their direction's boxes (a boresight grid: not for a panoramic head).
         in_grid = None if moving or self.plane != "boresight" else directions_sensor
+        crossed = np.empty((triangle.size, CROSSED_LISTED), np.int64)
         near = proxy.near(np.ones(triangle.size, dtype=np.bool_), origins, directions_world, reach, triangle,
-                          in_grid, boxes)
+                          in_grid, boxes, crossed)
         rows = np.flatnonzero(near & ~leaves)
 
         def may_meet(pulse: np.ndarray, rays: np.ndarray, limit: np.ndarray, group: int = 1) -> np.ndarray:
-            return proxy.rays_may_meet(pulse, rays, limit, triangle, origins, in_grid, boxes, group)
+            return proxy.rays_may_meet(pulse, rays, limit, triangle, origins, in_grid, boxes, group, crossed)
 
         self._lap("broad phase")
         if rows.size == 0:
