@@ -409,6 +409,10 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
         hit = triangle[i]
         part = triangle_part[hit] if hit >= 0 else -1
         own_tile = triangle_tile[hit] if hit >= 0 else -1
+        # A hit on an object that is not convex crosses its own tile, which the narrow phase must test: such a beam
+        # is not listed (its rays test the grid cell), and stops at the first other box (a terrain's cells hold
+        # dozens).
+        listing = own_tile < 0 or tile_convex[own_tile]
         found = False
         listed = 0
         for j in range(first, stop + extra):
@@ -419,7 +423,8 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
             else:
                 b = j - stop
             tile = box_tile[b]
-            if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part)):
+            if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part) or (
+                    not listing and tile == own_tile)):
                 continue
             enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, limit, box_low[b, 0], box_low[b, 1], box_low[b, 2],
                                       box_high[b, 0], box_high[b, 1], box_high[b, 2])
@@ -429,9 +434,11 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
                 if listed < most:
                     crossed[i, listed] = b
                 listed += 1
+                if found and (listed > most or not listing):
+                    break  # named, and nothing more to list: the rest cannot change either answer
         if listed < most:
             crossed[i, listed] = -1
-        elif listed > most:
+        if listed > most or not listing:
             crossed[i, 0] = -2
         near[i] = found
 
