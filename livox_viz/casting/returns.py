@@ -322,11 +322,13 @@ class ReturnModel:
 
     def _central_hits(self, origins: np.ndarray, directions_world: np.ndarray,
                       moving: bool) -> tuple[np.ndarray, np.ndarray]:
-        """Each central ray's distance (float64, from its triangle's plane) and triangle (-1 for a miss)."""
+        """Each central ray's distance (float64, from its triangle's plane) and triangle (int64, as every step
+        wants it; -1 for a miss)."""
         ray_origin = origins[0] if not moving else origins
         if not hasattr(self.caster, "triangle_ids"):
-            return self.caster.hits(ray_origin, directions_world, self.range_max)
-        triangle = self.caster.triangle_ids(ray_origin, directions_world, self.range_max)
+            distance, triangle = self.caster.hits(ray_origin, directions_world, self.range_max)
+            return distance, triangle.astype(np.int64)
+        triangle = self.caster.triangle_ids(ray_origin, directions_world, self.range_max).astype(np.int64)
         distance = np.empty(triangle.size)
         if kernel("plane_distance")(triangle, directions_world, origins, self.caster.face_planes, self.range_max,
                                     distance):
