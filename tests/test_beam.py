@@ -130,10 +130,11 @@ def test_the_broad_phases_ray_box_test_against_points_along_the_ray() -> None:
 
 @pytest.mark.parametrize("grid", [True, False])
 def test_rays_said_to_meet_nothing_meet_nothing_in_embree(grid: bool) -> None:
-    """A footprint's ray that :meth:`TileProxy.rays_may_meet` says meets nothing (outside every tile, a convex
-    object's sphere and planes, a flat object's box) is one Embree finds unblocked: random rays and rays aimed at
-    every vertex and edge of a small box, a wedge and a ball (grazing, where rounding decides), from the fixed
-    sensor's direction grid and from the moving one's tree; and most rays through the boxes' air are let go."""
+    """A footprint's ray that :meth:`TileProxy.rays_may_meet` says meets nothing (outside every tile the broad
+    phase listed, a convex object's sphere and planes, a flat object's box) is one Embree finds unblocked: random
+    rays and rays aimed at every vertex and edge of a small box, a wedge and a ball (grazing, where rounding
+    decides), listed from the fixed sensor's direction grid and from the moving one's tree; and most rays
+    through the boxes' air are let go."""
     from livox_viz.scene.raycast import EmbreeCaster, casting_in_this_thread
 
     wedge = trimesh.Trimesh([[6.0, 1.0, 1.0], [6.0, 2.5, 1.0], [6.0, 1.0, -1.0], [7.5, 1.0, 1.0]],
@@ -160,8 +161,11 @@ def test_rays_said_to_meet_nothing_meet_nothing_in_embree(grid: bool) -> None:
     rays = aim / np.linalg.norm(aim, axis=1, keepdims=True)
     rays32 = rays.astype(np.float32)
     limit = np.full(len(rays), 12.0)
-    meet = proxy.rays_may_meet(np.arange(len(rays)), rays32, limit, np.full(len(rays), -1), origin,
-                               rays if grid else None, boxes)
+    # Each ray is its own pulse's central ray: the broad phase lists what it crosses, the narrow phase answers.
+    crossed = np.empty((len(rays), 8), np.int64)
+    no_hit = np.full(len(rays), -1)
+    proxy.near(np.ones(len(rays), dtype=bool), origin, rays, limit, no_hit, rays if grid else None, boxes, crossed)
+    meet = proxy.rays_may_meet(np.arange(len(rays)), rays32, limit, no_hit, origin, crossed)
     with casting_in_this_thread():
         blocked = EmbreeCaster(mesh).occluded(origin[0], rays32, limit)
     assert not np.any(blocked & ~meet), np.flatnonzero(blocked & ~meet)[:10]

@@ -321,17 +321,16 @@ class TileProxy:
         boxes : tuple, optional
             What :meth:`place` returned; default the boxes placed last.
         crossed : (n, k) int64, optional
-            Filled, for :meth:`rays_may_meet`, with each beam's boxes a ray of its footprint could meet
-            something in (-1 after the last; -2 where not listed: more than k, or a moving or panoramic sensor,
-            whose rays then walk the tree).
+            Filled, for :meth:`rays_may_meet`, with the tiles of each beam's boxes a ray of its footprint could
+            meet something in (-1 after the last; -2 where not listed: more than k, or a hit on an object that is
+            not convex, whose rays then may meet something).
         """
         near = np.zeros(directions.shape[0], dtype=np.bool_)
-        if crossed is not None:
-            crossed[:, 0] = -2
+        if crossed is None:
+            crossed = np.empty((near.size, 1), np.int64)
         tree, grid = boxes if boxes is not None else (self._tree, self._grid)
         if tree is None or near.size == 0:
-            if crossed is not None:
-                crossed[:, 0] = -1
+            crossed[:, 0] = -1
             return near
         arguments = (np.ascontiguousarray(candidate, dtype=np.bool_),
                      np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
@@ -342,26 +341,26 @@ class TileProxy:
         if grid is not None and directions_sensor is not None:
             kernel("near_grid")(*arguments, np.ascontiguousarray(directions_sensor, dtype=np.float64), grid.bounds,
                                 grid.cell_start, grid.cell_boxes, grid.always, tree.box_low, tree.box_high, tree.tile,
-                                *own, near, crossed if crossed is not None else np.empty((near.size, 1), np.int64))
+                                *own, near, crossed)
         else:
             kernel("near_boxes")(*arguments, tree.node_low, tree.node_high, tree.node_link, tree.box_low,
-                                 tree.box_high, tree.tile, *own, near)
+                                 tree.box_high, tree.tile, *own, near, crossed)
         return near
 
 
     def rays_may_meet(self, pulse: np.ndarray, rays: np.ndarray, limit: np.ndarray, triangle: np.ndarray,
-                      origins: np.ndarray, directions_sensor: np.ndarray | None,
-                      boxes: tuple[BoxTree | None, DirectionGrid | None], group: int = 1,
-                      crossed: np.ndarray | None = None) -> np.ndarray:
+                      origins: np.ndarray, crossed: np.ndarray, group: int = 1) -> np.ndarray:
         """Whether each ray of a footprint (a probe, a sub-ray) can meet anything but its pulse's hit before its
         limit: ``(r,)`` bool.
 
         :meth:`near` names a beam whose central ray passes within the footprint's reach of a box, a box
-        inflated for the farthest beam that can reach it; a ray of its footprint can only meet what lies in a
-        tile itself (not inflated; for a convex object, also inside its bounding sphere and its faces' planes)
-        or a flat object's box that it crosses. Tiles that cannot lie in front of the hit's plane (pieces of the
-        hit triangle, tiles of its convex object) and its own flat object are left out, so the answer is False
-        only where Embree would find nothing before the limit but, at most, the hit's own surface.
+        inflated for the farthest beam that can reach it, and lists the boxes it crossed (``crossed``); a ray of
+        its footprint can only meet what lies in one of those tiles itself (not inflated; for a convex object,
+        also inside its bounding sphere and its faces' planes) or a flat object's box that it crosses. Tiles
+        that cannot lie in front of the hit's plane (pieces of the hit triangle, tiles of its convex object)
+        and its own flat object are left out, so the answer is False only where Embree would find nothing
+        before the limit but, at most, the hit's own surface. Where :meth:`near` did not list a beam's boxes,
+        its rays may meet something.
 
         Parameters
         ----------
@@ -371,40 +370,25 @@ class TileProxy:
             Unit directions, world frame.
         limit : (r,) float64
             How far each ray looks, metres.
-        triangle : (n,) int
+        triangle : (n,) int64
             Every pulse's hit triangle, -1 for a miss.
         origins : (1, 3) or (n, 3) float64
-        directions_sensor : (n, 3) float64, optional
-            A fixed sensor's beams, sensor frame (their grid cell), as given to :meth:`near`.
-        boxes : tuple
-            What :meth:`place` returned.
+        crossed : (n, k) int64
+            What :meth:`near` listed for the pulses.
         group : int
             The rays come in runs of this many whose answers are wanted together (a pulse's probes): after one
             that may meet, the rest of its run is True without a test.
-        crossed : (n, k) int64, optional
-            What :meth:`near` listed for the pulses: only those boxes are tested where listed.
         """
         meet = np.zeros(len(rays), dtype=np.bool_)
-        tree, grid = boxes
         if len(rays) == 0:
             return meet
-        tree_arrays = ((tree.node_low, tree.node_high, tree.node_link, tree.tile) if tree is not None else
-                       (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64)))
-        if grid is None or directions_sensor is None:
-            grid_arrays = (np.zeros((0, 3)), np.zeros(3), np.zeros(0, np.int64), np.zeros(0, np.int64),
-                           np.zeros(0, np.int64))
-        else:
-            grid_arrays = (np.ascontiguousarray(directions_sensor, dtype=np.float64), grid.bounds, grid.cell_start,
-                           grid.cell_boxes, grid.always)
         kernel("rays_may_meet")(np.asarray(pulse, dtype=np.int64), np.ascontiguousarray(rays, dtype=np.float32),
                                 np.ascontiguousarray(limit, dtype=np.float64), group,
                                 np.asarray(triangle, dtype=np.int64),
-                                np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
-                                crossed if crossed is not None else np.full((len(triangle), 1), -2, np.int64),
-                                *grid_arrays, *tree_arrays, self._padded[0], self._padded[1], self.tile_part,
-                                self.tile_convex, self.tile_triangle, self.triangle_part, self._padded[2],
-                                self._padded[3], self.flat_part, self.part_sphere, self.hull_start, self.hull_planes,
-                                meet)
+                                np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)), crossed,
+                                self._padded[0], self._padded[1], self.tile_part, self.tile_convex,
+                                self.tile_triangle, self.triangle_part, self._padded[2], self._padded[3],
+                                self.flat_part, self.part_sphere, self.hull_start, self.hull_planes, meet)
         return meet
 
 

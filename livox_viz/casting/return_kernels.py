@@ -308,58 +308,72 @@ def _central(distance, triangle, directions, origins, xy_deg, panorama, rotation
 
 def _near_boxes(candidate, origins, directions, reach, triangle, node_low, node_high, node_link, box_low, box_high,
                 box_tile, tile_part, tile_convex, tile_triangle, triangle_tile, triangle_part, tile_low, part_sphere,
-                hull_start, hull_planes, near):  # pragma: no cover - compiled
-    """Per ``candidate`` beam: does it pass through a box, other than its hit's own, before ``reach``?
+                hull_start, hull_planes, near, crossed):  # pragma: no cover - compiled
+    """Per ``candidate`` beam: does it pass through a box, other than its hit's own, before ``reach``? And the
+    tiles a ray of its footprint could meet something in (``crossed``, as :func:`_near_grid` lists them).
 
     A walk down the tree. A box is the hit's own when it is the hit triangle's tile, a piece of the hit
     triangle, or a tile of the hit's convex object. ``origins`` is ``(1, 3)`` for a fixed sensor.
     """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
-    count = directions.shape[0]
-    block = 1024
-    for first in prange((count + block - 1) // block):
-        stack = np.empty(128, dtype=np.int64)
-        for i in range(first * block, min(first * block + block, count)):
-            near[i] = False
-            if not candidate[i]:
+    most = crossed.shape[1]
+    stack = np.empty(128, dtype=np.int64)
+    for i in range(directions.shape[0]):
+        near[i] = False
+        crossed[i, 0] = -1
+        if not candidate[i]:
+            crossed[i, 0] = -2
+            continue
+        o = i * stride
+        ox, oy, oz = origins[o, 0], origins[o, 1], origins[o, 2]
+        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+        ix = 1.0 / dx if dx != 0.0 else np.inf
+        iy = 1.0 / dy if dy != 0.0 else np.inf
+        iz = 1.0 / dz if dz != 0.0 else np.inf
+        limit = reach[i]
+        hit = triangle[i]
+        part = triangle_part[hit] if hit >= 0 else -1
+        own_tile = triangle_tile[hit] if hit >= 0 else -1
+        listing = own_tile < 0 or tile_convex[own_tile]
+        found = False
+        listed = 0
+        stack[0] = 0
+        top = 1
+        while top > 0:
+            top -= 1
+            node = stack[top]
+            if not _slab(ox, oy, oz, ix, iy, iz, limit, node_low[node, 0], node_low[node, 1], node_low[node, 2],
+                         node_high[node, 0], node_high[node, 1], node_high[node, 2]):
                 continue
-            o = i * stride
-            ox, oy, oz = origins[o, 0], origins[o, 1], origins[o, 2]
-            dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
-            ix = 1.0 / dx if dx != 0.0 else np.inf
-            iy = 1.0 / dy if dy != 0.0 else np.inf
-            iz = 1.0 / dz if dz != 0.0 else np.inf
-            limit = reach[i]
-            hit = triangle[i]
-            part = triangle_part[hit] if hit >= 0 else -1
-            own_tile = triangle_tile[hit] if hit >= 0 else -1
-            stack[0] = 0
-            top = 1
-            found = False
-            while top > 0 and not found:
-                top -= 1
-                node = stack[top]
-                if not _slab(ox, oy, oz, ix, iy, iz, limit, node_low[node, 0], node_low[node, 1], node_low[node, 2],
-                             node_high[node, 0], node_high[node, 1], node_high[node, 2]):
+            if node_link[node, 0] >= 0:
+                stack[top] = node_link[node, 0]
+                stack[top + 1] = node_link[node, 1]
+                top += 2
+                continue
+            for b in range(node_link[node, 1], node_link[node, 1] + node_link[node, 2]):
+                # (written out: a helper taking the arrays pays their reference counts, five times this loop)
+                tile = box_tile[b]
+                if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part) or (
+                        not listing and tile == own_tile)):
                     continue
-                if node_link[node, 0] >= 0:
-                    stack[top] = node_link[node, 0]
-                    stack[top + 1] = node_link[node, 1]
-                    top += 2
+                enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, limit, box_low[b, 0], box_low[b, 1], box_low[b, 2],
+                                          box_high[b, 0], box_high[b, 1], box_high[b, 2])
+                grow = tile_low[tile, 0] - box_low[b, 0]
+                if not (enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile],
+                                                    part_sphere, hull_start, hull_planes, grow)):
                     continue
-                for b in range(node_link[node, 1], node_link[node, 1] + node_link[node, 2]):
-                    tile = box_tile[b]
-                    if hit >= 0 and (tile == own_tile or tile_triangle[tile] == hit or (
-                            tile_convex[tile] and tile_part[tile] == part)):
-                        continue
-                    enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, limit, box_low[b, 0], box_low[b, 1],
-                                              box_low[b, 2], box_high[b, 0], box_high[b, 1], box_high[b, 2])
-                    if enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile],
-                                                   part_sphere, hull_start, hull_planes,
-                                                   tile_low[tile, 0] - box_low[b, 0]):
-                        found = True
-                        break
-            near[i] = found
+                found = found or tile != own_tile
+                if listed < most:
+                    crossed[i, listed] = tile
+                listed += 1
+                if found and (listed > most or not listing):
+                    top = 0  # named, and nothing more to list
+                    break
+        if listed < most:
+            crossed[i, listed] = -1
+        if listed > most or not listing:
+            crossed[i, 0] = -2
+        near[i] = found
 
 
 def _near_grid(candidate, origins, directions, reach, triangle, directions_sensor, bounds, cell_start, cell_boxes,
@@ -370,11 +384,12 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
     a beam outside the grid tests them all. A convex object's box counts only where the beam also passes its
     sphere and planes grown as much as the box (its inflation: ``box_low`` against ``tile_low``).
 
-    Each beam's boxes that a ray of its footprint could meet something in (every box it crosses before
-    ``reach`` but the pieces of its hit triangle and its convex object's: its own tile counts here) go to
-    ``crossed (n, k)``, -1 after the last; -2 in the first column when there were more than k (or the beam was
-    not asked). Every ray of the footprint lies within the inflation of the box it meets, so these are all the
-    boxes :func:`_rays_may_meet` needs to test for the beam.
+    The tiles of each beam's boxes that a ray of its footprint could meet something in (every box it crosses
+    before ``reach`` but the pieces of its hit triangle and its convex object's: its own tile counts here) go to
+    ``crossed (n, k)``, -1 after the last; -2 in the first column when there were more than k, when the beam
+    hit an object that is not convex (its own tile is always crossed: it stops at the first other box, a
+    terrain's cells hold dozens), or was not asked. Every ray of the footprint lies within the inflation of
+    the box it meets, so these are all the boxes :func:`_rays_may_meet` needs to test for the beam.
     """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
     low, per_unit, side = bounds[0], bounds[1], int(bounds[2])
@@ -409,9 +424,6 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
         hit = triangle[i]
         part = triangle_part[hit] if hit >= 0 else -1
         own_tile = triangle_tile[hit] if hit >= 0 else -1
-        # A hit on an object that is not convex crosses its own tile, which the narrow phase must test: such a beam
-        # is not listed (its rays test the grid cell), and stops at the first other box (a terrain's cells hold
-        # dozens).
         listing = own_tile < 0 or tile_convex[own_tile]
         found = False
         listed = 0
@@ -422,20 +434,22 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
                 b = always[j - stop]
             else:
                 b = j - stop
+            # (written out: a helper taking the arrays pays their reference counts, five times this loop)
             tile = box_tile[b]
             if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part) or (
                     not listing and tile == own_tile)):
                 continue
             enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, limit, box_low[b, 0], box_low[b, 1], box_low[b, 2],
                                       box_high[b, 0], box_high[b, 1], box_high[b, 2])
-            if enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile], part_sphere,
-                                           hull_start, hull_planes, tile_low[tile, 0] - box_low[b, 0]):
-                found = found or tile != own_tile
-                if listed < most:
-                    crossed[i, listed] = b
-                listed += 1
-                if found and (listed > most or not listing):
-                    break  # named, and nothing more to list: the rest cannot change either answer
+            if not (enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile], part_sphere,
+                                                hull_start, hull_planes, tile_low[tile, 0] - box_low[b, 0])):
+                continue
+            found = found or tile != own_tile
+            if listed < most:
+                crossed[i, listed] = tile
+            listed += 1
+            if found and (listed > most or not listing):
+                break  # named, and nothing more to list: the rest cannot change either answer
         if listed < most:
             crossed[i, listed] = -1
         if listed > most or not listing:
@@ -443,10 +457,9 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
         near[i] = found
 
 
-def _rays_may_meet(pulse, rays, limit, group, triangle, origins, crossed, directions_sensor, bounds, cell_start,
-                   cell_boxes, always, node_low, node_high, node_link, box_tile, tile_low, tile_high, tile_part,
-                   tile_convex, tile_triangle, triangle_part, flat_low, flat_high, flat_part, part_sphere, hull_start,
-                   hull_planes, meet):  # pragma: no cover - compiled
+def _rays_may_meet(pulse, rays, limit, group, triangle, origins, crossed, tile_low, tile_high, tile_part, tile_convex,
+                   tile_triangle, triangle_part, flat_low, flat_high, flat_part, part_sphere, hull_start, hull_planes,
+                   meet):  # pragma: no cover - compiled
     """Per ray of a footprint (``rays (r, 3)``, of the pulses ``pulse``, each to its own ``limit``): can it meet
     anything but its pulse's hit? Only where it passes through a tile itself (``tile_low``, ``tile_high``: not
     inflated; for a convex object also its bounding sphere, ``part_sphere``, and its face planes, ``hull_planes``
@@ -454,23 +467,20 @@ def _rays_may_meet(pulse, rays, limit, group, triangle, origins, crossed, direct
     front of the hit's plane (pieces of the hit triangle, tiles of the hit's convex object) and the hit's own
     flat object.
 
-    The tile boxes are inflated to hold every ray of the footprint: a ray tests the boxes its pulse's central ray
-    crossed (``crossed``, from :func:`_near_grid`), or where those were not listed (-2), those of its pulse's
-    grid cell (a fixed sensor: ``cell_start`` not empty), or walks the tree as :func:`_near_boxes` does; every
-    ray tests the flat objects' boxes. Rays come in runs of
-    ``group`` (a pulse's probes): after one that may meet, the rest of its run is True without a test.
+    The tiles are those the broad phase listed for the pulse (``crossed``: every ray of the footprint lies
+    within the inflation of the box it meets); where it did not list them (-2), the ray may meet something.
+    Rays come in runs of ``group`` (a pulse's probes): after one that may meet, the rest of its run is True
+    without a test.
     """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
-    grid = cell_start.shape[0] > 0
-    low, per_unit, side = bounds[0], bounds[1], int(bounds[2])
-    boxes = box_tile.shape[0]
-    stack = np.empty(128, dtype=np.int64)
     for r in range(rays.shape[0]):
         if r % group != 0 and meet[r - 1]:
             meet[r] = True
             continue
         i = pulse[r]
-        meet[r] = False
+        meet[r] = crossed[i, 0] == -2
+        if meet[r]:
+            continue
         hit = triangle[i]
         part = triangle_part[hit] if hit >= 0 else -1
         o = i * stride
@@ -487,71 +497,19 @@ def _rays_may_meet(pulse, rays, limit, group, triangle, origins, crossed, direct
                 break
         if meet[r]:
             continue
-        if crossed[i, 0] != -2:
-            for k in range(crossed.shape[1]):
-                b = crossed[i, k]
-                if b < 0:
-                    break
-                tile = box_tile[b]
-                enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1],
-                                          tile_low[tile, 2], tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2])
-                if enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile], part_sphere,
-                                               hull_start, hull_planes, HULL_PAD_M):
-                    meet[r] = True
-                    break
-        elif grid:
-            first, stop, extra = 0, 0, boxes
-            cell = -1
-            sx = directions_sensor[i, 0]
-            if sx > 1e-6:
-                cu = math.floor((directions_sensor[i, 1] / sx - low) * per_unit)
-                cv = math.floor((directions_sensor[i, 2] / sx - low) * per_unit)
-                if 0 <= cu < side and 0 <= cv < side:
-                    cell = cu * side + cv
-            if cell >= 0:
-                first, stop, extra = cell_start[cell], cell_start[cell + 1], always.shape[0]
-            for j in range(first, stop + extra):
-                if j < stop:
-                    b = cell_boxes[j]
-                elif cell >= 0:
-                    b = always[j - stop]
-                else:
-                    b = j - stop
-                tile = box_tile[b]
-                # (scalars only: a call taking the tile arrays would pay their reference counts, five times this)
-                if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part)):
-                    continue
-                enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1],
-                                          tile_low[tile, 2], tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2])
-                if enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile], part_sphere,
-                                               hull_start, hull_planes, HULL_PAD_M):
-                    meet[r] = True
-                    break
-        elif node_low.shape[0] > 0:
-            stack[0] = 0
-            top = 1
-            while top > 0 and not meet[r]:
-                top -= 1
-                node = stack[top]
-                if not _slab(ox, oy, oz, ix, iy, iz, reach, node_low[node, 0], node_low[node, 1], node_low[node, 2],
-                             node_high[node, 0], node_high[node, 1], node_high[node, 2]):
-                    continue
-                if node_link[node, 0] >= 0:
-                    stack[top] = node_link[node, 0]
-                    stack[top + 1] = node_link[node, 1]
-                    top += 2
-                    continue
-                for b in range(node_link[node, 1], node_link[node, 1] + node_link[node, 2]):
-                    tile = box_tile[b]
-                    if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part)):
-                        continue
-                    enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1],
-                                              tile_low[tile, 2], tile_high[tile, 0], tile_high[tile, 1],
-                                              tile_high[tile, 2])
-                    if enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile],
-                                                   part_sphere, hull_start, hull_planes, HULL_PAD_M):
-                        meet[r] = True
-                        break
+        for k in range(crossed.shape[1]):
+            tile = crossed[i, k]
+            if tile < 0:
+                break
+            # (written out: a helper taking the arrays pays their reference counts, five times this loop)
+            if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part)):
+                continue
+            enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, reach, tile_low[tile, 0], tile_low[tile, 1],
+                                      tile_low[tile, 2], tile_high[tile, 0], tile_high[tile, 1], tile_high[tile, 2])
+            if enter <= leave and _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, tile_part[tile], part_sphere,
+                                           hull_start, hull_planes, HULL_PAD_M):
+                meet[r] = True
+                break
 
 
 def _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, part, sphere, start, planes, pad):  # pragma: no cover - compiled

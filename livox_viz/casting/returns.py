@@ -69,8 +69,8 @@ INTENSITY_NOISE = 0x04
 MIX_FLOOR_M = 0.05
 #: Pulses a part of :meth:`ReturnModel.cast` has at least when a run is cut over the caster's threads.
 SPLIT_PULSES = 2048
-#: Boxes the broad phase lists per beam for the narrow phase (a beam crossing more is tested against its cell's).
-CROSSED_LISTED = 4
+#: Tiles the broad phase lists per beam for the narrow phase (a beam crossing more may meet something anywhere).
+CROSSED_LISTED = 8
 #: The steps :attr:`ReturnModel.stage_seconds` times (summed over the threads that ran them).
 STAGES = ("central rays", "materials, edges and reach", "broad phase", "probes", "footprint sub-rays",
           "detection, noise, tags")
@@ -370,7 +370,7 @@ class ReturnModel:
         rows = np.flatnonzero(near & ~leaves)
 
         def may_meet(pulse: np.ndarray, rays: np.ndarray, limit: np.ndarray, group: int = 1) -> np.ndarray:
-            return proxy.rays_may_meet(pulse, rays, limit, triangle, origins, in_grid, boxes, group, crossed)
+            return proxy.rays_may_meet(pulse, rays, limit, triangle, origins, crossed, group)
 
         self._lap("broad phase")
         if rows.size == 0:
