@@ -701,3 +701,31 @@ def test_the_built_in_sheets_are_the_issues_table(sheet: str) -> None:
         assert params.divergence_deg == (h, v)
     if blind is not None:
         assert params.blind_zone_m == blind
+
+
+def test_a_ground_plates_far_edge_in_front_of_a_wall_gives_two_returns_where_footprints_straddle_it() -> None:
+    """A ground plate 1.5 m below the sensor ends at 19 m; a wall stands at 25 m. Seen over the plate's far edge,
+    the wall's points below the edge's line (elevation atan(1.5 / 19)) are hidden: a footprint straddling that
+    line returns the plate's edge and the wall (dual-return Mid-70), though no object is near the beam but the
+    flat plate, which has no tile of its own."""
+    plate = surface(trimesh.Trimesh([[-5.0, -40.0, 1.5], [19.0, -40.0, 1.5], [19.0, 40.0, 1.5], [-5.0, 40.0, 1.5]],
+                                    [[0, 1, 2], [0, 2, 3]]), 0.3)
+    mesh = trimesh.util.concatenate([plate, wall(25.0, 0.5)])
+    set_face_materials(mesh, np.full(len(mesh.faces), 0.4), np.ones(len(mesh.faces)),
+                       np.r_[np.zeros(2), np.ones(len(mesh.faces) - 2)])
+    cfg = at_origin("livox_mid70_risley")
+    frames, fired = scan(cfg, mesh, 0.5, seed=6)
+    stream, returns = joined(frames, "stream_index"), joined(frames, "number_of_returns")
+    from livox_viz.patterns.planes import directions_from_xy
+
+    direction = directions_from_xy(fired)
+    elevation = np.degrees(np.arctan2(direction[:, 2], direction[:, 0]))  # below the horizon, degrees (z down)
+    edge = math.degrees(math.atan2(1.5, 19.0))
+    half_v = cfg.return_params.divergence_deg[1] / 2
+    straddling = np.flatnonzero(np.abs(elevation - edge) < 0.5 * half_v)
+    far = np.flatnonzero(np.abs(elevation - edge) > 3 * half_v)
+    dual = np.zeros(len(fired), dtype=bool)
+    dual[stream[returns == 2]] = True
+    assert straddling.size > 30
+    assert dual[straddling].mean() > 0.5
+    assert dual[far].mean() < 0.01

@@ -201,8 +201,11 @@ class TileProxy:
     A tile of the hit's own convex object cannot cover its footprint (that object's other faces lie
     behind the hit), so it counts as the hit's own; for other objects only the hit triangle's tile does.
     A flat object (every triangle in one plane, like the ground) has no tiles: it covers part of a
-    footprint on something else only along that thing's own edge with it, which the edge test sees
-    where the other object's mesh stops at the plane (one that pierces the ground is the exception).
+    footprint on something else along that thing's own edge with it, which the edge test sees where the
+    other object's mesh stops at the plane (one that pierces the ground is the exception), or along its own
+    far edge, which its box grown by the beam's own footprint reach names (a plate's edge before a wall).
+    What the broad phase does not name: a surface in the hit's own tile of an object that is not convex
+    (its concave self-cover is seen only where the edge test sees it).
 
     Parameters
     ----------
@@ -337,7 +340,8 @@ class TileProxy:
                      np.ascontiguousarray(directions, dtype=np.float64),
                      np.ascontiguousarray(reach, dtype=np.float64), np.asarray(triangle, dtype=np.int64))
         own = (self.tile_part, self.tile_convex, self.tile_triangle, self.triangle_tile, self.triangle_part, self.low,
-               self.part_sphere, self.hull_start, self.hull_planes)
+               self.part_sphere, self.hull_start, self.hull_planes, self.flat_low, self.flat_high, self.flat_part,
+               self.tan_half)
         if grid is not None and directions_sensor is not None:
             kernel("near_grid")(*arguments, np.ascontiguousarray(directions_sensor, dtype=np.float64), grid.bounds,
                                 grid.cell_start, grid.cell_boxes, grid.always, tree.box_low, tree.box_high, tree.tile,

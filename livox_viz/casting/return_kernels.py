@@ -24,8 +24,8 @@ _KERNELS: dict[str, object] = {}
 #: The small functions the loops call: compiled (in this module's namespace) before the first loop is.
 #: Frames are cast on worker threads: the first loop of each is compiled by one of them, once.
 _COMPILING = threading.Lock()
-_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab_span", "_slab", "_in_hull", "_basis_at",
-            "_any_chosen", "_byte")
+_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab_span", "_slab", "_in_hull", "_near_flat",
+            "_basis_at", "_any_chosen", "_byte")
 
 
 #: The loops that would run their pulses on every core (``prange``). None does: on this 2-core machine shared
@@ -308,7 +308,8 @@ def _central(distance, triangle, directions, origins, xy_deg, panorama, rotation
 
 def _near_boxes(candidate, origins, directions, reach, triangle, node_low, node_high, node_link, box_low, box_high,
                 box_tile, tile_part, tile_convex, tile_triangle, triangle_tile, triangle_part, tile_low, part_sphere,
-                hull_start, hull_planes, near, crossed):  # pragma: no cover - compiled
+                hull_start, hull_planes, flat_low, flat_high, flat_part, tan_half, near,
+                crossed):  # pragma: no cover - compiled
     """Per ``candidate`` beam: does it pass through a box, other than its hit's own, before ``reach``? And the
     tiles a ray of its footprint could meet something in (``crossed``, as :func:`_near_grid` lists them).
 
@@ -335,7 +336,7 @@ def _near_boxes(candidate, origins, directions, reach, triangle, node_low, node_
         part = triangle_part[hit] if hit >= 0 else -1
         own_tile = triangle_tile[hit] if hit >= 0 else -1
         listing = own_tile < 0 or tile_convex[own_tile]
-        found = False
+        found = _near_flat(ox, oy, oz, ix, iy, iz, limit, part, flat_low, flat_high, flat_part, tan_half)
         listed = 0
         stack[0] = 0
         top = 1
@@ -378,7 +379,8 @@ def _near_boxes(candidate, origins, directions, reach, triangle, node_low, node_
 
 def _near_grid(candidate, origins, directions, reach, triangle, directions_sensor, bounds, cell_start, cell_boxes,
                always, box_low, box_high, box_tile, tile_part, tile_convex, tile_triangle, triangle_tile,
-               triangle_part, tile_low, part_sphere, hull_start, hull_planes, near, crossed):  # pragma: no cover
+               triangle_part, tile_low, part_sphere, hull_start, hull_planes, flat_low, flat_high, flat_part, tan_half,
+               near, crossed):  # pragma: no cover - compiled
     """:func:`_near_boxes` for a fixed sensor: a beam tests only the boxes filed in its direction's grid cell
     (``bounds`` = (lowest coordinate, cells per unit, cells a side)) and those reaching behind the sensor;
     a beam outside the grid tests them all. A convex object's box counts only where the beam also passes its
@@ -412,8 +414,6 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
             first, stop, extra = cell_start[cell], cell_start[cell + 1], always.shape[0]
         else:
             first, stop, extra = 0, 0, boxes
-        if stop + extra == first:
-            continue  # no box in this direction (half the beams of the default scene): nothing more to look up
         o = i * stride
         ox, oy, oz = origins[o, 0], origins[o, 1], origins[o, 2]
         dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
@@ -423,9 +423,12 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
         limit = reach[i]
         hit = triangle[i]
         part = triangle_part[hit] if hit >= 0 else -1
+        found = _near_flat(ox, oy, oz, ix, iy, iz, limit, part, flat_low, flat_high, flat_part, tan_half)
+        if stop + extra == first:
+            near[i] = found
+            continue  # no box in this direction (half the beams of the default scene): nothing more to look up
         own_tile = triangle_tile[hit] if hit >= 0 else -1
         listing = own_tile < 0 or tile_convex[own_tile]
-        found = False
         listed = 0
         for j in range(first, stop + extra):
             if j < stop:
@@ -455,6 +458,20 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
         if listed > most or not listing:
             crossed[i, 0] = -2
         near[i] = found
+
+
+def _near_flat(ox, oy, oz, ix, iy, iz, limit, part, flat_low, flat_high, flat_part,
+               tan_half):  # pragma: no cover - compiled
+    """Whether the beam passes within its footprint's reach (``limit`` x ``tan_half``) of a flat object other than
+    its hit's own before ``limit``: the far edge of a ground plate can cover part of a footprint on a wall behind
+    it (one call a beam: the arrays' reference counts are paid once)."""
+    grown = limit * tan_half * 1.02 + HULL_PAD_M
+    for f in range(flat_part.shape[0]):
+        if flat_part[f] != part and _slab(ox, oy, oz, ix, iy, iz, limit, flat_low[f, 0] - grown, flat_low[f, 1] - grown,
+                                          flat_low[f, 2] - grown, flat_high[f, 0] + grown, flat_high[f, 1] + grown,
+                                          flat_high[f, 2] + grown):
+            return True
+    return False
 
 
 def _rays_may_meet(pulse, rays, limit, group, triangle, origins, crossed, tile_low, tile_high, tile_part, tile_convex,
