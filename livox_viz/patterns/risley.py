@@ -55,6 +55,9 @@ _FRAME_BLOCK = 65_536
 _BATCH = 16
 #: The figure-8 rotations of every Risley chunk: none (one shared empty array, read-only).
 _NO_ROTATIONS = np.zeros(0)
+#: OpenBLAS multiplies on one thread anyway when m x n x k is at most this (its GEMM_MULTITHREAD_THRESHOLD of 4 x
+#: 65 536, interface/gemm.c): a frame's product that small is not pinned (a pin costs 2.5 us of a 30 us frame).
+_ONE_THREAD_ANYWAY = 4 * 65536
 _NO_ROTATIONS.flags.writeable = False
 
 
@@ -123,6 +126,8 @@ class RisleyPattern(PatternStream):
         # The blocks held: from sample _held_first, _held of them (none yet; block 0 then starts a batch).
         self._held_first, self._held = 0, 0
         self._frames = _FrameBuffers(rows, row)
+        #: Whether a block's product needs BLAS pinned to one thread (larger than OpenBLAS multiplies alone).
+        self._pin = rows * row * terms > _ONE_THREAD_ANYWAY
         self._kept = (-1, np.empty((rows, row), dtype=np.complex128))
         self._position = 0
 
@@ -133,7 +138,10 @@ class RisleyPattern(PatternStream):
             out, xy = self._frames.get()
             index = (start - self._held_first) // block  # _left_side's first lines, spelled out: a call costs
             left = self._left_sides[index] if 0 <= index < self._held else self._left_side(start)
-            with one_blas_thread():
+            if self._pin:
+                with one_blas_thread():
+                    np.matmul(left, self._table, out=out)
+            else:
                 np.matmul(left, self._table, out=out)
             return PatternChunk.from_stream(self.config, start, xy, _NO_ROTATIONS)
         path = self._path_buffer(count)
