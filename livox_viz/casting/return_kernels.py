@@ -314,7 +314,8 @@ def _near_boxes(candidate, origins, directions, reach, triangle, node_low, node_
     tiles a ray of its footprint could meet something in (``crossed``, as :func:`_near_grid` lists them).
 
     A walk down the tree. A box is the hit's own when it is the hit triangle's tile, a piece of the hit
-    triangle, or a tile of the hit's convex object. ``origins`` is ``(1, 3)`` for a fixed sensor.
+    triangle, or a tile of the hit's convex object. A flat object other than the hit's own, passed within the
+    footprint's reach, names the beam too (:func:`_near_flat`). ``origins`` is ``(1, 3)`` for a fixed sensor.
     """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
     most = crossed.shape[1]
