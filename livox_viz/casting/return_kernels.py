@@ -20,6 +20,8 @@ import threading
 
 import numpy as np
 
+from livox_viz.core.compiled import compile_nogil
+
 _KERNELS: dict[str, object] = {}
 #: The small functions the loops call: compiled (in this module's namespace) before the first loop is.
 #: Frames are cast on worker threads: the first loop of each is compiled by one of them, once.
@@ -31,15 +33,6 @@ _HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab_span", "_slab"
 #: The loops that would run their pulses on every core (``prange``). None does: on this 2-core machine shared
 #: with Embree's two threads (and others' work) numba's parallel regions cost ten times what they save (measured).
 _PARALLEL: tuple[str, ...] = ()
-
-
-def _compile(function, parallel: bool = False, inline: str = "never"):
-    import numba
-
-    try:
-        return numba.njit(cache=True, nogil=True, parallel=parallel, inline=inline)(function)
-    except RuntimeError:  # no writable cache folder: compile in each process
-        return numba.njit(nogil=True, parallel=parallel, inline=inline)(function)
 
 
 def kernel(name: str):
@@ -56,8 +49,8 @@ def kernel(name: str):
 
                 namespace["prange"] = numba.prange
                 for helper in _HELPERS:
-                    namespace[helper] = _compile(namespace[helper], inline="always")
-            found = _KERNELS[name] = _compile(globals()[f"_{name}"], name in _PARALLEL)
+                    namespace[helper] = compile_nogil(namespace[helper], inline="always")
+            found = _KERNELS[name] = compile_nogil(globals()[f"_{name}"], parallel=name in _PARALLEL)
     return found
 
 

@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from livox_viz.core.compiled import compile_nogil
 from livox_viz.core.poses import Pose, pose_from_quaternion, pose_quaternion
 from livox_viz.core.rotations import quat_multiply, quat_right_multiplier, quat_rotate
 from livox_viz.motion.trajectory import Trajectory
@@ -125,12 +126,7 @@ def _ray_kernel():
     """The compiled per-ray kernel (numba imported and the kernel compiled, or loaded from its cache, on first use)."""
     global _KERNEL
     if _KERNEL is None:
-        import numba
-
-        try:
-            _KERNEL = numba.njit(cache=True, nogil=True, fastmath=True)(_rays)
-        except RuntimeError:  # no writable cache folder (a read-only install and home): compile in each process
-            _KERNEL = numba.njit(nogil=True, fastmath=True)(_rays)
+        _KERNEL = compile_nogil(_rays, fastmath=True)
     return _KERNEL
 
 

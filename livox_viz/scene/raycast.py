@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import numpy as np
 
+from livox_viz.core.compiled import compile_nogil
 from livox_viz.core.errors import LivoxVizError
 
 if TYPE_CHECKING:
@@ -609,15 +610,7 @@ def _kernels() -> dict[str, Callable[..., None]]:
     if not _KERNELS:
         with _COMPILING:
             if not _KERNELS:
-                import numba
-
-                compiled = {}
-                for name, function in (("rays", _rays), ("misses", _misses)):
-                    try:
-                        compiled[name] = numba.njit(cache=True, nogil=True)(function)
-                    except RuntimeError:  # no writable cache folder: compile in each process
-                        compiled[name] = numba.njit(nogil=True)(function)
-                _KERNELS.update(compiled)
+                _KERNELS.update({"rays": compile_nogil(_rays), "misses": compile_nogil(_misses)})
     return _KERNELS
 
 
