@@ -499,27 +499,38 @@ def _part_kinds(triangles: np.ndarray, parts: np.ndarray) -> np.ndarray:
     """
     count = int(parts.max()) + 1 if parts.size else 0
     kind = np.full(count, 2, dtype=np.int64)
-    order = np.argsort(parts, kind="stable")
-    bounds = np.searchsorted(parts[order], np.arange(count + 1))
-    for part in range(count):
-        rows = order[bounds[part]:bounds[part + 1]]
+    for part, rows in enumerate(_part_rows(parts, count)):
         if rows.size == 0 or rows.size > CONVEX_TEST_MAX:
             continue
         tri = triangles[rows]
-        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        length = np.linalg.norm(normal, axis=1)
-        good = length > 0
-        if not good.any():
+        normal, offset = _face_planes(tri)
+        if not normal.size:
             continue
-        normal = normal[good] / length[good, None]
         vertices = np.unique(tri.reshape(-1, 3), axis=0)
         tolerance = 1e-9 * max(float(np.ptp(vertices, axis=0).max()), 1.0)
-        height = vertices @ normal.T - np.einsum("ij,ij->i", normal, tri[good, 0])[None, :]
+        height = vertices @ normal.T - offset[None, :]
         if np.all(np.abs(height) <= tolerance):
             kind[part] = 0
         elif np.all((height <= tolerance).all(axis=0) | (height >= -tolerance).all(axis=0)):
             kind[part] = 1  # every face's plane has the whole object on one side (whichever way it was wound)
     return kind
+
+
+def _part_rows(parts: np.ndarray, count: int) -> list[np.ndarray]:
+    """The rows (triangles) of each object ``0 .. count - 1``, in order."""
+    order = np.argsort(parts, kind="stable")
+    bounds = np.searchsorted(parts[order], np.arange(count + 1))
+    return [order[bounds[part]:bounds[part + 1]] for part in range(count)]
+
+
+def _face_planes(tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The planes of the triangles ``tri`` ``(k, 3, 3)`` that have an area: unit normals ``(g, 3)`` (by their
+    winding) and offsets ``(g,)`` (``n . v0``)."""
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    length = np.linalg.norm(normal, axis=1)
+    good = length > 0
+    normal = normal[good] / length[good, None]
+    return normal, np.einsum("ij,ij->i", normal, tri[good, 0])
 
 
 def _tiles(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray):
@@ -587,23 +598,18 @@ def _convex_hulls(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray
     sphere[:, 3] = np.inf
     planes: list[np.ndarray] = []
     start = np.zeros(count + 1, dtype=np.int64)
-    order = np.argsort(parts, kind="stable")
-    bounds = np.searchsorted(parts[order], np.arange(count + 1))
     rows = 0
-    for part in range(count):
+    for part, members in enumerate(_part_rows(parts, count)):
         start[part] = rows
         if kind[part] != 1:
             continue
-        tri = triangles[order[bounds[part]:bounds[part + 1]]]
+        tri = triangles[members]
         vertices = tri.reshape(-1, 3)
         centre = (vertices.min(axis=0) + vertices.max(axis=0)) / 2.0
         radius = float(np.linalg.norm(vertices - centre, axis=1).max())
         if 4.0 / 3.0 * math.pi * radius**3 < np.prod(np.ptp(vertices, axis=0)):  # only where tighter than the box
             sphere[part] = (*centre, radius)
-        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        length = np.linalg.norm(normal, axis=1)
-        normal = normal[length > 0] / length[length > 0, None]
-        offset = np.einsum("ij,ij->i", normal, tri[length > 0, 0])
+        normal, offset = _face_planes(tri)
         inside = np.unique(vertices, axis=0).mean(axis=0)  # (the box's centre need not be inside: a wedge)
         outward = np.where(normal @ inside > offset, -1.0, 1.0)
         hull = np.unique(np.round(np.column_stack([normal, offset]) * outward[:, None], 9), axis=0)
