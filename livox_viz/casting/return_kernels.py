@@ -26,8 +26,8 @@ _KERNELS: dict[str, object] = {}
 #: The small functions the loops call: compiled (in this module's namespace) before the first loop is.
 #: Frames are cast on worker threads: the first loop of each is compiled by one of them, once.
 _COMPILING = threading.Lock()
-_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_slab_span", "_slab", "_in_hull", "_near_flat",
-            "_basis_at", "_any_chosen", "_byte")
+_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_plane_range", "_slab_span", "_slab", "_in_hull",
+            "_near_flat", "_basis_at", "_any_chosen", "_byte")
 
 
 #: The loops that would run their pulses on every core (``prange``). None does: on this 2-core machine shared
@@ -200,15 +200,23 @@ def _plane_distance(triangle, directions, origins, planes, range_max, distance):
             distance[i] = np.inf
             continue
         o = i * stride
-        along = planes[t, 0] * directions[i, 0] + planes[t, 1] * directions[i, 1] + planes[t, 2] * directions[i, 2]
-        height = planes[t, 3] - (planes[t, 0] * origins[o, 0] + planes[t, 1] * origins[o, 1]
-                                 + planes[t, 2] * origins[o, 2])
-        d = height / along if abs(along) > 1e-9 else -1.0
-        if not (0.0 <= d <= range_max * (1.0 + 1e-9)):
-            d = -1.0
+        distance[i] = _plane_range(planes[t, 0], planes[t, 1], planes[t, 2], planes[t, 3], origins[o, 0],
+                                   origins[o, 1], origins[o, 2], float(directions[i, 0]), float(directions[i, 1]),
+                                   float(directions[i, 2]), range_max)
+        if distance[i] < 0.0:
             unresolved += 1
-        distance[i] = min(d, range_max) if d >= 0.0 else -1.0
     return unresolved
+
+
+def _plane_range(nx, ny, nz, offset, ox, oy, oz, ux, uy, uz, range_max):  # pragma: no cover - compiled
+    """How far the ray from o along u meets the plane ``n . x = offset``, at most ``range_max``; -1 where the plane
+    cannot say (the ray along it, or the plane behind or beyond the range)."""
+    along = nx * ux + ny * uy + nz * uz
+    height = offset - (nx * ox + ny * oy + nz * oz)
+    d = height / along if abs(along) > 1e-9 else -1.0
+    if not (0.0 <= d <= range_max * (1.0 + 1e-9)):
+        return -1.0
+    return min(d, range_max)
 
 
 
@@ -676,13 +684,10 @@ def _cast_subrays(slots, hit, cast_rays, rows, origins, planes, range_max, range
             triangles[m, k] = -1
             continue
         o = rows[m] * stride
-        along = planes[t, 0] * cast_rays[j, 0] + planes[t, 1] * cast_rays[j, 1] + planes[t, 2] * cast_rays[j, 2]
-        height = planes[t, 3] - (planes[t, 0] * origins[o, 0] + planes[t, 1] * origins[o, 1]
-                                 + planes[t, 2] * origins[o, 2])
-        d = height / along if abs(along) > 1e-9 else -1.0
-        if not (0.0 <= d <= range_max * (1.0 + 1e-9)):
-            d = -1.0
-        ranges[m, k] = min(d, range_max) if d >= 0.0 else -1.0
+        d = _plane_range(planes[t, 0], planes[t, 1], planes[t, 2], planes[t, 3], origins[o, 0], origins[o, 1],
+                         origins[o, 2], float(cast_rays[j, 0]), float(cast_rays[j, 1]), float(cast_rays[j, 2]),
+                         range_max)
+        ranges[m, k] = d
         triangles[m, k] = t if d >= 0.0 else -1
 
 
