@@ -29,12 +29,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from livox_viz.casting.codec import decode_int16, encode_int16
-from livox_viz.casting.directions import directions_from_xy
+from livox_viz.casting.ray_kernels import ideal_points, sensor_rays
 from livox_viz.casting.returns import ReturnModel
 from livox_viz.config.mount import sensor_mount, sensor_world_pose
 from livox_viz.config.sensor import SensorConfig
 from livox_viz.core.poses import Pose, pose_quaternion
-from livox_viz.core.rotations import quat_rotate, rotate_rows
+from livox_viz.core.rotations import quat_rotate
 from livox_viz.motion.track import SensorTrack
 from livox_viz.motion.trajectory import Trajectory
 from livox_viz.patterns.factory import make_pattern
@@ -175,22 +175,6 @@ class ScanFrame:
 
 
 
-def _hit_points(directions: np.ndarray, hit: np.ndarray, range_m: np.ndarray,
-                start: np.ndarray | None = None) -> np.ndarray:
-    """``start + directions[hit] * range_m``, ``(M, 3)`` float64 (``start`` (3,) or (M, 3); none: from 0).
-
-    np.take, then in place column by column: fancy indexing an (n, 3) array and broadcasting over its rows of
-    three (numpy's inner loop then runs three values at a time) took three times as long.
-    """
-    points = np.take(directions, hit, axis=0)
-    for axis in range(3):
-        column = points[:, axis]
-        column *= range_m
-        if start is not None:
-            column += start[axis] if start.ndim == 1 else start[:, axis]
-    return points
-
-
 #: The per-point arrays of a :class:`ScanFrame`.
 _RETURN_ARRAYS = ("stream_index", "t", "xy_deg", "range_m", "xyz_sensor", "xyz_int16", "xyz_world", "reflectivity",
                   "tag", "return_number", "number_of_returns")
@@ -250,79 +234,107 @@ class MountedCaster:
 
     def cast(self, chunk: PatternChunk) -> ScanFrame:
         """The returns of the chunk's rays (each from the sensor's pose at its own time when moving)."""
+        parts = [self._cast_part(chunk, first) for first in range(0, max(len(chunk), 1), CAST_PART)]
+        found = parts[0] if len(parts) == 1 else {
+            name: None if parts[0][name] is None else np.concatenate([part[name] for part in parts])
+            for name in parts[0]}
+        return self._frame(chunk.start, chunk.stop, **found)
+
+    def _cast_part(self, chunk: PatternChunk, first: int) -> dict[str, np.ndarray | None]:
+        """The returns of the chunk's rays ``first : first + CAST_PART`` (the arrays of :class:`ScanFrame`)."""
         config = self.config
         moving = self.trajectory is not None
-        parts = []
-        for first in range(0, max(len(chunk), 1), CAST_PART):
-            xy = chunk.xy_deg[first : first + CAST_PART]
-            directions_sensor = directions_from_xy(xy, config.pattern_plane)
-            if moving:
-                origin, directions_world = self.track.rays(chunk.t[first : first + CAST_PART], directions_sensor)
-            else:
-                origin = self.sensor_pose.origin
-                directions_world = rotate_rows(directions_sensor, self.sensor_pose.rotation)
-            if self.returns is not None:
-                found = self.returns.cast(chunk.start + first, xy, directions_sensor, directions_world, origin,
-                                          None if moving else self.sensor_pose.rotation,
-                                          self._turn(chunk.t[first : first + CAST_PART]) if moving else None)
-                parts.append((first + found.beam, found.range_m, found.xyz_sensor, found.xyz_world,
-                              found.reflectivity, found.tag, found.return_number, found.number_of_returns))
-                continue
+        xy = chunk.xy_deg[first : first + CAST_PART]
+        # The ideal path of a fixed sensor reads only the hits' times: a chunk whose times were never made
+        # (k / rate) does not make them.
+        needs_times = moving or self.returns is not None or chunk.times_held is not None
+        t = chunk.t[first : first + CAST_PART] if needs_times else None
+        # The ideal path is done with the rays before this thread's next part: they go in its scratch arrays.
+        scratch = self.returns is None
+        if moving:
+            directions_sensor, _ = sensor_rays(xy, config.pattern_plane, scratch=scratch)
+            origin, directions_world = self.track.rays(t, directions_sensor)
+        else:
+            origin = self.sensor_pose.origin
+            # Embree's own float32 directions when only the cast needs them (the hits' float64 ones are made
+            # again after it, the same numbers): a third of the memory the rays pass through.
+            embree_only = scratch and getattr(self.caster, "takes_float32", False)
+            directions_sensor, directions_world = sensor_rays(xy, config.pattern_plane, self.sensor_pose.rotation,
+                                                              scratch, np.float32 if embree_only else np.float64)
+        if self.returns is None:
             distance = self.caster.distances(origin, directions_world, config.range_max)
-            hit = np.flatnonzero(np.isfinite(distance))
-            range_m = distance[hit]
-            start = origin[hit] if moving else origin
-            parts.append((first + hit, range_m, _hit_points(directions_sensor, hit, range_m),
-                          _hit_points(directions_world, hit, range_m, start), None, None, None, None))
-        columns = [p[0] for p in parts] if len(parts) == 1 else [
-            None if c[0] is None else np.concatenate(c) for c in zip(*parts, strict=True)]
-        rows, range_m, xyz_sensor, xyz_world, reflectivity, tag, return_number, number_of_returns = (
-            columns if len(parts) > 1 else parts[0])
-        xyz_int16 = encode_int16(xyz_sensor, config.range_max)
+            float64_world = directions_world if directions_world.dtype == np.float64 else None
+            return ideal_points(distance, directions_sensor, float64_world, origin, xy, t, chunk.start + first,
+                                config.point_rate, config.range_max, self.sensor_pose.rotation)
+        found = self.returns.cast(chunk.start + first, xy, directions_sensor, directions_world, origin,
+                                  None if moving else self.sensor_pose.rotation, self._turn(t) if moving else None)
+        xyz_int16 = encode_int16(found.xyz_sensor, config.range_max)
         # A point nearer than half an int16 step would be published as (0, 0, 0), which a client reads as
         # "no return": it is left out, like a ray that returns nothing.
         # (columns or-ed: any(axis=1) over rows of three int16 runs ten times slower)
-        at_zero = (xyz_int16[:, 0] | xyz_int16[:, 1] | xyz_int16[:, 2]) == 0
-        if at_zero.any():
-            keep = ~at_zero
-            rows, range_m, xyz_sensor, xyz_world, xyz_int16 = (rows[keep], range_m[keep], xyz_sensor[keep],
-                                                              xyz_world[keep], xyz_int16[keep])
-            reflectivity, tag, return_number, number_of_returns = (
-                None if a is None else a[keep] for a in (reflectivity, tag, return_number, number_of_returns))
-        return self._frame(chunk, stream_index=chunk.start + rows, t=chunk.t[rows],
-                           xy_deg=np.take(chunk.xy_deg, rows, axis=0), range_m=range_m, xyz_sensor=xyz_sensor,
-                           xyz_int16=xyz_int16, xyz_world=xyz_world, reflectivity=reflectivity, tag=tag,
-                           return_number=return_number, number_of_returns=number_of_returns)
+        keep = (xyz_int16[:, 0] | xyz_int16[:, 1] | xyz_int16[:, 2]) != 0
+        rows = found.beam
+        columns = {"stream_index": chunk.start + first + rows, "t": t[rows], "xy_deg": np.take(xy, rows, axis=0),
+                   "range_m": found.range_m, "xyz_sensor": found.xyz_sensor, "xyz_int16": xyz_int16,
+                   "xyz_world": found.xyz_world, "reflectivity": found.reflectivity, "tag": found.tag,
+                   "return_number": found.return_number, "number_of_returns": found.number_of_returns}
+        if keep.all():
+            return columns
+        return {name: values[keep] for name, values in columns.items()}
 
-    def _frame(self, chunk: PatternChunk, **returns: np.ndarray | None) -> ScanFrame:
-        """The frame of the chunk's ``returns`` (the arrays of :class:`ScanFrame`), with the chunk's times and
-        poses."""
+    def _frame(self, start: int, stop: int, **returns: np.ndarray | None) -> ScanFrame:
+        """The frame of the rays ``start:stop`` (stream indices) and their ``returns`` (the arrays of
+        :class:`ScanFrame`), with their times and poses."""
         config = self.config
-        return ScanFrame(index=chunk.start // config.points_per_frame, ray_count=len(chunk),
-                         sensor_pose=self.sensor_pose_at(chunk.start / config.point_rate),
-                         timestamp=chunk.start / config.point_rate, end_time=chunk.stop / config.point_rate,
-                         range_max=config.range_max, end_pose=self.sensor_pose_at(chunk.stop / config.point_rate),
+        return ScanFrame(index=start // config.points_per_frame, ray_count=stop - start,
+                         sensor_pose=self.sensor_pose_at(start / config.point_rate),
+                         timestamp=start / config.point_rate, end_time=stop / config.point_rate,
+                         range_max=config.range_max, end_pose=self.sensor_pose_at(stop / config.point_rate),
                          track=self.track, **returns)
 
     def cast_frames(self, chunks: list[PatternChunk]) -> list[ScanFrame]:
         """The returns of consecutive chunks (published frames, in stream order), cast as one run.
 
+        See :meth:`cast_run`; the chunks' points are joined into one run first.
+        """
+        if len(chunks) == 1:
+            return [self.cast(chunks[0])]
+        # Times are joined only when a chunk holds them; otherwise the run's are k / rate too, made when needed.
+        held = any(chunk.times_held is not None for chunk in chunks)
+        merged = PatternChunk(self.config, chunks[0].start, np.concatenate([chunk.xy_deg for chunk in chunks]),
+                              t=np.concatenate([chunk.t for chunk in chunks]) if held else None)
+        return self.cast_run(merged, [chunk.stop for chunk in chunks])
+
+    def cast_run(self, chunk: PatternChunk, stops: list[int]) -> list[ScanFrame]:
+        """The returns of a run of rays cut into frames that end at the stream indices ``stops``.
+
         One run instead of one per frame: each run's fixed steps (the Python between the compiled ones,
         each hand-over of the interpreter between threads) are paid once for the batch (the scan of
         ``scan`` 16-21 % faster with seven Mid-70 frames a batch). Each frame's arrays are views of the
         run's.
+
+        Parameters
+        ----------
+        chunk : PatternChunk
+            The run's rays.
+        stops : list of int
+            Stream index one past each frame's last ray, increasing; the last is ``chunk.stop``.
+
+        Returns
+        -------
+        list of ScanFrame
+            One a stop, the first from ``chunk.start``.
         """
-        if len(chunks) == 1:
-            return [self.cast(chunks[0])]
-        merged = PatternChunk(self.config, chunks[0].start, np.concatenate([chunk.xy_deg for chunk in chunks]),
-                              t=np.concatenate([chunk.t for chunk in chunks]))
-        run = self.cast(merged)
+        if len(stops) == 1:
+            return [self.cast(chunk)]
+        run = self.cast(chunk)
         # Points are in stream order (a pulse's returns together), so each frame is one slice.
-        bounds = np.searchsorted(run.stream_index, [chunk.start for chunk in chunks] + [chunks[-1].stop])
+        starts = [chunk.start, *stops[:-1]]
+        bounds = np.searchsorted(run.stream_index, [*starts, stops[-1]])
         frames = []
-        for chunk, low, high in zip(chunks, bounds[:-1], bounds[1:], strict=True):
+        for start, stop, low, high in zip(starts, stops, bounds[:-1], bounds[1:], strict=True):
             part = slice(int(low), int(high))
-            frames.append(self._frame(chunk, **{name: getattr(run, name)[part] for name in _RETURN_ARRAYS}))
+            frames.append(self._frame(start, stop, **{name: getattr(run, name)[part] for name in _RETURN_ARRAYS}))
         return frames
 
 

@@ -128,6 +128,12 @@ class PatternChunk:
         return int(self.xy_deg.shape[0])
 
     @property
+    def times_held(self) -> np.ndarray | None:
+        """``(n,)`` float64 the times when given or already made, else None: they are then ``k / rate``, which a
+        caller that needs only some of them can compute itself."""
+        return self.__dict__.get("_t_given")
+
+    @property
     def stop(self) -> int:
         """Stream index one past the last point."""
         return self.start + len(self)

@@ -146,6 +146,12 @@ class EmbreeCaster:
         self._scene.run(np.zeros((1, 3), np.float32), np.full((1, 3), 0.57735, np.float32), query="INTERSECT")
 
     @property
+    def takes_float32(self) -> bool:
+        """Whether :meth:`distances` of float32 directions are those of the float64 ones they round: true
+        unless ``exact`` (which measures along the float64 ones); Embree casts in float32 either way."""
+        return not self.exact
+
+    @property
     def face_planes(self) -> np.ndarray:
         """``(F, 4)`` float64 each triangle's unit normal (world frame) and offset ``n . v0``, metres."""
         return self._planes
