@@ -82,7 +82,7 @@ def sensor_rays(xy_deg: np.ndarray, plane: str, rotation: np.ndarray | None = No
         raise ValueError(f"pattern plane {plane!r} is not one of 'boresight', 'panorama'")
     xy = np.ascontiguousarray(xy_deg, dtype=np.float64).reshape(-1, 2)
     count = xy.shape[0]
-    sensor, world = (_scratch_rows(count, world_dtype) if scratch
+    sensor, world = ((scratch_rows("sensor", count), scratch_rows("world", count, world_dtype)) if scratch
                      else (np.empty((count, 3)), np.empty((count, 3), dtype=world_dtype)))
     if rotation is None:
         _kernel("rays")(xy, plane == "panorama", _EMPTY_ROTATION, sensor, _EMPTY_ROWS)
@@ -91,14 +91,18 @@ def sensor_rays(xy_deg: np.ndarray, plane: str, rotation: np.ndarray | None = No
     return sensor, world
 
 
-def _scratch_rows(count: int, world_dtype: type) -> tuple[np.ndarray, np.ndarray]:
-    """The calling thread's ``(count, 3)`` scratch arrays: float64 and ``world_dtype`` (grown when too short)."""
-    key = f"rows_{np.dtype(world_dtype).name}"
+def scratch_rows(name: str, count: int, dtype: type = np.float64) -> np.ndarray:
+    """The calling thread's ``(count, 3)`` scratch array ``name`` (grown when too short).
+
+    Its contents are undefined and overwritten by the thread's next use of the same name and dtype: for arrays a
+    caller is done with before then (see ``scratch`` of :func:`sensor_rays`).
+    """
+    key = f"{name}_{np.dtype(dtype).name}"
     held = getattr(_SCRATCH, key, None)
-    if held is None or held[0].shape[0] < count:
-        held = (np.empty((count, 3)), np.empty((count, 3), dtype=world_dtype))
+    if held is None or held.shape[0] < count:
+        held = np.empty((count, 3), dtype=dtype)
         setattr(_SCRATCH, key, held)
-    return held[0][:count], held[1][:count]
+    return held[:count]
 
 
 def ideal_points(distance: np.ndarray, directions_sensor: np.ndarray, directions_world: np.ndarray | None,

@@ -19,9 +19,10 @@ multiple returns, reflectivity and tags).
 from __future__ import annotations
 
 import os
+import threading
 from collections import deque
 from collections.abc import Iterator
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -29,7 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from livox_viz.casting.codec import decode_int16, encode_int16
-from livox_viz.casting.ray_kernels import ideal_points, sensor_rays
+from livox_viz.casting.ray_kernels import ideal_points, scratch_rows, sensor_rays
 from livox_viz.casting.returns import ReturnModel
 from livox_viz.config.mount import sensor_mount, sensor_world_pose
 from livox_viz.config.sensor import SensorConfig
@@ -253,7 +254,9 @@ class MountedCaster:
         scratch = self.returns is None
         if moving:
             directions_sensor, _ = sensor_rays(xy, config.pattern_plane, scratch=scratch)
-            origin, directions_world = self.track.rays(t, directions_sensor)
+            count = directions_sensor.shape[0]
+            into = (scratch_rows("origin", count), scratch_rows("world", count)) if scratch else None
+            origin, directions_world = self.track.rays(t, directions_sensor, into)
         else:
             origin = self.sensor_pose.origin
             # Embree's own float32 directions when only the cast needs them (the hits' float64 ones are made
@@ -336,6 +339,24 @@ class MountedCaster:
             part = slice(int(low), int(high))
             frames.append(self._frame(start, stop, **{name: getattr(run, name)[part] for name in _RETURN_ARRAYS}))
         return frames
+
+
+_FRAME_POOL: ThreadPoolExecutor | None = None
+_FRAME_POOL_LOCK = threading.Lock()
+
+
+def _frame_pool(workers: int) -> ThreadPoolExecutor:
+    """The threads every :meth:`LidarScanner.frames` casts its frames on, made once per process.
+
+    Kept, not made per scan: each thread's scratch arrays (the rays, Embree's float32 copies) live as long as
+    the thread, and a new thread faults all of them in again (1 800 page faults, a few ms, a scan of a million
+    rays).
+    """
+    global _FRAME_POOL
+    with _FRAME_POOL_LOCK:
+        if _FRAME_POOL is None:
+            _FRAME_POOL = ThreadPoolExecutor(workers, thread_name_prefix="livox-viz-frame")
+        return _FRAME_POOL
 
 
 class LidarScanner:
@@ -427,7 +448,7 @@ class LidarScanner:
         per_frame = self.config.points_per_frame
         per_task = max(1, -(-TASK_RAYS // per_frame))
         workers = max(1, min(os.cpu_count() or 1, FRAME_WORKERS))
-        pool = ThreadPoolExecutor(workers, thread_name_prefix="livox-viz-frame")
+        pool = _frame_pool(workers)
         in_flight: deque[tuple[Future[tuple[list[ScanFrame], Exception | None]], list[int]]] = deque()
         self._handed_out = self.pattern.position
         try:
@@ -446,7 +467,9 @@ class LidarScanner:
                 if error is not None:
                     raise error
         finally:
-            pool.shutdown(wait=True, cancel_futures=True)
+            # The pool outlives this scan: its frames still queued are dropped, those being cast are waited for.
+            pending = [future for future, _ in in_flight if not future.cancel()]
+            wait(pending)
             if self.pattern.position != self._handed_out:
                 # Stopped early: a fresh stream of the same seed, moved to the first ray not handed out.
                 self.pattern = make_pattern(self.config, seed=self.seed)

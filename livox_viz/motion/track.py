@@ -92,7 +92,8 @@ class SensorTrack:
         self._last_pose = (t, pose)
         return pose
 
-    def rays(self, t: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def rays(self, t: np.ndarray, directions: np.ndarray,
+             out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Each ray's origin and world direction from the sensor's pose at its own time.
 
         Parameters
@@ -101,6 +102,8 @@ class SensorTrack:
             Seconds, inside the span (fastest when sorted).
         directions : (n, 3) float64
             Unit directions, sensor FRD.
+        out : ((n, 3), (n, 3)) float64 C-contiguous, optional
+            Where the origins and world directions go (new arrays by default).
 
         Returns
         -------
@@ -113,8 +116,7 @@ class SensorTrack:
         directions = np.ascontiguousarray(directions, dtype=np.float64)
         if t.size:
             self.trajectory.check_covers(float(t.min()), float(t.max()))
-        origins = np.empty((t.size, 3))
-        directions_world = np.empty((t.size, 3))
+        origins, directions_world = out if out is not None else (np.empty((t.size, 3)), np.empty((t.size, 3)))
         _ray_kernel()(t, self.trajectory.t, self._coefficients, self._lever, directions, origins, directions_world)
         return origins, directions_world
 
