@@ -130,3 +130,19 @@ def test_a_recycled_block_is_never_handed_out_while_an_array_of_it_is_held() -> 
     # A request far smaller than a free block takes a block of its own (a small frame pins no large block).
     small = blocks.get(size // 4)
     assert not np.shares_memory(small, again["a"]) and small.base.shape[0] == size // 4
+
+
+def test_the_boresight_series_are_libm_rays_within_two_ulp() -> None:
+    xy = _pattern_samples(20000, 5)
+    xy[9:] *= 57.0 / 89.0  # most inside the series' reach (1 rad), the first few and some others beyond it
+    x, y = np.radians(xy).T
+    alpha = np.hypot(x, y)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(alpha > 0, np.sin(alpha) / alpha, 1.0)
+    libm = np.column_stack([np.cos(alpha), ratio * x, -ratio * y])
+    found = directions_from_xy(xy)
+    inside = alpha <= 1.0
+    assert 1000 < np.count_nonzero(~inside) < 8000
+    ulps = np.abs(found - libm)[inside] / np.spacing(np.maximum(np.abs(libm[inside]), 1e-300))
+    assert ulps.max() <= 2.0
+    np.testing.assert_allclose(found, libm, rtol=0, atol=1e-15)  # beyond it too (libm's sin and cos)
