@@ -414,19 +414,20 @@ class LidarScanner:
         """Fire the rest of the current frame (W*H rays from a frame start) and return its returns."""
         return self.mounted.cast(self.pattern.next_frame())
 
-    def _cast_in_worker(self, chunks: list[PatternChunk]) -> tuple[list[ScanFrame], Exception | None]:
+    def _cast_in_worker(self, chunk: PatternChunk, stops: list[int]) -> tuple[list[ScanFrame], Exception | None]:
         # The batches side by side already keep the cores busy: each casts its own rays in its own thread, as
         # one run. If the run fails, its frames are cast one by one: those before the failing one are still
         # handed out, then the error is raised in the caller's thread.
         frames: list[ScanFrame] = []
         with casting_in_this_thread():
             try:
-                return self.mounted.cast_frames(chunks), None
+                return self.mounted.cast_run(chunk, stops), None
             except Exception:
                 pass  # cast again frame by frame below: that says which frame fails
             try:
-                for chunk in chunks:
-                    frames.append(self.mounted.cast(chunk))
+                for start, stop in zip([chunk.start, *stops[:-1]], stops, strict=True):
+                    rows = slice(start - chunk.start, stop - chunk.start)
+                    frames.append(self.mounted.cast(PatternChunk(self.config, start, chunk.xy_deg[rows])))
             except Exception as error:  # raised again in the caller's thread, after those frames
                 return frames, error
         return frames, None
@@ -454,11 +455,15 @@ class LidarScanner:
         try:
             while in_flight or self.pattern.position < total:
                 while self.pattern.position < total and len(in_flight) <= workers:
-                    chunks = []
-                    while self.pattern.position < total and len(chunks) < per_task:
-                        frame_end = (self.pattern.position // per_frame + 1) * per_frame
-                        chunks.append(self.pattern.take(min(frame_end, total) - self.pattern.position))
-                    in_flight.append((pool.submit(self._cast_in_worker, chunks), [c.stop for c in chunks]))
+                    # One run of the stream for the batch's frames: every stream gives the same points however
+                    # it is cut (tested), so this is the frames' points without joining them.
+                    stops: list[int] = []
+                    end = self.pattern.position
+                    while end < total and len(stops) < per_task:
+                        end = min((end // per_frame + 1) * per_frame, total)
+                        stops.append(end)
+                    chunk = self.pattern.take(end - self.pattern.position)
+                    in_flight.append((pool.submit(self._cast_in_worker, chunk, stops), stops))
                 future, stops = in_flight.popleft()
                 cast, error = future.result()
                 for frame, stop in zip(cast, stops[: len(cast)], strict=True):

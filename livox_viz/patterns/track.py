@@ -48,11 +48,13 @@ class TrackPattern(RisleyPattern):
             return chunk
         x = chunk.xy_deg[:, 0]
         if self._spin_cycles_per_sample:
-            first = math.fmod(self._spin_cycles_per_sample * start, 1.0)
+            # The turn of sample k is (k c) mod 1 from k itself, not the chunk's first turn plus i c: the same
+            # number however the stream is cut (a chunk of seven frames or seven chunks of one; k c has one
+            # rounding, 2e-12 of a turn at ten minutes).
             if self._ramp.size < count:
                 self._ramp = np.arange(count, dtype=np.float64)
-            turns = self._ramp[:count] * self._spin_cycles_per_sample
-            turns += first
+            turns = self._ramp[:count] + float(start)
+            turns *= self._spin_cycles_per_sample
             np.mod(turns, 1.0, out=turns)
             turns *= 360.0
             x += turns
