@@ -12,13 +12,13 @@ from the stream index alone. :class:`PatternStream` moves through the stream
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
 from livox_viz.config.sensor import SERIES_MODELS, SensorConfig
+from livox_viz.core.buffers import RecycledBlocks
 
 
 def points_before(seconds, rate: float):
@@ -202,6 +202,13 @@ class PatternChunk:
         return self.index % self.config.lasers
 
 
+#: Where streams make their chunks' points: a fresh array of a frame's size costs more in page faults than the
+#: arithmetic that fills it (``bench_pattern.py``: a frame of the default preset 280 us fresh, 50 us reused), so a
+#: block is used again once no chunk (nor any view of one) holds it. One pool for every stream of the process: a
+#: scan's stream is new each scan, and its first few dozen chunks would otherwise all be fresh.
+PATH_BLOCKS = RecycledBlocks(keep=8)
+
+
 class PatternStream:
     """What every pattern stream offers: a position in the endless stream and ways to move it.
 
@@ -217,10 +224,8 @@ class PatternStream:
         raise NotImplementedError
 
     def _path_buffer(self, count: int) -> np.ndarray:
-        """A ``(count,)`` complex128 array to fill with points (x + iy, degrees), from the stream's pool."""
-        if "_paths" not in self.__dict__:
-            self._paths = _BufferPool(np.complex128)
-        return self._paths.get(count)
+        """A ``(count,)`` complex128 array to fill with points (x + iy, degrees), from :data:`PATH_BLOCKS`."""
+        return PATH_BLOCKS.get(count * np.dtype(np.complex128).itemsize).view(np.complex128)
 
     @property
     def position(self) -> int:
@@ -254,50 +259,3 @@ class PatternStream:
         if count < 0:
             raise ValueError(f"count must be >= 0, got {count}")
         self._position += count
-
-
-class _BufferPool:
-    """Output arrays handed out again once nobody holds them any more.
-
-    Filling a freshly allocated array of a frame's size costs more in page
-    faults than the arithmetic itself: glibc hands blocks of this size back to
-    the system on every free, and ``bench_pattern.py`` measured a frame of the
-    default preset at 280 us fresh against 50 us reused (300 x against
-    2000 x real time). A chunk's arrays are therefore taken from this pool,
-    and an array is reused only when nothing outside the pool refers to it
-    (no chunk, no view of it: a view holds a reference to its base), so a
-    chunk a caller still keeps is never overwritten.
-
-    Parameters
-    ----------
-    dtype : numpy dtype
-        Of the arrays handed out.
-    """
-
-    _KEEP = 4
-
-    def __init__(self, dtype: type) -> None:
-        self.dtype = dtype
-        self._free: list[np.ndarray] = []
-
-    def get(self, count: int) -> np.ndarray:
-        """A ``(count,)`` array whose contents are undefined."""
-        for buffer in self._free:
-            if buffer.shape[0] == count and sys.getrefcount(buffer) <= _UNHELD_REFCOUNT:
-                return buffer
-        buffer = np.empty(count, dtype=self.dtype)
-        self._free.append(buffer)
-        if len(self._free) > self._KEEP:
-            self._free.pop(0)
-        return buffer
-
-
-def _unheld_refcount() -> int:
-    """The reference count :meth:`_BufferPool.get` sees for an array only its pool holds."""
-    pool = [np.empty(1)]
-    for buffer in pool:
-        return sys.getrefcount(buffer)
-    raise AssertionError("unreachable")
-
-
-_UNHELD_REFCOUNT = _unheld_refcount()
