@@ -31,7 +31,6 @@ import numpy as np
 
 from livox_viz.casting.codec import decode_int16, encode_int16
 from livox_viz.casting.ray_kernels import ideal_points, scratch_rows, sensor_rays
-from livox_viz.casting.returns import ReturnModel
 from livox_viz.config.mount import sensor_mount, sensor_world_pose
 from livox_viz.config.sensor import SensorConfig
 from livox_viz.core.poses import Pose, pose_quaternion
@@ -44,6 +43,8 @@ from livox_viz.scene.raycast import EmbreeCaster, RayCaster, casting_in_this_thr
 
 if TYPE_CHECKING:
     import trimesh
+
+    from livox_viz.casting.returns import ReturnModel
 
 #: Rays cast in one call at most: a huge frame is cast in parts so memory stays bounded.
 CAST_PART = 1 << 20
@@ -205,8 +206,14 @@ class MountedCaster:
         # A caster has distances(); anything else is a mesh (trimesh is not imported just to ask).
         self.caster: RayCaster = scene if hasattr(scene, "distances") else EmbreeCaster(scene)
         #: The datasheet return model, or None for ideal returns.
-        self.returns = (ReturnModel(config.return_params, self.caster, seed, config.range_max, config.pattern_plane)
-                        if config.returns_model == "datasheet" else None)
+        self.returns: ReturnModel | None = None
+        if config.returns_model == "datasheet":
+            # Imported here: the model and its loops are 30-40 ms of the start-up of every command that imports
+            # this module (the wire's and the model-only ones among them).
+            from livox_viz.casting.returns import ReturnModel
+
+            self.returns = ReturnModel(config.return_params, self.caster, seed, config.range_max,
+                                       config.pattern_plane)
         self.trajectory = trajectory
         self.vehicle_pose = trajectory.pose_at(trajectory.span[0]) if trajectory is not None else (
             vehicle_pose or Pose())

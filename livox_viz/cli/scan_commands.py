@@ -7,7 +7,6 @@ import sys
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
-from livox_viz.casting.scan import LidarScanner
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.progress import Progress
 from livox_viz.core.workload import check_points
@@ -51,6 +50,9 @@ def cmd_scan(args: argparse.Namespace) -> int:
     trajectory = trajectory_from_args(args, pose, args.seconds)
     if trajectory is not None:
         trajectory.check_covers(0.0, args.seconds)
+    # Imported here: the casting path (the return model's loops among it) is 60 ms of every command's start-up.
+    from livox_viz.casting.scan import LidarScanner
+
     scanner = LidarScanner(cfg, caster, pose, seed=args.seed, trajectory=trajectory)
     frames = points = 0
     progress = Progress(f"scan -> {(out or Path(args.rosbag)).name}", args.seconds, "s")
