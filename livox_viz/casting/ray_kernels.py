@@ -193,41 +193,34 @@ def _rays(xy, panorama, rotation, sensor, world):  # pragma: no cover - compiled
         r10, r11, r12 = rotation[1, 0], rotation[1, 1], rotation[1, 2]
         r20, r21, r22 = rotation[2, 0], rotation[2, 1], rotation[2, 2]
     scale = math.pi / 180.0
+    # Pass 0 makes every ray (the boresight's by the series); pass 1, only when needed, makes again with libm
+    # the boresight rays beyond the series' reach.
     far = False
-    for i in range(xy.shape[0]):
-        x = xy[i, 0] * scale
-        y = xy[i, 1] * scale
-        if panorama:
-            cos_elevation = math.cos(y)
-            d0 = cos_elevation * math.cos(x)
-            d1 = cos_elevation * math.sin(x)
-            d2 = -math.sin(y)
-        else:
-            square = x * x + y * y
-            far |= square > SERIES_LIMIT
-            ratio = _sin_ratio(square)
-            d0 = _cos_series(square)
-            d1 = ratio * x
-            d2 = -(ratio * y)
-        sensor[i, 0] = d0
-        sensor[i, 1] = d1
-        sensor[i, 2] = d2
-        if turn:
-            world[i, 0] = (d0 * r00 + d1 * r01) + d2 * r02
-            world[i, 1] = (d0 * r10 + d1 * r11) + d2 * r12
-            world[i, 2] = (d0 * r20 + d1 * r21) + d2 * r22
-    if not far:
-        return
-    for i in range(xy.shape[0]):
-        x = xy[i, 0] * scale
-        y = xy[i, 1] * scale
-        square = x * x + y * y
-        if square > SERIES_LIMIT:
-            alpha = math.sqrt(square)
-            ratio = math.sin(alpha) / alpha
-            d0 = math.cos(alpha)
-            d1 = ratio * x
-            d2 = -(ratio * y)
+    for beyond in (False, True):
+        if beyond and not far:
+            break
+        for i in range(xy.shape[0]):
+            x = xy[i, 0] * scale
+            y = xy[i, 1] * scale
+            if panorama:
+                cos_elevation = math.cos(y)
+                d0 = cos_elevation * math.cos(x)
+                d1 = cos_elevation * math.sin(x)
+                d2 = -math.sin(y)
+            else:
+                square = x * x + y * y
+                if beyond:
+                    if square <= SERIES_LIMIT:
+                        continue
+                    alpha = math.sqrt(square)
+                    ratio = math.sin(alpha) / alpha
+                    d0 = math.cos(alpha)
+                else:
+                    far |= square > SERIES_LIMIT
+                    ratio = _sin_ratio(square)
+                    d0 = _cos_series(square)
+                d1 = ratio * x
+                d2 = -(ratio * y)
             sensor[i, 0] = d0
             sensor[i, 1] = d1
             sensor[i, 2] = d2
