@@ -348,3 +348,31 @@ def test_float32_mode_agrees_within_a_millimetre() -> None:
     assert np.array_equal(np.isfinite(exact), np.isfinite(fast))
     hit = np.isfinite(exact)
     assert np.abs(exact[hit] - fast[hit]).max() < 1e-3
+
+
+def test_a_forked_child_scans_on_threads_of_its_own(mid70: SensorConfig) -> None:
+    """frames() keeps its worker threads for the process; a child forked after a scan has none of them, and must
+    not hand its frames to a pool whose threads are not there (it would wait for them for ever)."""
+    import os
+    import time
+
+    caster = EmbreeCaster(wall(20.0), threads=1)
+    expected = sum(len(frame) for frame in LidarScanner(at_origin(mid70), caster).frames(0.25))
+    assert expected > 0
+    pid = os.fork()
+    if pid == 0:  # the child: exit 0 when its scan gives the parent's points
+        try:
+            found = sum(len(frame) for frame in LidarScanner(at_origin(mid70), caster).frames(0.25))
+            os._exit(0 if found == expected else 1)
+        except BaseException:
+            os._exit(2)
+    deadline = time.monotonic() + 60.0
+    while time.monotonic() < deadline:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            assert os.waitstatus_to_exitcode(status) == 0
+            return
+        time.sleep(0.05)
+    os.kill(pid, 9)
+    os.waitpid(pid, 0)
+    pytest.fail("the forked child's scan did not finish within 60 s")

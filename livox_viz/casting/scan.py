@@ -352,6 +352,15 @@ _FRAME_POOL: ThreadPoolExecutor | None = None
 _FRAME_POOL_LOCK = threading.Lock()
 
 
+def _forget_frame_pool() -> None:
+    """In a forked child: the parent's threads are not there, so its pool would take frames and never cast them."""
+    global _FRAME_POOL, _FRAME_POOL_LOCK
+    _FRAME_POOL, _FRAME_POOL_LOCK = None, threading.Lock()
+
+
+os.register_at_fork(after_in_child=_forget_frame_pool)
+
+
 def _frame_pool(workers: int) -> ThreadPoolExecutor:
     """The threads every :meth:`LidarScanner.frames` casts its frames on, made once per process.
 
