@@ -146,3 +146,17 @@ def test_the_boresight_series_are_libm_rays_within_two_ulp() -> None:
     ulps = np.abs(found - libm)[inside] / np.spacing(np.maximum(np.abs(libm[inside]), 1e-300))
     assert ulps.max() <= 2.0
     np.testing.assert_allclose(found, libm, rtol=0, atol=1e-15)  # beyond it too (libm's sin and cos)
+
+
+def test_a_forked_child_gets_blocks_even_when_the_parent_was_taking_one() -> None:
+    import os
+
+    blocks = RecycledBlocks()
+    blocks._lock.acquire()  # another thread of the parent inside get() at the fork
+    try:
+        pid = os.fork()
+        if pid == 0:
+            os._exit(0 if blocks.get(64).shape == (64,) else 1)
+        assert os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) == 0
+    finally:
+        blocks._lock.release()

@@ -13,8 +13,10 @@ overwritten.
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
+import weakref
 
 import numpy as np
 
@@ -47,6 +49,7 @@ class RecycledBlocks:
         self.slack = slack
         self._blocks: list[np.ndarray] = []
         self._lock = threading.Lock()
+        _POOLS.add(self)
 
     def get(self, nbytes: int) -> np.ndarray:
         """A ``(nbytes,)`` uint8 array (contents undefined): a kept block's head when one is free, else new.
@@ -70,6 +73,18 @@ class RecycledBlocks:
             if len(self._blocks) > self.keep:
                 self._blocks.pop(0)
             return block[:nbytes]
+
+
+_POOLS: weakref.WeakSet[RecycledBlocks] = weakref.WeakSet()
+
+
+def _fresh_locks() -> None:
+    """In a forked child: a lock another thread of the parent held at the fork would stay taken for ever."""
+    for pool in list(_POOLS):
+        pool._lock = threading.Lock()
+
+
+os.register_at_fork(after_in_child=_fresh_locks)
 
 
 def carve(block: np.ndarray, layout: list[tuple[str, tuple[int, ...], type]]) -> dict[str, np.ndarray]:
