@@ -257,20 +257,20 @@ class MountedCaster:
         # (k / rate) does not make them.
         needs_times = moving or self.returns is not None or chunk.times_held is not None
         t = chunk.t[first : first + CAST_PART] if needs_times else None
-        # The ideal path is done with the rays before this thread's next part: they go in its scratch arrays.
-        scratch = self.returns is None
+        # Both models are done with the rays before this thread's next part (what they return is made anew):
+        # the rays go in the thread's scratch arrays.
         if moving:
-            directions_sensor, _ = sensor_rays(xy, config.pattern_plane, scratch=scratch)
+            directions_sensor, _ = sensor_rays(xy, config.pattern_plane, scratch=True)
             count = directions_sensor.shape[0]
-            into = (scratch_rows("origin", count), scratch_rows("world", count)) if scratch else None
+            into = (scratch_rows("origin", count), scratch_rows("world", count))
             origin, directions_world = self.track.rays(t, directions_sensor, into)
         else:
             origin = self.sensor_pose.origin
-            # Embree's own float32 directions when only the cast needs them (the hits' float64 ones are made
-            # again after it, the same numbers): a third of the memory the rays pass through.
-            embree_only = scratch and getattr(self.caster, "takes_float32", False)
+            # Embree's own float32 directions when only the cast needs them (the ideal hits' float64 ones are
+            # made again after it, the same numbers): a third of the memory the rays pass through.
+            embree_only = self.returns is None and getattr(self.caster, "takes_float32", False)
             directions_sensor, directions_world = sensor_rays(xy, config.pattern_plane, self.sensor_pose.rotation,
-                                                              scratch, np.float32 if embree_only else np.float64)
+                                                              True, np.float32 if embree_only else np.float64)
         if self.returns is None:
             distance = self.caster.distances(origin, directions_world, config.range_max)
             float64_world = directions_world if directions_world.dtype == np.float64 else None
