@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import gc
-import time
 
 import numpy as np
 import pytest
@@ -13,6 +12,7 @@ from livox_viz.casting.ray_kernels import ideal_points, sensor_rays
 from livox_viz.core.buffers import RecycledBlocks, carve, carved_size
 from livox_viz.core.rotations import euler_matrix, rotate_rows
 from livox_viz.patterns.planes import directions_from_xy
+from tests.forking import child_exit_code
 
 
 def _pattern_samples(count: int, seed: int) -> np.ndarray:
@@ -158,15 +158,6 @@ def test_a_forked_child_gets_blocks_even_when_the_parent_was_taking_one() -> Non
         pid = os.fork()
         if pid == 0:
             os._exit(0 if blocks.get(64).shape == (64,) else 1)
-        deadline = time.monotonic() + 30.0
-        while time.monotonic() < deadline:
-            done, status = os.waitpid(pid, os.WNOHANG)
-            if done:
-                assert os.waitstatus_to_exitcode(status) == 0
-                return
-            time.sleep(0.02)
-        os.kill(pid, 9)
-        os.waitpid(pid, 0)
-        pytest.fail("the forked child waited for the parent's lock")
+        assert child_exit_code(pid, 30.0, "it waits for the parent's lock") == 0
     finally:
         blocks._lock.release()

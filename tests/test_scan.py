@@ -354,7 +354,8 @@ def test_a_forked_child_scans_on_threads_of_its_own(mid70: SensorConfig) -> None
     """frames() keeps its worker threads for the process; a child forked after a scan has none of them, and must
     not hand its frames to a pool whose threads are not there (it would wait for them for ever)."""
     import os
-    import time
+
+    from tests.forking import child_exit_code
 
     caster = EmbreeCaster(wall(20.0), threads=1)
     expected = sum(len(frame) for frame in LidarScanner(at_origin(mid70), caster).frames(0.25))
@@ -366,13 +367,4 @@ def test_a_forked_child_scans_on_threads_of_its_own(mid70: SensorConfig) -> None
             os._exit(0 if found == expected else 1)
         except BaseException:
             os._exit(2)
-    deadline = time.monotonic() + 60.0
-    while time.monotonic() < deadline:
-        done, status = os.waitpid(pid, os.WNOHANG)
-        if done:
-            assert os.waitstatus_to_exitcode(status) == 0
-            return
-        time.sleep(0.05)
-    os.kill(pid, 9)
-    os.waitpid(pid, 0)
-    pytest.fail("the forked child's scan did not finish within 60 s")
+    assert child_exit_code(pid, 60.0, "its scan") == 0

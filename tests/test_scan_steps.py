@@ -2,9 +2,8 @@
 of its own.
 
 The recycled blocks' slack and the 8-byte layout of :func:`carve`, given times on a fixed sensor's ideal path (cast
-alone and joined with a chunk without them), the frame-by-frame fallback of a batch that does not start the stream,
-the float64 world points of the ideal path (from the float64 rays, exact caster or not), the datasheet model cast in
-parts, and libm's rays beyond the series' reach.
+alone and joined with a chunk without them), the float64 world points of the ideal path (from the float64 rays,
+exact caster or not), the datasheet model cast in parts, and libm's rays beyond the series' reach.
 """
 
 from __future__ import annotations
@@ -19,7 +18,7 @@ import trimesh
 from livox_viz import SensorConfig
 from livox_viz.casting import scan
 from livox_viz.casting.ray_kernels import sensor_rays
-from livox_viz.casting.scan import LidarScanner, MountedCaster
+from livox_viz.casting.scan import MountedCaster
 from livox_viz.core.buffers import RecycledBlocks, carve, carved_size
 from livox_viz.core.poses import Pose
 from livox_viz.core.rotations import euler_matrix
@@ -129,40 +128,6 @@ def test_ideal_world_points_are_the_sensor_points_turned_and_moved(mid70: Sensor
                                rtol=0, atol=1e-9)
     if exact:
         np.testing.assert_allclose(frame.xyz_world[:, 0], 400.0, rtol=0, atol=1e-9)
-
-
-# The frame-by-frame fallback ---------------------------------------------------------------------
-def test_a_failing_frame_of_a_later_batch_is_found_frame_by_frame(mid70: SensorConfig) -> None:
-    """A failing run is cast again frame by frame from its own rays: also in a batch that does not start the
-    stream (the frames before the failing one are handed out, equal to the frames cast one by one)."""
-    urban = open_scene("urban")
-    real = EmbreeCaster(urban.mesh)
-    per_frame = mid70.points_per_frame
-    per_task = -(-scan.TASK_RAYS // per_frame)
-    failing = per_task + 2  # the third frame of the second batch
-    scanner = LidarScanner(mid70, real, urban.vehicle_pose, seed=1)
-    xy = make_pattern(mid70, seed=1).points(failing * per_frame + 123, 1).xy_deg
-    target = directions_from_xy(xy)[0] @ scanner.sensor_pose.rotation.T
-
-    class FailsOnOneFrame:
-        def distances(self, origins, directions, max_distance=np.inf):
-            if np.any(np.all(np.abs(directions - target) <= 1e-12, axis=1)):
-                raise RuntimeError("the cast of the failing frame fails")
-            return real.distances(origins, directions, max_distance)
-
-    failing_scanner = LidarScanner(mid70, FailsOnOneFrame(), urban.vehicle_pose, seed=1)
-    handed = []
-    with pytest.raises(RuntimeError, match="failing frame"):
-        for frame in failing_scanner.frames(3.0):
-            handed.append(frame)
-    assert [frame.index for frame in handed] == list(range(failing))
-    assert failing_scanner.pattern.position == failing * per_frame
-    one_by_one = LidarScanner(mid70, real, urban.vehicle_pose, seed=1)
-    for frame in handed:
-        expected = one_by_one.next_frame()
-        assert (frame.index, frame.ray_count) == (expected.index, expected.ray_count)
-        np.testing.assert_array_equal(frame.stream_index, expected.stream_index)
-        np.testing.assert_array_equal(frame.xyz_int16, expected.xyz_int16)
 
 
 # The datasheet model cast in parts ---------------------------------------------------------------

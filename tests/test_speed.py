@@ -244,28 +244,42 @@ def test_stopping_early_puts_the_stream_back(mid70: SensorConfig, urban) -> None
     assert [frame_key(f) for f in scanner.frames(0.5)] == [frame_key(f) for f in expected[3:]]
 
 
-def test_a_failing_cast_reaches_the_caller_and_the_stream_is_put_back(mid70: SensorConfig, urban) -> None:
-    real = EmbreeCaster(urban.mesh)
-    scanner = LidarScanner(mid70, real, urban.vehicle_pose, seed=1)
-    # Ray 123 of frame 4, as the scanner will cast it (frames are cast side by side, in no fixed order; a
-    # frame's first ray is the pattern's centre, the same in every frame).
-    xy = make_pattern(mid70, seed=1).points(4 * mid70.points_per_frame + 123, 1).xy_deg
-    fourth = directions_from_xy(xy)[0] @ scanner.sensor_pose.rotation.T
+@pytest.mark.parametrize("where", ["first batch", "later batch"])
+def test_a_failing_cast_reaches_the_caller_and_the_stream_is_put_back(mid70: SensorConfig, urban, where: str) -> None:
+    """A failing run is cast again frame by frame from its own rays (also in a batch that does not start the
+    stream): the frames before the failing one are handed out, equal to the frames cast one by one, then the error
+    reaches the caller and the stream is put back after the last frame handed out."""
+    from livox_viz.casting import scan
 
-    class FailsOnFrameFour:
-        # Whatever run holds that ray fails: a worker's batch of frames cast as one run, then frame 4 alone.
+    real = EmbreeCaster(urban.mesh)
+    per_frame = mid70.points_per_frame
+    failing = 4 if where == "first batch" else -(-scan.TASK_RAYS // per_frame) + 2
+    scanner = LidarScanner(mid70, real, urban.vehicle_pose, seed=1)
+    # Ray 123 of the failing frame, as the scanner will cast it (frames are cast side by side, in no fixed order;
+    # a frame's first ray is the pattern's centre, the same in every frame).
+    xy = make_pattern(mid70, seed=1).points(failing * per_frame + 123, 1).xy_deg
+    target = directions_from_xy(xy)[0] @ scanner.sensor_pose.rotation.T
+
+    class FailsOnOneFrame:
+        # Whatever run holds that ray fails: a worker's batch of frames cast as one run, then that frame alone.
         def distances(self, origins, directions, max_distance=np.inf):
-            if np.any(np.all(np.abs(directions - fourth) <= 1e-12, axis=1)):
-                raise RuntimeError("the cast of frame 4 fails")
+            if np.any(np.all(np.abs(directions - target) <= 1e-12, axis=1)):
+                raise RuntimeError("the cast of the failing frame fails")
             return real.distances(origins, directions, max_distance)
 
-    scanner = LidarScanner(mid70, FailsOnFrameFour(), urban.vehicle_pose, seed=1)
+    scanner = LidarScanner(mid70, FailsOnOneFrame(), urban.vehicle_pose, seed=1)
     handed = []
-    with pytest.raises(RuntimeError, match="frame 4"):
-        for frame in scanner.frames(1.0):
-            handed.append(frame.index)
-    assert handed == [0, 1, 2, 3]
-    assert scanner.pattern.position == 4 * mid70.points_per_frame
+    with pytest.raises(RuntimeError, match="failing frame"):
+        for frame in scanner.frames(3.0):
+            handed.append(frame)
+    assert [frame.index for frame in handed] == list(range(failing))
+    assert scanner.pattern.position == failing * per_frame
+    one_by_one = LidarScanner(mid70, real, urban.vehicle_pose, seed=1)
+    for frame in handed:
+        expected = one_by_one.next_frame()
+        assert (frame.index, frame.ray_count) == (expected.index, expected.ray_count)
+        np.testing.assert_array_equal(frame.stream_index, expected.stream_index)
+        np.testing.assert_array_equal(frame.xyz_int16, expected.xyz_int16)
 
 
 def test_small_frames_go_a_few_to_a_worker_and_stay_in_order(urban) -> None:
