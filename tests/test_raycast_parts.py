@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from livox_viz.scene.raycast import LEAST_RAYS, PART_RAYS, EmbreeCaster, _kernels, casting_in_this_thread
+from livox_viz.scene.raycast import _KERNELS, LEAST_RAYS, PART_RAYS, EmbreeCaster, casting_in_this_thread
 
 
 def recorded_parts(caster: EmbreeCaster, count: int, pause: float = 0.0) -> list[tuple[int, int, int]]:
@@ -103,7 +103,7 @@ def test_the_compiled_steps_are_numpys_casts_and_the_miss_rule() -> None:
     origins_out = np.empty((n, 3), np.float32)
     directions_out = np.empty((n, 3), np.float32)
     limits = np.empty(n, np.float32)
-    _kernels()["rays"](origins.reshape(-1), centre, directions.reshape(-1), origins_out.reshape(-1),
+    _KERNELS["rays"](origins.reshape(-1), centre, directions.reshape(-1), origins_out.reshape(-1),
                        directions_out.reshape(-1), limits, np.float32(123.25))
     np.testing.assert_array_equal(origins_out, (origins - centre).astype(np.float32))
     np.testing.assert_array_equal(directions_out, directions.astype(np.float32))
@@ -112,7 +112,7 @@ def test_the_compiled_steps_are_numpys_casts_and_the_miss_rule() -> None:
     limit = np.float32(60.0)
     far = np.array([0.0, 1.5, np.nextafter(limit, np.float32(0)), limit, np.nan, 59.75], np.float32)
     out = np.full(far.size, -1.0)
-    _kernels()["misses"](far, limit, out)
+    _KERNELS["misses"](far, limit, out)
     np.testing.assert_array_equal(out, [0.0, 1.5, float(np.nextafter(limit, np.float32(0))), np.inf, np.nan, 59.75])
 
 

@@ -9,8 +9,9 @@ side is one pass that releases the GIL, so both frames cast side by side run it
 at once.
 
 The numbers are those of the numpy steps they replace, bit for bit:
-:func:`~livox_viz.patterns.planes.directions_from_xy` (the same libm ``sin``
-and ``cos``, operations in the same order, no ``fastmath``),
+:func:`~livox_viz.patterns.planes.directions_from_xy` (the same series, and
+libm's ``sin`` and ``cos`` beyond them, operations in the same order, no
+``fastmath``),
 :func:`~livox_viz.core.rotations.rotate_rows` (``(x R[i,0] + y R[i,1]) + z
 R[i,2]``) and :func:`~livox_viz.casting.codec.encode_int16` (``rint``, then the
 clip); the tests hold them to each other.
@@ -20,40 +21,21 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 
 from livox_viz.casting.codec import INT16_SCALE
 from livox_viz.core.buffers import RecycledBlocks, carve, carved_size
-from livox_viz.core.compiled import compile_nogil
+from livox_viz.core.compiled import LazyKernels
 from livox_viz.patterns.planes import COS_SERIES, SERIES_LIMIT, SIN_RATIO_SERIES
 
-_COMPILED: dict[str, Callable[..., Any]] = {}
-_COMPILING = threading.Lock()
-_EMPTY_ROTATION = np.zeros((0, 3), dtype=np.float64)
-_EMPTY_ROWS = np.empty((0, 3), dtype=np.float64)
+#: A (0, 3) float64 argument for "none" (no rotation, no world rays): the loops test its length.
+_NONE = np.empty((0, 3), dtype=np.float64)
 _SCRATCH = threading.local()
 _NO_TIMES = np.empty(0, dtype=np.float64)
 #: Where the ideal points' arrays live: a frame's arrays are handed out and dropped a moment later, so their
 #: blocks are reused instead of faulted in afresh (see :mod:`livox_viz.core.buffers`).
 POINT_BLOCKS = RecycledBlocks()
-
-
-def _kernel(name: str) -> Callable[..., Any]:
-    """The loop ``_name`` compiled (or loaded from numba's cache) on first use, once across threads."""
-    found = _COMPILED.get(name)
-    if found is None:
-        with _COMPILING:
-            found = _COMPILED.get(name)
-            if found is None:
-                namespace = globals()
-                if not _COMPILED:  # the helpers the loops call, compiled into them
-                    for helper in ("_sin_ratio", "_cos_series"):
-                        namespace[helper] = compile_nogil(namespace[helper], inline="always")
-                found = _COMPILED[name] = compile_nogil(namespace[f"_{name}"])
-    return found
 
 
 def sensor_rays(xy_deg: np.ndarray, plane: str, rotation: np.ndarray | None = None, scratch: bool = False,
@@ -90,9 +72,9 @@ def sensor_rays(xy_deg: np.ndarray, plane: str, rotation: np.ndarray | None = No
     sensor, world = ((scratch_rows("sensor", count), scratch_rows("world", count, world_dtype)) if scratch
                      else (np.empty((count, 3)), np.empty((count, 3), dtype=world_dtype)))
     if rotation is None:
-        _kernel("rays")(xy, plane == "panorama", _EMPTY_ROTATION, sensor, _EMPTY_ROWS)
+        _KERNELS("rays")(xy, plane == "panorama", _NONE, sensor, _NONE)
         return sensor, None
-    _kernel("rays")(xy, plane == "panorama", np.ascontiguousarray(rotation, dtype=np.float64), sensor, world)
+    _KERNELS("rays")(xy, plane == "panorama", np.ascontiguousarray(rotation, dtype=np.float64), sensor, world)
     return sensor, world
 
 
@@ -154,10 +136,10 @@ def ideal_points(distance: np.ndarray, directions_sensor: np.ndarray, directions
               ("range_m", (hits,), np.float64), ("xyz_sensor", (hits, 3), np.float64),
               ("xyz_world", (hits, 3), np.float64), ("xyz_int16", (hits, 3), np.int16)]
     found = carve(POINT_BLOCKS.get(carved_size(layout)), layout)
-    count = _kernel("ideal_points")(
+    count = _KERNELS("ideal_points")(
         np.ascontiguousarray(distance, dtype=np.float64), np.ascontiguousarray(directions_sensor),
-        _EMPTY_ROWS if directions_world is None else np.ascontiguousarray(directions_world, dtype=np.float64),
-        _EMPTY_ROTATION if directions_world is not None else np.ascontiguousarray(rotation, dtype=np.float64),
+        _NONE if directions_world is None else np.ascontiguousarray(directions_world, dtype=np.float64),
+        _NONE if directions_world is not None else np.ascontiguousarray(rotation, dtype=np.float64),
         np.ascontiguousarray(origins, dtype=np.float64).reshape(-1, 3),
         np.ascontiguousarray(xy_deg, dtype=np.float64),
         _NO_TIMES if t is None else np.ascontiguousarray(t, dtype=np.float64), first_index, float(point_rate),
@@ -282,3 +264,7 @@ def _ideal_points(distance, sensor, world, rotation, origins, xy, t, first_index
         int16_out[count, 2] = np.int16(min(max(q2, -32767.0), 32767.0))
         count += 1
     return count
+
+
+#: The loops above, compiled on first use (the series helpers compiled into them).
+_KERNELS = LazyKernels(globals(), helpers=("_sin_ratio", "_cos_series"))

@@ -16,16 +16,12 @@ implementations to each other.
 from __future__ import annotations
 
 import math
-import threading
 
 import numpy as np
 
-from livox_viz.core.compiled import compile_nogil
+from livox_viz.core.compiled import LazyKernels
 
-_KERNELS: dict[str, object] = {}
 #: The small functions the loops call: compiled (in this module's namespace) before the first loop is.
-#: Frames are cast on worker threads: the first loop of each is compiled by one of them, once.
-_COMPILING = threading.Lock()
 _HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_plane_range", "_slab_span", "_slab", "_in_hull",
             "_near_flat", "_basis_at", "_any_chosen", "_byte")
 
@@ -35,23 +31,18 @@ _HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_plane_range", "_sla
 _PARALLEL: tuple[str, ...] = ()
 
 
-def kernel(name: str):
-    """The compiled loop ``name`` (compiled, or loaded from numba's cache, on first use)."""
-    found = _KERNELS.get(name)
-    if found is not None:
-        return found
-    with _COMPILING:
-        found = _KERNELS.get(name)
-        if found is None:
-            if not _KERNELS:
-                namespace = globals()
-                import numba
+def _use_prange(namespace: dict) -> None:
+    import numba
 
-                namespace["prange"] = numba.prange
-                for helper in _HELPERS:
-                    namespace[helper] = compile_nogil(namespace[helper], inline="always")
-            found = _KERNELS[name] = compile_nogil(globals()[f"_{name}"], parallel=name in _PARALLEL)
-    return found
+    namespace["prange"] = numba.prange
+
+
+#: ``kernel(name)``: the compiled loop ``_name`` (compiled, or loaded from numba's cache, on first use, once
+#: across threads: frames are cast on worker threads).
+kernel = LazyKernels(globals(), helpers=_HELPERS, options=lambda name: {"parallel": name in _PARALLEL},
+                     prepare=_use_prange)
+#: The loops compiled so far, by name.
+_KERNELS = kernel.compiled
 
 
 #: How much larger than an object its boxes, sphere and planes are when a ray of a footprint is tested against

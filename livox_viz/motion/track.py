@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from livox_viz.core.compiled import compile_nogil
+from livox_viz.core.compiled import LazyKernels
 from livox_viz.core.poses import Pose, pose_from_quaternion, pose_quaternion
 from livox_viz.core.rotations import quat_multiply, quat_right_multiplier, quat_rotate
 from livox_viz.motion.trajectory import Trajectory
@@ -117,19 +117,8 @@ class SensorTrack:
         if t.size:
             self.trajectory.check_covers(float(t.min()), float(t.max()))
         origins, directions_world = out if out is not None else (np.empty((t.size, 3)), np.empty((t.size, 3)))
-        _ray_kernel()(t, self.trajectory.t, self._coefficients, self._lever, directions, origins, directions_world)
+        _KERNELS("rays")(t, self.trajectory.t, self._coefficients, self._lever, directions, origins, directions_world)
         return origins, directions_world
-
-
-_KERNEL = None
-
-
-def _ray_kernel():
-    """The compiled per-ray kernel (numba imported and the kernel compiled, or loaded from its cache, on first use)."""
-    global _KERNEL
-    if _KERNEL is None:
-        _KERNEL = compile_nogil(_rays, fastmath=True)
-    return _KERNEL
 
 
 def _rays(t, knots, coefficients, lever, directions, origins, directions_world):  # pragma: no cover - compiled
@@ -189,3 +178,7 @@ def _rays(t, knots, coefficients, lever, directions, origins, directions_world):
             directions_world[r, 1] = scale * vy + along * qy + twice_w * (qz * vx - qx * vz)
             directions_world[r, 2] = scale * vz + along * qz + twice_w * (qx * vy - qy * vx)
         i = stop
+
+
+#: The compiled per-ray kernel (numba imported and the kernel compiled, or loaded from its cache, on first use).
+_KERNELS = LazyKernels(globals(), options=lambda name: {"fastmath": True})

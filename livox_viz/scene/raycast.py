@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import numpy as np
 
-from livox_viz.core.compiled import compile_nogil
+from livox_viz.core.compiled import LazyKernels
 from livox_viz.core.errors import LivoxVizError
 
 if TYPE_CHECKING:
@@ -405,7 +405,7 @@ class EmbreeCaster:
                                                         limit)
             if plain:
                 far = self._scene.run(part_origins, part_dirs, dists=limits, query="DISTANCE")
-                _kernels()["misses"](far, limit, distance[start:stop])
+                _KERNELS["misses"](far, limit, distance[start:stop])
                 return
             part_ids = self._scene.run(part_origins, part_dirs, dists=limits, query="INTERSECT")
             if ids is not None:
@@ -566,7 +566,7 @@ class _Workspace:
             part_dirs = self._directions[:rows]
             direction_values, dirs_out = np.ascontiguousarray(directions).reshape(-1), part_dirs.reshape(-1)
         limits = self._limits[:rows]
-        _kernels()["rays"](origin_values, centre, direction_values, part_origins.reshape(-1), dirs_out, limits,
+        _KERNELS["rays"](origin_values, centre, direction_values, part_origins.reshape(-1), dirs_out, limits,
                            limit)
         return part_origins, part_dirs, limits
 
@@ -599,27 +599,6 @@ def _part_origins(local: np.ndarray, start: int, stop: int) -> np.ndarray:
 
 _NOTHING_F64 = np.empty(0, dtype=np.float64)
 _NOTHING_F32 = np.empty(0, dtype=np.float32)
-_KERNELS: dict[str, Callable[..., None]] = {}
-_COMPILING = threading.Lock()
-
-
-def _kernels() -> dict[str, Callable[..., None]]:
-    """The compiled per-ray steps around Embree: ``rays`` (:func:`_rays`) and ``misses`` (:func:`_misses`).
-
-    numba (``nogil``) imported and the steps compiled, or loaded from numba's cache, on first use: the first
-    cast of a process that has not loaded numba yet takes 0.2-0.4 s and about 110 MiB more. Each step is one
-    pass that releases the GIL once, where numpy took a pass an operation, each casting float64 -> float32
-    (or bool -> float32 -> float64 for the misses) through its buffers: a million rays from their own origins
-    cost 9.3 ms of CPU before Embree and 4.7 ms after it in numpy, 5.3 ms and 1.4 ms here, of Embree's
-    180 ms.
-    """
-    if not _KERNELS:
-        with _COMPILING:
-            if not _KERNELS:
-                _KERNELS.update({"rays": compile_nogil(_rays), "misses": compile_nogil(_misses)})
-    return _KERNELS
-
-
 def _rays(origins, centre, directions, origins_out, directions_out, limits, limit):  # pragma: no cover - compiled
     """``limits[:] = limit``; ``origins_out = float32(origins - centre)`` and ``directions_out =
     float32(directions)``, each unless empty.
@@ -650,6 +629,15 @@ def _misses(far, limit, out):  # pragma: no cover - compiled
     for i in range(far.shape[0]):
         value = far[i]
         out[i] = value if value < limit or value != value else np.inf
+
+
+#: The compiled per-ray steps around Embree: ``rays`` (:func:`_rays`) and ``misses`` (:func:`_misses`). numba
+#: (``nogil``) imported and the steps compiled, or loaded from numba's cache, on first use: the first cast of a
+#: process that has not loaded numba yet takes 0.2-0.4 s and about 110 MiB more. Each step is one pass that
+#: releases the GIL once, where numpy took a pass an operation, each casting float64 -> float32 (or bool ->
+#: float32 -> float64 for the misses) through its buffers: a million rays from their own origins cost 9.3 ms of
+#: CPU before Embree and 4.7 ms after it in numpy, 5.3 ms and 1.4 ms here, of Embree's 180 ms.
+_KERNELS = LazyKernels(globals())
 
 
 class TrimeshCaster:
