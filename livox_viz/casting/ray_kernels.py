@@ -27,7 +27,7 @@ import numpy as np
 from livox_viz.casting.codec import INT16_SCALE
 from livox_viz.core.buffers import RecycledBlocks, carve, carved_size
 from livox_viz.core.compiled import LazyKernels
-from livox_viz.patterns.planes import COS_SERIES, SERIES_LIMIT, SIN_RATIO_SERIES
+from livox_viz.patterns.planes import COS_SERIES, PLANES, SERIES_LIMIT, SIN_RATIO_SERIES
 
 #: A (0, 3) float64 argument for "none" (no rotation, no world rays): the loops test its length.
 _NONE = np.empty((0, 3), dtype=np.float64)
@@ -65,8 +65,8 @@ def sensor_rays(xy_deg: np.ndarray, plane: str, rotation: np.ndarray | None = No
     directions_world : (n, 3) float64 (or float32) or None
         ``rotate_rows(directions_sensor, rotation)``, world NED; None without a rotation.
     """
-    if plane not in ("boresight", "panorama"):
-        raise ValueError(f"pattern plane {plane!r} is not one of 'boresight', 'panorama'")
+    if plane not in PLANES:
+        raise ValueError(f"pattern plane {plane!r}; allowed: {' or '.join(PLANES)}")
     xy = np.ascontiguousarray(xy_deg, dtype=np.float64).reshape(-1, 2)
     count = xy.shape[0]
     sensor, world = ((scratch_rows("sensor", count), scratch_rows("world", count, world_dtype)) if scratch
