@@ -244,11 +244,10 @@ class MountedCaster:
         """The returns of the chunk's rays (each from the sensor's pose at its own time when moving)."""
         parts = [self._cast_part(chunk, first) for first in range(0, max(len(chunk), 1), CAST_PART)]
         found = parts[0] if len(parts) == 1 else {
-            name: None if parts[0][name] is None else np.concatenate([part[name] for part in parts])
-            for name in parts[0]}
+            name: np.concatenate([part[name] for part in parts]) for name in parts[0]}
         return self._frame(chunk.start, chunk.stop, **found)
 
-    def _cast_part(self, chunk: PatternChunk, first: int) -> dict[str, np.ndarray | None]:
+    def _cast_part(self, chunk: PatternChunk, first: int) -> dict[str, np.ndarray]:
         """The returns of the chunk's rays ``first : first + CAST_PART`` (the arrays of :class:`ScanFrame`)."""
         config = self.config
         moving = self.trajectory is not None
