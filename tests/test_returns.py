@@ -491,12 +491,12 @@ def test_sub_rays_taken_from_their_own_triangle_are_those_embree_casts(monkeypat
     taken = []
     own_subrays = return_kernels.kernel("own_subrays")
 
-    def counted(rows: np.ndarray, *arguments: object) -> int:
-        listed = own_subrays(rows, *arguments)
+    def counted(rows: np.ndarray, *arguments: object) -> tuple[int, int]:
+        listed, asked = own_subrays(rows, *arguments)
         taken.append(rows.size * (SUBRAY_WEIGHTS.size - 1) - listed)
-        return listed
+        return listed, asked
 
-    def none_clear(rows: np.ndarray, clear: np.ndarray, *arguments: object) -> int:
+    def none_clear(rows: np.ndarray, clear: np.ndarray, *arguments: object) -> tuple[int, int]:
         return own_subrays(rows, np.zeros_like(clear), *arguments)
 
     monkeypatch.setitem(return_kernels._KERNELS, "own_subrays", counted)

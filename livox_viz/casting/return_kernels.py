@@ -614,16 +614,24 @@ def _probe_limits(rows, probes, triangle, distance, planes, origins, range_max, 
 
 # Step 3: echoes of sampled footprints ------------------------------------------------------------------------------
 def _own_subrays(rows, clear, rays, triangle, planes, origins, inward, offset, range_max, ranges, triangles, slots,
-                 cast_rays, on_own):  # pragma: no cover - compiled
+                 cast_rays, asked, asked_rays, asked_pulse, asked_limit):  # pragma: no cover - compiled
     """Sub-rays ``rays (m, k, 3)`` (ray 0 the central one) of the pulses ``rows`` that land inside their pulse's own
     triangle, strictly (a micrometre per metre of range inside every edge): for a ``clear`` pulse, their range
     from its plane and its index go into ``ranges`` and ``triangles``. Every other sub-ray (1 to k - 1) is listed
     for Embree, in pulse then sub-ray order: its flat index into ``ranges`` in ``slots``, its direction in
-    ``cast_rays``, and in ``on_own`` the range at which it lands inside its own triangle (-1 where it does not).
-    Returns how many are listed."""
+    ``cast_rays``.
+
+    A listed sub-ray that lands inside its own triangle, or one of a pulse whose central ray met nothing, is also
+    asked about (for :func:`_rays_may_meet`): can it meet anything else before its landing (a millimetre beyond
+    the plane: what touches it could still be nearer), resp. before the range? Its row of the list goes in
+    ``asked``, its direction, pulse and that limit in ``asked_rays``, ``asked_pulse`` and ``asked_limit``, and
+    the answer should it meet nothing else in ``ranges`` and ``triangles``: the plane's range and the pulse's
+    triangle, resp. a miss. Returns how many are listed and how many asked.
+    """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
     count = rays.shape[1]
     listed = 0
+    questions = 0
     for m in range(rows.shape[0]):
         i = rows[m]
         t = triangle[i]
@@ -655,9 +663,38 @@ def _own_subrays(rows, clear, rays, triangle, planes, origins, inward, offset, r
             cast_rays[listed, 0] = rays[m, k, 0]
             cast_rays[listed, 1] = rays[m, k, 1]
             cast_rays[listed, 2] = rays[m, k, 2]
-            on_own[listed] = landing
+            if landing >= 0.0 or t < 0:
+                asked[questions] = listed
+                asked_rays[questions, 0] = rays[m, k, 0]
+                asked_rays[questions, 1] = rays[m, k, 1]
+                asked_rays[questions, 2] = rays[m, k, 2]
+                asked_pulse[questions] = i
+                asked_limit[questions] = landing + 1e-3 if t >= 0 else range_max
+                questions += 1
+                # The answer when it can meet nothing else (a cast overwrites it otherwise).
+                ranges[m, k] = landing if t >= 0 else np.inf
+                triangles[m, k] = t
             listed += 1
-    return listed
+    return listed, questions
+
+
+def _free_subrays(listed, asked, meet, slots, cast_rays):  # pragma: no cover - compiled
+    """Of the ``listed`` sub-rays, those asked (rows ``asked``) that can meet nothing else (``meet`` False) keep the
+    answer :func:`_own_subrays` wrote; the others stay listed for Embree, moved up in order in ``slots`` and
+    ``cast_rays``. Returns how many stay."""
+    kept = 0
+    question = 0
+    for j in range(listed):
+        if question < asked.shape[0] and asked[question] == j:
+            question += 1
+            if not meet[question - 1]:
+                continue
+        slots[kept] = slots[j]
+        cast_rays[kept, 0] = cast_rays[j, 0]
+        cast_rays[kept, 1] = cast_rays[j, 1]
+        cast_rays[kept, 2] = cast_rays[j, 2]
+        kept += 1
+    return kept
 
 
 def _cast_subrays(slots, hit, cast_rays, rows, origins, planes, range_max, ranges, triangles):  # pragma: no cover
@@ -696,9 +733,10 @@ def _footprint_echoes(rows, ranges, triangles, rays, weights, planes, brightness
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
     rho_a, r_a, alpha = calibration[0], calibration[1], calibration[2]
     count = weights.shape[0]
-    for m in prange(rows.shape[0]):
-        order = np.empty(count, dtype=np.int64)
-        sub_power = np.empty(count)
+    # One pulse's scratch for all (an allocation a pulse cost a tenth of the loop): the loop is serial.
+    order = np.empty(count, dtype=np.int64)
+    sub_power = np.empty(count)
+    for m in range(rows.shape[0]):
         i = rows[m]
         o = i * stride
         live = 0
@@ -823,9 +861,9 @@ def _detect(whole, power, distance, first, count, e_power, e_range, index, keys,
 
 def _emit(whole, first, count, e_power, e_range, e_spatial, e_unit, unit, distance, seen, measured, chosen, points,
           index, keys, multi, return0, false_reach, blind, directions_sensor, directions_world, origins, jitter,
-          beam, range_out, xyz_sensor, xyz_world, reflectivity, tag, number,
-          returns):  # pragma: no cover - compiled
-    """Pass 2 over the pulses: their points, in pulse order and range order within a pulse.
+          xy, times, point_rate, scale, beam, index_out, t_out, xy_out, range_out, xyz_sensor, xyz_world, int16_out,
+          reflectivity, tag, number, returns):  # pragma: no cover - compiled
+    """Pass 2 over the pulses: their points, in pulse order and range order within a pulse; returns how many.
 
     Each at its measured range along the pulse's direction (turned by the angular noise, ``keys[2]``); the
     reflectivity byte from seen power x the reflectance one unit of power means at that range (``unit`` for a
@@ -833,10 +871,17 @@ def _emit(whole, first, count, e_power, e_range, e_spatial, e_unit, unit, distan
     Lambertian, 151-255 logarithmic from twice to 1000 times a white target's power); the tag (spatial bits,
     return number: 1-3, or 0 for a first return nearer than ``return0``). A false alarm: a range uniform in
     [blind zone, ``false_reach``], byte 0-3, tag spatial 01 and intensity 01.
+
+    With each point its pulse's stream index, time (``times``, or stream index / ``point_rate`` when empty)
+    and pattern angles, and its int16 encoding (``rint`` of the sensor-frame point x ``scale``, clipped, as
+    :func:`~livox_viz.casting.codec.encode_int16`). A point that encodes as (0, 0, 0), which a client reads as
+    "no return", is left out; its pulse's other points keep their return numbers.
     """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
+    given = times.shape[0] > 0
     echoes = e_power.shape[0]
     p = 0
+    kept = 0
     for i in range(whole.shape[0]):
         if points[i] == 0:
             continue
@@ -844,9 +889,9 @@ def _emit(whole, first, count, e_power, e_range, e_spatial, e_unit, unit, distan
         dx, dy, dz = directions_sensor[i, 0], directions_sensor[i, 1], directions_sensor[i, 2]
         if jitter > 0.0:
             a, b = _normal_pair(keys[2], index[i], 0)
-            scale = jitter / math.sqrt(dx * dx + dy * dy)
-            a *= scale
-            b *= scale
+            jitter_scale = jitter / math.sqrt(dx * dx + dy * dy)
+            a *= jitter_scale
+            b *= jitter_scale
             dx, dy, dz = dx - a * dy - b * dz * dx, dy + a * dx - b * dz * dy, dz + b * (dx * dx + dy * dy)
         rows_start = p
         real = chosen[echoes + i] if whole[i] else (count[i] > 0 and _any_chosen(chosen, first[i], count[i]))
@@ -869,20 +914,37 @@ def _emit(whole, first, count, e_power, e_range, e_spatial, e_unit, unit, distan
             reflectivity[p] = math.floor(_uniform(keys[4], index[i], 1) * 4.0)
             tag[p] = 0x05
             p += 1
+        # The pulse's points were written from rows_start; each moves down to the next kept row (kept <= q).
         for q in range(rows_start, p):
             r = range_out[q]
-            beam[q] = i
-            number[q] = q - rows_start + 1
-            returns[q] = p - rows_start
-            bits = number[q] if multi else 1
-            if number[q] == 1 and r < return0:
+            s0, s1, s2 = dx * r, dy * r, dz * r
+            q0, q1, q2 = np.rint(s0 * scale), np.rint(s1 * scale), np.rint(s2 * scale)
+            if q0 == 0.0 and q1 == 0.0 and q2 == 0.0:
+                continue
+            place = q - rows_start + 1
+            bits = place if multi else 1
+            if place == 1 and r < return0:
                 bits = 0
-            tag[q] = tag[q] | (bits << 4)
-            xyz_sensor[q, 0], xyz_sensor[q, 1], xyz_sensor[q, 2] = dx * r, dy * r, dz * r
+            tag[kept] = tag[q] | (bits << 4)
+            reflectivity[kept] = reflectivity[q]
+            range_out[kept] = r
+            number[kept] = place
+            returns[kept] = p - rows_start
+            beam[kept] = i
+            index_out[kept] = index[i]
+            t_out[kept] = times[i] if given else index[i] / point_rate
+            xy_out[kept, 0] = xy[i, 0]
+            xy_out[kept, 1] = xy[i, 1]
+            xyz_sensor[kept, 0], xyz_sensor[kept, 1], xyz_sensor[kept, 2] = s0, s1, s2
+            int16_out[kept, 0] = np.int16(min(max(q0, -32767.0), 32767.0))
+            int16_out[kept, 1] = np.int16(min(max(q1, -32767.0), 32767.0))
+            int16_out[kept, 2] = np.int16(min(max(q2, -32767.0), 32767.0))
             if jitter <= 0.0:
-                xyz_world[q, 0] = origins[o, 0] + directions_world[i, 0] * r
-                xyz_world[q, 1] = origins[o, 1] + directions_world[i, 1] * r
-                xyz_world[q, 2] = origins[o, 2] + directions_world[i, 2] * r
+                xyz_world[kept, 0] = origins[o, 0] + directions_world[i, 0] * r
+                xyz_world[kept, 1] = origins[o, 1] + directions_world[i, 1] * r
+                xyz_world[kept, 2] = origins[o, 2] + directions_world[i, 2] * r
+            kept += 1
+    return kept
 
 
 def _any_chosen(chosen, start, count):  # pragma: no cover - compiled

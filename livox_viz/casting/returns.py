@@ -50,8 +50,11 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from livox_viz.casting.beam import SUBRAY_WEIGHTS, Footprint, TileProxy, TriangleEdges
+from livox_viz.casting.codec import INT16_SCALE
+from livox_viz.casting.ray_kernels import POINT_BLOCKS
 from livox_viz.casting.return_kernels import kernel
 from livox_viz.config.returns_params import ReturnParams
+from livox_viz.core.buffers import carve, carved_size
 from livox_viz.core.rotations import rotate_rows
 from livox_viz.core.streamrandom import stream_key
 from livox_viz.scene.materials import face_materials
@@ -74,6 +77,8 @@ CROSSED_LISTED = 8
 #: The steps :attr:`ReturnModel.stage_seconds` times (summed over the threads that ran them).
 STAGES = ("central rays", "materials, edges and reach", "broad phase", "probes", "footprint sub-rays",
           "detection, noise, tags")
+#: "No times given" for the compiled loops (they test its length).
+_NO_TIMES = np.empty(0, dtype=np.float64)
 #: Turns sensor-frame vectors of some pulses (rows of the run) into the world frame: a moving sensor's own pose
 #: at each pulse's time.
 Turn = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -87,10 +92,18 @@ class ReturnPoints:
     ----------
     beam : (M,) int64
         The pulse of each return, as a row of the run.
+    stream_index : (M,) int64
+        Its pulse's stream index.
+    t : (M,) float64
+        Its pulse's emission time, seconds.
+    xy_deg : (M, 2) float64
+        Its pulse's pattern angles, degrees.
     range_m : (M,) float64
         Measured range, metres.
     xyz_sensor : (M, 3) float64
         The measured point in the sensor FRD frame at its pulse's time, metres.
+    xyz_int16 : (M, 3) int16
+        Its int16 encoding (:func:`~livox_viz.casting.codec.encode_int16`), never (0, 0, 0).
     xyz_world : (M, 3) float64
         The same point in the world NED frame.
     reflectivity : (M,) uint8
@@ -104,8 +117,12 @@ class ReturnPoints:
     """
 
     beam: np.ndarray
+    stream_index: np.ndarray
+    t: np.ndarray
+    xy_deg: np.ndarray
     range_m: np.ndarray
     xyz_sensor: np.ndarray
+    xyz_int16: np.ndarray
     xyz_world: np.ndarray
     reflectivity: np.ndarray
     tag: np.ndarray
@@ -155,10 +172,12 @@ class ReturnModel:
         The scan's maximum range (``otherParams[0]``), metres.
     plane : {"boresight", "panorama"}
         The pattern plane of the angles :meth:`cast` is given (:mod:`livox_viz.patterns.planes`).
+    point_rate : float
+        Pulses per second: a pulse's time is its stream index over it when :meth:`cast` is given none.
     """
 
     def __init__(self, params: ReturnParams, caster, seed: int, range_max: float,
-                 plane: str = "boresight") -> None:
+                 plane: str = "boresight", point_rate: float = 1.0) -> None:
         for method in ("hits", "occluded", "face_planes"):
             if not hasattr(caster, method):
                 raise TypeError(f"the datasheet return model needs a caster with {method!r}")
@@ -167,6 +186,7 @@ class ReturnModel:
         self.seed = int(seed)
         self.range_max = float(range_max)
         self.plane = plane
+        self.point_rate = float(point_rate)
         self.footprint = Footprint(params.divergence_deg)
         self._tables = _scene_tables(caster)
         if "brightness" not in self._tables:
@@ -215,7 +235,8 @@ class ReturnModel:
 
     # The run ------------------------------------------------------------------------------------------
     def cast(self, start: int, xy_deg: np.ndarray, directions_sensor: np.ndarray, directions_world: np.ndarray,
-             origin: np.ndarray, rotation: np.ndarray | None = None, turn: Turn | None = None) -> ReturnPoints:
+             origin: np.ndarray, rotation: np.ndarray | None = None, turn: Turn | None = None,
+             times: np.ndarray | None = None) -> ReturnPoints:
         """The returns of ``n`` consecutive pulses.
 
         A long run is cut into one part per thread of the caster (at least :data:`SPLIT_PULSES` pulses each),
@@ -238,6 +259,8 @@ class ReturnModel:
         turn : callable, optional
             A moving sensor: ``turn(vectors, rows)`` gives the sensor-frame ``vectors`` of the pulses ``rows``
             in the world frame, each with its pulse's pose.
+        times : (n,) float64, optional
+            The pulses' emission times, seconds; default their stream index / ``point_rate``.
         """
         n = xy_deg.shape[0]
         origins = np.asarray(origin, dtype=np.float64).reshape(-1, 3)
@@ -249,7 +272,7 @@ class ReturnModel:
             points, counts = self._cast_run(start + low, xy_deg[low:high], directions_sensor[low:high],
                                             directions_world[low:high],
                                             origins if origins.shape[0] == 1 else origins[low:high], rotation,
-                                            shifted)
+                                            shifted, None if times is None else times[low:high])
             np.add(points.beam, low, out=points.beam)  # rows of the whole run
             return points, counts
 
@@ -266,7 +289,7 @@ class ReturnModel:
 
     def _cast_run(self, start: int, xy_deg: np.ndarray, directions_sensor: np.ndarray,
                   directions_world: np.ndarray, origin: np.ndarray, rotation: np.ndarray | None,
-                  turn: Turn | None) -> tuple[ReturnPoints, dict[str, int]]:
+                  turn: Turn | None, times: np.ndarray | None) -> tuple[ReturnPoints, dict[str, int]]:
         """:meth:`cast` of one part in the calling thread, with what its footprint tests sent on."""
         self._laps.clock = time.perf_counter()
         params, footprint = self.params, self.footprint
@@ -316,7 +339,7 @@ class ReturnModel:
             footprint_echoes = [np.zeros(0), np.zeros(0), np.zeros(0, np.uint8), np.zeros(0)]
         self._lap("footprint sub-rays")
         points = self._points(whole, power, unit, distance, first, count, footprint_echoes, index,
-                              directions_sensor, directions_world, origins, rotation, turn)
+                              directions_sensor, directions_world, origins, rotation, turn, xy_deg, times)
         self._lap("detection, noise, tags")
         return points, counts
 
@@ -364,7 +387,7 @@ class ReturnModel:
                                 self.range_max, None if moving else rotation)
         # A fixed sensor's beams look up their direction's boxes (a boresight grid: not for a panoramic head).
         in_grid = None if moving or self.plane != "boresight" else directions_sensor
-        crossed = np.empty((triangle.size, CROSSED_LISTED), np.int64)
+        crossed = np.empty((triangle.size, CROSSED_LISTED), np.int32)
         near = proxy.near(np.ones(triangle.size, dtype=np.bool_), origins, directions_world, reach, triangle,
                           in_grid, boxes, crossed)
         rows = np.flatnonzero(near & ~leaves)
@@ -411,27 +434,20 @@ class ReturnModel:
         triangles = np.empty((m, count), dtype=np.int64)
         ranges[:, 0], triangles[:, 0] = distance[rows], triangle[rows]
         edges = self.edges
-        slots = np.empty(m * (count - 1), np.int64)
-        listed_rays = np.empty((m * (count - 1), 3), np.float32)
-        on_own = np.empty(m * (count - 1))
-        listed = kernel("own_subrays")(rows, np.ascontiguousarray(clear, dtype=np.bool_), rays, triangle,
-                                       self.caster.face_planes, origins, edges.inward, edges.offset, self.range_max,
-                                       ranges, triangles, slots, listed_rays, on_own)
-        slots, sub_rays, on_own = slots[:listed], listed_rays[:listed], on_own[:listed]
+        most = m * (count - 1)
+        slots, listed_rays = np.empty(most, np.int64), np.empty((most, 3), np.float32)
+        asked, asked_rays = np.empty(most, np.int64), np.empty((most, 3), np.float32)
+        asked_pulse, asked_limit = np.empty(most, np.int64), np.empty(most)
+        listed, questions = kernel("own_subrays")(rows, np.ascontiguousarray(clear, dtype=np.bool_), rays, triangle,
+                                                  self.caster.face_planes, origins, edges.inward, edges.offset,
+                                                  self.range_max, ranges, triangles, slots, listed_rays, asked,
+                                                  asked_rays, asked_pulse, asked_limit)
         # A sub-ray that lands on its own triangle, or one of a pulse whose central ray met nothing, and that can
-        # meet nothing else before there (a millimetre beyond the plane: what touches it could still be nearer),
-        # resp. before the range: the plane's range, resp. a miss, without a cast.
-        pulse = rows[slots // count]
-        missed = triangle[pulse] < 0
-        asked = np.flatnonzero((on_own >= 0) | missed)
-        if asked.size:
-            free = asked[~may_meet(pulse[asked], sub_rays[asked],
-                                   np.where(missed[asked], self.range_max, on_own[asked] + 1e-3))]
-            ranges.reshape(-1)[slots[free]] = np.where(missed[free], np.inf, on_own[free])
-            triangles.reshape(-1)[slots[free]] = np.where(missed[free], -1, triangle[pulse[free]])
-            kept = np.ones(listed, dtype=np.bool_)
-            kept[free] = False
-            slots, sub_rays = slots[kept], sub_rays[kept]
+        # meet nothing else before there, resp. before the range: the plane's range, resp. a miss, without a cast.
+        if questions:
+            meet = may_meet(asked_pulse[:questions], asked_rays[:questions], asked_limit[:questions])
+            listed = kernel("free_subrays")(listed, asked[:questions], meet, slots, listed_rays)
+        slots, sub_rays = slots[:listed], listed_rays[:listed]
         ray_origin = origins[0] if not moving else origins[rows[slots // count]]
         if hasattr(self.caster, "triangle_ids"):
             # The sub-rays' triangles from Embree, their ranges from those triangles' planes.
@@ -454,8 +470,10 @@ class ReturnModel:
     def _points(self, whole: np.ndarray, power: np.ndarray, unit: np.ndarray, distance: np.ndarray, first: np.ndarray,
                 count: np.ndarray, footprint_echoes: list[np.ndarray], index: np.ndarray,
                 directions_sensor: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
-                rotation: np.ndarray, turn: Turn | None) -> ReturnPoints:
-        """Detection, selection, noise, reflectivity and tags, false alarms: the run's points in pulse order."""
+                rotation: np.ndarray, turn: Turn | None, xy_deg: np.ndarray,
+                times: np.ndarray | None) -> ReturnPoints:
+        """Detection, selection, noise, reflectivity and tags, false alarms: the run's points in pulse order, each
+        with its pulse's index, time and angles and its int16 encoding (none that encodes as (0, 0, 0))."""
         params = self.params
         e_power, e_range, e_spatial, e_unit = footprint_echoes
         rows = e_power.size + whole.size
@@ -465,20 +483,30 @@ class ReturnModel:
         total = kernel("detect")(whole, power, distance, first, count, e_power, e_range, index, keys,
                                  params.detection_snr, self._sigma_table, params.blind_zone_m, self.range_max,
                                  params.returns_per_pulse, params.false_alarm_rate, seen, measured, chosen, points)
-        beam, range_m = np.empty(total, np.int64), np.empty(total)
-        xyz_sensor, xyz_world = np.empty((total, 3)), np.empty((total, 3))
-        reflectivity, tag = np.empty(total, np.uint8), np.empty(total, np.uint8)
-        number, returns = np.empty(total, np.uint8), np.empty(total, np.uint8)
+        layout = [("beam", (total,), np.int64), ("stream_index", (total,), np.int64), ("t", (total,), np.float64),
+                  ("xy_deg", (total, 2), np.float64), ("range_m", (total,), np.float64),
+                  ("xyz_sensor", (total, 3), np.float64), ("xyz_int16", (total, 3), np.int16),
+                  ("xyz_world", (total, 3), np.float64), ("reflectivity", (total,), np.uint8),
+                  ("tag", (total,), np.uint8), ("return_number", (total,), np.uint8),
+                  ("number_of_returns", (total,), np.uint8)]
+        out = carve(POINT_BLOCKS.get(carved_size(layout)), layout)
         jitter = float(np.radians(params.angular_sigma_deg))
-        kernel("emit")(whole, first, count, e_power, e_range, e_spatial, e_unit, unit, distance, seen, measured,
-                       chosen, points, index, keys, params.returns_per_pulse > 1, params.return0_range_m,
-                       self.false_alarm_reach, params.blind_zone_m, np.ascontiguousarray(directions_sensor),
-                       directions_world, origins, jitter, beam, range_m, xyz_sensor, xyz_world, reflectivity, tag,
-                       number, returns)
-        if jitter > 0 and total:
+        kept = kernel("emit")(whole, first, count, e_power, e_range, e_spatial, e_unit, unit, distance, seen,
+                              measured, chosen, points, index, keys, params.returns_per_pulse > 1,
+                              params.return0_range_m, self.false_alarm_reach, params.blind_zone_m,
+                              np.ascontiguousarray(directions_sensor), directions_world, origins, jitter, xy_deg,
+                              _NO_TIMES if times is None else np.ascontiguousarray(times, dtype=np.float64),
+                              self.point_rate, INT16_SCALE / self.range_max, out["beam"], out["stream_index"],
+                              out["t"], out["xy_deg"], out["range_m"], out["xyz_sensor"], out["xyz_world"],
+                              out["xyz_int16"], out["reflectivity"], out["tag"], out["return_number"],
+                              out["number_of_returns"])
+        if kept < total:
+            out = {name: values[:kept] for name, values in out.items()}
+        if jitter > 0 and kept:
+            xyz_sensor, beam = out["xyz_sensor"], out["beam"]
             turned = rotate_rows(xyz_sensor, rotation) if turn is None else turn(xyz_sensor, beam)
-            xyz_world = (origins[0] if origins.shape[0] == 1 else origins[beam]) + turned
-        return ReturnPoints(beam, range_m, xyz_sensor, xyz_world, reflectivity, tag, number, returns)
+            np.add(origins[0] if origins.shape[0] == 1 else origins[beam], turned, out=out["xyz_world"])
+        return ReturnPoints(**out)
 
 
 def reflectivity_byte(reflectance: np.ndarray) -> np.ndarray:

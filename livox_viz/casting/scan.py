@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from livox_viz.casting.codec import decode_int16, encode_int16
+from livox_viz.casting.codec import decode_int16
 from livox_viz.casting.ray_kernels import ideal_points, scratch_rows, sensor_rays
 from livox_viz.config.mount import sensor_mount, sensor_world_pose
 from livox_viz.config.sensor import SensorConfig
@@ -213,7 +213,7 @@ class MountedCaster:
             from livox_viz.casting.returns import ReturnModel
 
             self.returns = ReturnModel(config.return_params, self.caster, seed, config.range_max,
-                                       config.pattern_plane)
+                                       config.pattern_plane, config.point_rate)
         self.trajectory = trajectory
         self.vehicle_pose = trajectory.pose_at(trajectory.span[0]) if trajectory is not None else (
             vehicle_pose or Pose())
@@ -252,10 +252,9 @@ class MountedCaster:
         config = self.config
         moving = self.trajectory is not None
         xy = chunk.xy_deg[first : first + CAST_PART]
-        # The ideal path of a fixed sensor reads only the hits' times: a chunk whose times were never made
-        # (k / rate) does not make them.
-        needs_times = moving or self.returns is not None or chunk.times_held is not None
-        t = chunk.t[first : first + CAST_PART] if needs_times else None
+        # A fixed sensor reads only the hits' times: a chunk whose times were never made (k / rate) does not
+        # make them.
+        t = chunk.t[first : first + CAST_PART] if moving or chunk.times_held is not None else None
         # Both models are done with the rays before this thread's next part (what they return is made anew):
         # the rays go in the thread's scratch arrays.
         if moving:
@@ -276,20 +275,8 @@ class MountedCaster:
             return ideal_points(distance, directions_sensor, float64_world, origin, xy, t, chunk.start + first,
                                 config.point_rate, config.range_max, self.sensor_pose.rotation)
         found = self.returns.cast(chunk.start + first, xy, directions_sensor, directions_world, origin,
-                                  None if moving else self.sensor_pose.rotation, self._turn(t) if moving else None)
-        xyz_int16 = encode_int16(found.xyz_sensor, config.range_max)
-        # A point nearer than half an int16 step would be published as (0, 0, 0), which a client reads as
-        # "no return": it is left out, like a ray that returns nothing.
-        # (columns or-ed: any(axis=1) over rows of three int16 runs ten times slower)
-        keep = (xyz_int16[:, 0] | xyz_int16[:, 1] | xyz_int16[:, 2]) != 0
-        rows = found.beam
-        columns = {"stream_index": chunk.start + first + rows, "t": t[rows], "xy_deg": np.take(xy, rows, axis=0),
-                   "range_m": found.range_m, "xyz_sensor": found.xyz_sensor, "xyz_int16": xyz_int16,
-                   "xyz_world": found.xyz_world, "reflectivity": found.reflectivity, "tag": found.tag,
-                   "return_number": found.return_number, "number_of_returns": found.number_of_returns}
-        if keep.all():
-            return columns
-        return {name: values[keep] for name, values in columns.items()}
+                                  None if moving else self.sensor_pose.rotation, self._turn(t) if moving else None, t)
+        return {name: getattr(found, name) for name in _RETURN_ARRAYS}
 
     def _frame(self, start: int, stop: int, **returns: np.ndarray | None) -> ScanFrame:
         """The frame of the rays ``start:stop`` (stream indices) and their ``returns`` (the arrays of
