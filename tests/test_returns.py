@@ -439,7 +439,7 @@ def test_the_compiled_random_numbers_are_streamrandoms() -> None:
     from livox_viz.casting import return_kernels
     from livox_viz.core.streamrandom import stream_key, stream_normal, stream_uniform
 
-    return_kernels.kernel("detect")  # compiles the shared helpers too
+    return_kernels.kernel("emit")  # compiles the shared helpers too
     # Indices spread over the whole 24-bit angle and radius (the compiled angle comes from a table and a series).
     index = np.concatenate([[0, 1, 7, 123_456_789, 2**40 + 3],
                             np.random.default_rng(1).integers(0, 2**40, 3000)])

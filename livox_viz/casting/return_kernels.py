@@ -23,7 +23,7 @@ from livox_viz.core.compiled import LazyKernels
 
 #: The small functions the loops call: compiled (in this module's namespace) before the first loop is.
 _HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_plane_range", "_slab_span", "_slab", "_in_hull",
-            "_near_flat", "_basis_at", "_any_chosen", "_byte")
+            "_near_flat", "_basis_at", "_byte")
 
 
 #: The loops that would run their pulses on every core (``prange``). None does: on this 2-core machine shared
@@ -799,34 +799,55 @@ def _footprint_echoes(rows, ranges, triangles, rays, weights, planes, brightness
 
 
 # Steps 4 and 5: detection, selection, noise, bytes, tags, false alarms ------------------------------------------------
-def _detect(whole, power, distance, first, count, e_power, e_range, index, keys, snr, sigma_table, blind,
-            range_max, keep_returns, false_rate, seen, measured, chosen, points):  # pragma: no cover - compiled
-    """Pass 1 over the pulses: which echoes each reports (``chosen``) and how many points (``points``, a false
-    alarm counted); returns how many in all.
+def _emit(whole, power, distance, unit, first, count, e_power, e_range, e_spatial, e_unit, index, keys, snr,
+          sigma_table, blind, range_max, keep_returns, false_rate, return0, false_reach, directions_sensor,
+          directions_world, origins, jitter, xy, times, point_rate, scale, seen, measured, chosen, beam, index_out,
+          t_out, xy_out, range_out, xyz_sensor, int16_out, xyz_world, reflectivity, tag, number,
+          returns):  # pragma: no cover - compiled
+    """Detection, selection and the points of every pulse, in pulse order and range order within a pulse; returns
+    how many points. The outputs hold at least one row a pulse and one a footprint echo.
 
-    A pulse is ``whole`` (one echo, its central hit's ``power`` at ``distance``, kept at row ``E + i`` of
-    ``seen``, ``measured`` and ``chosen``, E the footprint echoes' count) or has ``count[i]`` footprint echoes
-    from row ``first[i]``, in range order. Receiver noise (the detection's and the intensity's) and range noise
-    are one normal pair per echo: the pulse's first pair (``keys[0]``) for its nearest echo, the later stream's
-    pair ``slot - 1`` (``keys[1]``) for the others. An echo is seen when power plus noise / ``snr`` passes 1 and
-    its measured range lies in [blind zone, range_max]; when more are seen than ``keep_returns``, the first and
-    then the strongest others are kept. A pulse left without a point reports a false alarm with probability
-    ``false_rate`` (``keys[3]``).
+    A pulse is ``whole`` (one echo: its central hit's ``power`` at ``distance``) or has ``count[i]`` footprint
+    echoes from row ``first[i]`` of ``e_power``, ``e_range``, in range order (``seen``, ``measured`` and
+    ``chosen`` are their scratch). Receiver noise (the detection's and the intensity's) and range noise are one
+    normal pair per echo: the pulse's first pair (``keys[0]``) for its nearest echo, the later stream's pair
+    ``slot - 1`` (``keys[1]``) for the others. An echo is seen when power plus noise / ``snr`` passes 1 and its
+    measured range lies in [blind zone, range_max]; when more are seen than ``keep_returns``, the first and then
+    the strongest others are kept. A pulse left without a point reports a false alarm with probability
+    ``false_rate`` (``keys[3]``): a range uniform in [blind zone, ``false_reach``] (``keys[4]``), byte 0-3,
+    tag spatial 01 and intensity 01.
+
+    Each point lies at its measured range along the pulse's direction (turned by the angular noise,
+    ``keys[2]``); its reflectivity byte comes from seen power x the reflectance one unit of power means at
+    that range (``unit`` for a whole pulse, ``e_unit`` for a footprint echo; 0-150 Lambertian, 151-255
+    logarithmic from twice to 1000 times a white target's power); its tag has the spatial bits and the return
+    number (1-3, or 0 for a first return nearer than ``return0``).
+
+    With each point its pulse's stream index, time (``times``, or stream index / ``point_rate`` when empty)
+    and pattern angles, and its int16 encoding (``rint`` of the sensor-frame point x ``scale``, clipped, as
+    :func:`~livox_viz.casting.codec.encode_int16`). A point that encodes as (0, 0, 0), which a client reads as
+    "no return", is left out; its pulse's other points keep their return numbers.
     """
-    echoes = e_power.shape[0]
-    total = 0
+    stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
+    given = times.shape[0] > 0
+    multi = keep_returns > 1
+    p = 0
+    kept = 0
     for i in range(whole.shape[0]):
-        kept = 0
+        rows_start = p
         if whole[i]:
-            e = echoes + i
             a, b = _normal_pair(keys[0], index[i], 0)
-            seen[e] = power[i] + a / snr
-            measured[e] = distance[i] + _sigma(distance[i], sigma_table) * b
-            chosen[e] = seen[e] > 1.0 and blind <= measured[e] <= range_max
-            kept = 1 if chosen[e] else 0
+            heard = power[i] + a / snr
+            at = distance[i] + _sigma(distance[i], sigma_table) * b
+            if heard > 1.0 and blind <= at <= range_max:
+                range_out[p] = at
+                reflectivity[p] = _byte(heard * unit[i])
+                tag[p] = 0
+                p += 1
         elif count[i] > 0:
             start = first[i]
             stop = start + count[i]
+            heard_count = 0
             for e in range(start, stop):
                 if e == start:
                     a, b = _normal_pair(keys[0], index[i], 0)
@@ -836,8 +857,8 @@ def _detect(whole, power, distance, first, count, e_power, e_range, index, keys,
                 measured[e] = e_range[e] + _sigma(e_range[e], sigma_table) * b
                 chosen[e] = seen[e] > 1.0 and blind <= measured[e] <= range_max
                 if chosen[e]:
-                    kept += 1
-            if kept > keep_returns:
+                    heard_count += 1
+            if heard_count > keep_returns:
                 picked = np.zeros(stop - start, dtype=np.bool_)
                 nearest = start
                 while not chosen[nearest]:
@@ -851,40 +872,20 @@ def _detect(whole, power, distance, first, count, e_power, e_range, index, keys,
                     picked[best - start] = True
                 for e in range(start, stop):
                     chosen[e] = picked[e - start]
-                kept = keep_returns
-        if kept == 0 and false_rate > 0.0 and _uniform(keys[3], index[i], 0) < false_rate:
-            kept = 1
-        points[i] = kept
-        total += kept
-    return total
-
-
-def _emit(whole, first, count, e_power, e_range, e_spatial, e_unit, unit, distance, seen, measured, chosen, points,
-          index, keys, multi, return0, false_reach, blind, directions_sensor, directions_world, origins, jitter,
-          xy, times, point_rate, scale, beam, index_out, t_out, xy_out, range_out, xyz_sensor, xyz_world, int16_out,
-          reflectivity, tag, number, returns):  # pragma: no cover - compiled
-    """Pass 2 over the pulses: their points, in pulse order and range order within a pulse; returns how many.
-
-    Each at its measured range along the pulse's direction (turned by the angular noise, ``keys[2]``); the
-    reflectivity byte from seen power x the reflectance one unit of power means at that range (``unit`` for a
-    whole pulse, ``e_unit`` for a footprint echo; 0-150
-    Lambertian, 151-255 logarithmic from twice to 1000 times a white target's power); the tag (spatial bits,
-    return number: 1-3, or 0 for a first return nearer than ``return0``). A false alarm: a range uniform in
-    [blind zone, ``false_reach``], byte 0-3, tag spatial 01 and intensity 01.
-
-    With each point its pulse's stream index, time (``times``, or stream index / ``point_rate`` when empty)
-    and pattern angles, and its int16 encoding (``rint`` of the sensor-frame point x ``scale``, clipped, as
-    :func:`~livox_viz.casting.codec.encode_int16`). A point that encodes as (0, 0, 0), which a client reads as
-    "no return", is left out; its pulse's other points keep their return numbers.
-    """
-    stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
-    given = times.shape[0] > 0
-    echoes = e_power.shape[0]
-    p = 0
-    kept = 0
-    for i in range(whole.shape[0]):
-        if points[i] == 0:
-            continue
+            for e in range(start, stop):
+                if chosen[e]:
+                    range_out[p] = measured[e]
+                    reflectivity[p] = _byte(seen[e] * e_unit[e])
+                    tag[p] = e_spatial[e]
+                    p += 1
+        if p == rows_start:
+            if not (false_rate > 0.0 and _uniform(keys[3], index[i], 0) < false_rate):
+                continue
+            near_end = min(max(blind, 0.1), false_reach)
+            range_out[p] = near_end + _uniform(keys[4], index[i], 0) * (false_reach - near_end)
+            reflectivity[p] = math.floor(_uniform(keys[4], index[i], 1) * 4.0)
+            tag[p] = 0x05
+            p += 1
         o = i * stride
         dx, dy, dz = directions_sensor[i, 0], directions_sensor[i, 1], directions_sensor[i, 2]
         if jitter > 0.0:
@@ -893,27 +894,6 @@ def _emit(whole, first, count, e_power, e_range, e_spatial, e_unit, unit, distan
             a *= jitter_scale
             b *= jitter_scale
             dx, dy, dz = dx - a * dy - b * dz * dx, dy + a * dx - b * dz * dy, dz + b * (dx * dx + dy * dy)
-        rows_start = p
-        real = chosen[echoes + i] if whole[i] else (count[i] > 0 and _any_chosen(chosen, first[i], count[i]))
-        if real and whole[i]:
-            e = echoes + i
-            range_out[p] = measured[e]
-            reflectivity[p] = _byte(seen[e] * unit[i])
-            tag[p] = 0
-            p += 1
-        elif real:
-            for e in range(first[i], first[i] + count[i]):
-                if chosen[e]:
-                    range_out[p] = measured[e]
-                    reflectivity[p] = _byte(seen[e] * e_unit[e])
-                    tag[p] = e_spatial[e]
-                    p += 1
-        else:  # a false alarm
-            near_end = min(max(blind, 0.1), false_reach)
-            range_out[p] = near_end + _uniform(keys[4], index[i], 0) * (false_reach - near_end)
-            reflectivity[p] = math.floor(_uniform(keys[4], index[i], 1) * 4.0)
-            tag[p] = 0x05
-            p += 1
         # The pulse's points were written from rows_start; each moves down to the next kept row (kept <= q).
         for q in range(rows_start, p):
             r = range_out[q]
@@ -944,14 +924,8 @@ def _emit(whole, first, count, e_power, e_range, e_spatial, e_unit, unit, distan
                 xyz_world[kept, 1] = origins[o, 1] + directions_world[i, 1] * r
                 xyz_world[kept, 2] = origins[o, 2] + directions_world[i, 2] * r
             kept += 1
+        p = kept  # the next pulse writes after the rows kept
     return kept
-
-
-def _any_chosen(chosen, start, count):  # pragma: no cover - compiled
-    for e in range(start, start + count):
-        if chosen[e]:
-            return True
-    return False
 
 
 def _byte(value):  # pragma: no cover - compiled

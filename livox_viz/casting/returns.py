@@ -476,13 +476,9 @@ class ReturnModel:
         with its pulse's index, time and angles and its int16 encoding (none that encodes as (0, 0, 0))."""
         params = self.params
         e_power, e_range, e_spatial, e_unit = footprint_echoes
-        rows = e_power.size + whole.size
-        seen, measured, chosen = np.empty(rows), np.empty(rows), np.zeros(rows, dtype=np.bool_)
-        points = np.empty(whole.size, np.int64)
-        keys = self._key_array
-        total = kernel("detect")(whole, power, distance, first, count, e_power, e_range, index, keys,
-                                 params.detection_snr, self._sigma_table, params.blind_zone_m, self.range_max,
-                                 params.returns_per_pulse, params.false_alarm_rate, seen, measured, chosen, points)
+        echoes = e_power.size
+        seen, measured, chosen = np.empty(echoes), np.empty(echoes), np.empty(echoes, dtype=np.bool_)
+        total = whole.size + echoes  # at most a point a pulse and one a footprint echo
         layout = [("beam", (total,), np.int64), ("stream_index", (total,), np.int64), ("t", (total,), np.float64),
                   ("xy_deg", (total, 2), np.float64), ("range_m", (total,), np.float64),
                   ("xyz_sensor", (total, 3), np.float64), ("xyz_int16", (total, 3), np.int16),
@@ -491,15 +487,13 @@ class ReturnModel:
                   ("number_of_returns", (total,), np.uint8)]
         out = carve(POINT_BLOCKS.get(carved_size(layout)), layout)
         jitter = float(np.radians(params.angular_sigma_deg))
-        kept = kernel("emit")(whole, first, count, e_power, e_range, e_spatial, e_unit, unit, distance, seen,
-                              measured, chosen, points, index, keys, params.returns_per_pulse > 1,
-                              params.return0_range_m, self.false_alarm_reach, params.blind_zone_m,
-                              np.ascontiguousarray(directions_sensor), directions_world, origins, jitter, xy_deg,
+        kept = kernel("emit")(whole, power, distance, unit, first, count, e_power, e_range, e_spatial, e_unit, index,
+                              self._key_array, params.detection_snr, self._sigma_table, params.blind_zone_m,
+                              self.range_max, params.returns_per_pulse, params.false_alarm_rate,
+                              params.return0_range_m, self.false_alarm_reach, np.ascontiguousarray(directions_sensor),
+                              directions_world, origins, jitter, xy_deg,
                               _NO_TIMES if times is None else np.ascontiguousarray(times, dtype=np.float64),
-                              self.point_rate, INT16_SCALE / self.range_max, out["beam"], out["stream_index"],
-                              out["t"], out["xy_deg"], out["range_m"], out["xyz_sensor"], out["xyz_world"],
-                              out["xyz_int16"], out["reflectivity"], out["tag"], out["return_number"],
-                              out["number_of_returns"])
+                              self.point_rate, INT16_SCALE / self.range_max, seen, measured, chosen, *out.values())
         if kept < total:
             out = {name: values[:kept] for name, values in out.items()}
         if jitter > 0 and kept:

@@ -13,6 +13,7 @@ overwritten.
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 import threading
@@ -104,7 +105,7 @@ def carve(block: np.ndarray, layout: list[tuple[str, tuple[int, ...], type]]) ->
     arrays = {}
     offset = 0
     for name, shape, dtype in layout:
-        size = int(np.prod(shape)) * np.dtype(dtype).itemsize
+        size = math.prod(shape) * np.dtype(dtype).itemsize  # (np.prod of a tuple: 5 us, a twelfth of a frame's glue)
         arrays[name] = block[offset : offset + size].view(dtype).reshape(shape)
         offset += -(-size // 8) * 8
     return arrays
@@ -112,4 +113,4 @@ def carve(block: np.ndarray, layout: list[tuple[str, tuple[int, ...], type]]) ->
 
 def carved_size(layout: list[tuple[str, tuple[int, ...], type]]) -> int:
     """Bytes :func:`carve` needs for ``layout``."""
-    return sum(-(-int(np.prod(shape)) * np.dtype(dtype).itemsize // 8) * 8 for _, shape, dtype in layout)
+    return sum(-(-math.prod(shape) * np.dtype(dtype).itemsize // 8) * 8 for _, shape, dtype in layout)
