@@ -365,6 +365,24 @@ def test_no_point_at_the_origin_and_false_alarms_at_the_sheets_rate() -> None:
     assert np.all(np.abs(joined(frames, "xyz_int16")).max(axis=1) > 0)
 
 
+def test_more_false_alarms_than_rows_kept_for_them_gives_the_same_cloud(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The points' arrays are first sized for the pulses that can return and a few times the false alarms
+    expected; a run with more casts its points again into arrays for all of them. Nothing in front of the
+    sensor and no rows kept for false alarms: every run takes that path, and the cloud is the one the roomy
+    arrays give."""
+    from livox_viz.casting import returns as returns_module
+
+    cfg = at_origin("livox_mid70_risley", false_alarm_rate=0.01)
+    behind = surface(trimesh.creation.box((1, 1, 1), trimesh.transformations.translation_matrix((-5, 0, 0))), 0.5)
+    roomy, _ = scan(cfg, behind, 0.3, seed=4)
+    monkeypatch.setattr(returns_module, "FALSE_ALARM_ROWS", (0.0, 0))
+    tight, _ = scan(cfg, behind, 0.3, seed=4)
+    assert sum(len(f) for f in roomy) > 150 and np.all((joined(roomy, "tag") & 0x0F) == 0x05)
+    for name in ("stream_index", "t", "xy_deg", "range_m", "xyz_int16", "xyz_world", "reflectivity", "tag",
+                 "return_number", "number_of_returns"):
+        assert np.array_equal(joined(roomy, name), joined(tight, name)), name
+
+
 def test_the_sky_gives_no_points_without_false_alarms() -> None:
     cfg = at_origin("livox_mid70_risley", false_alarm_rate=0.0)
     behind = surface(trimesh.creation.box((1, 1, 1), trimesh.transformations.translation_matrix((-5, 0, 0))), 0.5)

@@ -805,7 +805,8 @@ def _emit(whole, power, distance, unit, first, count, e_power, e_range, e_spatia
           t_out, xy_out, range_out, xyz_sensor, int16_out, xyz_world, reflectivity, tag, number,
           returns):  # pragma: no cover - compiled
     """Detection, selection and the points of every pulse, in pulse order and range order within a pulse; returns
-    how many points. The outputs hold at least one row a pulse and one a footprint echo.
+    how many points, or -1 when the outputs are too short. They need a row a ``whole`` pulse, one a footprint
+    echo, and one a false alarm.
 
     A pulse is ``whole`` (one echo: its central hit's ``power`` at ``distance``) or has ``count[i]`` footprint
     echoes from row ``first[i]`` of ``e_power``, ``e_range``, in range order (``seen``, ``measured`` and
@@ -881,6 +882,8 @@ def _emit(whole, power, distance, unit, first, count, e_power, e_range, e_spatia
         if p == rows_start:
             if not (false_rate > 0.0 and _uniform(keys[3], index[i], 0) < false_rate):
                 continue
+            if p >= range_out.shape[0]:
+                return -1  # more false alarms than the outputs were sized for
             near_end = min(max(blind, 0.1), false_reach)
             range_out[p] = near_end + _uniform(keys[4], index[i], 0) * (false_reach - near_end)
             reflectivity[p] = math.floor(_uniform(keys[4], index[i], 1) * 4.0)

@@ -72,6 +72,8 @@ INTENSITY_NOISE = 0x04
 MIX_FLOOR_M = 0.05
 #: Pulses a part of :meth:`ReturnModel.cast` has at least when a run is cut over the caster's threads.
 SPLIT_PULSES = 2048
+#: Rows for false alarms in a run's points, first try: this many times those expected, and this many more.
+FALSE_ALARM_ROWS = (4.0, 64)
 #: Tiles the broad phase lists per beam for the narrow phase (a beam crossing more may meet something anywhere).
 CROSSED_LISTED = 8
 #: The steps :attr:`ReturnModel.stage_seconds` times (summed over the threads that ran them).
@@ -475,10 +477,36 @@ class ReturnModel:
         """Detection, selection, noise, reflectivity and tags, false alarms: the run's points in pulse order, each
         with its pulse's index, time and angles and its int16 encoding (none that encodes as (0, 0, 0))."""
         params = self.params
-        e_power, e_range, e_spatial, e_unit = footprint_echoes
-        echoes = e_power.size
+        echoes = footprint_echoes[0].size
         seen, measured, chosen = np.empty(echoes), np.empty(echoes), np.empty(echoes, dtype=np.bool_)
-        total = whole.size + echoes  # at most a point a pulse and one a footprint echo
+        # A point a whole pulse and a footprint echo at most, and a false alarm from a pulse without either: rows
+        # for a few times the expected false alarms, and for all of them in the rare run that has more (sized for
+        # every pulse, the blocks were a third larger than the points: they faulted in pages again).
+        whole_pulses = int(np.count_nonzero(whole))
+        others = whole.size - whole_pulses
+        scale, least = FALSE_ALARM_ROWS
+        for total in (whole_pulses + echoes + min(others, int(scale * params.false_alarm_rate * others) + least),
+                      whole.size + echoes):
+            out = self._emit(total, whole, power, distance, unit, first, count, footprint_echoes, index,
+                             directions_sensor, directions_world, origins, xy_deg, times, seen, measured, chosen)
+            if out is not None:
+                break
+        jitter = float(np.radians(params.angular_sigma_deg))
+        if jitter > 0 and out["beam"].size:
+            xyz_sensor, beam = out["xyz_sensor"], out["beam"]
+            turned = rotate_rows(xyz_sensor, rotation) if turn is None else turn(xyz_sensor, beam)
+            np.add(origins[0] if origins.shape[0] == 1 else origins[beam], turned, out=out["xyz_world"])
+        return ReturnPoints(**out)
+
+    def _emit(self, total: int, whole: np.ndarray, power: np.ndarray, distance: np.ndarray, unit: np.ndarray,
+              first: np.ndarray, count: np.ndarray, footprint_echoes: list[np.ndarray], index: np.ndarray,
+              directions_sensor: np.ndarray, directions_world: np.ndarray, origins: np.ndarray, xy_deg: np.ndarray,
+              times: np.ndarray | None, seen: np.ndarray, measured: np.ndarray,
+              chosen: np.ndarray) -> dict[str, np.ndarray] | None:
+        """The compiled pass of :meth:`_points` into arrays of ``total`` rows (views of a recycled block), cut to
+        the points written; None when ``total`` rows were too few."""
+        params = self.params
+        e_power, e_range, e_spatial, e_unit = footprint_echoes
         layout = [("beam", (total,), np.int64), ("stream_index", (total,), np.int64), ("t", (total,), np.float64),
                   ("xy_deg", (total, 2), np.float64), ("range_m", (total,), np.float64),
                   ("xyz_sensor", (total, 3), np.float64), ("xyz_int16", (total, 3), np.int16),
@@ -486,21 +514,16 @@ class ReturnModel:
                   ("tag", (total,), np.uint8), ("return_number", (total,), np.uint8),
                   ("number_of_returns", (total,), np.uint8)]
         out = carve(POINT_BLOCKS.get(carved_size(layout)), layout)
-        jitter = float(np.radians(params.angular_sigma_deg))
         kept = kernel("emit")(whole, power, distance, unit, first, count, e_power, e_range, e_spatial, e_unit, index,
                               self._key_array, params.detection_snr, self._sigma_table, params.blind_zone_m,
                               self.range_max, params.returns_per_pulse, params.false_alarm_rate,
                               params.return0_range_m, self.false_alarm_reach, np.ascontiguousarray(directions_sensor),
-                              directions_world, origins, jitter, xy_deg,
+                              directions_world, origins, float(np.radians(params.angular_sigma_deg)), xy_deg,
                               _NO_TIMES if times is None else np.ascontiguousarray(times, dtype=np.float64),
                               self.point_rate, INT16_SCALE / self.range_max, seen, measured, chosen, *out.values())
-        if kept < total:
-            out = {name: values[:kept] for name, values in out.items()}
-        if jitter > 0 and kept:
-            xyz_sensor, beam = out["xyz_sensor"], out["beam"]
-            turned = rotate_rows(xyz_sensor, rotation) if turn is None else turn(xyz_sensor, beam)
-            np.add(origins[0] if origins.shape[0] == 1 else origins[beam], turned, out=out["xyz_world"])
-        return ReturnPoints(**out)
+        if kept < 0:
+            return None
+        return out if kept == total else {name: values[:kept] for name, values in out.items()}
 
 
 def reflectivity_byte(reflectance: np.ndarray) -> np.ndarray:
