@@ -323,7 +323,7 @@ class TileProxy:
             The same in the sensor frame (a fixed sensor's beams then look up their direction's boxes).
         boxes : tuple, optional
             What :meth:`place` returned; default the boxes placed last.
-        crossed : (n, k) int64, optional
+        crossed : (n, k) int32 or int64, optional
             Filled, for :meth:`rays_may_meet`, with the tiles of each beam's boxes a ray of its footprint could
             meet something in (-1 after the last; -2 where not listed: more than k, or a hit on an object that is
             not convex, whose rays then may meet something).
@@ -377,7 +377,7 @@ class TileProxy:
         triangle : (n,) int64
             Every pulse's hit triangle, -1 for a miss.
         origins : (1, 3) or (n, 3) float64
-        crossed : (n, k) int64
+        crossed : (n, k) int32 or int64
             What :meth:`near` listed for the pulses.
         group : int
             The rays come in runs of this many whose answers are wanted together (a pulse's probes): after one
