@@ -175,14 +175,14 @@ class ReturnModel:
         Seed of every random number (with each pulse's stream index).
     range_max : float
         The scan's maximum range (``otherParams[0]``), metres.
-    plane : {"boresight", "panorama"}
-        The pattern plane of the angles :meth:`cast` is given (:mod:`livox_viz.patterns.planes`).
     point_rate : float
         Pulses per second: a pulse's time is its stream index over it when :meth:`cast` is given none.
+    plane : {"boresight", "panorama"}
+        The pattern plane of the angles :meth:`cast` is given (:mod:`livox_viz.patterns.planes`).
     """
 
-    def __init__(self, params: ReturnParams, caster, seed: int, range_max: float,
-                 plane: str = "boresight", point_rate: float = 1.0) -> None:
+    def __init__(self, params: ReturnParams, caster, seed: int, range_max: float, point_rate: float,
+                 plane: str = "boresight") -> None:
         for method in ("hits", "occluded", "face_planes"):
             if not hasattr(caster, method):
                 raise TypeError(f"the datasheet return model needs a caster with {method!r}")

@@ -213,7 +213,7 @@ class MountedCaster:
             from livox_viz.casting.returns import ReturnModel
 
             self.returns = ReturnModel(config.return_params, self.caster, seed, config.range_max,
-                                       config.pattern_plane, config.point_rate)
+                                       config.point_rate, config.pattern_plane)
         self.trajectory = trajectory
         self.vehicle_pose = trajectory.pose_at(trajectory.span[0]) if trajectory is not None else (
             vehicle_pose or Pose())
