@@ -353,7 +353,7 @@ class TileProxy:
 
 
     def rays_may_meet(self, pulse: np.ndarray, rays: np.ndarray, limit: np.ndarray, triangle: np.ndarray,
-                      origins: np.ndarray, crossed: np.ndarray, group: int = 1) -> np.ndarray:
+                      origins: np.ndarray, crossed: np.ndarray) -> np.ndarray:
         """Whether each ray of a footprint (a probe, a sub-ray) can meet anything but its pulse's hit before its
         limit: ``(r,)`` bool.
 
@@ -379,15 +379,12 @@ class TileProxy:
         origins : (1, 3) or (n, 3) float64
         crossed : (n, k) int32 or int64
             What :meth:`near` listed for the pulses.
-        group : int
-            The rays come in runs of this many whose answers are wanted together (a pulse's probes): after one
-            that may meet, the rest of its run is True without a test.
         """
         meet = np.zeros(len(rays), dtype=np.bool_)
         if len(rays) == 0:
             return meet
         kernel("rays_may_meet")(np.asarray(pulse, dtype=np.int64), np.ascontiguousarray(rays, dtype=np.float32),
-                                np.ascontiguousarray(limit, dtype=np.float64), group,
+                                np.ascontiguousarray(limit, dtype=np.float64),
                                 np.asarray(triangle, dtype=np.int64),
                                 np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)), crossed,
                                 self._padded[0], self._padded[1], self.tile_part, self.tile_convex,

@@ -467,7 +467,7 @@ def _near_flat(ox, oy, oz, ix, iy, iz, limit, part, flat_low, flat_high, flat_pa
     return False
 
 
-def _rays_may_meet(pulse, rays, limit, group, triangle, origins, crossed, tile_low, tile_high, tile_part, tile_convex,
+def _rays_may_meet(pulse, rays, limit, triangle, origins, crossed, tile_low, tile_high, tile_part, tile_convex,
                    tile_triangle, triangle_part, flat_low, flat_high, flat_part, part_sphere, hull_start, hull_planes,
                    meet):  # pragma: no cover - compiled
     """Per ray of a footprint (``rays (r, 3)``, of the pulses ``pulse``, each to its own ``limit``): can it meet
@@ -479,14 +479,9 @@ def _rays_may_meet(pulse, rays, limit, group, triangle, origins, crossed, tile_l
 
     The tiles are those the broad phase listed for the pulse (``crossed``: every ray of the footprint lies
     within the inflation of the box it meets); where it did not list them (-2), the ray may meet something.
-    Rays come in runs of ``group`` (a pulse's probes): after one that may meet, the rest of its run is True
-    without a test.
     """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
     for r in range(rays.shape[0]):
-        if r % group != 0 and meet[r - 1]:
-            meet[r] = True
-            continue
         i = pulse[r]
         meet[r] = crossed[i, 0] == -2
         if meet[r]:

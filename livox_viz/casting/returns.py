@@ -397,8 +397,8 @@ class ReturnModel:
                           in_grid, boxes, crossed)
         rows = np.flatnonzero(near & ~leaves)
 
-        def may_meet(pulse: np.ndarray, rays: np.ndarray, limit: np.ndarray, group: int = 1) -> np.ndarray:
-            return proxy.rays_may_meet(pulse, rays, limit, triangle, origins, crossed, group)
+        def may_meet(pulse: np.ndarray, rays: np.ndarray, limit: np.ndarray) -> np.ndarray:
+            return proxy.rays_may_meet(pulse, rays, limit, triangle, origins, crossed)
 
         self._lap("broad phase")
         if rows.size == 0:
@@ -408,14 +408,16 @@ class ReturnModel:
         limit = np.empty((rows.size, 4))
         kernel("probe_limits")(rows, probes, triangle, distance, self.caster.face_planes, origins, self.range_max,
                                self._sigma_table, limit)
-        # Embree looks only where a probe can meet something (a tile itself, a convex object's hull, a flat
-        # object): 758 of the default scene's 4 628 named beams a run of 65 536 pulses.
-        worth = may_meet(np.repeat(rows, 4), probes.reshape(-1, 3), limit.reshape(-1), 4).reshape(-1, 4).any(axis=1)
-        rows, probes, limit = rows[worth], probes[worth], limit[worth]
-        ray_origin = origins[0] if not moving else np.repeat(origins[rows], 4, axis=0)
-        blocked = self.caster.occluded(ray_origin, probes.reshape(-1, 3), limit.reshape(-1))
+        # Embree casts only the probes that can meet something (in a tile itself, a convex object's hull, a flat
+        # object): a probe that cannot is not blocked. Each probe is asked on its own: a test costs a
+        # sixteenth of a cast, and a third of the probes of the beams worth probing can meet nothing.
+        probe_rows = np.repeat(rows, 4)
+        worth = np.flatnonzero(may_meet(probe_rows, probes.reshape(-1, 3), limit.reshape(-1)))
+        probe_rows = probe_rows[worth]
+        ray_origin = origins[0] if not moving else origins[probe_rows]
+        blocked = self.caster.occluded(ray_origin, probes.reshape(-1, 3)[worth], limit.reshape(-1)[worth])
         self._lap("probes")
-        return rows[blocked.reshape(-1, 4).any(axis=1)], near, may_meet
+        return np.unique(probe_rows[blocked]), near, may_meet
 
     # Step 3: echoes of sampled footprints ------------------------------------------------------------------
     def _footprint_echoes(self, rows: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
