@@ -73,8 +73,10 @@ MIX_FLOOR_M = 0.05
 SPLIT_PULSES = 2048
 #: Where a run's points' arrays live (see :mod:`livox_viz.core.buffers`): a pool of the model's own, so that its
 #: blocks, a third larger than the ideal scan's for as many points, and the ideal scan's do not push each other out
-#: when both run in turn (the blocks made anew faulted in 200-500 pages a second of scan).
-RETURN_BLOCKS = RecycledBlocks()
+#: when both run in turn (the blocks made anew faulted in 200-500 pages a second of scan). Four blocks: a scan holds
+#: up to four runs at once (two cast, one waiting, one being written); eight kept 50-80 MiB more over a 10-minute
+#: flight to a bag, two faulted in pages again.
+RETURN_BLOCKS = RecycledBlocks(keep=4)
 #: Rows for false alarms in a run's points, first try: this many times those expected, and this many more.
 FALSE_ALARM_ROWS = (4.0, 64)
 #: Tiles the broad phase lists per beam for the narrow phase (a beam crossing more may meet something anywhere).
