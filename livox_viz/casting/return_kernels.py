@@ -258,10 +258,25 @@ def _central(distance, triangle, directions, origins, xy_deg, panorama, rotation
         # The footprint reaches at most d tan_half / cos from its centre on the plane (the bound the incircle test
         # uses): farther than that from every edge line, it stays on the triangle too, without its ray's
         # derivatives (a sine and a cosine; this took the loop from 27 to 19 ns a pulse on the default scene).
+        # Near an edge, the same with that bound in place of the footprint's reach across it: an edge the bound
+        # does not reach, or a soft edge (below) the bound cannot reach past, is settled without the ray's
+        # derivatives (a tenth of the pulses, most of them by soft edges: the loop's third).
         bound = d * tan_half / cos
-        if (inward[t, 0, 0] * px + inward[t, 0, 1] * py + inward[t, 0, 2] * pz - offset[t, 0] >= bound
-                and inward[t, 1, 0] * px + inward[t, 1, 1] * py + inward[t, 1, 2] * pz - offset[t, 1] >= bound
-                and inward[t, 2, 0] * px + inward[t, 2, 1] * py + inward[t, 2, 2] * pz - offset[t, 2] >= bound):
+        settled = True
+        for k in range(3):
+            gap = inward[t, k, 0] * px + inward[t, k, 1] * py + inward[t, k, 2] * pz - offset[t, k]
+            if gap >= bound:
+                continue
+            other = neighbour[t, k]
+            if other < 0:
+                settled = False
+                break
+            other_facing = planes[other, 0] * ux + planes[other, 1] * uy + planes[other, 2] * uz
+            if not ((other_facing > 0) == (facing > 0) and abs(other_facing) > 0.5 * abs(facing) and (
+                    bound - max(gap, 0.0) < narrowest[other])):
+                settled = False
+                break
+        if settled:
             continue
         if fixed:
             ax, ay, az, bx, by, bz = _basis_at(xy_deg[i, 0], xy_deg[i, 1], panorama)
