@@ -419,7 +419,8 @@ class ReturnModel:
         ray_origin = origins[0] if not moving else origins[probe_rows]
         blocked = self.caster.occluded(ray_origin, probes.reshape(-1, 3)[worth], limit.reshape(-1)[worth])
         self._lap("probes")
-        return np.unique(probe_rows[blocked]), near, may_meet
+        covered = probe_rows[blocked]  # in order, a pulse's blocked probes side by side
+        return covered[np.r_[True, covered[1:] != covered[:-1]]] if covered.size else covered, near, may_meet
 
     # Step 3: echoes of sampled footprints ------------------------------------------------------------------
     def _footprint_echoes(self, rows: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
