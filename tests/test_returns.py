@@ -497,6 +497,68 @@ def test_frames_cast_side_by_side_are_those_cast_one_by_one_on_a_fast_flight() -
     np.testing.assert_allclose(joined(threaded, "xyz_world"), joined(serial, "xyz_world"), rtol=0, atol=1e-9)
 
 
+@pytest.mark.parametrize(("preset", "scene_name", "moving"), [("livox_mid70_risley", "urban", False),
+                                                           ("livox_mid40_risley", "dense_terrain", False),
+                                                           ("livox_mid70_risley", "urban", True)])
+def test_footprints_said_to_leave_their_triangle_are_those_the_precise_reach_names(
+        monkeypatch: pytest.MonkeyPatch, preset: str, scene_name: str, moving: bool) -> None:
+    """The central loop settles a footprint near an edge by the reach bound (d tan(half-angle) / cos) where it can,
+    and only then by the footprint ellipse's precise reach across each edge. Recomputed here for every pulse with
+    the precise reach alone (numpy, from the ray's derivatives): an edge the footprint crosses leaves the triangle
+    unless the neighbour across it faces the ray as the hit does, not much more edge-on, and is wider than the
+    footprint reaches past the edge. The same pulses leave, on a scene of large faces and on a terrain of soft
+    edges, fixed and moving."""
+    from livox_viz.casting import return_kernels
+    from livox_viz.casting.returns import sensor_basis
+    from livox_viz.motion.flights import builtin_trajectory
+    from livox_viz.scene.scenes import open_scene
+
+    scene = open_scene(scene_name)
+    cfg = load_preset(preset).with_returns_model("datasheet")
+    flight = builtin_trajectory("circle", 8.0, scene.vehicle_pose, 1.0) if moving else None
+    seen = []
+    central = return_kernels.kernel("central")
+
+    def kept(*arguments: object) -> None:
+        central(*arguments)
+        seen.append([np.array(a) if isinstance(a, np.ndarray) else a for a in arguments])
+
+    monkeypatch.setitem(return_kernels._KERNELS, "central", kept)
+    list(LidarScanner(cfg, EmbreeCaster(scene.mesh), scene.vehicle_pose, seed=2, trajectory=flight).frames(0.2))
+    near_edges = leaving = 0
+    for (distance, triangle, u, origins, xy_deg, panorama, rotation, basis_x, basis_y, planes, _, _, _, inward, offset,
+         neighbour, narrowest, half_x, half_y, tan_half, _, _, _, _, leaves, _) in seen:
+        if basis_x.shape[0] == 0:
+            along_x, along_y = sensor_basis(xy_deg, "panorama" if panorama else "boresight")
+            basis_x, basis_y = along_x @ rotation.T, along_y @ rotation.T
+        hit = np.flatnonzero(triangle >= 0)
+        t, d = triangle[hit], distance[hit]
+        n = planes[t, :3]
+        facing = np.einsum("ij,ij->i", n, u[hit])
+        facing = np.where(np.abs(facing) < 1e-6, np.where(facing >= 0, 1e-6, -1e-6), facing)
+        point = (origins[0] if origins.shape[0] == 1 else origins[hit]) + u[hit] * d[:, None]
+        gaps = np.einsum("ikj,ij->ik", inward[t], point) - offset[t]
+        crossing = np.zeros(hit.size, dtype=bool)
+        for k in range(3):
+            w = []
+            for basis in (basis_x[hit] if basis_x.shape[0] > 1 else basis_x, basis_y[hit] if basis_y.shape[0] > 1
+                          else basis_y):
+                shift = np.einsum("ij,ij->i", n, basis) / facing
+                w.append(basis - shift[:, None] * u[hit])
+            m = inward[t, k]
+            across = d * np.hypot(half_x * np.einsum("ij,ij->i", m, w[0]), half_y * np.einsum("ij,ij->i", m, w[1]))
+            other = neighbour[t, k]
+            other_facing = np.einsum("ij,ij->i", planes[np.maximum(other, 0), :3], u[hit])
+            soft = (other >= 0) & ((other_facing > 0) == (facing > 0)) & (np.abs(other_facing) > 0.5 * np.abs(facing)) \
+                & (across - np.maximum(gaps[:, k], 0.0) < narrowest[np.maximum(other, 0)])
+            crossing |= (gaps[:, k] < across) & ~soft
+        near_edges += int(np.count_nonzero(gaps.min(axis=1) < d * tan_half / np.abs(facing)))
+        leaving += int(np.count_nonzero(crossing))
+        assert np.array_equal(leaves[hit], crossing)
+        assert not leaves[triangle < 0].any()
+    assert leaving > 50 and near_edges > 3 * leaving  # the bound settles most footprints near an edge
+
+
 def test_sub_rays_taken_from_their_own_triangle_are_those_embree_casts(monkeypatch: pytest.MonkeyPatch) -> None:
     """A footprint leaving its triangle with nothing else near takes the sub-rays that stay on the triangle from
     its plane instead of casting them: the urban scan's cloud is the one every sub-ray cast gives."""
