@@ -7,10 +7,9 @@ numba is already a dependency for the moving sensor's per-ray kernel.
 
 Every random number comes from the counter-based generator of
 :mod:`~livox_viz.core.streamrandom`, written out here the same way (SplitMix64
-of ``(stream index * 64 + column + key) * gamma``; normal numbers by Box-Muller
-of the hash's two 24-bit halves), in float64 (the angle's cos and sin from a
-table and a series, equal to numpy's to 1e-14): the tests hold the two
-implementations to each other.
+of ``(stream index * 64 + column + key) * gamma``; normal numbers by the
+ziggurat of the hash's two 32-bit halves, in the same steps): the tests hold the
+two implementations to each other.
 """
 
 from __future__ import annotations
@@ -20,10 +19,19 @@ import math
 import numpy as np
 
 from livox_viz.core.compiled import LazyKernels
+from livox_viz.core.streamrandom import (
+    RETRIES,
+    RETRY_MASK,
+    ZIGGURAT_F,
+    ZIGGURAT_LAYERS,
+    ZIGGURAT_R,
+    ZIGGURAT_RATIO,
+    ZIGGURAT_X,
+)
 
 #: The small functions the loops call: compiled (in this module's namespace) before the first loop is.
-_HELPERS = ("_hash", "_normal_pair", "_uniform", "_sigma", "_plane_range", "_slab_span", "_slab", "_in_hull",
-            "_near_flat", "_basis_at", "_byte")
+_HELPERS = ("_hash", "_ziggurat", "_normal_pair", "_uniform", "_sigma", "_plane_range", "_slab_span", "_slab",
+            "_in_hull", "_near_flat", "_basis_at", "_byte")
 
 
 #: The loops that would run their pulses on every core (``prange``). None does: on this 2-core machine shared
@@ -69,27 +77,55 @@ def _hash(key, counter):  # pragma: no cover - compiled
     return z
 
 
-#: cos and sin of 2 pi j / 4096: the Box-Muller angle's top 12 bits (its low 12 bits turn by less than 0.0016 rad,
-#: a short series), so a normal pair costs a table look-up instead of libm's cos and sin (19 against 47 ns).
-_TURN_COS = np.cos(2.0 * np.pi * np.arange(4096) / 4096.0)
-_TURN_SIN = np.sin(2.0 * np.pi * np.arange(4096) / 4096.0)
+_ZIG_X, _ZIG_RATIO, _ZIG_F = ZIGGURAT_X, ZIGGURAT_RATIO, ZIGGURAT_F
+_ZIG_R = ZIGGURAT_R
+_RETRY_MASK = np.uint64(RETRY_MASK)
+_UNIT_24 = 1.0 / 16777216.0
+
+
+def _ziggurat(bits, key, counter):  # pragma: no cover - compiled
+    """:func:`~livox_viz.core.streamrandom.ziggurat_normal` with its sign: the normal number of 32 ``bits``, in
+    the same steps (a layer's inner part: one multiplication; its edge and the tail: retries from the second
+    stream of ``key`` at ``counter``, ``counter + 1``, ...)."""
+    layer = int(bits & np.uint64(ZIGGURAT_LAYERS - 1))
+    negative = (bits >> np.uint64(7)) & np.uint64(1)
+    u = (float((bits >> np.uint64(8)) & np.uint64(0xFFFFFF)) + 0.5) * _UNIT_24
+    x = u * _ZIG_X[layer]
+    if u >= _ZIG_RATIO[layer]:
+        retry_key = key ^ _RETRY_MASK
+        taken = 0
+        while True:
+            w = _hash(retry_key, counter + np.uint64(taken))
+            taken += 1
+            if layer == 0:
+                while True:
+                    a = -math.log((float(w >> np.uint64(40)) + 0.5) * _UNIT_24) / _ZIG_R
+                    b = -math.log((float((w >> np.uint64(8)) & np.uint64(0xFFFFFF)) + 0.5) * _UNIT_24)
+                    if b + b >= a * a or taken >= RETRIES:
+                        break
+                    w = _hash(retry_key, counter + np.uint64(taken))
+                    taken += 1
+                x = _ZIG_R + a
+                break
+            x = u * _ZIG_X[layer]
+            height = _ZIG_F[layer] + (float(w >> np.uint64(40)) + 0.5) * _UNIT_24 * (_ZIG_F[layer + 1] - _ZIG_F[layer])
+            if height < math.exp(-0.5 * x * x) or taken >= RETRIES:
+                break
+            layer = int(w & np.uint64(ZIGGURAT_LAYERS - 1))  # a new draw; the sign stays the first one's
+            u = (float((w >> np.uint64(8)) & np.uint64(0xFFFFFF)) + 0.5) * _UNIT_24
+            x = u * _ZIG_X[layer]
+            if u < _ZIG_RATIO[layer]:
+                break
+    return -x if negative else x
 
 
 def _normal_pair(key, index, pair):  # pragma: no cover - compiled
-    """Columns ``2 pair`` and ``2 pair + 1`` of :func:`~livox_viz.core.streamrandom.stream_normal` at ``index``
-    (the same numbers to 1e-14: cos and sin of the angle as a table's turn and a series' small one)."""
+    """Columns ``2 pair`` and ``2 pair + 1`` of :func:`~livox_viz.core.streamrandom.stream_normal` at ``index``:
+    the ziggurat of the hash's low and high 32 bits."""
     z = _hash(key, np.uint64(index) * np.uint64(64) + np.uint64(pair))
-    u1 = (float(z >> np.uint64(40)) + 0.5) / 16777216.0
-    radius = math.sqrt(-2.0 * math.log(u1))
-    low = z & np.uint64(0xFFFFFF)
-    coarse = int(low >> np.uint64(12))
-    fine = (float(low & np.uint64(0xFFF)) + 0.5) * (2.0 * math.pi / 16777216.0)
-    fine2 = fine * fine
-    cos_fine = 1.0 - fine2 * (0.5 - fine2 * (1.0 / 24.0))  # the next terms are under 1e-16
-    sin_fine = fine * (1.0 - fine2 * (1.0 / 6.0))
-    cos_coarse, sin_coarse = _TURN_COS[coarse], _TURN_SIN[coarse]
-    return (radius * (cos_coarse * cos_fine - sin_coarse * sin_fine),
-            radius * (sin_coarse * cos_fine + cos_coarse * sin_fine))
+    retries = np.uint64(RETRIES + 1)
+    first = (np.uint64(index) * np.uint64(64) + np.uint64(2 * pair)) * retries  # retry_counter(index, 2 pair)
+    return _ziggurat(z & np.uint64(0xFFFFFFFF), key, first), _ziggurat(z >> np.uint64(32), key, first + retries)
 
 
 def _uniform(key, index, column):  # pragma: no cover - compiled
