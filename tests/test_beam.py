@@ -181,3 +181,24 @@ def test_rays_said_to_meet_nothing_meet_nothing_in_embree(grid: bool) -> None:
             in_a_box |= (enter < leave) & (leave > 0) & (enter < 12.0)
     air = in_a_box & ~blocked
     assert air.sum() > 300 and np.count_nonzero(~meet[air]) > 0.5 * air.sum()
+    # Rays that end at a surface (their limit a hair before, at or beyond Embree's own distance) and rays in the
+    # plane of the small box's bottom face from a point of that plane, aimed along it: grazing at its most.
+    with casting_in_this_thread():
+        distance = EmbreeCaster(mesh).distances(origin[0], rays32, 12.0)
+    ends = np.flatnonzero(np.isfinite(distance))
+    short = np.concatenate([distance[ends] + step for step in (-1e-4, -1e-6, 0.0, 1e-6, 1e-4)])
+    ends = np.tile(ends, 5)
+    on_face = np.array([[0.0, -0.4, 0.025]])
+    face = np.column_stack([rng.uniform(0.725, 0.875, 4000), rng.uniform(-0.475, -0.325, 4000), np.full(4000, 0.025)])
+    along = (face - on_face) / np.linalg.norm(face - on_face, axis=1, keepdims=True)
+    for start, directions, reach in ((origin, rays[ends], short), (on_face, along, np.full(len(along), 12.0))):
+        crossed = np.empty((len(directions), 8), np.int64)
+        no_hit = np.full(len(directions), -1)
+        proxy.near(np.ones(len(directions), dtype=bool), start, directions, reach, no_hit, None, proxy.place(
+            start, 600.0, None), crossed)
+        meet = proxy.rays_may_meet(np.arange(len(directions)), directions.astype(np.float32), reach, no_hit, start,
+                                   crossed)
+        with casting_in_this_thread():
+            blocked = EmbreeCaster(mesh).occluded(start[0], directions.astype(np.float32), reach)
+        assert not np.any(blocked & ~meet), np.flatnonzero(blocked & ~meet)[:10]
+        assert blocked.sum() > 100
