@@ -131,28 +131,31 @@ def test_the_broad_phases_ray_box_test_against_points_along_the_ray() -> None:
 @pytest.mark.parametrize("grid", [True, False])
 def test_rays_said_to_meet_nothing_meet_nothing_in_embree(grid: bool) -> None:
     """A footprint's ray that :meth:`TileProxy.rays_may_meet` says meets nothing (outside every tile the broad
-    phase listed, a convex object's sphere and planes, a flat object's box) is one Embree finds unblocked: random
-    rays and rays aimed at every vertex and edge of a small box, a wedge and a ball (grazing, where rounding
-    decides), listed from the fixed sensor's direction grid and from the moving one's tree; and most rays
-    through the boxes' air are let go."""
+    phase listed, a convex object's sphere, cylinder and planes, a flat object's box) is one Embree finds
+    unblocked: random rays and rays aimed at every vertex and edge of a small box, a wedge, a ball and a pole
+    (grazing, where rounding decides; the ball and the pole also by their bounding sphere and cylinder), listed
+    from the fixed sensor's direction grid and from the moving one's tree; and most rays through the boxes' air
+    are let go."""
     from livox_viz.scene.raycast import EmbreeCaster, casting_in_this_thread
 
     wedge = trimesh.Trimesh([[6.0, 1.0, 1.0], [6.0, 2.5, 1.0], [6.0, 1.0, -1.0], [7.5, 1.0, 1.0]],
                             [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
     wedge.fix_normals()
+    pole = trimesh.creation.cylinder(0.08, 3.0, sections=40).apply_translation((3.5, 0.8, 0.0))
     objects = [trimesh.creation.icosphere(2, 0.6).apply_translation((5.0, -1.0, -0.5)), wedge,
-               trimesh.creation.box((0.15, 0.15, 0.15)).apply_translation((0.8, -0.4, 0.1)),
+               trimesh.creation.box((0.15, 0.15, 0.15)).apply_translation((0.8, -0.4, 0.1)), pole,
                trimesh.Trimesh([[-5.0, -30.0, 1.2], [9.0, -30.0, 1.2], [9.0, 30.0, 1.2], [-5.0, 30.0, 1.2]],
                                [[0, 1, 2], [0, 2, 3]])]
     mesh = trimesh.util.concatenate(objects)
     set_face_materials(mesh, np.full(len(mesh.faces), 0.5), np.ones(len(mesh.faces)),
                        np.repeat(np.arange(len(objects)), [len(o.faces) for o in objects]))
     proxy = TileProxy(mesh, math.tan(math.radians(0.14)))
+    assert np.count_nonzero(np.isfinite(proxy.part_sphere[:, 10])) >= 1  # the pole's cylinder
     origin = np.zeros((1, 3))
     boxes = proxy.place(origin, 600.0, np.eye(3) if grid else None)
     rng = np.random.default_rng(3)
     targets = [rng.uniform((0.5, -3.0, -2.0), (9.0, 3.0, 2.0), (20000, 3))]
-    for solid in objects[:3]:
+    for solid in objects[:4]:
         edges = solid.vertices[solid.edges_unique]
         for share in np.linspace(0.0, 1.0, 9):
             targets.append(edges[:, 0] + share * (edges[:, 1] - edges[:, 0]))
@@ -173,7 +176,7 @@ def test_rays_said_to_meet_nothing_meet_nothing_in_embree(grid: bool) -> None:
     # Rays through a box but not the object in it: most are let go.
     in_a_box = np.zeros(len(rays), dtype=bool)
     with np.errstate(divide="ignore", invalid="ignore"):
-        for solid in objects[:3]:
+        for solid in objects[:4]:
             low, high = solid.bounds
             near, far = low / rays, high / rays
             enter = np.nanmax(np.minimum(near, far), axis=1)

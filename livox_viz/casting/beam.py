@@ -236,9 +236,10 @@ class TileProxy:
         self.flat_low, self.flat_high = (_group_boxes(triangles[in_flat].min(axis=1), triangles[in_flat].max(axis=1),
                                                       which.reshape(-1)) if self.flat_part.size
                                          else (np.zeros((0, 3)), np.zeros((0, 3))))
-        #: Per object: its bounding sphere ``(P, 4)`` (centre, radius; infinite unless convex) and, for a convex
-        #: one of few faces, its face planes (outward normal, offset) from row ``hull_start[p]`` of ``hull_planes``:
-        #: a probe that passes a convex object's tile box can still miss the object (a ball, a roof).
+        #: Per object: its bounding sphere and cylinder ``(P, 11)`` (centre, radius; axis point, axis, radius;
+        #: infinite unless convex) and, for a convex one of few faces, its face planes (outward normal, offset) from
+        #: row ``hull_start[p]`` of ``hull_planes``: a probe that passes a convex object's tile box can still miss
+        #: the object (a ball, a pole, a roof).
         self.part_sphere, self.hull_start, self.hull_planes = _convex_hulls(triangles, parts, kind)
         # The tiles and flat objects a millimetre larger for :meth:`rays_may_meet`: a ray along a box's face or edge
         # rounds either way, and Embree may still meet what lies there.
@@ -586,13 +587,16 @@ def _tiles(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray):
 
 def _convex_hulls(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each object's bounding sphere ``(P, 4)`` (radius inf unless convex and the sphere is smaller than the
-    object's box), and the outward face planes of the convex ones with at most :data:`HULL_PLANES_MAX` distinct
-    planes not along an axis (those are the box's faces): ``(P + 1,)`` starts into ``(K, 4)`` rows (unit normal,
-    offset; a point inside has ``n . x <= offset``)."""
+    """Each object's bounding shapes ``(P, 11)``: its bounding sphere (centre, radius: inf unless convex and the
+    sphere is smaller than the object's box), then its bounding cylinder (a point of the axis, the unit axis,
+    the radius: inf unless convex, with too many faces for planes, and smaller than the box: a pole); and the
+    outward face planes of the convex ones with at most :data:`HULL_PLANES_MAX` distinct planes not along an
+    axis (those are the box's faces): ``(P + 1,)`` starts into ``(K, 4)`` rows (unit normal, offset; a point
+    inside has ``n . x <= offset``)."""
     count = kind.shape[0]
-    sphere = np.zeros((count, 4))
+    sphere = np.zeros((count, 11))
     sphere[:, 3] = np.inf
+    sphere[:, 10] = np.inf
     planes: list[np.ndarray] = []
     start = np.zeros(count + 1, dtype=np.int64)
     rows = 0
@@ -605,7 +609,7 @@ def _convex_hulls(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray
         centre = (vertices.min(axis=0) + vertices.max(axis=0)) / 2.0
         radius = float(np.linalg.norm(vertices - centre, axis=1).max())
         if 4.0 / 3.0 * math.pi * radius**3 < np.prod(np.ptp(vertices, axis=0)):  # only where tighter than the box
-            sphere[part] = (*centre, radius)
+            sphere[part, :4] = (*centre, radius)
         normal, offset = _face_planes(tri)
         inside = np.unique(vertices, axis=0).mean(axis=0)  # (the box's centre need not be inside: a wedge)
         outward = np.where(normal @ inside > offset, -1.0, 1.0)
@@ -614,8 +618,24 @@ def _convex_hulls(triangles: np.ndarray, parts: np.ndarray, kind: np.ndarray
         if len(hull) <= HULL_PLANES_MAX:
             planes.append(hull)
             rows += len(hull)
+        else:
+            sphere[part, 4:] = _bounding_cylinder(np.unique(vertices, axis=0))
     start[count] = rows
     return sphere, start, np.concatenate(planes) if planes else np.zeros((0, 4))
+
+
+def _bounding_cylinder(vertices: np.ndarray) -> np.ndarray:
+    """``(7,)`` a cylinder holding every vertex, along their principal axis: a point of the axis (the vertices'
+    mean), the unit axis, the radius; the radius is inf where the cylinder is no smaller than their box (so it
+    would tell a ray nothing the box does not)."""
+    centre = vertices.mean(axis=0)
+    offsets = vertices - centre
+    axis = np.linalg.svd(offsets, full_matrices=False)[2][0]
+    along = offsets @ axis
+    radius = float(np.sqrt(np.max(np.einsum("ij,ij->i", offsets, offsets) - along * along, initial=0.0)))
+    if math.pi * radius**2 * float(np.ptp(along)) >= float(np.prod(np.ptp(vertices, axis=0))):
+        radius = math.inf
+    return np.array([*centre, *axis, radius])
 
 
 def _group_boxes(low: np.ndarray, high: np.ndarray, group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -570,14 +570,28 @@ def _rays_may_meet(pulse, rays, limit, triangle, origins, crossed, tile_low, til
 
 def _in_hull(ox, oy, oz, dx, dy, dz, enter, leave, part, sphere, start, planes, pad):  # pragma: no cover - compiled
     """Whether the ray from o along d (unit), between ``enter`` and ``leave`` (where it is inside the object's box),
-    meets object ``part``'s bounding sphere and the inside of its face planes (always True for an object that
-    is not convex: infinite sphere, no planes), both ``pad`` metres larger than the object (at least
+    meets object ``part``'s bounding sphere and cylinder (``sphere``'s columns 0-3 and 4-10) and the inside of its
+    face planes (always True for an object that is not convex: infinite sphere and cylinder, no planes), all
+    ``pad`` metres larger than the object (at least
     :data:`HULL_PAD_M`, so a ray that grazes it is kept; the broad phase's inflation for a central ray)."""
     radius = sphere[part, 3]
     if radius < np.inf:
         cx, cy, cz = sphere[part, 0] - ox, sphere[part, 1] - oy, sphere[part, 2] - oz
         along = min(max(cx * dx + cy * dy + cz * dz, enter), leave)
         ex, ey, ez = cx - along * dx, cy - along * dy, cz - along * dz
+        if ex * ex + ey * ey + ez * ez > (radius + pad) ** 2:
+            return False
+    radius = sphere[part, 10]
+    if radius < np.inf:
+        # The nearest the ray comes to the cylinder's axis between enter and leave, both taken across the axis.
+        ax, ay, az = sphere[part, 7], sphere[part, 8], sphere[part, 9]
+        wx, wy, wz = ox - sphere[part, 4], oy - sphere[part, 5], oz - sphere[part, 6]
+        w_along, d_along = wx * ax + wy * ay + wz * az, dx * ax + dy * ay + dz * az
+        wx, wy, wz = wx - w_along * ax, wy - w_along * ay, wz - w_along * az
+        ux, uy, uz = dx - d_along * ax, dy - d_along * ay, dz - d_along * az
+        across = ux * ux + uy * uy + uz * uz
+        t = min(max(-(wx * ux + wy * uy + wz * uz) / across, enter), leave) if across > 0.0 else enter
+        ex, ey, ez = wx + t * ux, wy + t * uy, wz + t * uz
         if ex * ex + ey * ey + ez * ez > (radius + pad) ** 2:
             return False
     for k in range(start[part], start[part + 1]):
