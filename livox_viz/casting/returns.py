@@ -493,13 +493,14 @@ class ReturnModel:
         whole_pulses = int(np.count_nonzero(whole))
         others = whole.size - whole_pulses
         scale, least = FALSE_ALARM_ROWS
+        jitter = float(np.radians(params.angular_sigma_deg))
         for total in (whole_pulses + echoes + min(others, int(scale * params.false_alarm_rate * others) + least),
                       whole.size + echoes):
             out = self._emit(total, whole, power, distance, unit, first, count, footprint_echoes, index,
-                             directions_sensor, directions_world, origins, xy_deg, times, seen, measured, chosen)
+                             directions_sensor, directions_world, origins, xy_deg, times, jitter, seen, measured,
+                             chosen)
             if out is not None:
                 break
-        jitter = float(np.radians(params.angular_sigma_deg))
         if jitter > 0 and out["beam"].size:
             xyz_sensor, beam = out["xyz_sensor"], out["beam"]
             turned = rotate_rows(xyz_sensor, rotation) if turn is None else turn(xyz_sensor, beam)
@@ -509,10 +510,11 @@ class ReturnModel:
     def _emit(self, total: int, whole: np.ndarray, power: np.ndarray, distance: np.ndarray, unit: np.ndarray,
               first: np.ndarray, count: np.ndarray, footprint_echoes: list[np.ndarray], index: np.ndarray,
               directions_sensor: np.ndarray, directions_world: np.ndarray, origins: np.ndarray, xy_deg: np.ndarray,
-              times: np.ndarray | None, seen: np.ndarray, measured: np.ndarray,
+              times: np.ndarray | None, jitter: float, seen: np.ndarray, measured: np.ndarray,
               chosen: np.ndarray) -> dict[str, np.ndarray] | None:
         """The compiled pass of :meth:`_points` into arrays of ``total`` rows (views of a recycled block), cut to
-        the points written; None when ``total`` rows were too few."""
+        the points written; None when ``total`` rows were too few. ``jitter``: the angular noise's 1-sigma,
+        radians."""
         params = self.params
         e_power, e_range, e_spatial, e_unit = footprint_echoes
         layout = [("beam", (total,), np.int64), ("stream_index", (total,), np.int64), ("t", (total,), np.float64),
@@ -526,7 +528,7 @@ class ReturnModel:
                               self._key_array, params.detection_snr, self._sigma_table, params.blind_zone_m,
                               self.range_max, params.returns_per_pulse, params.false_alarm_rate,
                               params.return0_range_m, self.false_alarm_reach, np.ascontiguousarray(directions_sensor),
-                              directions_world, origins, float(np.radians(params.angular_sigma_deg)), xy_deg,
+                              directions_world, origins, jitter, xy_deg,
                               _NO_TIMES if times is None else np.ascontiguousarray(times, dtype=np.float64),
                               self.point_rate, INT16_SCALE / self.range_max, seen, measured, chosen, *out.values())
         if kept < 0:

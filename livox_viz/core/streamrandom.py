@@ -52,11 +52,15 @@ def _ziggurat_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 ZIGGURAT_X, ZIGGURAT_RATIO, ZIGGURAT_F = _ziggurat_tables()
 
 
-def _mix_int(value: int) -> int:
-    z = (value + _GAMMA) & _MASK
+def _finalize_int(z: int) -> int:
+    """SplitMix64's finalizer on a Python integer (what :func:`_mix` does to each element)."""
     z = ((z ^ (z >> 30)) * _M1) & _MASK
     z = ((z ^ (z >> 27)) * _M2) & _MASK
     return z ^ (z >> 31)
+
+
+def _mix_int(value: int) -> int:
+    return _finalize_int((value + _GAMMA) & _MASK)
 
 
 def _mix(z: np.ndarray) -> np.ndarray:
@@ -172,7 +176,4 @@ def ziggurat_normal(bits: int, key: int, counter: int) -> float:
 
 def _hash_int(key: int, counter: int) -> int:
     """One hash of :func:`_hashes`, in Python integers."""
-    z = ((counter + key) * _GAMMA) & _MASK
-    z = ((z ^ (z >> 30)) * _M1) & _MASK
-    z = ((z ^ (z >> 27)) * _M2) & _MASK
-    return z ^ (z >> 31)
+    return _finalize_int(((counter + key) * _GAMMA) & _MASK)
