@@ -205,3 +205,69 @@ def test_rays_said_to_meet_nothing_meet_nothing_in_embree(grid: bool) -> None:
             blocked = EmbreeCaster(mesh).occluded(start[0], directions.astype(np.float32), reach)
         assert not np.any(blocked & ~meet), np.flatnonzero(blocked & ~meet)[:10]
         assert blocked.sum() > 100
+
+
+@pytest.mark.parametrize("sensor_in_a_box", [False, True])
+def test_the_direction_grid_names_what_the_box_tree_names(sensor_in_a_box: bool) -> None:
+    """A fixed sensor's broad phase (boxes filed by direction, :class:`DirectionGrid`) against the moving one's
+    (every box, down a tree): the same beams named and the same tiles listed, on a terrain under and behind a
+    turned sensor with boxes beside and behind it (cut where they reach behind the sensor, or filed nowhere),
+    and a box holding the sensor; beams anywhere around it (those outside the grid test every box) and
+    crowded at the grid's edge, 2 off the boresight."""
+    from livox_viz.core.rotations import euler_matrix
+    from livox_viz.scene.raycast import EmbreeCaster, casting_in_this_thread
+
+    x, y = np.meshgrid(np.linspace(-30.0, 30.0, 61), np.linspace(-30.0, 30.0, 61), indexing="ij")
+    heights = 2.0 + 0.4 * np.sin(x / 3.0) * np.cos(y / 4.0)
+    vertices = np.column_stack([x.ravel(), y.ravel(), heights.ravel()])
+    corner = (np.arange(60)[:, None] * 61 + np.arange(60)[None, :]).ravel()
+    faces = np.concatenate([np.column_stack([corner, corner + 61, corner + 1]),
+                            np.column_stack([corner + 1, corner + 61, corner + 62])])
+    objects = [trimesh.Trimesh(vertices, faces),
+               trimesh.creation.box((1.0, 1.0, 3.0)).apply_translation((-6.0, 1.0, 0.0)),
+               trimesh.creation.box((1.0, 1.0, 3.0)).apply_translation((0.5, 5.0, 0.0)),
+               trimesh.creation.box((2.0, 2.0, 2.0)).apply_translation((-25.0, -3.0, 0.0)),
+               trimesh.creation.icosphere(2, 0.7).apply_translation((1.0, -2.5, 0.6))]
+    if sensor_in_a_box:
+        # Half a millimetre in front of the sensor: its box, inflated by at least a millimetre, holds the sensor.
+        objects.append(trimesh.creation.box((0.4, 0.4, 0.4)).apply_translation((0.2005, 0.0, 0.05)))
+    mesh = trimesh.util.concatenate(objects)
+    set_face_materials(mesh, np.full(len(mesh.faces), 0.5), np.ones(len(mesh.faces)),
+                       np.repeat(np.arange(len(objects)), [len(o.faces) for o in objects]))
+    rotation = euler_matrix(math.radians(10.0), math.radians(-25.0), math.radians(30.0))  # sensor FRD -> world
+    origin = np.zeros((1, 3))
+    rng = np.random.default_rng(11)
+    around = rng.normal(size=(12000, 3))
+    edge = np.column_stack([np.ones(8000), rng.uniform(-2.1, 2.1, (8000, 2))])
+    edge[::2, 1 + rng.integers(0, 2, 4000)] = rng.choice([-1.0, 1.0], 4000) * rng.uniform(1.9, 2.0, 4000)
+    sensor = np.concatenate([around, edge])
+    sensor /= np.linalg.norm(sensor, axis=1, keepdims=True)
+    world = sensor @ rotation.T
+    with casting_in_this_thread():
+        caster = EmbreeCaster(mesh)
+        triangle = caster.triangle_ids(origin[0], world.astype(np.float32), 60.0).astype(np.int64)
+        distance = caster.distances(origin[0], world.astype(np.float32), 60.0)
+    reach = np.where(triangle >= 0, np.minimum(distance * 1.02 + 0.05, 60.0), 60.0)
+    answers = []
+    for grid in (True, False):
+        proxy = TileProxy(mesh, math.tan(math.radians(0.14)))
+        boxes = proxy.place(origin, 60.0, rotation if grid else None)
+        assert (boxes[1] is not None) == grid
+        if grid:
+            assert boxes[1].always.size == int(sensor_in_a_box)  # only the box holding the sensor
+        crossed = np.empty((len(world), 8), np.int64)
+        near = proxy.near(np.ones(len(world), dtype=bool), origin, world, reach, triangle, sensor if grid else None,
+                          boxes, crossed)
+        answers.append((near, crossed))
+    (near_grid, crossed_grid), (near_tree, crossed_tree) = answers
+    np.testing.assert_array_equal(near_grid, near_tree)
+    assert 0.02 * len(world) < near_grid.sum() < 0.9 * len(world)
+    np.testing.assert_array_equal(crossed_grid[:, 0] == -2, crossed_tree[:, 0] == -2)
+    listed = np.flatnonzero(crossed_grid[:, 0] != -2)
+    assert listed.size > 1000
+    def tiles(crossed: np.ndarray) -> set[int]:
+        stop = np.flatnonzero(crossed == -1)
+        return set(crossed[: stop[0] if stop.size else crossed.size].tolist())
+
+    for row in listed:
+        assert tiles(crossed_grid[row]) == tiles(crossed_tree[row]), row

@@ -399,8 +399,13 @@ class DirectionGrid:
 
     A beam's sensor-frame direction ``d`` has gnomonic coordinates ``(d_y / d_x, d_z / d_x)``; a box wholly in
     front of the sensor covers the convex hull of its corners' coordinates (a central projection keeps
-    straight lines straight), so it is filed in the grid cells of their bounding rectangle; one reaching
-    behind the sensor is tested by every beam (``always``).
+    straight lines straight), so it is filed in the grid cells of their bounding rectangle. A box reaching
+    behind the sensor (a terrain's tiles under and behind it) is cut at ``x = r / 4`` in the sensor frame, r its
+    distance from the sensor: a point of it nearer the sensor's plane lies farther than 2 (the grid's span) off
+    the boresight in ``u`` or ``v``, where only beams outside the grid, which test every box, can meet it. The
+    part beyond the cut is filed like a box in front; a box wholly before it is filed nowhere. Only a box that
+    holds the sensor itself is tested by every beam (``always``): on the dense terrain the 48 tiles reaching
+    behind the sensor were tested by every beam, six times the boxes of its own direction.
 
     Parameters
     ----------
@@ -420,14 +425,18 @@ class DirectionGrid:
         corners = np.where(((np.arange(8)[:, None] >> np.arange(3)) & 1).astype(bool)[None],
                            high[:, None, :], low[:, None, :])
         local = (corners - centre) @ rotation  # sensor frame: R^T v, row by row
-        in_front = local[:, :, 0].min(axis=1) > 1e-3
+        distance = np.linalg.norm(np.clip(centre, low, high) - centre, axis=1)
+        holds_sensor = distance <= 0.0
         side = int(2 * self.SPAN * self.CELLS_PER_UNIT)
         self.bounds = np.array([-self.SPAN, float(self.CELLS_PER_UNIT), float(side)])
         members: list[np.ndarray] = []
         owners: list[np.ndarray] = []
-        for box in np.flatnonzero(in_front):
-            u = local[box, :, 1] / local[box, :, 0]
-            v = local[box, :, 2] / local[box, :, 0]
+        for box in np.flatnonzero(~holds_sensor):
+            seen = _beyond_cut(local[box], distance[box] / 4.0)
+            if seen.shape[0] == 0:
+                continue
+            u = seen[:, 1] / seen[:, 0]
+            v = seen[:, 2] / seen[:, 0]
             u0, u1 = (np.clip(np.floor((np.array([u.min(), u.max()]) + self.SPAN) * self.CELLS_PER_UNIT), 0,
                               side - 1).astype(int))
             v0, v1 = (np.clip(np.floor((np.array([v.min(), v.max()]) + self.SPAN) * self.CELLS_PER_UNIT), 0,
@@ -441,8 +450,27 @@ class DirectionGrid:
         #: (side * side + 1,) where each cell's boxes start in :attr:`cell_boxes`.
         self.cell_start = np.searchsorted(cells[order], np.arange(side * side + 1)).astype(np.int64)
         self.cell_boxes = boxes[order].astype(np.int64)
-        #: Boxes every beam tests (they reach behind the sensor).
-        self.always = np.flatnonzero(~in_front).astype(np.int64)
+        #: Boxes every beam tests (they hold the sensor).
+        self.always = np.flatnonzero(holds_sensor).astype(np.int64)
+
+
+#: The box corners' pairs (bits of the corner number) joined by the box's 12 edges.
+_BOX_EDGES = np.array([(a, a | bit) for bit in (1, 2, 4) for a in range(8) if not a & bit])
+
+
+def _beyond_cut(corners: np.ndarray, cut: float) -> np.ndarray:
+    """The corners ``(k, 3)`` of the part of a box at ``x >= cut`` (its ``corners`` ``(8, 3)`` in the sensor
+    frame, numbered by bits as :class:`DirectionGrid` makes them): the corners there and where the box's edges
+    cross the cut; none when the box lies wholly before it."""
+    x = corners[:, 0]
+    if x.min() >= cut:
+        return corners
+    a, b = corners[_BOX_EDGES[:, 0]], corners[_BOX_EDGES[:, 1]]
+    crossing = (a[:, 0] < cut) != (b[:, 0] < cut)
+    share = (cut - a[crossing, 0]) / (b[crossing, 0] - a[crossing, 0])
+    cut_points = a[crossing] + share[:, None] * (b[crossing] - a[crossing])
+    cut_points[:, 0] = cut
+    return np.concatenate([corners[x >= cut], cut_points])
 
 
 class BoxTree:
