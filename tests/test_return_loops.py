@@ -25,9 +25,13 @@ from .test_returns import at_origin, scan, wall
 
 def emit(whole: list, power: list, distance: list, first: list, count: list, e_power: list, e_range: list,
          directions: list, *, keep: int = 3, blind: float = 0.0, return0: float = 1.5, false_rate: float = 0.0,
-         rows: int | None = None, index: np.ndarray | None = None,
+         rows: int | None = None, start: int = 0,
          range_max: float = 260.0) -> tuple[int, dict[str, np.ndarray]]:
-    """The compiled emit loop on hand-made pulses: receiver noise off (a huge SNR), range noise a nanometre."""
+    """The compiled emit loop on hand-made pulses: receiver noise off (a huge SNR), range noise a nanometre.
+
+    Pulse ``i`` is whole (its central hit at ``distance[i]``) or, when ``count[i]`` > 0, sampled with the echoes
+    ``first[i] ..`` of ``e_power`` and ``e_range``; the loop takes the sampled pulses' echoes in slots of the
+    largest count, as the model lays them out."""
     n = len(whole)
     echoes = len(e_power)
     rows = n + echoes if rows is None else rows
@@ -37,15 +41,22 @@ def emit(whole: list, power: list, distance: list, first: list, count: list, e_p
            "reflectivity": np.zeros(rows, np.uint8), "tag": np.zeros(rows, np.uint8),
            "number": np.zeros(rows, np.uint8), "returns": np.zeros(rows, np.uint8)}
     keys = np.array([streamrandom.stream_key(1, purpose) for purpose in (1, 2, 3, 4, 5)], dtype=np.uint64)
-    index = np.arange(n, dtype=np.int64) if index is None else np.asarray(index, dtype=np.int64)
+    count = np.asarray(count, np.int64)
+    sampled = np.flatnonzero(count > 0)
+    slots = int(count.max(initial=1))
+    slot_power, slot_range = np.zeros(sampled.size * slots), np.zeros(sampled.size * slots)
+    for s, pulse in enumerate(sampled):
+        taken = slice(first[pulse], first[pulse] + count[pulse])
+        slot_power[s * slots : s * slots + count[pulse]] = np.asarray(e_power, float)[taken]
+        slot_range[s * slots : s * slots + count[pulse]] = np.asarray(e_range, float)[taken]
+    triangle = np.where(np.asarray(whole, bool), 0, -1).astype(np.int64)
     directions = np.ascontiguousarray(directions, dtype=np.float64)
     kept = return_kernels.kernel("emit")(
-        np.asarray(whole, bool), np.asarray(power, float), np.asarray(distance, float), np.ones(n),
-        np.asarray(first, np.int64), np.asarray(count, np.int64), np.asarray(e_power, float),
-        np.asarray(e_range, float), np.zeros(echoes, np.uint8), np.ones(echoes), index, keys, 1e9,
+        triangle, np.asarray(power, float), np.asarray(distance, float), np.ones(n), sampled, count[sampled], slots,
+        slot_power, slot_range, np.zeros(slot_power.size, np.uint8), np.ones(slot_power.size), start, keys, 1e9,
         np.array([[0.0, 1e-9], [1000.0, 1e-9]]), blind, range_max, keep, false_rate, return0, 100.0, directions,
-        directions, np.zeros((1, 3)), 0.0, np.zeros((n, 2)), np.empty(0), 1e5, 32767 / range_max, np.empty(echoes),
-        np.empty(echoes), np.empty(echoes, bool), *out.values())
+        directions, np.zeros((1, 3)), 0.0, np.zeros((n, 2)), np.empty(0), 1e5, 32767 / range_max,
+        np.empty(slot_power.size), np.empty(slot_power.size), np.empty(slot_power.size, bool), *out.values())
     return kept, {name: values[: max(kept, 0)] for name, values in out.items()}
 
 
@@ -74,16 +85,19 @@ def test_a_point_along_one_axis_is_not_taken_for_nothing() -> None:
 
 
 def test_the_loop_says_when_its_outputs_are_one_row_short() -> None:
-    """Pulses with nothing in front whose false-alarm draw falls under the rate: one point each. With a row fewer
-    than pulses the loop answers -1 (the caller sizes again), with as many it writes them all."""
-    draws = streamrandom.stream_uniform(1, 4, np.arange(200_000), 1)[:, 0]
-    index = np.flatnonzero(draws < 0.01)[:20]
-    n = index.size
+    """Pulses with nothing in front, at stream indices 70 000-72 999: a point for each whose false-alarm draw falls
+    under the rate, drawn here independently. With a row fewer than those the loop answers -1 (the caller sizes
+    again), with as many it writes them all, at their stream indices."""
+    start, n = 70_000, 3000
+    draws = streamrandom.stream_uniform(1, 4, start + np.arange(n), 1)[:, 0]
+    alarms = start + np.flatnonzero(draws < 0.01)
+    assert 15 < alarms.size < 50
     nothing = [np.zeros(n, bool), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), [], [],
                np.tile([1.0, 0.0, 0.0], (n, 1))]
-    assert emit(*nothing, false_rate=0.01, rows=n - 1, index=index, blind=0.1)[0] == -1
-    kept, points = emit(*nothing, false_rate=0.01, rows=n, index=index, blind=0.1)
-    assert kept == n and points["index"].tolist() == index.tolist() and np.all((points["tag"] & 0x0F) == 0x05)
+    assert emit(*nothing, false_rate=0.01, rows=alarms.size - 1, start=start, blind=0.1)[0] == -1
+    kept, points = emit(*nothing, false_rate=0.01, rows=alarms.size, start=start, blind=0.1)
+    assert kept == alarms.size and points["index"].tolist() == alarms.tolist()
+    assert np.all((points["tag"] & 0x0F) == 0x05)
 
 
 def test_a_hit_too_dark_to_detect_reports_false_alarms_at_the_rate() -> None:

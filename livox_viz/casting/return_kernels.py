@@ -890,24 +890,27 @@ def _footprint_echoes(rows, ranges, triangles, rays, weights, planes, brightness
 
 
 # Steps 4 and 5: detection, selection, noise, bytes, tags, false alarms ------------------------------------------------
-def _emit(whole, power, distance, unit, first, count, e_power, e_range, e_spatial, e_unit, index, keys, snr,
-          sigma_table, blind, range_max, keep_returns, false_rate, return0, false_reach, directions_sensor,
+def _emit(triangle, power, distance, unit, sampled, written, slots, e_power, e_range, e_spatial, e_unit, start, keys,
+          snr, sigma_table, blind, range_max, keep_returns, false_rate, return0, false_reach, directions_sensor,
           directions_world, origins, jitter, xy, times, point_rate, scale, seen, measured, chosen, beam, index_out,
           t_out, xy_out, range_out, xyz_sensor, int16_out, xyz_world, reflectivity, tag, number,
           returns):  # pragma: no cover - compiled
     """Detection, selection and the points of every pulse, in pulse order and range order within a pulse; returns
-    how many points, or -1 when the outputs are too short. They need a row a ``whole`` pulse, one a footprint
+    how many points, or -1 when the outputs are too short. They need a row a whole pulse, one a footprint
     echo, and one a false alarm.
 
-    A pulse is ``whole`` (one echo: its central hit's ``power`` at ``distance``) or has ``count[i]`` footprint
-    echoes from row ``first[i]`` of ``e_power``, ``e_range``, in range order (``seen``, ``measured`` and
-    ``chosen`` are their scratch). Receiver noise (the detection's and the intensity's) and range noise are one
+    Pulse ``i`` (stream index ``start + i``) is sampled when it is listed in ``sampled`` (rows, ascending): the
+    ``s``-th listed has ``written[s]`` footprint echoes from row ``s * slots`` of ``e_power``, ``e_range``, in range
+    order (``seen``, ``measured`` and ``chosen`` are their scratch). Any other pulse whose central ray met a
+    ``triangle`` at a ``distance`` past the blind zone is whole: one echo, its hit's ``power``. (Walking the sampled
+    rows here, the caller makes no per-pulse tables of which pulse is what: three numpy passes and two zeroed arrays
+    of 8 bytes a pulse, 4 ns a pulse.) Receiver noise (the detection's and the intensity's) and range noise are one
     normal pair per echo: the pulse's first pair (``keys[0]``) for its nearest echo, the later stream's pair
-    ``slot - 1`` (``keys[1]``) for the others. An echo is seen when power plus noise / ``snr`` passes 1 and its
-    measured range lies in [blind zone, range_max]; when more are seen than ``keep_returns``, the first and then
-    the strongest others are kept. A pulse left without a point reports a false alarm with probability
-    ``false_rate`` (``keys[3]``): a range uniform in [blind zone, ``false_reach``] (``keys[4]``), byte 0-3,
-    tag spatial 01 and intensity 01.
+    ``slot - 1`` (``keys[1]``) for the others. An echo is seen when power plus noise / ``snr`` passes 1 and its measured
+    range lies in [blind zone, range_max]; when more are seen than ``keep_returns``, the first and then the
+    strongest others are kept. A pulse left without a point reports a false alarm with probability ``false_rate``
+    (``keys[3]``): a range uniform in [blind zone, ``false_reach``] (``keys[4]``), byte 0-3, tag spatial 01 and
+    intensity 01.
 
     Each point lies at its measured range along the pulse's direction (turned by the angular noise,
     ``keys[2]``); its reflectivity byte comes from seen power x the reflectance one unit of power means at
@@ -925,65 +928,72 @@ def _emit(whole, power, distance, unit, first, count, e_power, e_range, e_spatia
     multi = keep_returns > 1
     p = 0
     kept = 0
-    for i in range(whole.shape[0]):
+    listed = 0
+    for i in range(triangle.shape[0]):
         rows_start = p
-        if whole[i]:
-            a, b = _normal_pair(keys[0], index[i], 0)
-            heard = power[i] + a / snr
-            at = distance[i] + _sigma(distance[i], sigma_table) * b
-            if heard > 1.0 and blind <= at <= range_max:
-                range_out[p] = at
-                reflectivity[p] = _byte(heard * unit[i])
-                tag[p] = 0
-                p += 1
-        elif count[i] > 0:
-            start = first[i]
-            stop = start + count[i]
+        index = start + i
+        echoes = -1
+        if listed < sampled.shape[0] and sampled[listed] == i:
+            echoes = written[listed]
+            listed += 1
+        if echoes < 0:
+            if triangle[i] >= 0 and distance[i] >= blind:
+                a, b = _normal_pair(keys[0], index, 0)
+                heard = power[i] + a / snr
+                at = distance[i] + _sigma(distance[i], sigma_table) * b
+                if heard > 1.0 and blind <= at <= range_max:
+                    range_out[p] = at
+                    reflectivity[p] = _byte(heard * unit[i])
+                    tag[p] = 0
+                    p += 1
+        elif echoes > 0:
+            first = (listed - 1) * slots
+            stop = first + echoes
             heard_count = 0
-            for e in range(start, stop):
-                if e == start:
-                    a, b = _normal_pair(keys[0], index[i], 0)
+            for e in range(first, stop):
+                if e == first:
+                    a, b = _normal_pair(keys[0], index, 0)
                 else:
-                    a, b = _normal_pair(keys[1], index[i], e - start - 1)
+                    a, b = _normal_pair(keys[1], index, e - first - 1)
                 seen[e] = e_power[e] + a / snr
                 measured[e] = e_range[e] + _sigma(e_range[e], sigma_table) * b
                 chosen[e] = seen[e] > 1.0 and blind <= measured[e] <= range_max
                 if chosen[e]:
                     heard_count += 1
             if heard_count > keep_returns:
-                picked = np.zeros(stop - start, dtype=np.bool_)
-                nearest = start
+                picked = np.zeros(stop - first, dtype=np.bool_)
+                nearest = first
                 while not chosen[nearest]:
                     nearest += 1
-                picked[nearest - start] = True
+                picked[nearest - first] = True
                 for _ in range(keep_returns - 1):
                     best = -1
-                    for e in range(start, stop):
-                        if chosen[e] and not picked[e - start] and (best < 0 or seen[e] > seen[best]):
+                    for e in range(first, stop):
+                        if chosen[e] and not picked[e - first] and (best < 0 or seen[e] > seen[best]):
                             best = e
-                    picked[best - start] = True
-                for e in range(start, stop):
-                    chosen[e] = picked[e - start]
-            for e in range(start, stop):
+                    picked[best - first] = True
+                for e in range(first, stop):
+                    chosen[e] = picked[e - first]
+            for e in range(first, stop):
                 if chosen[e]:
                     range_out[p] = measured[e]
                     reflectivity[p] = _byte(seen[e] * e_unit[e])
                     tag[p] = e_spatial[e]
                     p += 1
         if p == rows_start:
-            if not (false_rate > 0.0 and _uniform(keys[3], index[i], 0) < false_rate):
+            if not (false_rate > 0.0 and _uniform(keys[3], index, 0) < false_rate):
                 continue
             if p >= range_out.shape[0]:
                 return -1  # more false alarms than the outputs were sized for
             near_end = min(max(blind, 0.1), false_reach)
-            range_out[p] = near_end + _uniform(keys[4], index[i], 0) * (false_reach - near_end)
-            reflectivity[p] = math.floor(_uniform(keys[4], index[i], 1) * 4.0)
+            range_out[p] = near_end + _uniform(keys[4], index, 0) * (false_reach - near_end)
+            reflectivity[p] = math.floor(_uniform(keys[4], index, 1) * 4.0)
             tag[p] = 0x05
             p += 1
         o = i * stride
         dx, dy, dz = directions_sensor[i, 0], directions_sensor[i, 1], directions_sensor[i, 2]
         if jitter > 0.0:
-            a, b = _normal_pair(keys[2], index[i], 0)
+            a, b = _normal_pair(keys[2], index, 0)
             jitter_scale = jitter / math.sqrt(dx * dx + dy * dy)
             a *= jitter_scale
             b *= jitter_scale
@@ -1005,8 +1015,8 @@ def _emit(whole, power, distance, unit, first, count, e_power, e_range, e_spatia
             number[kept] = place
             returns[kept] = p - rows_start
             beam[kept] = i
-            index_out[kept] = index[i]
-            t_out[kept] = times[i] if given else index[i] / point_rate
+            index_out[kept] = index
+            t_out[kept] = times[i] if given else index / point_rate
             xy_out[kept, 0] = xy[i, 0]
             xy_out[kept, 1] = xy[i, 1]
             xyz_sensor[kept, 0], xyz_sensor[kept, 1], xyz_sensor[kept, 2] = s0, s1, s2

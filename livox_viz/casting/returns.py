@@ -299,9 +299,8 @@ class ReturnModel:
                   turn: Turn | None, times: np.ndarray | None) -> tuple[ReturnPoints, dict[str, int]]:
         """:meth:`cast` of one part in the calling thread, with what its footprint tests sent on."""
         self._laps.clock = time.perf_counter()
-        params, footprint = self.params, self.footprint
+        footprint = self.footprint
         n = xy_deg.shape[0]
-        index = start + np.arange(n, dtype=np.int64)
         origins = np.ascontiguousarray(np.asarray(origin, dtype=np.float64).reshape(-1, 3))
         moving = origins.shape[0] > 1 or turn is not None
         directions_world = np.ascontiguousarray(directions_world, dtype=np.float64)
@@ -326,27 +325,20 @@ class ReturnModel:
                           footprint.tan_half_max, self._calibration, self.range_max, power, unit, leaves, reach)
         rows_basis = _Basis(xy_deg, panorama, rotation, basis_x, basis_y)
         self._lap("materials, edges and reach")
-        covered, near, may_meet = self._covered(leaves, directions_world, origins, rows_basis, reach, triangle,
-                                                distance, moving, directions_sensor, rotation)
+        covered, near, may_meet, named = self._covered(leaves, directions_world, origins, rows_basis, reach,
+                                                       triangle, distance, moving, directions_sensor, rotation)
         sampled_mask = leaves.copy()
         sampled_mask[covered] = True
         sampled = np.flatnonzero(sampled_mask)
-        counts = {"pulses": n, "leaves": int(leaves.sum()), "near": int(np.count_nonzero(near & ~leaves)),
-                  "covered": int(covered.size)}
-        whole = (triangle >= 0) & (distance >= params.blind_zone_m)
-        whole[sampled] = False
-        first, count = np.zeros(n, np.int64), np.zeros(n, np.int64)
+        counts = {"pulses": n, "leaves": int(leaves.sum()), "near": named, "covered": int(covered.size)}
         if sampled.size:
             footprint_echoes = self._footprint_echoes(sampled, directions_world, origins, rows_basis, distance,
                                                       triangle, moving, ~near[sampled], may_meet)
-            first[sampled] = np.arange(sampled.size) * SUBRAY_WEIGHTS.size
-            count[sampled] = footprint_echoes[0]
-            footprint_echoes = footprint_echoes[1:]
         else:
-            footprint_echoes = [np.zeros(0), np.zeros(0), np.zeros(0, np.uint8), np.zeros(0)]
+            footprint_echoes = [np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros(0, np.uint8), np.zeros(0)]
         self._lap("footprint sub-rays")
-        points = self._points(whole, power, unit, distance, first, count, footprint_echoes, index,
-                              directions_sensor, directions_world, origins, rotation, turn, xy_deg, times)
+        points = self._points(start, sampled, triangle, power, unit, distance, footprint_echoes, directions_sensor,
+                              directions_world, origins, rotation, turn, xy_deg, times)
         self._lap("detection, noise, tags")
         return points, counts
 
@@ -373,13 +365,14 @@ class ReturnModel:
     def _covered(self, leaves: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
                  rows_basis: _Basis, reach: np.ndarray, triangle: np.ndarray, distance: np.ndarray, moving: bool,
                  directions_sensor: np.ndarray, rotation: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]]:
+                 ) -> tuple[np.ndarray, np.ndarray, Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray], int]:
         """The pulses whose footprint stays on its triangle (or whose ray meets nothing) but something nearer covers
         in part (sorted rows);
         for every pulse whether the broad phase names anything but its own surface along the beam (``(n,)``
         bool: a footprint leaving its triangle with nothing named needs no cast for its sub-rays that stay on it);
         and ``may_meet(pulse, rays, limit)``, whether rays of those pulses' footprints can meet anything but their
-        hit before their limits (:meth:`~livox_viz.casting.beam.TileProxy.rays_may_meet` over the boxes placed).
+        hit before their limits (:meth:`~livox_viz.casting.beam.TileProxy.rays_may_meet` over the boxes placed);
+        and how many pulses the broad phase named whose footprint stays on its triangle (those probed).
 
         Nearer means in front of the hit's plane by more than the range sigma at the hit: a surface closer
         to the plane than that (a crease of a terrain, a poster on a wall) moves the point by less than its
@@ -404,7 +397,7 @@ class ReturnModel:
 
         self._lap("broad phase")
         if rows.size == 0:
-            return rows, near, may_meet
+            return rows, near, may_meet, 0
         # Probe rays at the corners of the footprint's bounding box: is anything in front of the hit's plane?
         probes = rows_basis.rays(rows, directions_world, self.footprint.probe_offsets)
         limit = np.empty((rows.size, 4))
@@ -420,7 +413,8 @@ class ReturnModel:
         blocked = self.caster.occluded(ray_origin, probes.reshape(-1, 3)[worth], limit.reshape(-1)[worth])
         self._lap("probes")
         covered = probe_rows[blocked]  # in order, a pulse's blocked probes side by side
-        return covered[np.r_[True, covered[1:] != covered[:-1]]] if covered.size else covered, near, may_meet
+        return (covered[np.r_[True, covered[1:] != covered[:-1]]] if covered.size else covered, near, may_meet,
+                int(rows.size))
 
     # Step 3: echoes of sampled footprints ------------------------------------------------------------------
     def _footprint_echoes(self, rows: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
@@ -477,26 +471,29 @@ class ReturnModel:
         return [written, power, range_m, spatial, unit]
 
     # Steps 4 and 5: detection and the points -----------------------------------------------------------
-    def _points(self, whole: np.ndarray, power: np.ndarray, unit: np.ndarray, distance: np.ndarray, first: np.ndarray,
-                count: np.ndarray, footprint_echoes: list[np.ndarray], index: np.ndarray,
-                directions_sensor: np.ndarray, directions_world: np.ndarray, origins: np.ndarray,
-                rotation: np.ndarray, turn: Turn | None, xy_deg: np.ndarray,
-                times: np.ndarray | None) -> ReturnPoints:
+    def _points(self, start: int, sampled: np.ndarray, triangle: np.ndarray, power: np.ndarray, unit: np.ndarray,
+                distance: np.ndarray, footprint_echoes: list[np.ndarray], directions_sensor: np.ndarray,
+                directions_world: np.ndarray, origins: np.ndarray, rotation: np.ndarray, turn: Turn | None,
+                xy_deg: np.ndarray, times: np.ndarray | None) -> ReturnPoints:
         """Detection, selection, noise, reflectivity and tags, false alarms: the run's points in pulse order, each
-        with its pulse's index, time and angles and its int16 encoding (none that encodes as (0, 0, 0))."""
+        with its pulse's index, time and angles and its int16 encoding (none that encodes as (0, 0, 0)).
+
+        ``start`` is the first pulse's stream index; ``sampled`` the pulses whose footprint was sampled (rows,
+        ascending) and ``footprint_echoes`` their echoes (:meth:`_footprint_echoes`); every other pulse whose
+        central ray met a triangle past the blind zone is whole (its hit's ``power`` at ``distance``)."""
         params = self.params
-        echoes = footprint_echoes[0].size
+        echoes = footprint_echoes[1].size
         seen, measured, chosen = np.empty(echoes), np.empty(echoes), np.empty(echoes, dtype=np.bool_)
-        # A point a whole pulse and a footprint echo at most, and a false alarm from a pulse without either: rows
-        # for a few times the expected false alarms, and for all of them in the rare run that has more (sized for
-        # every pulse, the blocks were a third larger than the points: they faulted in pages again).
-        whole_pulses = int(np.count_nonzero(whole))
-        others = whole.size - whole_pulses
+        # A point a pulse that met something and a footprint echo at most, and a false alarm from a pulse without
+        # either: rows for a few times the expected false alarms, and for all of them in the rare run that has more
+        # (sized for every pulse, the blocks were a third larger than the points: they faulted in pages again).
+        hits = int(np.count_nonzero(triangle >= 0))
+        others = triangle.size - hits
         scale, least = FALSE_ALARM_ROWS
         jitter = float(np.radians(params.angular_sigma_deg))
-        for total in (whole_pulses + echoes + min(others, int(scale * params.false_alarm_rate * others) + least),
-                      whole.size + echoes):
-            out = self._emit(total, whole, power, distance, unit, first, count, footprint_echoes, index,
+        for total in (hits + echoes + min(others, int(scale * params.false_alarm_rate * others) + least),
+                      triangle.size + echoes):
+            out = self._emit(total, start, sampled, triangle, power, distance, unit, footprint_echoes,
                              directions_sensor, directions_world, origins, xy_deg, times, jitter, seen, measured,
                              chosen)
             if out is not None:
@@ -507,8 +504,8 @@ class ReturnModel:
             np.add(origins[0] if origins.shape[0] == 1 else origins[beam], turned, out=out["xyz_world"])
         return ReturnPoints(**out)
 
-    def _emit(self, total: int, whole: np.ndarray, power: np.ndarray, distance: np.ndarray, unit: np.ndarray,
-              first: np.ndarray, count: np.ndarray, footprint_echoes: list[np.ndarray], index: np.ndarray,
+    def _emit(self, total: int, start: int, sampled: np.ndarray, triangle: np.ndarray, power: np.ndarray,
+              distance: np.ndarray, unit: np.ndarray, footprint_echoes: list[np.ndarray],
               directions_sensor: np.ndarray, directions_world: np.ndarray, origins: np.ndarray, xy_deg: np.ndarray,
               times: np.ndarray | None, jitter: float, seen: np.ndarray, measured: np.ndarray,
               chosen: np.ndarray) -> dict[str, np.ndarray] | None:
@@ -516,7 +513,7 @@ class ReturnModel:
         the points written; None when ``total`` rows were too few. ``jitter``: the angular noise's 1-sigma,
         radians."""
         params = self.params
-        e_power, e_range, e_spatial, e_unit = footprint_echoes
+        written, e_power, e_range, e_spatial, e_unit = footprint_echoes
         layout = [("beam", (total,), np.int64), ("stream_index", (total,), np.int64), ("t", (total,), np.float64),
                   ("xy_deg", (total, 2), np.float64), ("range_m", (total,), np.float64),
                   ("xyz_sensor", (total, 3), np.float64), ("xyz_int16", (total, 3), np.int16),
@@ -524,11 +521,11 @@ class ReturnModel:
                   ("tag", (total,), np.uint8), ("return_number", (total,), np.uint8),
                   ("number_of_returns", (total,), np.uint8)]
         out = carve(RETURN_BLOCKS.get(carved_size(layout)), layout)
-        kept = kernel("emit")(whole, power, distance, unit, first, count, e_power, e_range, e_spatial, e_unit, index,
-                              self._key_array, params.detection_snr, self._sigma_table, params.blind_zone_m,
-                              self.range_max, params.returns_per_pulse, params.false_alarm_rate,
-                              params.return0_range_m, self.false_alarm_reach, np.ascontiguousarray(directions_sensor),
-                              directions_world, origins, jitter, xy_deg,
+        kept = kernel("emit")(triangle, power, distance, unit, sampled, written, SUBRAY_WEIGHTS.size, e_power,
+                              e_range, e_spatial, e_unit, start, self._key_array, params.detection_snr,
+                              self._sigma_table, params.blind_zone_m, self.range_max, params.returns_per_pulse,
+                              params.false_alarm_rate, params.return0_range_m, self.false_alarm_reach,
+                              np.ascontiguousarray(directions_sensor), directions_world, origins, jitter, xy_deg,
                               _NO_TIMES if times is None else np.ascontiguousarray(times, dtype=np.float64),
                               self.point_rate, INT16_SCALE / self.range_max, seen, measured, chosen, *out.values())
         if kept < 0:
