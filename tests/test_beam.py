@@ -97,7 +97,7 @@ def test_the_broad_phases_ray_box_test_against_points_along_the_ray() -> None:
     the rare ray that only grazes within a step of the box is left out)."""
     from livox_viz.casting import return_kernels
 
-    return_kernels.kernel("near_boxes")  # the helpers compiled, as the model runs them
+    return_kernels.kernel("near")  # the helpers compiled, as the model runs them
     slab = return_kernels._slab
     rng = np.random.default_rng(7)
     agree = hits = 0

@@ -88,6 +88,10 @@ CUT_CELLS = 24
 CONVEX_TEST_MAX = 4000
 #: A convex object with at most this many distinct face planes keeps them for the probes' test (a box, a roof).
 HULL_PLANES_MAX = 16
+#: The broad phase's loop without a direction grid (directions, bounds, cell starts, cell boxes, boxes holding the
+#: sensor), resp. without a tree (node boxes and links): empty arrays of the types it takes.
+_NO_GRID = (np.empty((0, 3)), np.zeros(3), np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, np.int64))
+_NO_TREE = (np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3), np.int64))
 
 
 class Footprint:
@@ -340,16 +344,15 @@ class TileProxy:
                      np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3)),
                      np.ascontiguousarray(directions, dtype=np.float64),
                      np.ascontiguousarray(reach, dtype=np.float64), np.asarray(triangle, dtype=np.int64))
-        own = (self.tile_part, self.tile_convex, self.tile_triangle, self.triangle_tile, self.triangle_part, self.low,
-               self.part_sphere, self.hull_start, self.hull_planes, self.flat_low, self.flat_high, self.flat_part,
-               self.tan_half)
-        if grid is not None and directions_sensor is not None:
-            kernel("near_grid")(*arguments, np.ascontiguousarray(directions_sensor, dtype=np.float64), grid.bounds,
-                                grid.cell_start, grid.cell_boxes, grid.always, tree.box_low, tree.box_high, tree.tile,
-                                *own, near, crossed)
-        else:
-            kernel("near_boxes")(*arguments, tree.node_low, tree.node_high, tree.node_link, tree.box_low,
-                                 tree.box_high, tree.tile, *own, near, crossed)
+        if grid is not None and directions_sensor is not None:  # a beam tests the boxes of its direction
+            boxes_from = (np.ascontiguousarray(directions_sensor, dtype=np.float64), grid.bounds, grid.cell_start,
+                          grid.cell_boxes, grid.always, *_NO_TREE)
+        else:  # a walk down the tree
+            boxes_from = (*_NO_GRID, tree.node_low, tree.node_high, tree.node_link)
+        kernel("near")(*arguments, *boxes_from, tree.box_low, tree.box_high, tree.tile, self.tile_part,
+                       self.tile_convex, self.tile_triangle, self.triangle_tile, self.triangle_part, self.low,
+                       self.part_sphere, self.hull_start, self.hull_planes, self.flat_low, self.flat_high,
+                       self.flat_part, self.tan_half, near, crossed)
         return near
 
 

@@ -349,91 +349,24 @@ def _central(distance, triangle, directions, origins, xy_deg, panorama, rotation
             break
 
 
-def _near_boxes(candidate, origins, directions, reach, triangle, node_low, node_high, node_link, box_low, box_high,
-                box_tile, tile_part, tile_convex, tile_triangle, triangle_tile, triangle_part, tile_low, part_sphere,
-                hull_start, hull_planes, flat_low, flat_high, flat_part, tan_half, near,
-                crossed):  # pragma: no cover - compiled
+def _near(candidate, origins, directions, reach, triangle, directions_sensor, bounds, cell_start, cell_boxes, always,
+          node_low, node_high, node_link, box_low, box_high, box_tile, tile_part, tile_convex, tile_triangle,
+          triangle_tile, triangle_part, tile_low, part_sphere, hull_start, hull_planes, flat_low, flat_high, flat_part,
+          tan_half, near, crossed):  # pragma: no cover - compiled
     """Per ``candidate`` beam: does it pass through a box, other than its hit's own, before ``reach``? And the
-    tiles a ray of its footprint could meet something in (``crossed``, as :func:`_near_grid` lists them).
+    tiles a ray of its footprint could meet something in (``crossed``).
 
-    A walk down the tree. A box is the hit's own when it is the hit triangle's tile, a piece of the hit
-    triangle, or a tile of the hit's convex object. A flat object other than the hit's own, passed within the
-    footprint's reach, names the beam too (:func:`_near_flat`). ``origins`` is ``(1, 3)`` for a fixed sensor.
-    """
-    stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
-    most = crossed.shape[1]
-    stack = np.empty(128, dtype=np.int64)
-    for i in range(directions.shape[0]):
-        near[i] = False
-        crossed[i, 0] = -1
-        if not candidate[i]:
-            crossed[i, 0] = -2
-            continue
-        o = i * stride
-        ox, oy, oz = origins[o, 0], origins[o, 1], origins[o, 2]
-        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
-        ix = 1.0 / dx if dx != 0.0 else np.inf
-        iy = 1.0 / dy if dy != 0.0 else np.inf
-        iz = 1.0 / dz if dz != 0.0 else np.inf
-        limit = reach[i]
-        hit = triangle[i]
-        part = triangle_part[hit] if hit >= 0 else -1
-        own_tile = triangle_tile[hit] if hit >= 0 else -1
-        listing = own_tile < 0 or tile_convex[own_tile]
-        found = _near_flat(ox, oy, oz, ix, iy, iz, limit, part, flat_low, flat_high, flat_part, tan_half)
-        listed = 0
-        stack[0] = 0
-        top = 1
-        while top > 0:
-            top -= 1
-            node = stack[top]
-            if not _slab(ox, oy, oz, ix, iy, iz, limit, node_low[node, 0], node_low[node, 1], node_low[node, 2],
-                         node_high[node, 0], node_high[node, 1], node_high[node, 2]):
-                continue
-            if node_link[node, 0] >= 0:
-                stack[top] = node_link[node, 0]
-                stack[top + 1] = node_link[node, 1]
-                top += 2
-                continue
-            for b in range(node_link[node, 1], node_link[node, 1] + node_link[node, 2]):
-                # (written out: a helper taking the arrays pays their reference counts, five times this loop)
-                tile = box_tile[b]
-                if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part) or (
-                        not listing and tile == own_tile)):
-                    continue
-                enter, leave = _slab_span(ox, oy, oz, ix, iy, iz, limit, box_low[b, 0], box_low[b, 1], box_low[b, 2],
-                                          box_high[b, 0], box_high[b, 1], box_high[b, 2])
-                grow = tile_low[tile, 0] - box_low[b, 0]
-                hull = tile_part[tile]
-                inside = enter <= leave and _in_round(ox, oy, oz, dx, dy, dz, enter, leave, grow,
-                                                      _round_bounds(part_sphere, hull))
-                if inside and hull_start[hull] < hull_start[hull + 1]:
-                    inside = _in_planes(ox, oy, oz, dx, dy, dz, enter, leave, grow, hull_planes, hull_start[hull],
-                                        hull_start[hull + 1])
-                if not inside:
-                    continue
-                found = found or tile != own_tile
-                if listed < most:
-                    crossed[i, listed] = tile
-                listed += 1
-                if found and (listed > most or not listing):
-                    top = 0  # named, and nothing more to list
-                    break
-        if listed < most:
-            crossed[i, listed] = -1
-        if listed > most or not listing:
-            crossed[i, 0] = -2
-        near[i] = found
+    A box is the hit's own when it is the hit triangle's tile, a piece of the hit triangle, or a tile of the hit's
+    convex object. A convex object's box counts only where the beam also passes its sphere, cylinder and planes
+    grown as much as the box (its inflation: ``box_low`` against ``tile_low``). A flat object other than the hit's
+    own, passed within the footprint's reach, names the beam too (:func:`_near_flat`). ``origins`` is ``(1, 3)``
+    for a fixed sensor.
 
-
-def _near_grid(candidate, origins, directions, reach, triangle, directions_sensor, bounds, cell_start, cell_boxes,
-               always, box_low, box_high, box_tile, tile_part, tile_convex, tile_triangle, triangle_tile,
-               triangle_part, tile_low, part_sphere, hull_start, hull_planes, flat_low, flat_high, flat_part, tan_half,
-               near, crossed):  # pragma: no cover - compiled
-    """:func:`_near_boxes` for a fixed sensor: a beam tests only the boxes filed in its direction's grid cell
-    (``bounds`` = (lowest coordinate, cells per unit, cells a side)) and those reaching behind the sensor;
-    a beam outside the grid tests them all. A convex object's box counts only where the beam also passes its
-    sphere and planes grown as much as the box (its inflation: ``box_low`` against ``tile_low``).
+    The boxes a beam tests come from one of two places. With a direction grid (``cell_start`` not empty: a fixed
+    sensor, :class:`~livox_viz.casting.beam.DirectionGrid`), those filed in its direction's cell (``bounds`` =
+    (lowest coordinate, cells per unit, cells a side)) and those holding the sensor (``always``); a beam outside
+    the grid tests them all. Otherwise (a moving sensor) a walk down the tree ``node_low``, ``node_high``,
+    ``node_link``, depth first, whose leaves hold the boxes. Either way each box is tested here, in one loop.
 
     The tiles of each beam's boxes that a ray of its footprint could meet something in (every box it crosses
     before ``reach`` but the pieces of its hit triangle and its convex object's: its own tile counts here) go to
@@ -443,26 +376,31 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
     the box it meets, so these are all the boxes :func:`_rays_may_meet` needs to test for the beam.
     """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
-    low, per_unit, side = bounds[0], bounds[1], int(bounds[2])
+    gridded = cell_start.shape[0] > 0
+    low, per_unit, side = (bounds[0], bounds[1], int(bounds[2])) if gridded else (0.0, 0.0, 0)
     boxes = box_tile.shape[0]
     most = crossed.shape[1]
+    stack = np.empty(128, dtype=np.int64)
     for i in range(directions.shape[0]):
         near[i] = False
         crossed[i, 0] = -1
         if not candidate[i]:
             crossed[i, 0] = -2
             continue
-        sx = directions_sensor[i, 0]
+        # The beam's boxes: rows first .. stop of the cell, then ``extra`` more (gridded), or the tree's leaves.
         cell = -1
-        if sx > 1e-6:
-            cu = math.floor((directions_sensor[i, 1] / sx - low) * per_unit)
-            cv = math.floor((directions_sensor[i, 2] / sx - low) * per_unit)
-            if 0 <= cu < side and 0 <= cv < side:
-                cell = cu * side + cv
-        if cell >= 0:
-            first, stop, extra = cell_start[cell], cell_start[cell + 1], always.shape[0]
-        else:
-            first, stop, extra = 0, 0, boxes
+        first = stop = extra = 0
+        if gridded:
+            sx = directions_sensor[i, 0]
+            if sx > 1e-6:
+                cu = math.floor((directions_sensor[i, 1] / sx - low) * per_unit)
+                cv = math.floor((directions_sensor[i, 2] / sx - low) * per_unit)
+                if 0 <= cu < side and 0 <= cv < side:
+                    cell = cu * side + cv
+            if cell >= 0:
+                first, stop, extra = cell_start[cell], cell_start[cell + 1], always.shape[0]
+            else:
+                extra = boxes
         o = i * stride
         ox, oy, oz = origins[o, 0], origins[o, 1], origins[o, 2]
         dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
@@ -473,19 +411,45 @@ def _near_grid(candidate, origins, directions, reach, triangle, directions_senso
         hit = triangle[i]
         part = triangle_part[hit] if hit >= 0 else -1
         found = _near_flat(ox, oy, oz, ix, iy, iz, limit, part, flat_low, flat_high, flat_part, tan_half)
-        if stop + extra == first:
+        if gridded and stop + extra == first:
             near[i] = found
             continue  # no box in this direction (half the beams of the default scene): nothing more to look up
         own_tile = triangle_tile[hit] if hit >= 0 else -1
         listing = own_tile < 0 or tile_convex[own_tile]
         listed = 0
-        for j in range(first, stop + extra):
-            if j < stop:
-                b = cell_boxes[j]
-            elif cell >= 0:
-                b = always[j - stop]
+        j = first
+        leaf_stop = 0
+        stack[0] = 0
+        top = 0 if gridded else 1
+        while True:
+            # The next box: the cell's, the extra ones, or the next of the leaves the walk down the tree reaches.
+            if gridded:
+                if j >= stop + extra:
+                    break
+                if j < stop:
+                    b = cell_boxes[j]
+                elif cell >= 0:
+                    b = always[j - stop]
+                else:
+                    b = j - stop
+                j += 1
             else:
-                b = j - stop
+                while j >= leaf_stop and top > 0:
+                    top -= 1
+                    node = stack[top]
+                    if not _slab(ox, oy, oz, ix, iy, iz, limit, node_low[node, 0], node_low[node, 1],
+                                 node_low[node, 2], node_high[node, 0], node_high[node, 1], node_high[node, 2]):
+                        continue
+                    if node_link[node, 0] >= 0:
+                        stack[top] = node_link[node, 0]
+                        stack[top + 1] = node_link[node, 1]
+                        top += 2
+                    else:
+                        j, leaf_stop = node_link[node, 1], node_link[node, 1] + node_link[node, 2]
+                if j >= leaf_stop:
+                    break
+                b = j
+                j += 1
             # (written out: a helper taking the arrays pays their reference counts, five times this loop)
             tile = box_tile[b]
             if hit >= 0 and (tile_triangle[tile] == hit or (tile_convex[tile] and tile_part[tile] == part) or (
