@@ -84,6 +84,17 @@ def test_a_point_along_one_axis_is_not_taken_for_nothing() -> None:
     assert kept == 1 and points["int16"][0].tolist() == [0, 0, round(5.0 / 260.0 * 32767)]
 
 
+def test_a_hit_at_the_blind_zone_is_whole_and_one_nearer_is_not() -> None:
+    """A central hit exactly at the blind zone's edge is a whole pulse (its point kept where the range noise,
+    a nanometre, falls beyond the edge); one a micrometre nearer gives nothing."""
+    noise = streamrandom.stream_normal(1, 1, np.arange(64), 2)[:, 1]  # each pulse's range-noise draw
+    start = int(np.flatnonzero(noise > 0.5)[0])
+    kept, points = emit([True], [1e6], [2.0], [0], [0], [], [], [[1.0, 0.0, 0.0]], blind=2.0, start=start)
+    assert kept == 1 and points["range"][0] == pytest.approx(2.0, abs=1e-8)
+    assert points["index"].tolist() == [start]
+    assert emit([True], [1e6], [2.0 - 1e-6], [0], [0], [], [], [[1.0, 0.0, 0.0]], blind=2.0, start=start)[0] == 0
+
+
 def test_the_loop_says_when_its_outputs_are_one_row_short() -> None:
     """Pulses with nothing in front, at stream indices 70 000-72 999: a point for each whose false-alarm draw falls
     under the rate, drawn here independently. With a row fewer than those the loop answers -1 (the caller sizes
