@@ -271,3 +271,33 @@ def test_the_direction_grid_names_what_the_box_tree_names(sensor_in_a_box: bool)
 
     for row in listed:
         assert tiles(crossed_grid[row]) == tiles(crossed_tree[row]), row
+
+
+def test_placing_again_from_the_same_pose_reuses_the_boxes_and_a_new_pose_files_them_anew() -> None:
+    """A fixed sensor places its boxes every run: the same pose gets the same boxes back, without filing them
+    again; a turned sensor gets those a fresh proxy files for its new rotation, and a moved one a sphere of
+    positions (no grid), as if it had never been placed."""
+    mesh = trimesh.util.concatenate([
+        trimesh.creation.box((1.0, 1.0, 3.0)).apply_translation((8.0, 1.0, 0.0)),
+        trimesh.creation.box((1.0, 1.0, 3.0)).apply_translation((6.0, -4.0, 0.0)),
+        trimesh.creation.box((2.0, 2.0, 2.0)).apply_translation((-9.0, 3.0, 0.0))])
+    set_face_materials(mesh, np.full(len(mesh.faces), 0.5), np.ones(len(mesh.faces)), np.repeat(np.arange(3), 12))
+    tan_half = math.tan(math.radians(0.14))
+    origin = np.array([0.5, 0.25, -1.0])
+    ahead, turned = np.eye(3), np.array([[-1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0]])  # yaw 180 deg
+
+    def filed(boxes) -> tuple:
+        grid = boxes[1]
+        return grid.cell_start.tolist(), grid.cell_boxes.tolist(), grid.always.tolist()
+
+    proxy = TileProxy(mesh, tan_half)
+    first = proxy.place(origin, 60.0, ahead)
+    assert proxy.place(origin.copy(), 60.0, ahead.copy()) == first  # the very same tree and grid
+    assert first[1].cell_boxes.size > 0
+    again = proxy.place(origin, 60.0, turned)
+    assert again[1] is not first[1]
+    assert filed(again) == filed(TileProxy(mesh, tan_half).place(origin, 60.0, turned))
+    assert filed(again) != filed(first)  # the boxes ahead are behind it now, those behind ahead
+    assert proxy.place(origin, 60.0, ahead)[1] is not again[1]
+    moved = proxy.place(origin + 3.0, 60.0, ahead)
+    assert moved[1] is None and moved[0] is not None  # a sensor that moved: a sphere of positions, no grid

@@ -144,3 +144,38 @@ def test_distances_are_bare_embrees_on_the_same_float32_rays(threads: int) -> No
     far_one = caster._scene.run(np.broadcast_to(o32[3], o32.shape).copy(), d32,
                                 dists=np.full(count, np.float32(limit)), query="DISTANCE")
     np.testing.assert_array_equal(one, np.where(far_one < np.float32(limit), far_one.astype(np.float64), np.inf))
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_occlusion_is_a_hit_nearer_than_each_rays_own_limit_as_trimesh_finds_it(threads: int) -> None:
+    """Embree's occlusion query through the thread's scratch arrays, against trimesh's own intersector (its hit
+    distances): rays from their own origins or one, float64 or float32 directions, a limit a ray or one for all,
+    limits beyond float32 (they stay rays of any length), parts on both threads."""
+    from livox_viz.scene.raycast import TrimeshCaster
+
+    scene = trimesh.util.concatenate([trimesh.creation.icosphere(2, 3.0),
+                                      trimesh.creation.box((2.0, 8.0, 8.0)).apply_translation((9.0, 0.0, 0.0))])
+    rng = np.random.default_rng(5)
+    n = 3 * LEAST_RAYS + 17
+    origins = rng.uniform((-12.0, -2.0, -2.0), (-6.0, 2.0, 2.0), (n, 3))
+    directions = rng.normal((1.0, 0.0, 0.0), 0.35, (n, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    reference = TrimeshCaster(scene)
+    far = reference.hits(origins, directions)[0]
+    one = origins[:1]
+    far_from_one = reference.hits(one, directions)[0]
+    hit = np.isfinite(far)
+    assert 0.3 * n < hit.sum() < 0.9 * n
+    # Limits a clear margin off each hit (Embree casts in float32; trimesh in float64).
+    limits = np.where(hit, far * np.where(rng.random(n) < 0.5, 0.98, 1.02), rng.uniform(1.0, 50.0, n))
+    limits[::7] = np.inf
+    limits[3::7] = 1e300
+    caster = EmbreeCaster(scene, threads=threads)
+    for rays in (directions, directions.astype(np.float32)):
+        np.testing.assert_array_equal(caster.occluded(origins, rays, limits), hit & (far < limits))
+        np.testing.assert_array_equal(caster.occluded(origins, rays, np.inf), hit)
+        np.testing.assert_array_equal(caster.occluded(one[0], rays, 1e300), np.isfinite(far_from_one))
+        short = np.where(np.isfinite(far_from_one), far_from_one * 0.98, 5.0)
+        np.testing.assert_array_equal(caster.occluded(one, rays, short), np.zeros(n, dtype=bool))
+    with pytest.raises(ValueError):
+        caster.occluded(origins, directions, limits[:-1])

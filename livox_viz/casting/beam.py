@@ -254,6 +254,7 @@ class TileProxy:
         self._tree: BoxTree | None = None
         self._grid: DirectionGrid | None = None
         self._rotation: np.ndarray | None = None
+        self._pose_key: tuple | None = None
         #: Held by a caller from :meth:`place` to the end of its :meth:`near`: the boxes are placed for one caller.
         self.lock = threading.Lock()
 
@@ -281,6 +282,11 @@ class TileProxy:
         so runs cast side by side each ask their own (the placing itself goes under :attr:`lock`).
         """
         positions = np.atleast_2d(np.asarray(positions, dtype=np.float64))
+        # A fixed sensor asks again from the same pose every run: known by its bytes (two comparisons, where the
+        # test below took a fifth of a small run's broad phase).
+        pose_key = (positions.tobytes(), range_max, None if rotation is None else np.asarray(rotation).tobytes())
+        if pose_key == self._pose_key:
+            return self._tree, self._grid
         inside = self.centre is not None and np.all(
             np.linalg.norm(positions - self.centre, axis=1) <= self.radius + 1e-9)
         same_rotation = (rotation is None and self._rotation is None) or (
@@ -305,6 +311,7 @@ class TileProxy:
                     self._grid = DirectionGrid(self._tree.box_low, self._tree.box_high, centre, rotation)
         self.centre, self.radius = centre, radius
         self._rotation = None if rotation is None else np.array(rotation, dtype=np.float64)
+        self._pose_key = pose_key if positions.shape[0] == 1 else None
         return self._tree, self._grid
 
     def near(self, candidate: np.ndarray, origins: np.ndarray, directions: np.ndarray, reach: np.ndarray,

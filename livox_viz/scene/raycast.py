@@ -233,15 +233,22 @@ class EmbreeCaster:
         origins, directions = _check_rays(origins, directions)
         count = directions.shape[0]
         blocked = np.zeros(count, dtype=bool)
-        limits = np.broadcast_to(np.minimum(np.asarray(max_distance, dtype=np.float64), 1e37), (count,))
-        local = origins - self.local_origin
+        limits = np.asarray(max_distance, dtype=np.float64)
+        if limits.ndim:
+            limits = limits.reshape(count)  # one a ray (an error naming both shapes when it is not)
+        shared_origin = origins.shape[0] == 1
+        shared_local = origins[0] - self.local_origin if shared_origin else None
 
         def run(bounds: tuple[int, int]) -> None:
+            # The thread's scratch arrays and one compiled pass, as the first-hit queries: the probes of a run, a
+            # few hundred rays, spent as long in numpy's conversions as in Embree.
             start, stop = bounds
-            part_origins = _part_origins(local, start, stop)
-            found = self._scene.run(part_origins, np.ascontiguousarray(directions[start:stop], dtype=np.float32),
-                                    dists=np.ascontiguousarray(limits[start:stop], dtype=np.float32),
-                                    query="OCCLUDED")
+            work = self._workspace(stop - start)
+            part_origins, part_dirs, part_limits = work.rays(None if shared_origin else origins[start:stop],
+                                                             shared_local, self.local_origin, directions[start:stop],
+                                                             np.float32(0.0))
+            np.minimum(limits[start:stop] if limits.ndim else limits, 1e37, out=part_limits, casting="unsafe")
+            found = self._scene.run(part_origins, part_dirs, dists=part_limits, query="OCCLUDED")
             blocked[start:stop] = found >= 0
 
         if count:
