@@ -417,6 +417,46 @@ def test_shared_memory_receiver_counts_frames_and_points(tmp_path) -> None:
         receiver.close()
 
 
+def test_shared_memory_sender_waits_for_a_reader_mid_copy_and_drops_the_frame_only_past_its_patience(
+        tmp_path) -> None:
+    """RflySim's writer never overwrites a block whose flag says a reader is copying it (3). A copy the system
+    interrupts for a few milliseconds is waited for; a reader that holds the block past the sender's patience
+    costs that frame (an error naming why), and the frame it is copying stays whole."""
+    import threading
+    import time
+
+    from livox_viz.wire.rflysim import SHM_FLAG_DONE, SHM_FLAG_READING, SHM_FLAG_WRITTEN, SharedMemoryLink
+    from livox_viz.wire.transport import ShmSender
+
+    from .conftest import small_config
+
+    config = small_config()
+    sender = ShmSender(config, str(tmp_path), patience=0.2)
+    reader = SharedMemoryLink(sender.link.path, sender.link.size)
+    try:
+        assert sender.send(0.1, np.zeros(6), np.full((4, 3), 1, np.int16)) == 1
+        reader._map[0] = SHM_FLAG_READING  # a reader descheduled mid-copy, for 30 ms
+        threading.Timer(0.03, lambda: reader._map.__setitem__(0, SHM_FLAG_DONE)).start()
+        began = time.monotonic()
+        assert sender.send(0.2, np.zeros(6), np.full((5, 3), 2, np.int16)) == 1
+        assert 0.02 < time.monotonic() - began < 0.2 and sender.errors == 0
+        frame = reader.read()
+        assert frame.timestamp == 0.2 and frame.xyz_int16.tolist() == [[2, 2, 2]] * 5
+
+        assert sender.send(0.3, np.zeros(6), np.full((6, 3), 3, np.int16)) == 1
+        reader._map[0] = SHM_FLAG_READING  # a reader that never lets go
+        began = time.monotonic()
+        assert sender.send(0.4, np.zeros(6), np.full((7, 3), 4, np.int16)) == 0
+        assert time.monotonic() - began >= 0.2
+        assert sender.errors == 1 and "still held the previous frame after 200 ms" in sender.last_error
+        reader._map[0] = SHM_FLAG_WRITTEN
+        frame = reader.read()  # the frame being copied, untouched
+        assert frame.timestamp == 0.3 and frame.xyz_int16.tolist() == [[3, 3, 3]] * 6
+    finally:
+        sender.close()
+        reader.close()
+
+
 def test_udp_receiver_counts_only_its_own_cpu_time() -> None:
     """The listen report's CPU seconds are the time spent on datagrams, never more than the process used."""
     import socket

@@ -82,18 +82,38 @@ class UdpSender:
 
 
 class ShmSender:
-    """Writes frames into RflySim's shared-memory block for a configuration."""
+    """Writes frames into RflySim's shared-memory block for a configuration.
 
-    def __init__(self, config: SensorConfig, folder: str = "/dev/shm") -> None:
+    A reader copying the previous frame (flag 3) is waited for, up to ``patience`` seconds, before the frame is
+    dropped: its copy takes a fraction of a millisecond, but a reader the system has just descheduled mid-copy
+    held the block for a frame's interval on a busy machine, and the frame was lost at once.
+
+    Parameters
+    ----------
+    config : SensorConfig
+    folder : str
+        Where the block lives.
+    patience : float
+        Seconds a frame waits for a reader to finish its copy, at most.
+    """
+
+    #: How long each wait for a reader lasts, seconds.
+    POLL_SECONDS = 0.0005
+
+    def __init__(self, config: SensorConfig, folder: str = "/dev/shm", patience: float = 0.05) -> None:
         self.link = SharedMemoryLink(shm_path(config.seq_id, folder), shm_size(config), create=True)
+        self.patience = patience
         self.errors = 0
         self.last_error = ""
 
     def send(self, timestamp: float, pos_ang: np.ndarray, xyz_int16: np.ndarray) -> int:
-        if not self.link.write(timestamp, pos_ang, xyz_int16):
-            self.errors += 1
-            self.last_error = "the reader still holds the previous frame"
-            return 0
+        deadline = time.monotonic() + self.patience
+        while not self.link.write(timestamp, pos_ang, xyz_int16):
+            if time.monotonic() >= deadline:
+                self.errors += 1
+                self.last_error = f"the reader still held the previous frame after {self.patience * 1e3:.0f} ms"
+                return 0
+            time.sleep(self.POLL_SECONDS)
         return 1
 
     def close(self) -> None:
