@@ -13,8 +13,10 @@ pv = pytest.importorskip("pyvista")
 from livox_viz.widgets.app import LivoxVizApp  # noqa: E402
 from livox_viz.widgets.controls import RETURN_SLIDERS, slider_range  # noqa: E402
 from livox_viz.widgets.session import TAG_CLASSES, Session, tag_classes  # noqa: E402
+from livox_viz.widgets.views import REFLECTIVITY_MARKS  # noqa: E402
 
 from livox_viz import PARAM_RANGES, load_preset  # noqa: E402
+from livox_viz.casting.returns import RETRO_TOP, reflectivity_byte  # noqa: E402
 from livox_viz.core.poses import Pose  # noqa: E402
 from livox_viz.scene.materials import set_face_materials  # noqa: E402
 from livox_viz.scene.scenes import Scene, open_scene  # noqa: E402
@@ -67,6 +69,14 @@ def test_scene_colours_by_reflectivity_and_tag(app: LivoxVizApp) -> None:
     while session.display.scene_colour != "reflectivity":
         app.cycle_scene_colour()
     np.testing.assert_array_equal(ring.scalars[live], ring.reflectivity[live].astype(np.float32))
+    app.refresh()
+    bar = app.scene_view.scalar_bar
+    assert bar.GetDrawAnnotations() and bar.GetNumberOfLabels() == 0
+    # The bar's marks are the bytes the model gives a 10 %, 50 % and white target, and the retroreflective top.
+    marks = {round(value): text for value, text in REFLECTIVITY_MARKS.items()}
+    for reflectance, label in ((0.1, "10 %"), (0.5, "50 %"), (1.0, "white")):
+        assert label in marks[int(reflectivity_byte(np.array([reflectance]))[0])]
+    assert "retro" in marks[int(reflectivity_byte(np.array([RETRO_TOP]))[0])]
     app.cycle_scene_colour()
     assert session.display.scene_colour == "return/tag"
     np.testing.assert_array_equal(ring.scalars[live], tag_classes(ring.tag[live]))

@@ -25,8 +25,11 @@ NED_TO_DISPLAY[:3, :3] = FRD_TO_FLU
 PATTERN_UNITS = {"time": "time, s", "figure-8": "figure-8 in flower", "petal": "petal in flower",
                  "flower": "flower in figure", "arc": "arc in figure-8", "laser": "laser"}
 SCENE_UNITS = {"range": "range, m", "height": "height, m", "time": "time, s",
-               "reflectivity": "reflectivity\n(151+ retro)",
+               "reflectivity": "reflectivity",
                "return/tag": "return / tag"}
+#: Marks of the reflectivity bar: the byte of a 10 %, 50 % and white Lambertian target (0-150 is 0-100 %) and the
+#: top of the retroreflective bytes (151-255), not a log scale's ticks (1, 4, 16, 63.8, 255), which mean nothing.
+REFLECTIVITY_MARKS = {1.0: "1", 15.0: "15  10 %", 75.0: "75  50 %", 150.0: "150  white", 255.0: "255  retro"}
 #: Colours of the return/tag classes (return 0, 1, 2, 3, mixed, noise).
 TAG_COLOURS = ("#9aa5b1", "#4fc3f7", "#ffb74d", "#ba68c8", "#ff5252", "#fff176")
 
@@ -518,16 +521,17 @@ class SceneView(_View):
         if mode == "return/tag":
             table = pv.LookupTable(cmap=list(TAG_COLOURS), n_values=len(TAG_COLOURS))
             table.annotations = dict(enumerate(TAG_CLASSES))
-            labels = 0
         else:
             table = pv.LookupTable(cmap="viridis", n_values=256)
-            # Reflectivity spans 1-255 logarithmically: dark asphalt at grazing incidence, paint and walls, signs.
-            table.log_scale = mode == "reflectivity"
-            labels = 5
+            if mode == "reflectivity":
+                # 1-255 logarithmically: dark asphalt at grazing incidence, paint and walls, signs.
+                table.log_scale = True
+                table.annotations = REFLECTIVITY_MARKS
+        annotated = mode in ("return/tag", "reflectivity")
         self.actor.mapper.lookup_table = table
         self.scalar_bar.SetLookupTable(table)
-        self.scalar_bar.SetNumberOfLabels(labels)
-        self.scalar_bar.SetDrawAnnotations(mode == "return/tag")
+        self.scalar_bar.SetNumberOfLabels(0 if annotated else 5)
+        self.scalar_bar.SetDrawAnnotations(annotated)
         self.scalar_bar.GetAnnotationTextProperty().SetColor(0.87, 0.89, 0.92)
 
     def stride(self) -> int:
