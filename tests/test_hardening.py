@@ -33,6 +33,18 @@ def write_inputs(folder: Path) -> None:
     (folder / "a_folder.json").mkdir()
     (folder / "huge.json").write_text(json.dumps(HUGE))
     (folder / "deep.json").write_text("[" * 100_000 + "]" * 100_000)
+    # A number past float's range overflows every check that converts it; two detection figures at one range
+    # divide by zero in the lidar equation's loss.
+    (folder / "big_int.json").write_text(json.dumps(SEED_JSON)[:-1] + ', "LivoxVizReturns": {"blind_zone_m": 1'
+                                         + "0" * 400 + "}}")
+    (folder / "same_range.json").write_text(json.dumps(
+        {**SEED_JSON, "LivoxVizReturns": {"detection_range_m": [[0.1, 1e5], [0.8, 1e5]]}}))
+    box = {"type": "box", "center": [5, 0, 0], "size": [1, 1, 1]}
+    (folder / "big_scene.json").write_text(json.dumps({"objects": [{**box, "material": 0.5}]}).replace(
+        "0.5", "1" + "0" * 400))
+    (folder / "deep_scene.json").write_text('{"objects": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    (folder / "walls.obj").write_text("v 5 -1 -1\nv 5 1 -1\nv 5 0 1\nf 1 2 3\n")
+    (folder / "walls.materials.json").write_text('{"walls": ' + "[" * 100_000 + "]" * 100_000 + "}")
     (folder / "nan.json").write_text(json.dumps(SEED_JSON).replace("2.956", "NaN"))
     (folder / "wide.json").write_text(json.dumps({**SEED_JSON, "DataWidth": 1e9}))
     (folder / "empty.json").write_text("")
@@ -72,6 +84,14 @@ BAD_INPUTS: list[tuple[list[str], str]] = [
     (["listen", "--port", "-1"], "allowed: 0 (any free port) to 65535"),
     (["info", "--config", "deep.json"], "nested too deeply"),
     (["info", "--config", "nan.json"], "nan.json: otherParams[1] = NaN"),
+    (["info", "--config", "big_int.json"],
+     "LivoxVizReturns.blind_zone_m = 10000000000000000000... (401 digits), too large for a number"),
+    (["info", "--config", "same_range.json"], "the brighter target must reach farther"),
+    (["scan", "--scene", "big_scene.json", "--seconds", "0.1", "--out", "s.ply"],
+     "objects[0].material = 10000000000000000000... (401 digits), too large"),
+    (["scan", "--scene", "deep_scene.json", "--seconds", "0.1", "--out", "s.ply"], "nested too deeply"),
+    (["scan", "--scene", "walls.obj", "--seconds", "0.1", "--out", "s.ply"],
+     "walls.materials.json: not a readable material sidecar (JSON nested too deeply"),
     (["info", "--config", "wide.json"], "DataWidth = 1000000000.0; allowed: an integer in [1, 5000]"),
     (["info", "--config", "empty.json"], "is empty"),
     (["info", "--config", "a_folder.json"], "is a folder"),

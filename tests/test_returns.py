@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from livox_viz import ConfigError, SensorConfig, load_preset
+from livox_viz import PARAM_RANGES, ConfigError, SensorConfig, load_preset
 from livox_viz.casting.beam import SUBRAY_WEIGHTS
 from livox_viz.casting.codec import decode_int16
 from livox_viz.casting.scan import LidarScanner, MountedCaster
@@ -128,6 +128,9 @@ def test_returns_json_round_trip_and_errors() -> None:
                          ({"returns_per_pulse": 4}, "1, 2 or 3"), ({"divergence_deg": [0.03]}, "divergence"),
                          ({"detection_range_m": [[0.1, 300], [0.8, 100]]}, "brighter target"),
                          ({"detection_range_m": [[0.1, 90], [0.8, 2000]]}, "grow with range"),
+                         # One range for both (the loss's log-ratio over zero metres), and the brighter one nearer.
+                         ({"detection_range_m": [[0.1, 1e5], [0.8, 1e5]]}, "brighter target must reach farther"),
+                         ({"detection_range_m": [[0.1, 90], [0.8, 80]]}, "brighter target must reach farther"),
                          ({"range_sigma_m": [[20, 0.02], [10, 0.03]]}, "must increase"),
                          ({"noise": 1}, "unknown key 'noise'")]:
         with pytest.raises(ConfigError, match=message):
@@ -144,6 +147,14 @@ def test_sliders_move_the_sheet_as_a_whole() -> None:
     assert cfg.with_param("returns_blind_zone", 2.0).return_params.blind_zone_m == 2.0
     with pytest.raises(ConfigError, match="blind_zone"):
         cfg.with_param("returns_blind_zone", 50.0)
+    # The Tele-15's range-dependent noise keeps its shape down to the slider's end and back.
+    tele = load_preset("livox_tele15")
+    sheet = tele.return_params.range_sigma_m
+    quiet = tele.with_param("returns_range_sigma", 1.5 * PARAM_RANGES["returns_range_sigma"].low)
+    back = quiet.with_param("returns_range_sigma", sheet[0][1]).return_params.range_sigma_m
+    np.testing.assert_allclose(np.array(back), np.array(sheet), rtol=1e-12)
+    with pytest.raises(ConfigError, match=r"range_sigma .* = 0.0 is out of range"):
+        tele.with_param("returns_range_sigma", 0.0)
 
 
 # Range noise and reflectivity ------------------------------------------------------------------------------

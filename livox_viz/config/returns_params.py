@@ -151,13 +151,15 @@ class ReturnParams:
                            _number("return_separation_m", self.return_separation_m, 0, 100, low_open=True))
         object.__setattr__(self, "detection_snr", _number("detection_snr", self.detection_snr, 1, 100))
         if len(detection) == 2:
+            # First: two figures at one range would divide the loss's log-ratio by zero.
+            if (detection[1][0] - detection[0][0]) * (detection[1][1] - detection[0][1]) <= 0:
+                raise ConfigError(f"{RETURNS_KEY}.detection_range_m = {[list(p) for p in detection]}: the brighter "
+                                  "target must reach farther; allowed: a larger range for the larger reflectivity")
             far = max(r for _, r in detection)
             if self.range_loss_per_m <= -1.0 / (2.0 * far):
                 raise ConfigError(f"{RETURNS_KEY}.detection_range_m = {[list(p) for p in detection]}: under the lidar "
                                   "equation the received power would grow with range; allowed: figures where the "
                                   "brighter target reaches farther, by at most about its reflectivity ratio squared")
-            if (detection[1][0] - detection[0][0]) * (detection[1][1] - detection[0][1]) <= 0:
-                raise ConfigError(f"{RETURNS_KEY}.detection_range_m: the brighter target must reach farther")
 
     # The lidar equation --------------------------------------------------------------------
     @property
@@ -280,9 +282,11 @@ def _short(value: float) -> int | float:
     return int(value) if float(value).is_integer() and abs(value) < 2**53 else float(value)
 
 
-#: The return model's sliders: name -> (label with unit, low, high).
+#: The return model's sliders: name -> (label with unit, low, high). The range noise's never reaches 0: it scales
+#: the sheet's table as a whole (the Tele-15's 2 cm to 70 m, 4 cm at 120 m), and a table scaled to zero would come
+#: back flat; 0.1 mm is far below the int16 encoding's step.
 RETURN_SLIDERS: dict[str, tuple[str, float, float]] = {
-    "range_sigma": ("range noise 1-sigma, m", 0.0, 0.2),
+    "range_sigma": ("range noise 1-sigma, m", 1e-4, 0.2),
     "detection_range_10": ("detection range at 10 % reflectivity, m", 1.0, 2000.0),
     "blind_zone": ("blind zone, m", 0.0, 10.0),
     "divergence_h": ("beam divergence, horizontal, deg", 0.001, 2.0),

@@ -21,9 +21,10 @@ MAX_JSON_BYTES = 64 << 20
 
 
 class _NonFinite(float):
-    """A NaN or Infinity the JSON held, kept so the error can name its key."""
+    """A NaN or Infinity the JSON held, or a number too large for a float, kept so the error can name its key."""
 
     word = ""
+    reason = "which JSON does not allow"
 
 
 def read_json_file(path: str | os.PathLike[str]) -> Any:
@@ -57,19 +58,29 @@ def read_json_file(path: str | os.PathLike[str]) -> Any:
         constants.append(word)
         return _mark_constant(word)
 
+    def integer(word: str) -> int | float:
+        # An integer past float's range (400 digits) would overflow every check of it (and one of 4300 digits,
+        # Python's own parse). A float past it parses as Infinity, which every check refuses already.
+        if len(word.lstrip("-")) < 309:
+            return int(word)
+        constants.append(word)
+        marked = _mark_constant("-Infinity" if word.startswith("-") else "Infinity")
+        marked.word = f"{word[:20]}... ({len(word.lstrip('-'))} digits)"
+        marked.reason = "too large for a number"
+        return marked
+
     try:
-        data = json.loads(text, parse_constant=mark)
+        data = json.loads(text, parse_constant=mark, parse_int=integer)
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{path}: malformed JSON at line {exc.lineno} column {exc.colno}: {exc.msg}") from None
     except RecursionError:
-        raise ConfigError(f"{path}: JSON nested too deeply; allowed: a sensor object a few levels deep") from None
+        raise ConfigError(f"{path}: JSON nested too deeply; allowed: objects and lists a few levels deep") from None
     # The tree is searched for the key only when the parser met a NaN or Infinity: walking a track preset's
     # thousand coefficients cost 5-10 ms a file, and the window's reference key reads every preset.
     where = _find_non_finite(data, "") if constants else None
     if where is not None:
-        key, word = where
-        raise ConfigError(f"{path}: {key or 'the top level'} = {word}, which JSON does not allow; "
-                          "allowed: finite numbers")
+        key, word, reason = where
+        raise ConfigError(f"{path}: {key or 'the top level'} = {word}, {reason}; allowed: finite numbers")
     return data
 
 
@@ -79,10 +90,11 @@ def _mark_constant(word: str) -> _NonFinite:
     return value
 
 
-def _find_non_finite(value: Any, where: str, depth: int = 0) -> tuple[str, str] | None:
-    """The key path (``otherParams[1]``) and word of the first NaN/Infinity in parsed JSON, or None."""
+def _find_non_finite(value: Any, where: str, depth: int = 0) -> tuple[str, str, str] | None:
+    """The key path (``otherParams[1]``), word and what is wrong with it of the first NaN/Infinity (or number too
+    large for a float) in parsed JSON, or None."""
     if isinstance(value, _NonFinite):
-        return where, value.word
+        return where, value.word, value.reason
     if depth > 200:
         return None
     items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()

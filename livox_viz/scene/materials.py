@@ -24,7 +24,6 @@ Where the materials come from:
 from __future__ import annotations
 
 import fnmatch
-import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -33,7 +32,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import ConfigError, LivoxVizError
+from livox_viz.core.jsonfile import read_json_file
 
 if TYPE_CHECKING:
     import trimesh
@@ -252,9 +252,9 @@ def read_sidecar(mesh_path: Path) -> MaterialMap | None:
     if not path.is_file():
         return None
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise LivoxVizError(f"{path}: not a readable material sidecar ({exc})") from None
+        data = read_json_file(path)
+    except ConfigError as exc:
+        raise LivoxVizError(f"{path}: not a readable material sidecar ({str(exc).removeprefix(f'{path}: ')})") from None
     return MaterialMap.from_json(data, str(path))
 
 
