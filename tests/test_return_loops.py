@@ -86,13 +86,19 @@ def test_a_point_along_one_axis_is_not_taken_for_nothing() -> None:
 
 def test_a_hit_at_the_blind_zone_is_whole_and_one_nearer_is_not() -> None:
     """A central hit exactly at the blind zone's edge is a whole pulse (its point kept where the range noise,
-    a nanometre, falls beyond the edge); one a micrometre nearer gives nothing."""
+    a nanometre, falls beyond the edge, and its int16 point decodes beyond it too); one a micrometre nearer gives
+    nothing. At 2.004 m the int16 level (260 m / 32767) rounds up, to 2.0075 m; at 2.000 m it rounds down, to
+    1.99952 m, so a hit at a blind zone of 2 m decodes inside it and gives nothing either."""
     noise = streamrandom.stream_normal(1, 1, np.arange(64), 2)[:, 1]  # each pulse's range-noise draw
     start = int(np.flatnonzero(noise > 0.5)[0])
-    kept, points = emit([True], [1e6], [2.0], [0], [0], [], [], [[1.0, 0.0, 0.0]], blind=2.0, start=start)
-    assert kept == 1 and points["range"][0] == pytest.approx(2.0, abs=1e-8)
-    assert points["index"].tolist() == [start]
-    assert emit([True], [1e6], [2.0 - 1e-6], [0], [0], [], [], [[1.0, 0.0, 0.0]], blind=2.0, start=start)[0] == 0
+    level = 260.0 / 32767
+    assert np.rint(2.004 / level) * level > 2.004 and np.rint(2.0 / level) * level < 2.0
+    kept, points = emit([True], [1e6], [2.004], [0], [0], [], [], [[1.0, 0.0, 0.0]], blind=2.004, start=start)
+    assert kept == 1 and points["range"][0] == pytest.approx(2.004, abs=1e-8)
+    assert points["index"].tolist() == [start] and points["int16"][0].tolist() == [253, 0, 0]
+    assert emit([True], [1e6], [2.004 - 1e-6], [0], [0], [], [], [[1.0, 0.0, 0.0]], blind=2.004, start=start)[0] == 0
+    assert emit([True], [1e6], [2.0], [0], [0], [], [], [[1.0, 0.0, 0.0]], blind=2.0, start=start)[0] == 0
+    assert emit([True], [1e6], [2.0], [0], [0], [], [], [[1.0, 0.0, 0.0]], blind=1.999, start=start)[0] == 1
 
 
 def test_the_loop_says_when_its_outputs_are_one_row_short() -> None:

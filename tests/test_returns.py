@@ -348,6 +348,20 @@ def test_nothing_nearer_than_the_blind_zone() -> None:
     assert np.all(joined(frames, "tag") & 0x30 == 0)
 
 
+@pytest.mark.parametrize(("preset", "distance", "seconds"), [("livox_mid40_risley", 1.004, 0.05),
+                                                             ("livox_tele15", 499.99, 0.4)])
+def test_no_point_decodes_nearer_than_the_blind_zone_or_past_the_range(preset: str, distance: float,
+                                                                     seconds: float) -> None:
+    """What a client reads is the int16 point: half an int16 level (9 mm for the Mid-40's 600 m range) off the
+    measured range. A wall a few millimetres past the blind zone, and one a centimetre short of the Tele-15's
+    range, both give points, and none decodes outside [blind zone, range]."""
+    cfg = at_origin(preset)
+    frames, _ = scan(cfg, wall(distance, 0.9), seconds)
+    decoded = np.linalg.norm(joined(frames, "xyz_int16").astype(np.float64) * cfg.range_step, axis=1)
+    assert decoded.size > 500  # the Tele-15's: the rays within half a degree of the boresight
+    assert decoded.min() >= cfg.return_params.blind_zone_m and decoded.max() <= cfg.range_max
+
+
 def test_a_sensor_touching_a_surface_returns_nothing_from_it() -> None:
     # The window on the plane of a floor the beams graze (a vehicle resting on the ground): hits at zero range
     # have no finite power; they fall inside the blind zone and give no point, and the cast does not fail.

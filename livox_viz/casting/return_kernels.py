@@ -31,7 +31,8 @@ from livox_viz.core.streamrandom import (
 
 #: The small functions the loops call: compiled (in this module's namespace) before the first loop is.
 _HELPERS = ("_hash", "_ziggurat", "_normal_pair", "_uniform", "_sigma", "_plane_range", "_slab_span", "_slab",
-            "_round_bounds", "_in_round", "_in_planes", "_near_flat", "_basis_at", "_byte")
+            "_round_bounds", "_in_round", "_in_planes", "_near_flat", "_basis_at", "_byte", "_point_direction",
+            "_decodes_within")
 
 
 #: The loops that would run their pulses on every core (``prange``). None does: on this 2-core machine shared
@@ -871,10 +872,11 @@ def _emit(triangle, power, distance, unit, sampled, written, slots, e_power, e_r
     of 8 bytes a pulse, 4 ns a pulse.) Receiver noise (the detection's and the intensity's) and range noise are one
     normal pair per echo: the pulse's first pair (``keys[0]``) for its nearest echo, the later stream's pair
     ``slot - 1`` (``keys[1]``) for the others. An echo is seen when power plus noise / ``snr`` passes 1 and its measured
-    range lies in [blind zone, range_max]; when more are seen than ``keep_returns``, the first and then the
+    range lies in [blind zone, range_max], both as measured and as a client decodes its int16 point
+    (:func:`_decodes_within`); when more are seen than ``keep_returns``, the first and then the
     strongest others are kept. A pulse left without a point reports a false alarm with probability ``false_rate``
-    (``keys[3]``): a range uniform in [blind zone, ``false_reach``] (``keys[4]``), byte 0-3, tag spatial 01 and
-    intensity 01.
+    (``keys[3]``): a range uniform in [blind zone, ``false_reach``] (``keys[4]``; none that decodes outside), byte
+    0-3, tag spatial 01 and intensity 01.
 
     Each point lies at its measured range along the pulse's direction (turned by the angular noise,
     ``keys[2]``); its reflectivity byte comes from seen power x the reflectance one unit of power means at
@@ -905,7 +907,8 @@ def _emit(triangle, power, distance, unit, sampled, written, slots, e_power, e_r
                 a, b = _normal_pair(keys[0], index, 0)
                 heard = power[i] + a / snr
                 at = distance[i] + _sigma(distance[i], sigma_table) * b
-                if heard > 1.0 and blind <= at <= range_max:
+                if heard > 1.0 and blind <= at <= range_max and _decodes_within(
+                        at, directions_sensor[i], index, jitter, keys[2], scale, blind, range_max):
                     range_out[p] = at
                     reflectivity[p] = _byte(heard * unit[i])
                     tag[p] = 0
@@ -921,7 +924,8 @@ def _emit(triangle, power, distance, unit, sampled, written, slots, e_power, e_r
                     a, b = _normal_pair(keys[1], index, e - first - 1)
                 seen[e] = e_power[e] + a / snr
                 measured[e] = e_range[e] + _sigma(e_range[e], sigma_table) * b
-                chosen[e] = seen[e] > 1.0 and blind <= measured[e] <= range_max
+                chosen[e] = seen[e] > 1.0 and blind <= measured[e] <= range_max and _decodes_within(
+                    measured[e], directions_sensor[i], index, jitter, keys[2], scale, blind, range_max)
                 if chosen[e]:
                     heard_count += 1
             if heard_count > keep_returns:
@@ -951,17 +955,14 @@ def _emit(triangle, power, distance, unit, sampled, written, slots, e_power, e_r
                 return -1  # more false alarms than the outputs were sized for
             near_end = min(max(blind, 0.1), false_reach)
             range_out[p] = near_end + _uniform(keys[4], index, 0) * (false_reach - near_end)
+            if not _decodes_within(range_out[p], directions_sensor[i], index, jitter, keys[2], scale, blind,
+                                   range_max):
+                continue
             reflectivity[p] = math.floor(_uniform(keys[4], index, 1) * 4.0)
             tag[p] = 0x05
             p += 1
         o = i * stride
-        dx, dy, dz = directions_sensor[i, 0], directions_sensor[i, 1], directions_sensor[i, 2]
-        if jitter > 0.0:
-            a, b = _normal_pair(keys[2], index, 0)
-            jitter_scale = jitter / math.sqrt(dx * dx + dy * dy)
-            a *= jitter_scale
-            b *= jitter_scale
-            dx, dy, dz = dx - a * dy - b * dz * dx, dy + a * dx - b * dz * dy, dz + b * (dx * dx + dy * dy)
+        dx, dy, dz = _point_direction(directions_sensor[i], index, jitter, keys[2])
         # The pulse's points were written from rows_start; each moves down to the next kept row (kept <= q).
         for q in range(rows_start, p):
             r = range_out[q]
@@ -994,6 +995,34 @@ def _emit(triangle, power, distance, unit, sampled, written, slots, e_power, e_r
             kept += 1
         p = kept  # the next pulse writes after the rows kept
     return kept
+
+
+def _point_direction(direction, index, jitter, key):  # pragma: no cover - compiled
+    """A pulse's direction ``(3,)`` (sensor frame) turned by its angular noise (``jitter`` 1-sigma radians, the
+    normal pair of ``key`` at ``index``)."""
+    dx, dy, dz = direction[0], direction[1], direction[2]
+    if jitter > 0.0:
+        a, b = _normal_pair(key, index, 0)
+        jitter_scale = jitter / math.sqrt(dx * dx + dy * dy)
+        a *= jitter_scale
+        b *= jitter_scale
+        dx, dy, dz = dx - a * dy - b * dz * dx, dy + a * dx - b * dz * dy, dz + b * (dx * dx + dy * dy)
+    return dx, dy, dz
+
+
+def _decodes_within(range_m, direction, index, jitter, key, scale, low, high):  # pragma: no cover - compiled
+    """Whether a point at ``range_m`` along the pulse's direction (:func:`_point_direction`) decodes, int16 and
+    back (``scale`` levels a metre), at a range in [``low``, ``high``]: what a client measures, which can lie
+    half a level (with an 18 mm level, 1.6 cm) off the range itself. Asked only within a level of either end."""
+    step = 1.0 / scale
+    if low + step <= range_m <= high - step:
+        return True
+    dx, dy, dz = _point_direction(direction, index, jitter, key)
+    q0 = min(max(np.rint(dx * range_m * scale), -32767.0), 32767.0)
+    q1 = min(max(np.rint(dy * range_m * scale), -32767.0), 32767.0)
+    q2 = min(max(np.rint(dz * range_m * scale), -32767.0), 32767.0)
+    decoded = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2) * step
+    return low <= decoded <= high
 
 
 def _byte(value):  # pragma: no cover - compiled
