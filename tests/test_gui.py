@@ -20,6 +20,7 @@ from livox_viz.widgets.overlay import WINDOWS, TableSource  # noqa: E402
 from livox_viz.widgets.session import Session  # noqa: E402
 
 from livox_viz import PARAM_RANGES, SensorConfig, load_preset  # noqa: E402
+from livox_viz.scene.materials import face_materials  # noqa: E402
 from livox_viz.scene.scenes import open_scene  # noqa: E402
 
 from .xserver import private_display, x_tools  # noqa: E402
@@ -432,14 +433,19 @@ def test_scene_cycle_survives_a_broken_mesh(app: LivoxVizApp, tmp_path: Path, mo
     folder.mkdir()
     (folder / "a_broken.obj").write_text("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     trimesh.creation.box((4, 4, 4)).export(folder / "b_box.obj")
+    (folder / "b_box.materials.json").write_text('{"other_mesh": 0.2}')  # a sidecar, not a scene of its own
     monkeypatch.setenv("LIVOX_VIZ_SCENES", str(folder))
     session = app.session
+    session.scene_options = {"up": "z", "reflectance": 0.9}  # the window's --reflectance
     seen = []
     for _ in range(6):
         app._guarded(app.cycle_scene)()
         seen.append((session.scene.name, session.message))
+        if session.scene.name == "b_box.obj":
+            assert np.all(face_materials(session.scene.mesh)[0] == 0.9)
     names = [name for name, _ in seen]
-    assert {"dense_terrain", "open_field", "b_box.obj"} <= set(names)
+    assert {"dense_terrain", "open_field", "b_box.obj"} <= set(names) and "b_box.materials.json" not in names
+    assert not any("objects" in message for _, message in seen)
     assert any("NaN or infinite" in message for _, message in seen)
     session.advance_to(0.1)
     app.refresh()
@@ -539,3 +545,23 @@ def test_a_moving_vehicle_is_followed_and_its_cloud_frame_switches(urban) -> Non
         assert "end of the trajectory" in session.message
     finally:
         app.close()
+
+
+def test_the_window_and_render_start_as_their_command_lines_say(tmp_path: Path) -> None:
+    """``--scene-colour``, ``--reflectance`` and ``--up`` reach the session: the cloud's colours from the first
+    frame, and how the scenes ``m`` cycles to are opened."""
+    from livox_viz.widgets.commands import COMMANDS, SCENE_COLOUR_CHOICES, _session
+    from livox_viz.widgets.session import SCENE_COLOURS
+
+    from livox_viz.cli import build_parser
+
+    assert SCENE_COLOUR_CHOICES == SCENE_COLOURS
+    args = build_parser(COMMANDS).parse_args([
+        "render", "--preset", "livox_mid70_risley", "--returns", "datasheet", "--scene-colour", "reflectivity",
+        "--reflectance", "0.9", "--up", "y", "--out", str(tmp_path / "r.png")])
+    session = _session(args)
+    assert session.display.scene_colour == "reflectivity"
+    assert session.scene_options == {"up": "y", "reflectance": 0.9}
+    session.advance_to(0.1)
+    live = session.scene_ring.live_slots()
+    np.testing.assert_array_equal(session.scene_ring.scalars[live], session.scene_ring.reflectivity[live])

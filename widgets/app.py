@@ -260,7 +260,7 @@ class LivoxVizApp:
             names = [Path(c).name if os.sep in c else c for c in choices]
             self._scene_cursor = names.index(self.session.scene.name) if self.session.scene.name in names else -1
         self._scene_cursor = (self._scene_cursor + 1) % len(choices)
-        scene = open_scene(choices[self._scene_cursor])
+        scene = open_scene(choices[self._scene_cursor], **self.session.scene_options)
         self.session.set_scene(scene)
         self.session.message = f"scene {scene.name}"
 

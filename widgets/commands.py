@@ -40,6 +40,8 @@ def _session(args: argparse.Namespace):
     trajectory = trajectory_from_args(args, pose, max(args.seconds, GUI_FLIGHT_SECONDS), whole_file=True)
     session = Session(config, scene, seed=args.seed, preset_name=config_label(args), vehicle_pose=pose,
                       caster=caster, trajectory=trajectory)
+    session.scene_options = {"up": args.up, "reflectance": args.reflectance}
+    session.display.scene_colour = args.scene_colour
     if getattr(args, "reference", None):
         source = reference_source(args.reference, args.reference_rate, args.seed)
         if source.plane != config.pattern_plane:
@@ -141,11 +143,19 @@ def cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The scene view's colours (``session.SCENE_COLOURS``, which a test holds equal): written out so that building
+#: the command line imports no session.
+SCENE_COLOUR_CHOICES = ("range", "height", "time", "reflectivity", "return/tag")
+
+
 def _common_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_arguments(parser)
     add_scene_arguments(parser)
     add_trajectory_arguments(parser)
     add_seed_argument(parser)
+    parser.add_argument("--scene-colour", choices=SCENE_COLOUR_CHOICES, default="range",
+                        help="what colours the cloud in the scene view (k cycles them in the window): range, height, "
+                             "time, reflectivity (byte, log scale) or return/tag (default range)")
     parser.add_argument("--reference", help="overlay a reference in the pattern view: a scan table (mid40, mid70, "
                                             "a .npy in radians or a Livox CSV) or a preset (e.g. livox_mid70_risley)")
     parser.add_argument("--reference-rate", type=positive_float,

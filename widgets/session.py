@@ -134,6 +134,9 @@ class Session:
         self.window_index = 1
         self.message = ""
         self.overlay = ReferenceOverlay()
+        #: How the scenes the window cycles to are opened (``open_scene``'s ``up`` and ``reflectance``): as the
+        #: one it started on.
+        self.scene_options: dict[str, object] = {}
         #: A receiver with ``poll() -> list of LivoxFrame`` (the live view); None plays the model.
         self.source = None
         self._received_points = 0

@@ -33,6 +33,7 @@ from livox_viz.core.jsonfile import read_json_file
 from livox_viz.core.poses import Pose
 from livox_viz.scene.materials import (
     DEFAULT_REFLECTANCE,
+    SIDECAR_SUFFIX,
     MaterialMap,
     face_materials,
     fill_reflectance,
@@ -105,7 +106,8 @@ def scene_choices() -> list[str]:
     choices = [name for name, _ in list_scenes()]
     folder = user_scene_dir()
     if folder.is_dir():
-        choices += [str(p) for p in sorted(folder.iterdir()) if p.suffix.lower() in MESH_SUFFIXES]
+        choices += [str(p) for p in sorted(folder.iterdir())
+                    if p.suffix.lower() in MESH_SUFFIXES and not p.name.endswith(SIDECAR_SUFFIX)]
     return choices
 
 
