@@ -144,3 +144,85 @@ def test_the_readmes_scene_json_loads_as_it_says(tmp_path: Path) -> None:
     (tmp_path / "posed.json").write_text(json.dumps(scene))
     posed = open_scene(str(tmp_path / "posed.json")).vehicle_pose
     assert posed.origin.tolist() == [3.0, 4.0, -2.0] and posed == Pose((3.0, 4.0, -2.0), yaw=90.0)
+
+
+def wall_obj(folder: Path, mtl: str = "") -> Path:
+    """Two walls side by side at x = 20 m, objects ``white_wall`` (y 0..10) and ``dark_wall`` (y -10..0), each
+    with the material ``mtl`` names (none when empty)."""
+    lines = ["mtllib walls.mtl" if mtl else ""]
+    for k, (name, y0) in enumerate((("white_wall", 0), ("dark_wall", -10))):
+        lines += [f"o {name}"] + ([f"usemtl {mtl}"] if mtl else [])
+        lines += [f"v 20 {y0} -1", f"v 20 {y0 + 10} -1", f"v 20 {y0 + 10} 6", f"v 20 {y0} 6"]
+        lines += [f"f {4 * k + 1} {4 * k + 2} {4 * k + 3}", f"f {4 * k + 1} {4 * k + 3} {4 * k + 4}"]
+    path = folder / "walls.obj"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def by_wall(mesh: trimesh.Trimesh) -> dict[str, float]:
+    """The reflectance of each wall, told apart by where its faces lie: the file's y (left, z up) is NED's -y."""
+    reflectance, _ = face_materials(mesh)
+    east = mesh.triangles_center[:, 1]
+    return {"white_wall": float(np.unique(reflectance[east < 0])[0]),
+            "dark_wall": float(np.unique(reflectance[east > 0])[0])}
+
+
+def test_a_sidecar_names_an_obj_files_objects_each_its_own(tmp_path: Path) -> None:
+    """trimesh joins an OBJ's objects of one material into one part named after the first: the sidecar's two
+    names must still reach their own walls, with a material (usemtl) and without."""
+    for mtl in ("", "Paint"):
+        folder = tmp_path / (mtl or "none")
+        folder.mkdir()
+        if mtl:
+            (folder / "walls.mtl").write_text(f"newmtl {mtl}\nKd 0.5 0.5 0.5\n")
+        path = wall_obj(folder, mtl)
+        (folder / "walls.materials.json").write_text('{"white_wall": 0.9, "dark_wall": 0.05}')
+        assert by_wall(load_mesh_file(path)) == {"white_wall": 0.9, "dark_wall": 0.05}, mtl
+
+
+def test_a_sidecar_name_that_matches_nothing_is_an_error_naming_what_there_is(tmp_path: Path) -> None:
+    path = wall_obj(tmp_path)
+    (tmp_path / "walls.materials.json").write_text('{"white_wall": 0.9, "dark_wal": 0.05}')
+    with pytest.raises(LivoxVizError, match=r"'dark_wal' names nothing in .*walls\.obj; allowed: .*'dark_wall'"):
+        load_mesh_file(path)
+    (tmp_path / "walls.materials.json").write_text('{"*_wall": 0.7, "glass*": 0.05}')
+    with pytest.raises(LivoxVizError, match=r"'glass\*' names nothing"):
+        load_mesh_file(path)
+
+
+def test_a_scene_jsons_map_for_a_mesh_comes_before_its_sidecar(tmp_path: Path) -> None:
+    """The scene's map names one wall; the sidecar beside the mesh still gives the other its value."""
+    wall_obj(tmp_path)
+    (tmp_path / "walls.materials.json").write_text('{"white_wall": 0.2, "dark_wall": 0.05}')
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps({"objects": [{"type": "mesh", "path": "walls.obj",
+                                              "materials": {"white_wall": 0.9}}]}))
+    assert by_wall(open_scene(scene).mesh) == {"white_wall": 0.9, "dark_wall": 0.05}
+
+
+def test_a_material_without_a_colour_takes_the_default_and_a_texture_its_mean(tmp_path: Path) -> None:
+    """trimesh fills a colour the file left out with its placeholder grey (102, a reflectance of 0.4): a glTF
+    material with neither a base colour nor a texture, and an OBJ material with no Kd, Ka or Ks, take
+    ``--reflectance`` instead; a texture's mean colour counts (times its factor); a Kd of 0.4 stays 0.4."""
+    from PIL import Image
+
+    plain = trimesh.creation.box((1, 1, 1))
+    plain.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(name="NoFactor"))
+    plain.export(tmp_path / "plain.glb")
+    assert np.all(face_materials(load_mesh_file(tmp_path / "plain.glb", reflectance=0.9))[0] == 0.9)
+    textured = trimesh.creation.box((1, 1, 1))
+    texture = Image.new("RGB", (8, 8), (200, 100, 50))
+    texture.paste((0, 0, 0), (0, 0, 8, 4))  # half black: the mean is half the colour
+    uv = np.tile([[0.5, 0.5]], (len(textured.vertices), 1))
+    textured.visual = trimesh.visual.TextureVisuals(uv=uv, material=trimesh.visual.material.PBRMaterial(
+        name="Tex", baseColorTexture=texture))
+    textured.export(tmp_path / "textured.glb")
+    found = face_materials(load_mesh_file(tmp_path / "textured.glb", reflectance=0.9))[0]
+    np.testing.assert_allclose(found, luminance((100, 50, 25)), atol=1e-9)
+    for mtl, expected in (("newmtl NoKd\nNs 10\n", 0.9), ("newmtl Grey\nKd 0.4 0.4 0.4\nKa 0 0 0\n", 0.4)):
+        folder = tmp_path / str(expected)
+        folder.mkdir()
+        name = mtl.split()[1]
+        (folder / "walls.mtl").write_text(mtl)
+        found = face_materials(load_mesh_file(wall_obj(folder, name), reflectance=0.9))[0]
+        np.testing.assert_allclose(found, expected, atol=0.003)

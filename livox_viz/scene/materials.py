@@ -232,6 +232,23 @@ class MaterialMap:
                 return material
         return None
 
+    def require_matches(self, names: Sequence[str], where: str) -> None:
+        """Raise :class:`LivoxVizError` naming the first entry that matches none of ``names`` (a mesh's part,
+        geometry and material names), and the names there are."""
+        present = sorted({n for n in names if n})
+        for key, _ in self.entries:
+            if key not in present and not any(fnmatch.fnmatchcase(n, key) for n in present):
+                shown = ", ".join(repr(n) for n in present[:12]) + (", ..." if len(present) > 12 else "")
+                raise LivoxVizError(f"{self.source}: {key!r} names nothing in {where}; allowed: its part, geometry "
+                                    f"and material names ({shown}) or glob patterns of them")
+
+    @classmethod
+    def merged(cls, first: MaterialMap | None, then: MaterialMap | None) -> MaterialMap | None:
+        """One map of ``first``'s entries, then ``then``'s (a name both give takes ``first``'s); None if neither."""
+        if first is None or then is None:
+            return first if then is None else then
+        return cls(first.entries + then.entries, f"{first.source} and {then.source}")
+
     @classmethod
     def from_json(cls, data: Any, source: str) -> MaterialMap:
         """Read ``{"name or pattern": material, ...}`` (see :func:`parse_material`)."""
@@ -239,6 +256,44 @@ class MaterialMap:
             raise LivoxVizError(f"{source}: a material sidecar must be a JSON object mapping mesh or material "
                                 "names (or glob patterns) to materials")
         return cls(tuple((str(k), parse_material(v, f"{source}: {k!r}")) for k, v in data.items()), source)
+
+
+def material_colour(material: Any) -> np.ndarray | None:
+    """The RGB(A) 0-255 a mesh file's material gives its surface, or None when it gives none.
+
+    A glTF material's base colour factor times its base colour texture's mean (a factor left out is white, as
+    glTF says); an OBJ material's diffuse colour (``Kd``). What trimesh fills in for a colour the file left out
+    (its placeholder grey, 102 of 255) is no colour: such a surface takes ``--reflectance``. For an OBJ material
+    that placeholder is told from a ``Kd`` of 0.4 by its ambient and specular colours, which trimesh fills the
+    same way: all three at the placeholder means the file gave none of them.
+    """
+    from trimesh.visual.color import DEFAULT_COLOR
+
+    placeholder = np.asarray(DEFAULT_COLOR, dtype=np.float64)
+    if hasattr(material, "baseColorFactor"):  # glTF's PBR material
+        factor = getattr(material, "baseColorFactor", None)
+        texture = getattr(material, "baseColorTexture", None)
+        if factor is None and texture is None:
+            return None
+        rgba = np.full(4, 255.0) if factor is None else np.asarray(factor, dtype=np.float64).reshape(-1)
+        if rgba.size == 4 and rgba.max() <= 1.0 and np.issubdtype(np.asarray(factor).dtype, np.floating):
+            rgba = rgba * 255.0
+        if texture is not None:
+            from PIL import Image
+
+            # The mean of a box-filtered 256 x 256 copy: a 4k texture's own pixels would take 400 MB as floats.
+            image = texture.convert("RGB")
+            if image.width * image.height > 256 * 256:
+                image = image.resize((256, 256), Image.Resampling.BOX)
+            pixels = np.asarray(image, dtype=np.float64).reshape(-1, 3)
+            rgba[:3] = rgba[:3] * pixels.mean(axis=0) / 255.0
+        return rgba
+    colours = [getattr(material, key, None) for key in ("diffuse", "ambient", "specular")]
+    if colours[0] is None:
+        return None
+    if all(c is not None and np.array_equal(np.asarray(c, dtype=np.float64), placeholder) for c in colours):
+        return None
+    return np.asarray(colours[0], dtype=np.float64)
 
 
 def sidecar_path(mesh_path: Path) -> Path:
@@ -279,11 +334,7 @@ def part_material(part: trimesh.Trimesh, names: Sequence[str], sidecar: Material
     gain = np.ones(faces)
     material = getattr(visual, "material", None)
     if material is not None:
-        colour = getattr(material, "baseColorFactor", None)
-        if colour is None:
-            colour = getattr(material, "diffuse", None)
-        if colour is None:
-            colour = getattr(material, "main_color", None)
+        colour = material_colour(material)
         if colour is not None:
             return np.full(faces, reflectance_from_colour(colour)), gain
     if getattr(visual, "kind", None) in ("face", "vertex") and getattr(visual, "defined", False):

@@ -167,12 +167,14 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: flo
     reflectance : float or None
         For parts that have no material (no sidecar entry, no colour); None leaves them without one.
     materials : MaterialMap, optional
-        Names to materials; default the sidecar ``<stem>.materials.json`` beside the file, if any.
+        Names to materials (a scene JSON's map for this mesh), before the sidecar ``<stem>.materials.json``
+        beside the file, if any: what the map does not name, the sidecar may.
 
     Raises
     ------
     LivoxVizError
-        If the file is missing, not a mesh, empty, or has non-finite vertices.
+        If the file is missing, not a mesh, empty, or has non-finite vertices, or a name of the map or the
+        sidecar matches no part (a misspelt name would silently leave its part at its colour).
     """
     import trimesh
 
@@ -180,19 +182,28 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: flo
     if up not in UP_AXES:
         raise LivoxVizError(f"up axis {up!r}; allowed: {' or '.join(UP_AXES)}")
     require_file(path, "mesh file")
+    # An OBJ's objects ("o") stay parts of their own, named as the file names them: trimesh otherwise joins
+    # those of one material into one, named after the first (a sidecar naming two walls gave both the first's).
+    options = {"split_objects": True} if path.suffix.lower() == ".obj" else {}
     try:
-        loaded = trimesh.load(path, force="scene", process=False)
+        loaded = trimesh.load(path, force="scene", process=False, **options)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise LivoxVizError(f"{path}: not a mesh trimesh can read ({type(exc).__name__}: {exc})") from None
-    sidecar = materials if materials is not None else read_sidecar(path)
+    # A scene JSON's map for this mesh first, then the sidecar beside the file for what the map does not name.
+    table = MaterialMap.merged(materials, read_sidecar(path))
     parts = []
+    names_seen: list[str] = []
     for node in loaded.graph.nodes_geometry:
         transform, geometry_name = loaded.graph[node]
         geometry = loaded.geometry.get(geometry_name)
         if not isinstance(geometry, trimesh.Trimesh) or len(geometry.faces) == 0:
             continue
-        material_name = getattr(getattr(geometry.visual, "material", None), "name", None) or ""
-        own, gain = part_material(geometry, (str(node), str(geometry_name), str(material_name)), sidecar)
+        material_name = str(getattr(getattr(geometry.visual, "material", None), "name", None) or "")
+        names = [str(node), str(geometry_name), material_name]
+        if material_name and str(geometry_name).endswith("_" + material_name):
+            names.append(str(geometry_name)[: -len(material_name) - 1])  # an OBJ object's own name
+        names_seen += names
+        own, gain = part_material(geometry, names, table)
         vertices = trimesh.transform_points(np.asarray(geometry.vertices, dtype=np.float64), transform)
         parts.append(set_face_materials(trimesh.Trimesh(vertices, np.asarray(geometry.faces), process=False),
                                         own, gain, np.full(len(geometry.faces), len(parts))))
@@ -200,6 +211,8 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: flo
         raise LivoxVizError(
             f"{path}: holds no triangles; allowed: a mesh with at least one face (OBJ, STL, PLY, GLB, OFF)"
         )
+    if table is not None:
+        table.require_matches(names_seen, str(path))
     mesh = _join(parts)
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     if not np.all(np.isfinite(vertices)):
