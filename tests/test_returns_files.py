@@ -41,6 +41,9 @@ def test_the_npz_has_the_livox_fields_and_no_point_at_the_origin(reference: dict
     assert ((tag & 0x03) != 0).any()  # mixed points at edges
     assert np.all(np.abs(reference["xyz_int16"]).max(axis=1) > 0)
     assert np.all(np.linalg.norm(reference["xyz_sensor"], axis=1) > 0)
+    notes = json.loads(str(reference["frame_of_reference"]))
+    assert notes["source"].endswith("scan of livox_mid70_risley (datasheet returns, seed 4) in urban, 0.3 s, fixed")
+    assert "measured point" in notes["points"] and "exact hits" not in notes["points"]
 
 
 @pytest.mark.parametrize("suffix", [".ply", ".pcd", ".las", ".csv"])
@@ -71,6 +74,17 @@ def test_every_format_carries_them(tmp_path: Path, reference: dict[str, np.ndarr
         np.testing.assert_array_equal(np.asarray(fields[name]).astype(int), reference[name].astype(int), name)
     assert xyz.shape[0] == reference["tag"].size
     assert np.all(np.abs(xyz).max(axis=1) > 0)
+    # Each file says what made it, where its own format's readers show a file's notes.
+    if suffix == ".ply":
+        from plyfile import PlyData
+
+        notes = " ".join(PlyData.read(out).comments)
+    elif suffix == ".las":
+        notes = " ".join(json.loads(v.record_data).get("source", "") for v in las.header.vlrs
+                         if v.user_id == "livox-viz")
+    else:
+        notes = out.read_bytes()[:2000].decode("utf-8", "replace")
+    assert "livox_mid70_risley (datasheet returns, seed 4) in urban, 0.3 s, fixed" in notes
 
 
 def test_the_bag_is_right_for_fast_lio(tmp_path: Path, reference: dict[str, np.ndarray]) -> None:

@@ -7,6 +7,7 @@ import sys
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
+from livox_viz import __version__
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.progress import Progress
 from livox_viz.core.workload import check_points
@@ -28,6 +29,7 @@ from .common import (
     check_bag_path,
     check_output_path,
     config_from_args,
+    config_label,
     positive_float,
     scene_from_args,
     trajectory_from_args,
@@ -46,7 +48,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
         check_bag_path(args.rosbag, out)
         RosNames.parse(args.ros_names or "")
     check_points(points_before(args.seconds, cfg.point_rate), f"scan --seconds {args.seconds:g}", force=args.force)
-    _, pose, caster = scene_from_args(args)
+    scene, pose, caster = scene_from_args(args)
     trajectory = trajectory_from_args(args, pose, args.seconds)
     if trajectory is not None:
         trajectory.check_covers(0.0, args.seconds)
@@ -57,7 +59,11 @@ def cmd_scan(args: argparse.Namespace) -> int:
     frames = points = 0
     progress = Progress(f"scan -> {(out or Path(args.rosbag)).name}", args.seconds, "s")
     with ExitStack() as files:
-        writer = files.enter_context(PointCloudWriter(out, coordinates=args.frame, ascii=args.ascii)) if out else None
+        made = (f"livox-viz {__version__} scan of {config_label(args)} ({cfg.returns_model} returns, seed {args.seed}) "
+                f"in {scene.name}, {args.seconds:g} s, "
+                + ("fixed" if trajectory is None else f"moving along {trajectory.name}"))
+        writer = files.enter_context(PointCloudWriter(out, coordinates=args.frame, ascii=args.ascii, source=made)
+                                     ) if out else None
         bag = files.enter_context(_open_bag(args, cfg, scanner, trajectory, pose)) if args.rosbag else None
         for frame in scanner.frames(args.seconds):
             if writer is not None:

@@ -11,8 +11,10 @@ each point decoded from the int16 wire (steps of ``range / 32767``), in the
 sensor frame at its own time (``sensor``) or placed in the world with the
 sensor's pose at its own time (``world``); ``range`` is the decoded point's
 distance. The NPZ, the full record, holds the wire's ``xyz_int16``, those
-points decoded (``xyz_sensor``) and, only there, the exact hits (``xyz_world``,
-``range``). Every file says so in its header.
+points decoded (``xyz_sensor``) and, only there, the points before the encoding
+(``xyz_world``, ``range``: the ideal model's exact hits, the datasheet model's
+measured points). Every file says so in its header, and what made it (``source``:
+the preset, return model, seed, scene) when the writer is told.
 
 **Frames and precision.** PLY, PCD and CSV are in the project's frames (sensor
 FRD, world NED). World coordinates stay exact far from the origin (float32
@@ -68,7 +70,9 @@ LAS_FRAME_DESCRIPTION = {
 POINTS_RULE = ("points as a RflySim client decodes them from the int16 wire (range/32767 steps); world: each "
                "placed with the sensor pose at its own time; range: the decoded point's distance")
 NPZ_RULE = ("xyz_int16: the wire (sensor FRD); xyz_sensor: those points decoded (xyz_int16 * range_max / 32767), "
-            "as every other format holds them; xyz_world and range: the exact hits, which only the NPZ keeps")
+            "as every other format holds them; xyz_world and range: each point before the int16 encoding (the ideal "
+            "model's exact hit; the datasheet model's measured point, its range and angular noise included), which "
+            "only the NPZ keeps")
 #: LAS coordinates are stored to this step (metres) unless the cloud is too wide for int32 at it.
 LAS_SCALE = 1e-4
 
@@ -141,6 +145,10 @@ class PointCloudWriter:
     extra_fields : sequence of (name, numpy type)
         Per-point fields after :func:`point_fields` (an NPZ column, a LAS extra dimension), e.g. a received
         frame's ``("sender_time", "<f8")``; :meth:`write` is given their values. Types: ``<f8``, ``<i4``, ``<u4``.
+    source : str
+        What made the cloud, one line (e.g. ``"preset livox_mid70, returns datasheet, seed 0, scene urban"``),
+        stated in the header of every format (PLY and PCD comments, the CSV's first line, LAS's livox-viz
+        record, the NPZ's ``frame_of_reference``); none when empty.
 
     Attributes
     ----------
@@ -155,8 +163,9 @@ class PointCloudWriter:
     """
 
     def __init__(self, path: str | os.PathLike[str], coordinates: str = "sensor", ascii: bool = False,
-                 extra_fields: Sequence[tuple[str, str]] = ()) -> None:
+                 extra_fields: Sequence[tuple[str, str]] = (), source: str = "") -> None:
         self.path = Path(path)
+        self.source = " ".join(source.split())  # one line in every header
         self.format = self.path.suffix.lower()
         if self.format not in FORMATS:
             raise LivoxVizError(f"{self.path}: unknown format {self.format or '(none)'}; allowed: {', '.join(FORMATS)}")
@@ -194,7 +203,8 @@ class PointCloudWriter:
             return
         self._body = open(work / "body", "wb")
         if self.format == ".csv":
-            self._body.write(f"# livox-viz scan; coordinates: {FRAME_DESCRIPTION[self.coordinates]}; "
+            made = f"source: {self.source}; " if self.source else ""
+            self._body.write(f"# livox-viz scan; {made}coordinates: {FRAME_DESCRIPTION[self.coordinates]}; "
                              f"{POINTS_RULE}\n".encode())
             self._body.write((",".join(name for name, _ in self._fields) + "\n").encode())
 
@@ -266,6 +276,7 @@ class PointCloudWriter:
                     poses = np.array(self._npz_poses).reshape(-1, 13)
                     self._npz.finish(tmp, {**self.npz_arrays, "frame_pose": poses, "frame_of_reference": np.array(
                         json.dumps({**FRAME_DESCRIPTION, "points": NPZ_RULE,
+                                    **({"source": self.source} if self.source else {}),
                                     "frame_pose": "index, then the sensor's pose at the frame's first ray and "
                                     "just after its last: x y z (m, world NED) roll pitch yaw (rad) each"}))})
                 else:
@@ -313,7 +324,8 @@ class PointCloudWriter:
         if self.format == ".ply":
             encoding = "ascii" if self.ascii else "binary_little_endian"
             types = {"<f4": "float", "<f8": "double", "<u4": "uint", "<i4": "int", "u1": "uchar"}
-            lines = ["ply", f"format {encoding} 1.0", "comment livox-viz scan", f"comment {frame}",
+            lines = ["ply", f"format {encoding} 1.0", "comment livox-viz scan",
+                     *([f"comment source: {self.source}"] if self.source else []), f"comment {frame}",
                      f"comment {POINTS_RULE}", f"element vertex {self.count}"]
             lines += [f"property {types[t]} {name}" for name, t in fields]
             lines.append("end_header")
@@ -322,6 +334,7 @@ class PointCloudWriter:
         offset = np.zeros(3) if self.offset is None else self.offset
         lines = [
             f"# .PCD v0.7 - livox-viz scan; {frame}",
+            *([f"# source: {self.source}"] if self.source else []),
             f"# {POINTS_RULE}",
             *([f"# offset: the point is (x, y, z) + ({offset[0]:.0f}, {offset[1]:.0f}, {offset[2]:.0f}) m in the world"]
               if self.coordinates == "world" else []),
@@ -343,7 +356,7 @@ class PointCloudWriter:
         import laspy
 
         offset, scale = las_offset_and_scale(self._low, self._high)
-        header = _las_header(self.coordinates, offset, scale, self.extra_fields)
+        header = _las_header(self.coordinates, offset, scale, self.extra_fields, self.source)
         body_dtype = np.dtype([*_LAS_BODY, *self.extra_fields])
         block = bytearray(body_dtype.itemsize << 19)
         with laspy.open(tmp, mode="w", header=header) as writer, open(self._work.path / "body", "rb") as body:
@@ -395,7 +408,7 @@ def _las_wkt(coordinates: str) -> str:
 
 
 def _las_header(coordinates: str, offset: np.ndarray, scale: np.ndarray,
-                extra_fields: Sequence[tuple[str, str]] = ()):
+                extra_fields: Sequence[tuple[str, str]] = (), source: str = ""):
     import laspy
     from laspy.vlrs.known import WktCoordinateSystemVlr
 
@@ -412,7 +425,7 @@ def _las_header(coordinates: str, offset: np.ndarray, scale: np.ndarray,
     header.system_identifier = f"livox-viz {coordinates}"[:32]
     header.vlrs.append(WktCoordinateSystemVlr(_las_wkt(coordinates)))
     metadata = {"frame": coordinates, "description": LAS_FRAME_DESCRIPTION[coordinates], "points": POINTS_RULE,
-                "gps_time": "seconds since the scan start"}
+                "gps_time": "seconds since the scan start", **({"source": source} if source else {})}
     header.vlrs.append(laspy.VLR("livox-viz", 1, f"frame: {coordinates}"[:32], json.dumps(metadata).encode()))
     return header
 
