@@ -14,6 +14,7 @@ import sys
 import time
 from pathlib import Path
 
+import laspy
 import numpy as np
 import pytest
 
@@ -149,26 +150,47 @@ def test_disk_full_is_one_line_and_leaves_nothing(tmp_path: Path, monkeypatch: p
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize(("signum", "argv", "suffix"), [
-    (signal.SIGTERM, ["scan", "--seconds", "300", "--scene", "open_field"], ".las"),
-    (signal.SIGHUP, ["pattern", "--seconds", "900"], ".npz"),
-])
-def test_kill_and_hang_up_remove_the_temporary_files(tmp_path: Path, signum: int, argv: list[str],
-                                                     suffix: str) -> None:
-    out = tmp_path / f"big{suffix}"
-    process = subprocess.Popen([sys.executable, "-m", "livox_viz", *argv, "--out", str(out)], cwd=tmp_path,
+def start_writing(tmp_path: Path, argv: list[str]) -> subprocess.Popen:
+    """``livox-viz argv`` in a child, once its temporary files exist and it is well into the writing."""
+    process = subprocess.Popen([sys.executable, "-m", "livox_viz", *argv], cwd=tmp_path,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and not any(tmp_path.iterdir()):
         time.sleep(0.05)
-    time.sleep(1.0)  # well into the writing
+    time.sleep(1.0)
     assert process.poll() is None, process.communicate()
     assert any(p.name.startswith(".big") for p in tmp_path.iterdir())  # the temporary exists now
-    process.send_signal(signum)
+    return process
+
+
+def test_hang_up_removes_the_temporary_files_of_a_pattern(tmp_path: Path) -> None:
+    process = start_writing(tmp_path, ["pattern", "--seconds", "900", "--out", str(tmp_path / "big.npz")])
+    process.send_signal(signal.SIGHUP)
     _, err = process.communicate(timeout=60)
-    assert process.returncode != 0
+    assert process.returncode == 129
     assert "stopped by" in err and "Traceback" not in err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_stopped_scan_keeps_what_it_scanned(tmp_path: Path, signum: int) -> None:
+    """A signal stops the scan after the frame in hand; the LAS and the bag are finished with the frames scanned
+    until then (third-party readers read them), the temporaries go, and the exit status says it was stopped."""
+    out, bag = tmp_path / "big.las", tmp_path / "big_bag"
+    process = start_writing(tmp_path, ["scan", "--seconds", "300", "--scene", "open_field", "--out", str(out),
+                                       "--rosbag", str(bag)])
+    process.send_signal(signum)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 128 + signum, err
+    assert "Traceback" not in err and "stopped by" in err and "kept" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.las", "big_bag"]
+    frames = np.unique(np.asarray(laspy.read(out).frame))
+    assert frames.size >= 2 and np.array_equal(frames, np.arange(frames.size))  # whole frames from the first
+    from mcap.reader import make_reader
+
+    with open(next(bag.glob("*.mcap")), "rb") as handle:
+        clouds = sum(1 for _, channel, _ in make_reader(handle).iter_messages() if channel.topic == "/livox/lidar")
+    assert clouds >= frames.size
 
 
 def test_a_dead_runs_leftovers_are_removed_by_the_next_run(tmp_path: Path) -> None:

@@ -34,6 +34,7 @@ from .common import (
     scene_from_args,
     trajectory_from_args,
 )
+from .signals import StopRequests, signal_name, signal_status
 
 
 def cmd_scan(args: argparse.Namespace) -> int:
@@ -59,9 +60,14 @@ def cmd_scan(args: argparse.Namespace) -> int:
     frames = points = 0
     progress = Progress(f"scan -> {(out or Path(args.rosbag)).name}", args.seconds, "s")
     with ExitStack() as files:
+        # What the files hold: the scan from t = 0 (its length is in its frames: a stopped scan is shorter).
+        motion = "fixed" if trajectory is None else f"moving along {trajectory.name}"
         made = (f"livox-viz {__version__} scan of {config_label(args)} ({cfg.returns_model} returns, seed {args.seed}) "
-                f"in {scene.name}, {args.seconds:g} s, "
-                + ("fixed" if trajectory is None else f"moving along {trajectory.name}"))
+                f"in {scene.name} from t = 0, {motion}")
+        # Ctrl-C, SIGTERM and SIGHUP stop the scan after the frame in hand: the files are finished with what was
+        # scanned until then (a 10-minute flight's bag stopped at minute 8 keeps its 8 minutes), not removed.
+        # Entered first, so a second signal while they are being finished is noted too, not raised.
+        stop = files.enter_context(StopRequests())
         writer = files.enter_context(PointCloudWriter(out, coordinates=args.frame, ascii=args.ascii, source=made)
                                      ) if out else None
         bag = files.enter_context(_open_bag(args, cfg, scanner, trajectory, pose)) if args.rosbag else None
@@ -73,6 +79,8 @@ def cmd_scan(args: argparse.Namespace) -> int:
             frames += 1
             points += len(frame)
             progress.update(scanner.time)
+            if stop.requested:
+                break
     progress.close()
     if points == 0:
         print(f"{PROG}: warning: no ray hit anything within {cfg.range_max:g} m; wrote an empty point cloud",
@@ -80,6 +88,11 @@ def cmd_scan(args: argparse.Namespace) -> int:
     where = " and ".join(str(p) for p in (out, args.rosbag) if p)
     moving = "" if trajectory is None else (f", moving along {trajectory.name}" if trajectory.moves else
                                             f", not moving ({trajectory.name})")
+    if stop.signum is not None:
+        scanned = frames / cfg.data_check_freq
+        print(f"{PROG}: stopped by {signal_name(stop.signum)} after {scanned:g} of {args.seconds:g} s of scan: kept "
+              f"{points:,} points of {frames} frames ({args.frame} frame{moving}) in {where}", file=sys.stderr)
+        return signal_status(stop.signum)
     print(f"wrote {points:,} points of {frames} frames ({args.seconds:g} s, {args.frame} frame{moving}) to {where}")
     return 0
 

@@ -3,8 +3,8 @@
 By default a command unwinds on any of them (SIGTERM and SIGHUP raise
 :class:`Terminated`, Ctrl-C raises :class:`KeyboardInterrupt`), so every writer
 removes its temporary files and the destination is left as it was. A command
-whose partial result is the user's data (a recording, a live publisher, the
-window) asks instead to be *told*: inside :class:`StopRequests` a signal is
+whose partial result is the user's data (a scan's files, a recording, a live
+publisher, the window) asks instead to be *told*: inside :class:`StopRequests` a signal is
 only noted, the command finishes its current step, closes its files properly
 and returns :func:`signal_status`.
 """
