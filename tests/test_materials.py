@@ -96,6 +96,7 @@ def test_a_sidecar_maps_names_and_patterns(tmp_path: Path) -> None:
     ("unobtainium", "unknown material 'unobtainium'"), (1.5, "reflectance 1.5"),
     ({"reflectance": 0.5, "retroreflective": "yes"}, "true or false"),
     ({"reflectance": 0.5, "retro_gain": 0.5}, "retro_gain"), ({"shiny": True}, "allowed"),
+    ({"reflectance": 0.5, "retroreflective": False, "retro_gain": 500}, "only on a retroreflective material"),
 ])
 def test_bad_materials_are_one_line_errors(tmp_path: Path, material: object, message: str) -> None:
     path = tmp_path / "scene.json"

@@ -131,6 +131,9 @@ def test_returns_json_round_trip_and_errors() -> None:
                          # One range for both (the loss's log-ratio over zero metres), and the brighter one nearer.
                          ({"detection_range_m": [[0.1, 1e5], [0.8, 1e5]]}, "brighter target must reach farther"),
                          ({"detection_range_m": [[0.1, 90], [0.8, 80]]}, "brighter target must reach farther"),
+                         ({"detection_range_m": [[1e-300, 90]]}, r"reflectivity .*allowed"),
+                         ({"detection_range_m": [[0.1, 1e-9]]}, r"detection_range_m range .*allowed"),
+                         ({"divergence_deg": [1e-300, 0.28]}, r"divergence_deg .*allowed"),
                          ({"range_sigma_m": [[20, 0.02], [10, 0.03]]}, "must increase"),
                          ({"noise": 1}, "unknown key 'noise'")]:
         with pytest.raises(ConfigError, match=message):

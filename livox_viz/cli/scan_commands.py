@@ -83,18 +83,24 @@ def cmd_scan(args: argparse.Namespace) -> int:
                 break
     progress.close()
     if points == 0:
-        print(f"{PROG}: warning: no ray hit anything within {cfg.range_max:g} m; wrote an empty point cloud",
-              file=sys.stderr)
+        why = (f"no ray hit anything within {cfg.range_max:g} m" if cfg.returns_model == "ideal" else
+               f"no ray returned a point (nothing within {cfg.range_max:g} m, or nothing detected: the datasheet "
+               "model's detection range, blind zone and reflectances decide)")
+        print(f"{PROG}: warning: {why}; wrote an empty point cloud", file=sys.stderr)
     where = " and ".join(str(p) for p in (out, args.rosbag) if p)
     moving = "" if trajectory is None else (f", moving along {trajectory.name}" if trajectory.moves else
                                             f", not moving ({trajectory.name})")
     if stop.signum is not None:
         scanned = frames / cfg.data_check_freq
         print(f"{PROG}: stopped by {signal_name(stop.signum)} after {scanned:g} of {args.seconds:g} s of scan: kept "
-              f"{points:,} points of {frames} frames ({args.frame} frame{moving}) in {where}", file=sys.stderr)
+              f"{points:,} points of {_frames(frames)} ({args.frame} frame{moving}) in {where}", file=sys.stderr)
         return signal_status(stop.signum)
-    print(f"wrote {points:,} points of {frames} frames ({args.seconds:g} s, {args.frame} frame{moving}) to {where}")
+    print(f"wrote {points:,} points of {_frames(frames)} ({args.seconds:g} s, {args.frame} frame{moving}) to {where}")
     return 0
+
+
+def _frames(count: int) -> str:
+    return f"{count} frame" + ("" if count == 1 else "s")
 
 
 #: The bag options and their defaults (given without --rosbag they would be ignored: refused instead).

@@ -125,8 +125,9 @@ class ReturnParams:
                       for r, s in _pairs("range_sigma_m", self.range_sigma_m, (1, 16), "range m, sigma m"))
         if any(b[0] <= a[0] for a, b in itertools.pairwise(sigma)):
             raise ConfigError(f"{RETURNS_KEY}.range_sigma_m: the ranges must increase")
-        detection = tuple((_number("detection_range_m reflectivity", p, 0, 1, low_open=True),
-                           _number("detection_range_m range", r, 0, 1e5, low_open=True))
+        # A sheet's figures: reflectivities of a few % up (1e-300 made every echo's byte 255), ranges of metres.
+        detection = tuple((_number("detection_range_m reflectivity", p, 0.01, 1),
+                           _number("detection_range_m range", r, 1, 1e5))
                           for p, r in _pairs("detection_range_m", self.detection_range_m, (1, 2),
                                              "reflectivity 0-1, range m"))
         if len(detection) == 2 and detection[0][0] == detection[1][0]:
@@ -135,7 +136,7 @@ class ReturnParams:
         if not isinstance(divergence, (list, tuple)) or len(divergence) != 2:
             raise ConfigError(f"{RETURNS_KEY}.divergence_deg = {divergence!r}; allowed: [horizontal, vertical] "
                               "degrees")
-        divergence = tuple(_number("divergence_deg", v, 0, 5, low_open=True) for v in divergence)
+        divergence = tuple(_number("divergence_deg", v, 0.001, 5) for v in divergence)  # the sliders' least
         returns = self.returns_per_pulse
         if isinstance(returns, bool) or returns not in (1, 2, 3):
             raise ConfigError(f"{RETURNS_KEY}.returns_per_pulse = {returns!r}; allowed: 1, 2 or 3")

@@ -122,6 +122,9 @@ def parse_material(value: Any, where: str) -> Material:
         retro = value.get("retroreflective", "retro_gain" in value)
         if not isinstance(retro, bool):
             raise LivoxVizError(f"{where}: retroreflective = {retro!r}; allowed: true or false")
+        if not retro and "retro_gain" in value:
+            raise LivoxVizError(f"{where}: retro_gain = {value['retro_gain']!r} with retroreflective = false; "
+                                "allowed: a retro_gain only on a retroreflective material")
         gain = value.get("retro_gain", DEFAULT_RETRO_GAIN) if retro else 1.0
         if isinstance(gain, bool) or not isinstance(gain, (int, float)) or not math.isfinite(gain) or not (
                 1 < gain <= 1e5 or not retro):
