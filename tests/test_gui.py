@@ -433,7 +433,7 @@ def test_scene_cycle_survives_a_broken_mesh(app: LivoxVizApp, tmp_path: Path, mo
     folder.mkdir()
     (folder / "a_broken.obj").write_text("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     trimesh.creation.box((4, 4, 4)).export(folder / "b_box.obj")
-    (folder / "b_box.materials.json").write_text('{"other_mesh": 0.2}')  # a sidecar, not a scene of its own
+    (folder / "c_gone.materials.json").write_text('{"wall": 0.2}')  # a sidecar (of no mesh here), not a scene
     monkeypatch.setenv("LIVOX_VIZ_SCENES", str(folder))
     session = app.session
     session.scene_options = {"up": "z", "reflectance": 0.9}  # the window's --reflectance
@@ -444,7 +444,7 @@ def test_scene_cycle_survives_a_broken_mesh(app: LivoxVizApp, tmp_path: Path, mo
         if session.scene.name == "b_box.obj":
             assert np.all(face_materials(session.scene.mesh)[0] == 0.9)
     names = [name for name, _ in seen]
-    assert {"dense_terrain", "open_field", "b_box.obj"} <= set(names) and "b_box.materials.json" not in names
+    assert {"dense_terrain", "open_field", "b_box.obj"} <= set(names) and "c_gone.materials.json" not in names
     assert not any("objects" in message for _, message in seen)
     assert any("NaN or infinite" in message for _, message in seen)
     session.advance_to(0.1)

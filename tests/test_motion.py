@@ -317,3 +317,22 @@ def test_the_built_in_circle_and_figure8_have_the_sizes_the_readme_gives() -> No
     np.testing.assert_allclose(np.linalg.norm(circle - centre, axis=1), 15.0, atol=1e-3)
     eight = builtin_trajectory("figure8", 6.0, Pose((0.0, 0.0, -10.0)), 60.0).position_at(np.linspace(0, 60, 6001))
     assert np.ptp(eight[:, 0]) == pytest.approx(20.0, abs=0.05)
+
+
+@pytest.mark.parametrize("scene_name", ["urban", "open_field", "dense_terrain"])
+def test_the_built_in_flights_stay_clear_of_the_built_in_scenes(scene_name: str) -> None:
+    """Every built-in flight from a built-in scene's start pose keeps 10 cm off every surface and never flies under
+    a roof (inside a building): the right-turning circle once crossed the urban house (5 % return-0 points), and
+    the figure-8 grazed the crate by 7 cm."""
+    from livox_viz.scene.raycast import TrimeshCaster
+    from livox_viz.scene.scenes import open_scene
+
+    scene = open_scene(scene_name)
+    caster = TrimeshCaster(scene.mesh)
+    for name in ("line", "circle", "figure8"):
+        flight = builtin_trajectory(name, 5.0, scene.vehicle_pose, 60.0)
+        path = np.asarray(flight.position)[::25]
+        clearance = trimesh.proximity.closest_point(scene.mesh, path)[1]
+        assert clearance.min() > 0.1, (name, path[np.argmin(clearance)])
+        overhead = caster.distances(path, np.tile([0.0, 0.0, -1.0], (len(path), 1)), 1000.0)  # NED up
+        assert not np.isfinite(overhead).any(), (name, path[np.isfinite(overhead)][:3])
