@@ -16,6 +16,8 @@ import pytest
 import trimesh
 
 from livox_viz.casting import return_kernels
+from livox_viz.casting.beam import SUBRAY_WEIGHTS
+from livox_viz.casting.returns import reflectivity_byte
 from livox_viz.core import streamrandom
 from livox_viz.scene.materials import set_face_materials
 from livox_viz.scene.raycast import EmbreeCaster, casting_in_this_thread
@@ -25,9 +27,10 @@ from .test_returns import at_origin, scan, wall
 
 def emit(whole: list, power: list, distance: list, first: list, count: list, e_power: list, e_range: list,
          directions: list, *, keep: int = 3, blind: float = 0.0, return0: float = 1.5, false_rate: float = 0.0,
-         rows: int | None = None, start: int = 0,
-         range_max: float = 260.0) -> tuple[int, dict[str, np.ndarray]]:
-    """The compiled emit loop on hand-made pulses: receiver noise off (a huge SNR), range noise a nanometre.
+         rows: int | None = None, start: int = 0, range_max: float = 260.0,
+         sigma: float = 1e-9) -> tuple[int, dict[str, np.ndarray]]:
+    """The compiled emit loop on hand-made pulses: receiver noise off (a huge SNR), range noise ``sigma`` (by default
+    a nanometre).
 
     Pulse ``i`` is whole (its central hit at ``distance[i]``) or, when ``count[i]`` > 0, sampled with the echoes
     ``first[i] ..`` of ``e_power`` and ``e_range``; the loop takes the sampled pulses' echoes in slots of the
@@ -54,7 +57,7 @@ def emit(whole: list, power: list, distance: list, first: list, count: list, e_p
     kept = return_kernels.kernel("emit")(
         triangle, np.asarray(power, float), np.asarray(distance, float), np.ones(n), sampled, count[sampled], slots,
         slot_power, slot_range, np.zeros(slot_power.size, np.uint8), np.ones(slot_power.size), start, keys, 1e9,
-        np.array([[0.0, 1e-9], [1000.0, 1e-9]]), blind, range_max, keep, false_rate, return0, 100.0, directions,
+        np.array([[0.0, sigma], [1000.0, sigma]]), blind, range_max, keep, false_rate, return0, 100.0, directions,
         directions, np.zeros((1, 3)), 0.0, np.zeros((n, 2)), np.empty(0), 1e5, 32767 / range_max,
         np.empty(slot_power.size), np.empty(slot_power.size), np.empty(slot_power.size, bool), *out.values())
     return kept, {name: values[: max(kept, 0)] for name, values in out.items()}
@@ -207,3 +210,80 @@ def test_a_plate_just_in_front_of_a_wall_covers_the_footprints_that_reach_it(dep
         mounted.cast(chunk)
     reaching = int(np.count_nonzero((chunk.xy_deg[:, 0] < 0) & (chunk.xy_deg[:, 0] > -0.015)))
     assert mounted.returns.last_counts["covered"] == pytest.approx(reaching, rel=0.25)
+
+
+# From a second mutation trial: the byte, the later echoes' noise, the blind zone of footprint echoes, the spatial
+# bits' order, and a footprint echo's reflectance unit ------------------------------------------------------------
+@pytest.mark.parametrize(("value", "byte"), [(0.5037, 76), (0.5030, 75), (1.0, 150), (1.5, 150), (1.999, 150),
+                                             (2.0, 151), (20.0, 190), (1000.0, 255), (5000.0, 255)])
+def test_the_compiled_byte_is_the_documented_mapping(value: float, byte: int) -> None:
+    """0-150 for 0-100 % Lambertian, rounded half up (0.5037 -> 75.56 -> 76), saturating up to twice a white
+    target; 151 + 104 x log(v / 2) / log(500), rounded, from twice to 1000 times (20 -> 151 + 38.5). The emit loop's
+    own byte and the Python one both."""
+    return_kernels.kernel("emit")  # compiles the loops' helpers
+    assert return_kernels._byte(value) == byte
+    assert reflectivity_byte(np.array([value]))[0] == byte
+
+
+def test_a_later_echo_takes_its_noise_from_the_later_echoes_stream() -> None:
+    """A pulse's first echo draws pair 0 of its own stream (purpose 1), its second echo pair 0 of the later echoes'
+    stream (purpose 2), at the pulse's stream index: range noise 1 m, so the draws show in the ranges."""
+    kept, points = emit([False], [0], [0], [0], [2], [1e6, 1e6], [10.0, 20.0], [[1.0, 0.0, 0.0]], start=77,
+                        sigma=1.0)
+    first = streamrandom.stream_normal(1, 1, np.array([77]), 2)[0]
+    later = streamrandom.stream_normal(1, 2, np.array([77]), 2)[0]
+    assert kept == 2
+    np.testing.assert_allclose(points["range"], [10.0 + first[1], 20.0 + later[1]], rtol=0, atol=1e-12)
+
+
+def test_a_footprint_echo_measured_inside_the_blind_zone_gives_no_point() -> None:
+    """A sampled pulse's echo at the 1 m blind zone with 5 cm range noise: over 40 stream indices about half land
+    inside; none of them gives a point, measured or decoded."""
+    kept_any = 0
+    for start in range(40):
+        kept, points = emit([False], [0], [0], [0], [1], [1e6], [1.0], [[1.0, 0.0, 0.0]], blind=1.0, start=start,
+                            sigma=0.05)
+        kept_any += kept
+        assert np.all(points["range"] >= 1.0)
+        assert np.all(np.linalg.norm(points["int16"] * (260.0 / 32767), axis=1) >= 1.0)
+    assert 8 < kept_any < 32
+
+
+def footprint(ranges: list[float], triangles: list[int], planes: list[list[float]],
+              calibration: tuple[float, float, float] = (0.1, 90.0, 0.0), blind: float = 0.05,
+              separate: bool = False) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The compiled footprint loop on one pulse whose 19 sub-rays (all along x, from the origin) met ``triangles``
+    at ``ranges``: its echoes' count, power, range, spatial bits and reflectance per unit of power."""
+    count = SUBRAY_WEIGHTS.size
+    rays = np.zeros((1, count, 3))
+    rays[..., 0] = 1.0
+    written, slot = np.zeros(1, np.int64), np.zeros(count, np.int64)
+    power, range_m, unit = np.zeros(count), np.zeros(count), np.zeros(count)
+    spatial = np.zeros(count, np.uint8)
+    return_kernels.kernel("footprint_echoes")(
+        np.array([0], np.int64), np.array([ranges], float), np.array([triangles], np.int64), rays, SUBRAY_WEIGHTS,
+        np.asarray(planes, float), np.ones(len(planes)), np.zeros((1, 3)), blind, separate, 0.6,
+        np.array([[20.0, 0.02]]), 0.05, np.asarray(calibration, float), written, slot, power, range_m, spatial, unit)
+    return int(written[0]), power, range_m, spatial, unit
+
+
+def test_sub_rays_at_the_blind_zone_echo_as_a_whole_pulse_there_does() -> None:
+    written, _, range_m, _, _ = footprint([0.5] * 19, [0] * 19, [[1.0, 0.0, 0.0, 0.5]], blind=0.5)
+    assert written == 1 and range_m[0] == pytest.approx(0.5)
+
+
+def test_the_spatial_bits_say_how_far_between_the_surfaces_the_point_sits() -> None:
+    """A single-return footprint on two planes 1 m apart: the centre and inner ring on 11 m and the outer ring on
+    10 m blend at 10.63 m, 0.37 of the way (bits 01, high confidence of noise); one outer sub-ray on 10 m blends at
+    10.97 m, 0.03 of the way (bits 11, low)."""
+    planes = [[1.0, 0.0, 0.0, 11.0], [1.0, 0.0, 0.0, 10.0]]
+    written, _, range_m, spatial, _ = footprint([11.0] * 7 + [10.0] * 12, [0] * 7 + [1] * 12, planes)
+    assert written == 1 and 0.3 < 11.0 - range_m[0] < 0.45 and spatial[0] == 0x01
+    written, _, range_m, spatial, _ = footprint([11.0] * 18 + [10.0], [0] * 18 + [1], planes)
+    assert written == 1 and 11.0 - range_m[0] < 0.1 and spatial[0] == 0x03
+
+
+def test_a_footprint_echos_unit_inverts_its_power_with_the_range_loss() -> None:
+    """A white wall at 11 m, normal incidence, a loss of 0.004 / m: power x unit is the reflectance, 1."""
+    written, power, _, _, unit = footprint([11.0] * 19, [0] * 19, [[1.0, 0.0, 0.0, 11.0]], (0.1, 90.0, 0.004))
+    assert written == 1 and power[0] * unit[0] == pytest.approx(1.0, rel=1e-9)

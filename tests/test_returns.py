@@ -150,6 +150,9 @@ def test_sliders_move_the_sheet_as_a_whole() -> None:
     assert cfg.with_param("returns_blind_zone", 2.0).return_params.blind_zone_m == 2.0
     with pytest.raises(ConfigError, match="blind_zone"):
         cfg.with_param("returns_blind_zone", 50.0)
+    # Each divergence slider moves its own axis.
+    assert cfg.with_param("returns_divergence_h", 0.05).return_params.divergence_deg == (0.05, 0.28)
+    assert cfg.with_param("returns_divergence_v", 0.5).return_params.divergence_deg == (0.03, 0.5)
     # The Tele-15's range-dependent noise keeps its shape down to the slider's end and back.
     tele = load_preset("livox_tele15")
     sheet = tele.return_params.range_sigma_m
@@ -219,6 +222,24 @@ def test_detection_probability_around_the_sheets_range(reflectance: float, sheet
     assert shares[0] >= 0.90
     assert 0.40 <= shares[1] <= 0.60
     assert shares[2] <= 0.10
+
+
+def test_detection_falls_off_with_the_sheets_slope_and_its_range_loss() -> None:
+    """Between the figures, the share detected follows the lidar equation and the receiver noise in closed form:
+    power over the threshold (r_a / r)^2 exp(-2 alpha (r - r_a)), seen with probability Phi((power - 1) x snr).
+    The Mid-40's 10 % wall at 1.1 x 90 m (about 19 %: a steeper or flatter curve passes the 0.8-1.2 bounds), and
+    the Avia's 80 % wall at its second figure, 320 m, where its loss (alpha 0.004 / m) decides: 50 %."""
+    for preset, reflectance, distance in (("livox_mid40_risley", 0.1, 99.0), ("livox_avia", 0.8, 320.0)):
+        cfg = at_origin(preset)
+        cfg = replace(cfg, other_params=(max(cfg.other_params[0], 400.0), *cfg.other_params[1:]))
+        params = cfg.return_params
+        (rho_a, r_a), alpha = params.detection_range_m[0], params.range_loss_per_m
+        power = reflectance / rho_a * (r_a / distance) ** 2 * math.exp(-2.0 * alpha * (distance - r_a))
+        expected = 0.5 * (1.0 + math.erf((power - 1.0) * params.detection_snr / math.sqrt(2.0)))
+        frames, fired = scan(cfg, wall(distance, reflectance), 0.4)
+        share = (off_axis_deg(joined(frames, "xy_deg")) < 2.0).sum() / (off_axis_deg(fired) < 2.0).sum()
+        assert share == pytest.approx(expected, abs=0.06), preset
+        assert (preset != "livox_avia" or abs(alpha) > 1e-3) and (preset == "livox_avia" or 0.1 < expected < 0.3)
 
 
 # The footprint ---------------------------------------------------------------------------------------------
@@ -709,9 +730,10 @@ def test_a_frame_cut_over_the_cores_is_the_frame_cast_whole_on_a_turning_flight(
     assert len(set(whole.tag.tolist())) >= 3
 
 
-@pytest.mark.parametrize(("distance", "sigma"), [(40.0, 0.02), (95.0, 0.03)])
+@pytest.mark.parametrize(("distance", "sigma"), [(40.0, 0.02), (80.0, 0.024), (95.0, 0.03)])
 def test_the_tele15s_range_noise_grows_with_range_as_its_sheet_says(distance: float, sigma: float) -> None:
-    """The Tele-15's sheet: 2 cm to 70 m, 4 cm at 120 m (linear between, the preset's description says)."""
+    """The Tele-15's sheet: 2 cm to 70 m, 4 cm at 120 m (linear between, the preset's description says; 80 m is
+    off the middle, where an interpolation run backwards would give the same)."""
     cfg = at_origin("livox_tele15")
     frames, _ = scan(cfg, wall(distance, 0.5), 0.2)
     xy = joined(frames, "xy_deg")
@@ -758,6 +780,38 @@ def test_angular_noise_turns_each_point_by_its_sigma() -> None:
     assert math.sqrt(np.mean(angle**2)) == pytest.approx(math.sqrt(2) * sigma, rel=0.05)
     assert np.median(angle) == pytest.approx(sigma * math.sqrt(2 * math.log(2)), rel=0.05)
     np.testing.assert_allclose(np.linalg.norm(b, axis=1), joined(noisy, "range_m"), rtol=1e-3)
+
+
+def test_a_turned_sensors_noisy_points_are_placed_with_its_rotation() -> None:
+    """With angular noise the world points are placed after the noise, by the sensor's rotation: at a pose turned
+    on all three axes, each is the origin plus its sensor-frame point turned by scipy's rotation of the pose's
+    yaw, pitch and roll (intrinsic Z-Y-X), not by its transpose."""
+    from scipy.spatial.transform import Rotation
+
+    from livox_viz.core.poses import Pose
+
+    cfg = at_origin("livox_mid70_risley", angular_sigma_deg=0.05)
+    pose = Pose((1.5, -4.0, -2.5), 0.2, -0.15, 0.3)
+    frames = list(LidarScanner(cfg, EmbreeCaster(wall(30.0, 0.5)), pose, seed=6).frames(0.1))
+    rotation = Rotation.from_euler("ZYX", [0.3, -0.15, 0.2]).as_matrix()
+    sensor = joined(frames, "xyz_sensor")
+    assert sensor.shape[0] > 5000
+    np.testing.assert_allclose(joined(frames, "xyz_world"), pose.origin + sensor @ rotation.T, rtol=0, atol=1e-9)
+
+
+def test_a_plate_closer_to_the_wall_than_three_range_sigmas_makes_no_mixed_point() -> None:
+    """A plate 5.5 cm proud of a wall at 20 m: its footprints are sampled (the probes find it in front), but near
+    the axis the depth between the surfaces along a ray is under 3 range sigmas (6 cm), so no point there is
+    mixed (farther off the axis the obliquity takes it past 6 cm)."""
+    cfg = at_origin("livox_mid70_risley")
+    depth = 0.055
+    plate = surface(trimesh.creation.box((0.002, 40, 80), trimesh.transformations.translation_matrix(
+        (20.0 - depth + 0.001, 20.0, 0.0))), 0.5)
+    mounted = MountedCaster(cfg, EmbreeCaster(trimesh.util.concatenate([plate, wall(20.0, 0.5)])), seed=1)
+    frame = mounted.cast(make_pattern(cfg, seed=1).take(200_000))
+    assert mounted.returns.last_counts["covered"] > 20
+    near_axis = off_axis_deg(frame.xy_deg) < 10.0
+    assert near_axis.sum() > 10_000 and np.count_nonzero(frame.tag[near_axis] & 0x03) == 0
 
 
 @pytest.mark.parametrize("moving", [False, True])

@@ -72,6 +72,12 @@ def test_datagrams_have_the_header_and_size() -> None:
     assert b"".join(d[24:] for d in datagrams) == payload
 
 
+def test_a_payload_of_whole_chunks_is_cut_into_exactly_that_many() -> None:
+    """Chunks of at most ``max_chunk`` bytes: 120 bytes in 60-byte chunks are 2 datagrams, not a third empty one."""
+    datagrams = split_datagrams(b"x" * 120, 0.0, max_chunk=60)
+    assert len(datagrams) == 2 and b"".join(d[24:] for d in datagrams) == b"x" * 120
+
+
 @pytest.mark.parametrize("order", list(itertools.permutations(range(3))))
 def test_three_chunks_in_any_order(order: tuple[int, ...]) -> None:
     payload = pack_payload(np.zeros(6), random_points(25_000))

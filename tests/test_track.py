@@ -414,3 +414,18 @@ def test_fit_warns_when_the_track_follows_the_table_only_beyond_a_hundredth_of_a
     assert ("warning: the track follows the table only to" in out) == warned, out
     rms = float(out.split("residual         rms")[1].split()[0])
     assert (0.01 < rms < 0.02) if warned else rms < 0.001, out
+
+
+def test_a_spin_streams_its_series_at_a_phase_and_labels_each_points_laser() -> None:
+    """The Mid-360's stream against its series evaluated directly, with an azimuth phase of 0.7 rad (the preset's
+    is 0, where a phase's sign cannot show), and each point's laser label k mod K."""
+    from livox_viz.patterns.factory import make_pattern
+
+    config = load_preset("livox_mid360")
+    config = replace(config, track=replace(config.track, phase_rad=(0.7, 0.0)))
+    chunk = make_pattern(config).take(5000)
+    k = np.arange(5000)
+    expected = track_xy(config.track, chunk.t, k % config.lasers)
+    wrapped = (chunk.xy_deg - expected + 180.0) % 360.0 - 180.0
+    assert config.lasers > 1 and np.abs(wrapped).max() < 1e-6
+    np.testing.assert_array_equal(chunk.labels()["laser"], k % config.lasers)
