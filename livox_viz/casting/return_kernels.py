@@ -1012,8 +1012,9 @@ def _point_direction(direction, index, jitter, key):  # pragma: no cover - compi
 
 def _decodes_within(range_m, direction, index, jitter, key, scale, low, high):  # pragma: no cover - compiled
     """Whether a point at ``range_m`` along the pulse's direction (:func:`_point_direction`) decodes, int16 and
-    back (``scale`` levels a metre), at a range in [``low``, ``high``]: what a client measures, which can lie
-    half a level (with an 18 mm level, 1.6 cm) off the range itself. Asked only within a level of either end."""
+    back (``scale`` levels a metre), at a range in [``low``, ``high``]: what a client measures, which can lie up to
+    sqrt(3)/2 of a level off the range itself (1.6 cm with a 600 m range's 18 mm level). Asked only within a level
+    of either end."""
     step = 1.0 / scale
     if low + step <= range_m <= high - step:
         return True

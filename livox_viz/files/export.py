@@ -146,7 +146,8 @@ class PointCloudWriter:
         Per-point fields after :func:`point_fields` (an NPZ column, a LAS extra dimension), e.g. a received
         frame's ``("sender_time", "<f8")``; :meth:`write` is given their values. Types: ``<f8``, ``<i4``, ``<u4``.
     source : str
-        What made the cloud, one line (e.g. ``"preset livox_mid70, returns datasheet, seed 0, scene urban"``),
+        What made the cloud, one line (``scan`` writes e.g. ``"livox-viz 0.1.0 scan of livox_mid70 (datasheet
+        returns, seed 0) in urban from t = 0, fixed"``),
         stated in the header of every format (PLY and PCD comments, the CSV's first line, LAS's livox-viz
         record, the NPZ's ``frame_of_reference``); none when empty.
 
