@@ -205,6 +205,19 @@ def test_a_file_with_no_write_bit_is_refused_even_for_root(tmp_path: Path, capsy
     assert out.read_bytes() == b"the user's protected file" and sorted(tmp_path.iterdir()) == [out]
 
 
+def test_a_folder_with_no_write_bit_is_refused_even_for_root(tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    folder = tmp_path / "kept"
+    folder.mkdir()
+    folder.chmod(0o555)
+    try:
+        assert main(["scan", "--seconds", "0.1", "--out", str(folder / "cloud.ply")]) == 2
+        one_line_error(capsys.readouterr().err, "cloud.ply", "the folder")
+        assert list(folder.iterdir()) == []
+    finally:
+        folder.chmod(0o755)
+
+
 def test_a_file_the_user_may_not_write_is_refused_in_a_folder_they_may() -> None:
     """As a user other than the file's owner (root runs this as nobody): ``echo >`` would refuse, so must we,
     although the folder lets us rename over it."""

@@ -174,17 +174,25 @@ def test_screenshot_and_sidecar_round_trip(app: LivoxVizApp, tmp_path: Path) -> 
 
 
 def test_read_only_screenshot_folder_keeps_running(app: LivoxVizApp, tmp_path: Path) -> None:
-    if os.geteuid() == 0:
-        target = tmp_path / "not-a-folder"
-        target.write_text("a file where the folder should be")
-    else:
-        target = tmp_path / "ro"
-        target.mkdir()
-        target.chmod(0o500)
-    app.screenshot_dir = target
-    app._guarded(app.save_screenshot)()
-    assert app.session.message
-    assert target.exists()
+    """A folder with no write bit (refused even to root) and a file where the folder should be: a message each,
+    nothing written, the window goes on."""
+    read_only = tmp_path / "ro"
+    read_only.mkdir()
+    read_only.chmod(0o500)
+    not_a_folder = tmp_path / "not-a-folder"
+    not_a_folder.write_text("a file where the folder should be")
+    try:
+        messages = {}
+        for target in (read_only, not_a_folder):
+            app.session.message = ""
+            app.screenshot_dir = target
+            app._guarded(app.save_screenshot)()
+            messages[target] = app.session.message
+            assert str(target) in messages[target]
+        assert "read-only" in messages[read_only]
+        assert list(read_only.iterdir()) == [] and not_a_folder.read_text() == "a file where the folder should be"
+    finally:
+        read_only.chmod(0o755)
 
 
 def test_preset_save_and_cycle(app: LivoxVizApp, user_presets: Path) -> None:

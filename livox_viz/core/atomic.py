@@ -107,7 +107,7 @@ def resolve_destination(path: str | os.PathLike[str]) -> Path:
     ------
     LivoxVizError
         If ``path`` is a folder, a loop of symbolic links, something other than a regular file
-        (a device, a pipe), a read-only file, or its folder does not exist.
+        (a device, a pipe), a read-only file, or its folder does not exist or has no write bit at all.
     """
     path = Path(path)
     if path.is_symlink():
@@ -124,6 +124,10 @@ def resolve_destination(path: str | os.PathLike[str]) -> Path:
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise LivoxVizError(f"{path}: the folder {folder} does not exist")
+    # A folder with no write bit at all is refused even to root, who could write there, as a read-only file is
+    # (below): its owner marked it so.
+    if not folder.stat().st_mode & 0o222:
+        raise LivoxVizError(f"{path}: the folder {folder} is read-only; allowed: a file in a writable folder")
     try:
         status = path.stat()
     except FileNotFoundError:
