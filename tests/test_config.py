@@ -50,6 +50,22 @@ def test_document_spelling_is_read_and_kept(tmp_path: Path, seed_json: dict) -> 
     assert "SensorAngEuler" in saved and "SensorAngEular" not in saved
 
 
+def test_info_says_which_spelling_of_the_mounting_angles_it_read(tmp_path: Path, seed_json: dict,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """The spec: a loader accepts both spellings "and says which it read"."""
+    from livox_viz.cli import main
+
+    document = dict(seed_json)
+    document["SensorAngEuler"] = document.pop("SensorAngEular")
+    for name, data, spelling in (("rflysim", seed_json, "SensorAngEular (RflySim's"),
+                                 ("document", document, "SensorAngEuler (the original document's")):
+        path = write(tmp_path / f"{name}.json", data)
+        assert main(["info", "--config", str(path)]) == 0
+        assert f"read from {spelling}" in capsys.readouterr().out
+        assert main(["info", "--config", str(path), "--json"]) == 0
+        assert json.loads(capsys.readouterr().out)["mount_angles_key"] == spelling.split()[0]
+
+
 def test_new_configuration_writes_what_rflysim_expects() -> None:
     data = SensorConfig(other_params=(600, 2.956, 1.4, 1.18, 10, 5, 1)).to_json_dict()
     assert "SensorAngEular" in data

@@ -38,6 +38,7 @@ def write_inputs(folder: Path) -> None:
     # divide by zero in the lidar equation's loss.
     (folder / "big_int.json").write_text(json.dumps(SEED_JSON)[:-1] + ', "LivoxVizReturns": {"blind_zone_m": 1'
                                          + "0" * 400 + "}}")
+    (folder / "twice.json").write_text(json.dumps(SEED_JSON)[:-1] + ', "CameraFOV": 30}')
     (folder / "same_range.json").write_text(json.dumps(
         {**SEED_JSON, "LivoxVizReturns": {"detection_range_m": [[0.1, 1e5], [0.8, 1e5]]}}))
     box = {"type": "box", "center": [5, 0, 0], "size": [1, 1, 1]}
@@ -57,6 +58,11 @@ def write_inputs(folder: Path) -> None:
     table = np.load(shipped_table_dir() / "mid40.npy")[:5000]
     np.save(folder / "short.npy", table)
     np.save(folder / "tiny.npy", table[:1000])
+    np.save(folder / "pickled.npy", np.array([{"a": 1}, 2], dtype=object), allow_pickle=True)
+    with open(folder / "lying.npy", "wb") as handle:  # its header claims two billion rows
+        np.lib.format.write_array_header_1_0(handle, {"descr": "<f8", "fortran_order": False,
+                                                      "shape": (2_000_000_000, 2)})
+        handle.write(bytes(1600))
 
 
 BAD_INPUTS: list[tuple[list[str], str]] = [
@@ -80,6 +86,8 @@ BAD_INPUTS: list[tuple[list[str], str]] = [
     (["fit", "latin1.csv"], "not UTF-8"),
     (["fit", "short_extra.csv"], "allowed: at least 0.1 s"),
     (["fit", "bad_cell.csv"], "at line 3"),
+    (["fit", "pickled.npy"], "holds Python objects (pickled data, never loaded); allowed: a NumPy .npy array"),
+    (["compare", "lying.npy"], "2,000,000,000 rows; allowed: at most 10,000,000"),
     (["fit", "a_folder.ply"], "is a folder"),
     (["listen", "--port", "70000"], "allowed: 0 (any free port) to 65535"),
     (["listen", "--port", "-1"], "allowed: 0 (any free port) to 65535"),
@@ -88,6 +96,7 @@ BAD_INPUTS: list[tuple[list[str], str]] = [
     (["info", "--config", "big_int.json"],
      "LivoxVizReturns.blind_zone_m = 10000000000000000000... (401 digits), too large for a number"),
     (["info", "--config", "same_range.json"], "the brighter target must reach farther"),
+    (["info", "--config", "twice.json"], "twice.json: the key 'CameraFOV' appears twice in one object"),
     (["scan", "--scene", "big_scene.json", "--seconds", "0.1", "--out", "s.ply"],
      "objects[0].material = 10000000000000000000... (401 digits), too large"),
     (["scan", "--scene", "deep_scene.json", "--seconds", "0.1", "--out", "s.ply"], "nested too deeply"),

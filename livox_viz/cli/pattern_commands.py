@@ -10,7 +10,7 @@ import numpy as np
 
 from livox_viz.casting.codec import max_decode_error
 from livox_viz.config.presets import list_presets
-from livox_viz.config.sensor import SensorConfig
+from livox_viz.config.sensor import EULER_KEY_RFLYSIM, SensorConfig
 from livox_viz.core.atomic import atomic_path, make_work_dir
 from livox_viz.core.progress import Progress
 from livox_viz.core.workload import check_points
@@ -89,6 +89,9 @@ def derived_figures(cfg: SensorConfig) -> dict[str, float | int | str]:
         "range_max_m": cfg.range_max,
         "range_step_m": cfg.range_step,
         "max_decode_error_m": max_decode_error(cfg.range_max),
+        "mount_position_m": list(cfg.sensor_pos_xyz),
+        "mount_angles_rad": list(cfg.sensor_ang_euler),
+        "mount_angles_key": cfg.euler_key,
     })
     return figures
 
@@ -129,6 +132,11 @@ def cmd_info(args: argparse.Namespace) -> int:
         print(f"  series             {len(track.terms)} terms, {track.lasers} laser(s), {track.form} form")
     print(f"  range              {cfg.range_max:g} m, int16 step {cfg.range_step * 1e3:.3f} mm, "
           f"max decode error {max_decode_error(cfg.range_max) * 1e3:.3f} mm")
+    # The mounting angles' key has two spellings: say which this file used (saving keeps it).
+    spelling = "RflySim's spelling" if cfg.euler_key == EULER_KEY_RFLYSIM else "the original document's spelling"
+    print(f"  mount              at {', '.join(f'{v:g}' for v in cfg.sensor_pos_xyz)} m (FRD of the body), "
+          f"roll/pitch/yaw {', '.join(f'{v:g}' for v in cfg.sensor_ang_euler)} rad, read from {cfg.euler_key} "
+          f"({spelling})")
     returns = cfg.return_params
     kind = {1: "single", 2: "dual", 3: "triple"}[returns.returns_per_pulse]
     sheet = (f"detection {', '.join(f'{r:g} m at {100 * p:g} %' for p, r in returns.detection_range_m)}; range "

@@ -27,6 +27,10 @@ class _NonFinite(float):
     reason = "which JSON does not allow"
 
 
+class _Repeated(Exception):
+    """A key given twice in one JSON object (its name is the argument)."""
+
+
 def read_json_file(path: str | os.PathLike[str]) -> Any:
     """Parse a JSON file, turning every failure into a one-line :class:`ConfigError`.
 
@@ -69,8 +73,19 @@ def read_json_file(path: str | os.PathLike[str]) -> Any:
         marked.reason = "too large for a number"
         return marked
 
+    def unique(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        # Python keeps the last of a repeated key: a file saying CameraFOV twice would silently mean the second.
+        made = dict(pairs)
+        if len(made) != len(pairs):
+            seen: set[str] = set()
+            raise _Repeated(next(key for key, _ in pairs if key in seen or seen.add(key)))
+        return made
+
     try:
-        data = json.loads(text, parse_constant=mark, parse_int=integer)
+        data = json.loads(text, parse_constant=mark, parse_int=integer, object_pairs_hook=unique)
+    except _Repeated as exc:
+        raise ConfigError(f"{path}: the key {exc.args[0]!r} appears twice in one object; allowed: each key once "
+                          "(JSON readers differ on which one they keep)") from None
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{path}: malformed JSON at line {exc.lineno} column {exc.colno}: {exc.msg}") from None
     except RecursionError:

@@ -180,10 +180,25 @@ def _load_file(path: Path, rate: float | None, name: str) -> ReferencePattern:
 
 def _read_npy(path: Path) -> np.ndarray:
     """The ``(n, 2)`` float64 radians of a ``.npy`` table, its shape and size checked before its data is read."""
+    allowed = "allowed: a NumPy .npy array of (n, 2) numbers, [theta, phi] in radians"
+    # The header first: what it claims (a shape, Python objects) is named before any data is mapped.
+    header = np.lib.format
+    try:
+        with open(path, "rb") as handle:
+            version = header.read_magic(handle)
+            read = header.read_array_header_1_0 if version == (1, 0) else header.read_array_header_2_0
+            shape, _, dtype = read(handle)
+    except (ValueError, OSError, EOFError, SyntaxError) as exc:
+        raise LivoxVizError(f"{path}: not a NumPy .npy array ({exc}); {allowed}") from None
+    if dtype.hasobject:
+        raise LivoxVizError(f"{path}: holds Python objects (pickled data, never loaded); {allowed}")
+    if len(shape) == 2 and shape[0] > MAX_TABLE_ROWS:
+        raise LivoxVizError(f"{path}: {shape[0]:,} rows; allowed: at most {MAX_TABLE_ROWS:,} (cut the table: "
+                            "a few seconds are enough to fit a track)")
     try:
         mapped = np.load(path, allow_pickle=False, mmap_mode="r")
     except (ValueError, OSError, EOFError) as exc:
-        raise LivoxVizError(f"{path}: not a NumPy .npy array ({exc})") from None
+        raise LivoxVizError(f"{path}: not a whole NumPy .npy array ({exc}); {allowed}") from None
     if mapped.ndim != 2 or mapped.shape[1] != 2:
         raise LivoxVizError(f"{path}: shape {mapped.shape}; allowed: (n, 2) columns [theta, phi] in radians")
     if mapped.shape[0] < 16:

@@ -62,7 +62,7 @@ class RisleyFit:
     lasers_found : int
         K from the table's step pattern (equal to ``params.lasers`` unless forced).
     rms_deg, p95_deg, max_deg : float
-        Distance of every row to the model's sample of the same time, degrees.
+        Angle between every row's ray and the model's ray at the same time, degrees.
     rms_per_laser_deg : (K,) float64
     seconds : float
         Time the fit took.
@@ -206,9 +206,23 @@ def _fit_risley(table: ReferencePattern, beams: int | None) -> RisleyFit:
     a0, b0 = float(np.angle(coefficients[0, 0])), float(np.angle(coefficients[0, 1]))
     shift = np.exp(-1j * np.array([m * a0 + n * b0 for m, n in terms]))
     params = RisleyParams(prism_hz=hz, phase_rad=(a0, b0), terms=terms, base_coefficients=coefficients * shift)
-    per_laser = np.array([math.sqrt(float(np.mean(distance[laser == k] ** 2))) for k in range(lasers)])
-    return RisleyFit(params, found, math.sqrt(float(np.mean(distance**2))), float(np.percentile(distance, 95)),
-                     float(distance.max()), per_laser, time.perf_counter() - start)
+    # What is reported is the angle between each row's ray and the model's (as ``compare`` and the README say),
+    # not the fit's own distance in the pattern plane (which differs from it by up to 0.6 % at 35 deg off axis).
+    table_xy = np.column_stack([z.real, z.imag])
+    model_xy = table_xy - np.column_stack([residual.real, residual.imag])
+    angle = _angles_deg(table_xy, model_xy)
+    per_laser = np.array([math.sqrt(float(np.mean(angle[laser == k] ** 2))) for k in range(lasers)])
+    return RisleyFit(params, found, math.sqrt(float(np.mean(angle**2))), float(np.percentile(angle, 95)),
+                     float(angle.max()), per_laser, time.perf_counter() - start)
+
+
+def _angles_deg(xy_a: np.ndarray, xy_b: np.ndarray, plane: str = "boresight") -> np.ndarray:
+    """Sample-for-sample angle between the rays at pattern angles ``xy_a`` and ``xy_b`` ``(n, 2)``, degrees ``(n,)``,
+    in parts of 200 000 rows (the rays' arrays of a whole table at once took hundreds of MB)."""
+    if not len(xy_a):
+        return np.zeros(1)
+    return np.concatenate([angle_between_deg(xy_a[s : s + 200_000], xy_b[s : s + 200_000], plane)
+                           for s in range(0, len(xy_a), 200_000)])
 
 
 def track_residual(xy_a: np.ndarray, xy_b: np.ndarray, plane: str = "boresight") -> tuple[float, float, float]:
@@ -220,6 +234,5 @@ def track_residual(xy_a: np.ndarray, xy_b: np.ndarray, plane: str = "boresight")
         Pattern angles in ``plane``.
     plane : {"boresight", "panorama"}
     """
-    distance = np.concatenate([angle_between_deg(xy_a[s : s + 200_000], xy_b[s : s + 200_000], plane)
-                               for s in range(0, len(xy_a), 200_000)]) if len(xy_a) else np.zeros(1)
+    distance = _angles_deg(xy_a, xy_b, plane)
     return (math.sqrt(float(np.mean(distance**2))), float(np.percentile(distance, 95)), float(distance.max()))
