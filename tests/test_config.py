@@ -88,7 +88,8 @@ def test_config_json_selects_by_seq_id(tmp_path: Path, seed_json: dict) -> None:
     path = write(tmp_path / "Config.json", {"VisionSensors": [camera, seed_json, second]})
     assert load_config(path).data_width == 250
     assert load_config(path, seq_id=3).data_width == 100
-    with pytest.raises(ConfigError, match="SeqID 7"):
+    seqs = ", ".join(str(s["SeqID"]) for s in (seed_json, second))
+    with pytest.raises(ConfigError, match=rf"SeqID 7 in VisionSensors; allowed: .* TypeID-6 sensors \({seqs}\)"):
         load_config(path, seq_id=7)
 
 
@@ -123,7 +124,7 @@ def test_config_json_without_livox(tmp_path: Path) -> None:
         ({"SendProtocol": [0, 127, 0, 0, 1]}, r"SendProtocol = .*allowed: a list of 8 integers"),
         ({"SensorPosXYZ": [0, 0]}, r"SensorPosXYZ has 2 values; allowed: 3"),
         ({"TypeID": 1}, r"TypeID = 1 is not a Livox rosette lidar; allowed: 6"),
-        ({JITTER_SCOPE_KEY: "petal"}, r"jitter_scope = 'petal'; allowed: flower or figure"),
+        ({JITTER_SCOPE_KEY: "petal"}, r"LivoxVizJitterScope = 'petal'; allowed: flower or figure"),
     ],
 )
 def test_validation_names_field_and_range(tmp_path: Path, seed_json: dict, change: dict, message: str) -> None:

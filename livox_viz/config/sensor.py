@@ -310,7 +310,7 @@ class SensorConfig:
             )
         if self.jitter_scope not in JITTER_SCOPES:
             raise ConfigError(
-                f"jitter_scope = {self.jitter_scope!r}; allowed: {' or '.join(JITTER_SCOPES)}"
+                f"{JITTER_SCOPE_KEY} = {self.jitter_scope!r}; allowed: {' or '.join(JITTER_SCOPES)}"
             )
         if self.pattern_model not in PATTERN_MODELS:
             raise ConfigError(
@@ -757,9 +757,12 @@ def select_sensor(data: Any, seq_id: int | None = None) -> Mapping[str, Any]:
             raise ConfigError("VisionSensors must be a JSON list of sensor objects")
         livox = [s for s in sensors if isinstance(s, Mapping) and s.get("TypeID") == LIVOX_TYPE_ID]
         if seq_id is not None:
-            livox = [s for s in livox if s.get("SeqID") == seq_id]
-            if not livox:
-                raise ConfigError(f"no TypeID-6 sensor with SeqID {seq_id} in VisionSensors")
+            chosen = [s for s in livox if s.get("SeqID") == seq_id]
+            if not chosen:
+                there = ", ".join(str(s.get("SeqID")) for s in livox) or "none"
+                raise ConfigError(f"no TypeID-6 sensor with SeqID {seq_id} in VisionSensors; allowed: a SeqID of "
+                                  f"its TypeID-6 sensors ({there})")
+            livox = chosen
         if not livox:
             found = sorted({s.get("TypeID") for s in sensors if isinstance(s, Mapping)}, key=str)
             raise ConfigError(
