@@ -171,6 +171,13 @@ def test_screenshot_and_sidecar_round_trip(app: LivoxVizApp, tmp_path: Path) -> 
     assert SensorConfig.from_json_dict(sidecar["config"]) == app.session.config
     assert sidecar["seed"] == 0 and sidecar["scan_time_s"] == pytest.approx(0.4)
     assert set(sidecar["cameras"]) == {"pattern", "scene"}
+    # Keys pressed since the last render are in the picture as in its sidecar (pyvista renders only once).
+    app.cycle_scene_colour()
+    app.session.advance_to(0.8)
+    third = app.save_screenshot()
+    with Image.open(second) as before, Image.open(third) as after:
+        changed = np.any(np.asarray(before) != np.asarray(after), axis=2).mean()
+    assert changed > 0.01 and json.loads(third.with_suffix(".json").read_text())["scene_colour"] == "height"
 
 
 def test_read_only_screenshot_folder_keeps_running(app: LivoxVizApp, tmp_path: Path) -> None:
@@ -190,6 +197,11 @@ def test_read_only_screenshot_folder_keeps_running(app: LivoxVizApp, tmp_path: P
             messages[target] = app.session.message
             assert str(target) in messages[target]
         assert "read-only" in messages[read_only]
+        # The s key's writer thread says why too, rather than "saving" for ever.
+        app.screenshot_dir = read_only
+        app._guarded(app.take_screenshot)()
+        app._writer.shutdown(wait=True)
+        assert app.session.message.startswith("screenshot not saved") and "read-only" in app.session.message
         assert list(read_only.iterdir()) == [] and not_a_folder.read_text() == "a file where the folder should be"
     finally:
         read_only.chmod(0o755)

@@ -353,7 +353,7 @@ class LivoxVizApp:
         """Save the window as PNG with a JSON sidecar (configuration, seed, scan time, cameras); returns when
         both are written."""
         path = files.unused_screenshot_path(Path(folder) if folder is not None else self.screenshot_dir)
-        files.write_png(self.plotter.screenshot(None, return_img=True), path)  # screenshot() renders once
+        files.write_png(self._current_image(), path)
         files.write_sidecar(path, files.sidecar(self.session, self.cameras(), self.plotter.window_size))
         self.session.message = f"saved {path}"
         return path
@@ -365,7 +365,7 @@ class LivoxVizApp:
         message says "saving", then "saved" (or why not); :meth:`close` waits for the files.
         """
         path = files.unused_screenshot_path(self.screenshot_dir)
-        image = self.plotter.screenshot(None, return_img=True)
+        image = self._current_image()
         data = files.sidecar(self.session, self.cameras(), self.plotter.window_size)
         if self._writer is None:
             self._writer = ThreadPoolExecutor(1, thread_name_prefix="livox-viz-screenshot")
@@ -373,12 +373,23 @@ class LivoxVizApp:
         self._writer.submit(self._write_screenshot, image, path, data)
         return path
 
+    def _current_image(self) -> Any:
+        """The window as it is now, what the sidecar describes: brought up to date and rendered first (pyvista's
+        screenshot renders only on its first call, so keys pressed since the last tick were not in the picture)."""
+        self.refresh()
+        self.render()
+        return self.plotter.screenshot(None, return_img=True)
+
     def _write_screenshot(self, image: Any, path: Path, data: dict[str, Any]) -> None:
+        # On the writer thread: whatever stops the files is said in the window, never lost with the thread.
         try:
             files.write_png(image, path)
             files.write_sidecar(path, data)
+        except LivoxVizError as exc:
+            self.session.message = f"screenshot not saved: {exc}"
+            return
         except OSError as exc:
-            self.session.message = f"screenshot not saved: {exc.strerror or exc}"
+            self.session.message = f"screenshot not saved: {path}: {exc.strerror or exc}"
             return
         self.session.message = f"saved {path}"
 

@@ -12,6 +12,7 @@ import numpy as np
 from livox_viz.config.presets import user_preset_dir
 from livox_viz.config.sensor import save_config
 from livox_viz.core.atomic import atomic_path, write_text_atomic
+from livox_viz.core.errors import LivoxVizError
 
 from .session import Session
 
@@ -29,8 +30,17 @@ def write_png(image: np.ndarray, path: Path) -> Path:
 
 
 def unused_screenshot_path(folder: Path) -> Path:
-    """``folder/livox-viz-<time>.png``, numbered if that exists already (the folder is created)."""
-    folder.mkdir(parents=True, exist_ok=True)
+    """``folder/livox-viz-<time>.png``, numbered if that exists already (the folder is created).
+
+    Raises
+    ------
+    LivoxVizError
+        Naming the folder, when it cannot be made (a file in its place, a read-only parent).
+    """
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise LivoxVizError(f"screenshot not saved: cannot make the folder {folder} ({exc.strerror or exc})") from None
     stamp = datetime.now().strftime("%Y%m%d-%H%M%S-%f")[:-3]
     path = folder / f"livox-viz-{stamp}.png"
     suffix = 1
