@@ -16,6 +16,7 @@ pv = pytest.importorskip("pyvista")
 
 from livox_viz.widgets.app import LivoxVizApp, render_offscreen  # noqa: E402
 from livox_viz.widgets.controls import PATTERN_SLIDERS, SENSOR_SLIDERS, slider_range  # noqa: E402
+from livox_viz.widgets.keys import KEYS  # noqa: E402
 from livox_viz.widgets.overlay import WINDOWS, TableSource  # noqa: E402
 from livox_viz.widgets.session import Session  # noqa: E402
 
@@ -585,3 +586,27 @@ def test_the_window_and_render_start_as_their_command_lines_say(tmp_path: Path) 
     session.advance_to(0.1)
     live = session.scene_ring.live_slots()
     np.testing.assert_array_equal(session.scene_ring.scalars[live], session.scene_ring.reflectivity[live])
+
+
+@pytest.mark.parametrize("size", [(640, 360), (1600, 900)])
+def test_the_help_overlay_fits_inside_the_pattern_view(urban, size: tuple[int, int]) -> None:
+    """Every key's line shows: the overlay lies within its view, below the state lines, at any window size (at a
+    fixed font it ran above a 1600 x 900 window's top and past the view's right edge)."""
+    session = Session(load_preset("livox_mid70"), urban, seed=0, preset_name="livox_mid70")
+    application = LivoxVizApp(session, off_screen=True, window_size=size)
+    try:
+        application.hud.help_visible = True
+        application.refresh()
+        application.render()
+        renderer = application.pattern_view.renderer
+        box = [0.0] * 4
+        application.hud.help.GetBoundingBox(renderer, box)
+        left, bottom = application.hud.help.GetPositionCoordinate().GetComputedDisplayValue(renderer)
+        width, height = size
+        low_x, low_y, high_x, high_y = renderer.GetViewport()
+        assert left >= low_x * width and bottom >= low_y * height
+        assert left + box[1] <= high_x * width and bottom + box[3] <= 0.95 * high_y * height
+        assert box[1] > 0.5 * (high_x - low_x) * width  # and uses the view's width, not a corner of it
+        assert application.hud.help.GetInput().count("\n") + 1 >= len(KEYS)
+    finally:
+        application.close()

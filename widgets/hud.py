@@ -35,6 +35,13 @@ class HeadsUp:
         style.SetBackgroundOpacity(0.92)
         style.SetFrame(True)
         style.SetFrameColor(0.95, 0.76, 0.31)
+        # The text is scaled into a box of the view (every key fits, at any window size): at a fixed size the list
+        # outgrew a 1600 x 900 window's view, its first lines above the top and each line past the right edge.
+        self.help.SetTextScaleModeToProp()
+        self.help.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
+        self.help.GetPositionCoordinate().SetValue(0.02, 0.08)
+        self.help.GetPosition2Coordinate().SetCoordinateSystemToNormalizedViewport()
+        self.help.GetPosition2Coordinate().SetValue(0.96, 0.86)
         self.keys.SetText(0, keys_line())
         self.help.SetInput(help_text())
         self.help.SetVisibility(False)

@@ -79,7 +79,7 @@ def help_text() -> str:
 
     lines = ["livox-viz keys"]
     for row in KEYS:
-        wrapped = textwrap.wrap(row.action.replace("`", ""), 52) or [""]
+        wrapped = textwrap.wrap(row.action.replace("`", ""), 60) or [""]
         lines.append(f"{row.label:<10} {wrapped[0]}")
         lines.extend(f"{'':<10} {more}" for more in wrapped[1:])
     return "\n".join(lines)
