@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -442,8 +443,16 @@ def test_density_image_follows_the_window(app: LivoxVizApp) -> None:
     assert app.pattern_view.density_actor.GetVisibility() and not app.pattern_view.actor.GetVisibility()
     assert app.pattern_view.density_image.point_data["density"].max() == pytest.approx(
         np.log1p(session.density.counts.max()))
+    # The bar's colours are log(1 + count); its marks are counts, each where its colour is.
+    bar, table = app.pattern_view.scalar_bar, app.pattern_view.density_lut
+    assert bar.GetDrawAnnotations() and bar.GetNumberOfLabels() == 0
+    marks = {text: value for value, text in table.annotations.items()}
+    assert marks["0"] == 0.0 and marks["1"] == pytest.approx(math.log(2.0)) and len(marks) >= 3
+    assert all(value == pytest.approx(math.log1p(float(text.replace(",", "")))) for text, value in marks.items())
+    assert max(marks.values()) <= table.scalar_range[1] + 1e-9
     session.display.drawing = "auto"
     app.refresh()
+    assert not bar.GetDrawAnnotations() and bar.GetNumberOfLabels() == 5
     assert app.pattern_view.actor.GetVisibility()  # 10 000 points < the view's pixels
 
 
@@ -532,6 +541,11 @@ def test_fit_key_moves_the_sliders_to_the_reference(app: LivoxVizApp) -> None:
     xy = ScanPattern(truth, seed=3).take(150_000).xy_deg
     session.overlay.set_source(TableSource(ReferencePattern("truth", xy, np.arange(len(xy)) / 1e5, 1e5)), 0.0)
     app._guarded(app.fit_to_reference)()
+    assert "fitting the rosette to truth" in session.message  # on a worker: the window plays on
+    app._guarded(app.fit_to_reference)()
+    assert "fitting to truth already" in session.message
+    app.tick()
+    assert app.finish_fit()
     assert "fitted to truth" in session.message
     assert session.config.petal_height == pytest.approx(4.0, abs=1e-3)
     assert app.sliders.value("petal_height") == pytest.approx(session.config.petal_height)

@@ -184,7 +184,7 @@ def test_density_axis_follows_the_curves_after_a_change(small_app: LivoxVizApp, 
         app.refresh()
         app.charts.finish()
         app.fit_to_reference()
-        assert "fitted to" in app.session.message
+        assert app.finish_fit() and "fitted to" in app.session.message
     app.refresh()
     app.charts.finish()  # the reference's curves are made on a worker
     app.render()

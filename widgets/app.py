@@ -104,6 +104,8 @@ class LivoxVizApp:
         session.subscribe(self._on_change)
         self._last_render: float | None = None
         self._writer: ThreadPoolExecutor | None = None  # screenshots being written
+        self._fitter: ThreadPoolExecutor | None = None  # the f key's fit
+        self._fit: tuple[Any, str, float] | None = None  # the fit running: its future, reference, start
         self._reference_choices: tuple[tuple, list[str]] | None = None
         # Find numpy's BLAS now (80 ms among the VTK libraries), not in the first key that makes a Risley track.
         blas_threads()
@@ -324,21 +326,47 @@ class LivoxVizApp:
         self.session.message = f"reference {chosen}" if chosen else "no reference"
 
     def fit_to_reference(self) -> None:
-        """Fit the rosette's parameters to the reference's track and move the sliders there."""
+        """Fit the rosette's parameters to the reference's track on a worker, and move the sliders there when it is
+        done (:meth:`finish_fit`; each tick looks): a fit takes 10-25 s, which the window plays on through."""
         from livox_viz.fitting.reference import pattern_table
         from livox_viz.fitting.rosette_fit import fit_reference
 
         self._require_reference()
+        if self._fit is not None:
+            self.session.message = f"fitting to {self._fit[1]} already (started {self._fit_age():.0f} s ago)"
+            return
         source = self.session.overlay.source
-        if isinstance(source, TableSource):
-            table = source.table
-        else:
-            table = pattern_table(source.config, source.name, 4.0, source.seed)
-        start = time.perf_counter()
-        result = fit_reference(table, base=self.session.config.with_pattern_model("rflysim"))
-        self.session.set_config(result.config, f"fitted-to-{source.name}")
-        self.session.message = (f"fitted to {source.name} in {time.perf_counter() - start:.1f} s: shape rms "
-                                f"{result.shape.rms_deg:.3f} deg")
+        base = self.session.config.with_pattern_model("rflysim")
+
+        def fit() -> Any:
+            table = source.table if isinstance(source, TableSource) else pattern_table(
+                source.config, source.name, 4.0, source.seed)
+            return fit_reference(table, base=base)
+
+        if self._fitter is None:
+            self._fitter = ThreadPoolExecutor(1, thread_name_prefix="livox-viz-fit")
+        self._fit = (self._fitter.submit(fit), source.name, time.perf_counter())
+        self.session.message = f"fitting the rosette to {source.name} (10-25 s; the window plays on)"
+
+    def _fit_age(self) -> float:
+        return time.perf_counter() - self._fit[2] if self._fit is not None else 0.0
+
+    def finish_fit(self, wait: bool = True) -> bool:
+        """Apply a fit that :meth:`fit_to_reference` started, waiting for it (or, with ``wait`` false, only if it is
+        done); whether one was applied. A fit that failed says why in the window."""
+        if self._fit is None or not (wait or self._fit[0].done()):
+            return False
+        future, name, _ = self._fit
+        seconds = self._fit_age()
+        self._fit = None
+        try:
+            result = future.result()
+        except (LivoxVizError, OSError) as exc:
+            self.session.message = f"fit to {name} failed: {exc}"
+            return False
+        self.session.set_config(result.config, f"fitted-to-{name}")
+        self.session.message = f"fitted to {name} in {seconds:.1f} s: shape rms {result.shape.rms_deg:.3f} deg"
+        return True
 
     def toggle_help(self) -> None:
         self.hud.help_visible = not self.hud.help_visible
@@ -429,8 +457,9 @@ class LivoxVizApp:
 
     # Drawing ----------------------------------------------------------------------------
     def tick(self, now: float | None = None) -> None:
-        """One timer tick: advance the scan by the wall time passed, redraw."""
+        """One timer tick: advance the scan by the wall time passed, apply a fit that is done, redraw."""
         self.session.tick(now)
+        self.finish_fit(wait=False)
         self.refresh()
 
     def refresh(self) -> None:
@@ -482,6 +511,9 @@ class LivoxVizApp:
         if self._writer is not None:
             self._writer.shutdown(wait=True)
             self._writer = None
+        if self._fitter is not None:  # a fit still running is not waited for: its result is not wanted any more
+            self._fitter.shutdown(wait=False, cancel_futures=True)
+            self._fitter = self._fit = None
         if self.charts is not None:
             self.charts.close()
         self.plotter.close()

@@ -293,10 +293,14 @@ class PatternView(_View):
             occupied = max(int(np.count_nonzero(counts)), 1)
             top = min(float(display.max()), math.log1p(4.0 * float(counts.sum()) / occupied))
             self.density_lut.scalar_range = (0.0, max(top, 1e-6))
+            self.density_lut.annotations = count_marks(top)
             self.density_texture.Modified()
         bar_table = self.density_lut if density else self.actor.mapper.lookup_table
         if self.scalar_bar.GetLookupTable() is not bar_table:
             self.scalar_bar.SetLookupTable(bar_table)
+        # The density's colours are log(1 + count): the bar is marked with counts, not those logarithms.
+        self.scalar_bar.SetNumberOfLabels(0 if density else 5)
+        self.scalar_bar.SetDrawAnnotations(density)
         update_ring_polydata(self.poly, self._ring)
         overlay = self.session.overlay
         self._reference_ring = overlay.ring
@@ -304,7 +308,16 @@ class PatternView(_View):
         self.reference_actor.SetVisibility(overlay.source is not None and overlay.visible)
         low, high = self.session.pattern_scalar_range()
         self.actor.mapper.scalar_range = (low, high if high > low else low + 1e-6)
-        self.scalar_bar.SetTitle("points/cell, log" if density else PATTERN_UNITS[self.session.display.pattern_colour])
+        self.scalar_bar.SetTitle("points/cell" if density else PATTERN_UNITS[self.session.display.pattern_colour])
+
+
+def count_marks(top: float) -> dict[float, str]:
+    """Marks of a colour bar of log(1 + count) from 0 to ``top``: the counts 0, 1, 2, 5, 10, 20, 50, ... it spans
+    (1, 10, 100, ... only, when those would be more than seven), each at its log(1 + count)."""
+    counts = [0] + [m * 10**k for k in range(9) for m in (1, 2, 5) if math.log1p(m * 10**k) <= top + 1e-9]
+    if len(counts) > 7:
+        counts = [c for c in counts if c == 0 or str(c).strip("0") == "1"]
+    return {math.log1p(c): f"{c:,}" for c in counts}
 
 
 def _ring_step(radius: float) -> float:
