@@ -262,6 +262,10 @@ def test_one_listener_hears_two_publishers_in_a_row_and_a_forged_datagram(
     # Each publisher run and the forger send from their own port: three senders, each its own session.
     assert "received 11 frames" in out.out and "senders 3" in out.err and "3 sender sessions" in out.out
     data = np.load(received)
+    # The recording says how its int16 points were decoded (the wire carries no range), not that it is a scan.
+    notes = json.loads(str(data["frame_of_reference"]))
+    assert "listen" in notes["source"] and "decoded with the range 600 m of livox_mid70" in notes["source"]
+    assert notes["points"].startswith("xyz_int16: the points as received")
     sent = tmp_path / "sent.npz"
     assert main(["scan", "--seconds", "0.5", "--out", str(sent)]) == 0
     one_run = np.load(sent)

@@ -10,9 +10,11 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import nullcontext
+from pathlib import Path
 
 import numpy as np
 
+from livox_viz import __version__
 from livox_viz.casting.scan import LidarScanner, ScanFrame
 from livox_viz.config.presets import DEFAULT_PRESET, load_preset
 from livox_viz.config.sensor import load_config
@@ -230,6 +232,12 @@ class _Listening:
         return args.timeout is not None and now - self.last_data >= args.timeout
 
 
+#: What a recording's NPZ arrays are (stated in its ``frame_of_reference``).
+RECORDING_NPZ_RULE = ("xyz_int16: the points as received (sensor FRD); xyz_sensor: those decoded (xyz_int16 x "
+                      "range_max / 32767, the listener's range_max); xyz_world and range: the decoded points placed "
+                      "with their frame's posAng, and their distance")
+
+
 def cmd_listen(args: argparse.Namespace) -> int:
     cfg = load_config(args.config, seq_id=args.seq_id) if args.config else load_preset(DEFAULT_PRESET)
     out = check_output_path(args.record, FORMATS) if args.record else None
@@ -237,11 +245,19 @@ def cmd_listen(args: argparse.Namespace) -> int:
     # A recording is the user's data: Ctrl-C, SIGTERM and SIGHUP end listening after the frame in hand, and the
     # file is closed properly (the signals stay noted, not raised, until it is in place).
     # The recording's temporary is made first: a folder we cannot write in fails before a port is taken.
+    # RflySim's wire has no range: its int16 points are decoded with this configuration's, which must be the
+    # sender's (a Horizon's 260 m read with the default 600 m puts every point 2.3 times too far). The recording
+    # says which it used.
+    label = Path(args.config).stem if args.config else DEFAULT_PRESET
+    made = (f"livox-viz {__version__} listen: RflySim frames received, their int16 points decoded with the range "
+            f"{cfg.range_max:g} m of {label}; each point at its frame's time")
     with StopRequests() as signals, \
-            PointCloudWriter(out, extra_fields=RECORDING_FIELDS) if out is not None else nullcontext() as writer:
+            PointCloudWriter(out, extra_fields=RECORDING_FIELDS, source=made, npz_rule=RECORDING_NPZ_RULE
+                             ) if out is not None else nullcontext() as writer:
         receiver, where = open_receiver(args, cfg)
         stop = _Listening(args, receiver, signals)
-        print(f"listening on {where} (range {cfg.range_max:g} m); Ctrl-C to stop", file=sys.stderr, flush=True)
+        print(f"listening on {where}, decoding with the range {cfg.range_max:g} m of {label} (the sender's must be "
+              "the same: --config FILE as it was started with); Ctrl-C to stop", file=sys.stderr, flush=True)
         try:
             for frame in receiver.frames(stop):
                 stop.heard()

@@ -150,6 +150,8 @@ class PointCloudWriter:
         returns, seed 0) in urban from t = 0, fixed"``),
         stated in the header of every format (PLY and PCD comments, the CSV's first line, LAS's livox-viz
         record, the NPZ's ``frame_of_reference``); none when empty.
+    npz_rule : str
+        What the NPZ's arrays are, stated in its ``frame_of_reference`` (default :data:`NPZ_RULE`, a scan's).
 
     Attributes
     ----------
@@ -164,9 +166,10 @@ class PointCloudWriter:
     """
 
     def __init__(self, path: str | os.PathLike[str], coordinates: str = "sensor", ascii: bool = False,
-                 extra_fields: Sequence[tuple[str, str]] = (), source: str = "") -> None:
+                 extra_fields: Sequence[tuple[str, str]] = (), source: str = "", npz_rule: str = NPZ_RULE) -> None:
         self.path = Path(path)
         self.source = " ".join(source.split())  # one line in every header
+        self.npz_rule = npz_rule
         self.format = self.path.suffix.lower()
         if self.format not in FORMATS:
             raise LivoxVizError(f"{self.path}: unknown format {self.format or '(none)'}; allowed: {', '.join(FORMATS)}")
@@ -276,7 +279,7 @@ class PointCloudWriter:
                 if self._npz is not None:
                     poses = np.array(self._npz_poses).reshape(-1, 13)
                     self._npz.finish(tmp, {**self.npz_arrays, "frame_pose": poses, "frame_of_reference": np.array(
-                        json.dumps({**FRAME_DESCRIPTION, "points": NPZ_RULE,
+                        json.dumps({**FRAME_DESCRIPTION, "points": self.npz_rule,
                                     **({"source": self.source} if self.source else {}),
                                     "frame_pose": "index, then the sensor's pose at the frame's first ray and "
                                     "just after its last: x y z (m, world NED) roll pitch yaw (rad) each"}))})
