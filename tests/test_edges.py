@@ -387,7 +387,7 @@ def test_shared_memory_refuses_a_point_count_past_the_block_and_takes_an_empty_f
         block = bytearray(path.read_bytes())
         block[33:37] = (101).to_bytes(4, "little", signed=True)  # PointNum one past the block
         path.write_bytes(bytes(block))
-        with pytest.raises(LivoxVizError, match="PointNum 101; allowed: 0 to 100"):
+        with pytest.raises(LivoxVizError, match=r"PointNum 101; allowed: 0 to 100, .*\(is --config the sender.s\?\)"):
             reader.read()
     finally:
         writer.close()

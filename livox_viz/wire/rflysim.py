@@ -432,7 +432,8 @@ class SharedMemoryLink:
             _, timestamp, *pose, count = SHM_HEADER.unpack_from(self._map, 0)
             capacity = (self.size - SHM_HEADER.size) // 6
             if not 0 <= count <= capacity:
-                raise LivoxVizError(f"shared memory PointNum {count}; allowed: 0 to {capacity}")
+                raise LivoxVizError(f"shared memory PointNum {count}; allowed: 0 to {capacity}, the block's size for "
+                                    "this configuration's DataWidth x DataHeight (is --config the sender's?)")
             points = np.frombuffer(self._map, dtype="<i2", count=count * 3, offset=SHM_HEADER.size)
             frame = LivoxFrame(timestamp, np.array(pose), points.reshape(count, 3).astype(np.int16), str(self.path))
         finally:
