@@ -339,8 +339,9 @@ def _grid(fov: FieldOfView, cell_deg: float) -> CoverageGrid:
 
 #: Integration times of the coverage chart, seconds.
 CURVE_SECONDS: tuple[float, ...] = (0.05, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0)
-#: Points a chart's curves are computed from at most (so a redraw stays well under 100 ms).
-CURVE_POINTS = 1_000_000
+#: Points a chart's curves are computed from at most (so a redraw stays under 100 ms): the 4 s of every shipped
+#: preset, the HAP's 452 000 points/s the fastest (81 ms; at 1 M points its curve stopped at 2 s).
+CURVE_POINTS = 2_000_000
 
 
 @dataclass(frozen=True)
