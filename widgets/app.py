@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Mapping
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -104,8 +104,7 @@ class LivoxVizApp:
         session.subscribe(self._on_change)
         self._last_render: float | None = None
         self._writer: ThreadPoolExecutor | None = None  # screenshots being written
-        self._fitter: ThreadPoolExecutor | None = None  # the f key's fit
-        self._fit: tuple[Any, str, float] | None = None  # the fit running: its future, reference, start
+        self._fit: tuple[Future, str, float] | None = None  # the f key's fit running: its future, reference, start
         self._reference_choices: tuple[tuple, list[str]] | None = None
         # Find numpy's BLAS now (80 ms among the VTK libraries), not in the first key that makes a Risley track.
         blas_threads()
@@ -343,9 +342,18 @@ class LivoxVizApp:
                 source.config, source.name, 4.0, source.seed)
             return fit_reference(table, base=base)
 
-        if self._fitter is None:
-            self._fitter = ThreadPoolExecutor(1, thread_name_prefix="livox-viz-fit")
-        self._fit = (self._fitter.submit(fit), source.name, time.perf_counter())
+        # A daemon thread, not a pool's: quitting during a fit must not wait up to 25 s for it.
+        future: Future = Future()
+
+        def run() -> None:
+            future.set_running_or_notify_cancel()
+            try:
+                future.set_result(fit())
+            except BaseException as exc:  # handed to finish_fit, which says it in the window
+                future.set_exception(exc)
+
+        threading.Thread(target=run, daemon=True, name="livox-viz-fit").start()
+        self._fit = (future, source.name, time.perf_counter())
         self.session.message = f"fitting the rosette to {source.name} (10-25 s; the window plays on)"
 
     def _fit_age(self) -> float:
@@ -511,9 +519,7 @@ class LivoxVizApp:
         if self._writer is not None:
             self._writer.shutdown(wait=True)
             self._writer = None
-        if self._fitter is not None:  # a fit still running is not waited for: its result is not wanted any more
-            self._fitter.shutdown(wait=False, cancel_futures=True)
-            self._fitter = self._fit = None
+        self._fit = None  # a fit still running is not waited for: its result is not wanted any more
         if self.charts is not None:
             self.charts.close()
         self.plotter.close()
