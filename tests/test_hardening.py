@@ -281,6 +281,7 @@ def test_listen_port_zero_says_which_port(capsys: pytest.CaptureFixture[str]) ->
     err = capsys.readouterr().err
     port = int(err.split("udp 127.0.0.1:")[1].split()[0])
     assert 0 < port <= 65535
+    assert "decoding with the range 600 m of livox_mid70" in err  # the wire carries no range: it says which
 
 
 def test_coverage_cells_up_to_the_fovs_half_angle_are_allowed(capsys: pytest.CaptureFixture[str]) -> None:

@@ -256,8 +256,8 @@ def cmd_listen(args: argparse.Namespace) -> int:
                              ) if out is not None else nullcontext() as writer:
         receiver, where = open_receiver(args, cfg)
         stop = _Listening(args, receiver, signals)
-        print(f"listening on {where}, decoding with the range {cfg.range_max:g} m of {label} (the sender's must be "
-              "the same: --config FILE as it was started with); Ctrl-C to stop", file=sys.stderr, flush=True)
+        print(f"listening on {where} (decoding with the range {cfg.range_max:g} m of {label}: the sender's must be "
+              "the same, --config FILE as it was started with); Ctrl-C to stop", file=sys.stderr, flush=True)
         try:
             for frame in receiver.frames(stop):
                 stop.heard()
