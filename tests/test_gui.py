@@ -145,7 +145,13 @@ def test_integration_window_drops_old_points(app: LivoxVizApp, index: int) -> No
 
 def test_colour_modes_set_scalars(app: LivoxVizApp) -> None:
     session = app.session
+    # Before any point the time bars span the window's length from 0, not 0 to a microsecond.
+    assert session.scan_time == 0 and session.pattern_scalar_range() == (0.0, session.window)
+    session.display.scene_colour = "time"
+    assert session.scene_scalar_range() == (0.0, session.window)
+    session.display.scene_colour = "range"
     session.advance_to(0.3)
+    assert session.pattern_scalar_range() == (0.0, pytest.approx(0.3))
     for _ in range(4):
         app.cycle_pattern_colour()
         app.refresh()

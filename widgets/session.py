@@ -400,8 +400,7 @@ class Session:
         """Colour range of the pattern view for the current mode."""
         mode = self.display.pattern_colour
         if mode == "time":
-            low = self.scan_time - self.window if self.window is not None else 0.0
-            return max(0.0, low), max(self.scan_time, 1e-6)
+            return self._time_range()
         if mode == "laser":
             top = self.config.lasers
         else:
@@ -438,8 +437,15 @@ class Session:
             return 1.0, 255.0
         if mode == "return/tag":
             return -0.5, len(TAG_CLASSES) - 0.5
+        return self._time_range()
+
+    def _time_range(self) -> tuple[float, float]:
+        """The time colours' range: the integration window up to now; before any point, the window's length from 0
+        (a bar from 0 to 1e-06 s said nothing)."""
+        if self.scan_time <= 0.0:
+            return 0.0, self.window if self.window is not None else 1.0
         low = self.scan_time - self.window if self.window is not None else 0.0
-        return max(0.0, low), max(self.scan_time, 1e-6)
+        return max(0.0, low), self.scan_time
 
     def recolour(self) -> None:
         """Recompute all scalars after a colour mode change.
