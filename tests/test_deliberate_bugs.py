@@ -165,7 +165,9 @@ def test_publish_sends_frame_k_at_its_scan_time_over_the_speed(speed: float) -> 
     expected = np.array([f.timestamp for f in frames]) / speed
     np.testing.assert_allclose(np.array(sender.sent_at) - 1000.0, expected, atol=1e-9)
     assert report.frames == 10 and report.datagrams == 10
-    assert report.wall_seconds == pytest.approx(expected[-1] + 0.001)
+    # The run lasts until its last frame's end is due: its speed is what was asked (it said 1.1 x at 1 x).
+    assert report.wall_seconds == pytest.approx(frames[-1].end_time / speed)
+    assert report.scan_seconds / report.wall_seconds == pytest.approx(speed)
 
 
 def test_publish_does_not_drift_and_never_waits_when_late() -> None:
@@ -174,7 +176,7 @@ def test_publish_does_not_drift_and_never_waits_when_late() -> None:
     # At 2x a frame is due every 0.05 s: a send of 0.03 s is absorbed by the next sleep.
     clock = _FakeClock()
     publish(frames, _RecordingSender(clock, cost=0.03), 2.0, clock=clock, sleep=clock.sleep)
-    np.testing.assert_allclose(np.array(clock.sleeps), [0.02] * 9, atol=1e-9)
+    np.testing.assert_allclose(np.array(clock.sleeps), [0.02] * 10, atol=1e-9)  # the last until its end
     # A send of 0.08 s is always late: frames go back to back and nothing sleeps.
     clock = _FakeClock()
     sender = _RecordingSender(clock, cost=0.08)
