@@ -7,6 +7,7 @@ the frame cast whole; the ends of a documented option range are inside it.
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -415,6 +416,33 @@ def test_shared_memory_receiver_counts_frames_and_points(tmp_path) -> None:
     finally:
         sender.close()
         receiver.close()
+
+
+def test_a_shared_memory_listener_started_before_its_publisher_waits_for_the_block(tmp_path) -> None:
+    """As a UDP listener waits for datagrams, one on shared memory waits for the block to appear (it exited with
+    'no shared memory block' before); a block of another configuration's size is named, not read."""
+    from livox_viz.wire.transport import ShmReceiver, ShmSender
+
+    from .conftest import small_config
+
+    config = small_config()
+    receiver = ShmReceiver(config, str(tmp_path))
+    sender = None
+    try:
+        assert receiver.link is None and receiver.poll() == []
+        sender = ShmSender(config, str(tmp_path))
+        assert sender.send(0.1, np.zeros(6), np.full((4, 3), 2, np.int16)) == 1
+        assert [len(f.xyz_int16) for f in receiver.poll()] == [4]
+    finally:
+        receiver.close()
+        if sender is not None:
+            sender.close()
+    bigger = replace(config, data_width=config.data_width * 2)
+    other = ShmReceiver(bigger, str(tmp_path))  # the block there is half the size this configuration needs
+    try:
+        assert other.poll() == [] and "is --config the sender's?" in other.assembler.last_error
+    finally:
+        other.close()
 
 
 def test_shared_memory_sender_waits_for_a_reader_mid_copy_and_drops_the_frame_only_past_its_patience(

@@ -189,7 +189,8 @@ def open_receiver(args: argparse.Namespace, config) -> tuple[UdpReceiver | ShmRe
     """The receiver ``--port``/``--host``/``--shm`` name, and where it listens in words."""
     if args.shm:
         receiver = ShmReceiver(config, args.shm_dir)
-        return receiver, f"shared memory {receiver.link.path}"
+        waiting = "" if receiver.link is not None else ", waiting for a publisher to make it"
+        return receiver, f"shared memory {receiver.path}{waiting}"
     receiver = UdpReceiver(args.host, args.port)
     return receiver, f"udp {args.host}:{receiver.port}"
 

@@ -263,43 +263,62 @@ def _usable(frame: LivoxFrame | None, assembler: Reassembler) -> LivoxFrame | No
 
 
 class ShmReceiver:
-    """Polls RflySim's shared-memory block and yields new frames."""
+    """Polls RflySim's shared-memory block and yields new frames.
+
+    The block may not exist yet: a listener started before its publisher waits for it (as one on UDP waits for
+    datagrams), opening it once the publisher has made it at this configuration's size.
+    """
 
     def __init__(self, config: SensorConfig, folder: str = "/dev/shm") -> None:
-        path = shm_path(config.seq_id, folder)
-        if not path.exists():
-            raise LivoxVizError(f"{path}: no shared memory block (is a publisher running?)")
-        self.link = SharedMemoryLink(path, shm_size(config))
+        self.path = shm_path(config.seq_id, folder)
+        if not self.path.parent.is_dir():
+            raise LivoxVizError(f"{self.path.parent}: no such folder; allowed: the shared memory folder (/dev/shm)")
+        self.size = shm_size(config)
+        self.link: SharedMemoryLink | None = None
         self.report = ListenReport()
         self.assembler = Reassembler()
+        self._opened()
+
+    def _opened(self) -> bool:
+        """Whether the block is open, opening it if it has appeared at its full size."""
+        if self.link is None and self.path.exists():
+            try:
+                self.link = SharedMemoryLink(self.path, self.size)
+            except LivoxVizError as exc:  # being made (not its size yet), or another configuration's
+                self.assembler.last_error = f"{exc} (is --config the sender's?)"
+        return self.link is not None
+
+    def _read(self) -> LivoxFrame | None:
+        if not self._opened():
+            return None
+        try:
+            frame = self.link.read()
+        except LivoxVizError as exc:
+            self.assembler.drops["bad payload"] += 1
+            self.assembler.last_error = str(exc)
+            return None
+        frame = _usable(frame, self.assembler)
+        if frame is not None:
+            self.report.frames += 1
+            self.report.points += frame.xyz_int16.shape[0]
+        return frame
 
     def frames(self, stop: Callable[[], bool]) -> Iterable[LivoxFrame]:
         while not stop():
-            try:
-                frame = self.link.read()
-            except LivoxVizError as exc:
-                self.assembler.drops["bad payload"] += 1
-                self.assembler.last_error = str(exc)
-                frame = None
-            frame = _usable(frame, self.assembler)
+            frame = self._read()
             if frame is None:
-                time.sleep(0.001)
+                time.sleep(0.001 if self.link is not None else 0.05)
                 continue
-            self.report.frames += 1
-            self.report.points += frame.xyz_int16.shape[0]
             yield frame
 
     def poll(self, max_datagrams: int = 1) -> list[LivoxFrame]:
         """The frame waiting in the block, if any, without waiting."""
-        frame = _usable(self.link.read(), self.assembler)
-        if frame is None:
-            return []
-        self.report.frames += 1
-        self.report.points += frame.xyz_int16.shape[0]
-        return [frame]
+        frame = self._read()
+        return [] if frame is None else [frame]
 
     def close(self) -> None:
-        self.link.close()
+        if self.link is not None:
+            self.link.close()
 
 
 def status_line(report: ListenReport, assembler: Reassembler, elapsed: float) -> str:
