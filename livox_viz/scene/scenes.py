@@ -182,15 +182,16 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: flo
     if up not in UP_AXES:
         raise LivoxVizError(f"up axis {up!r}; allowed: {' or '.join(UP_AXES)}")
     require_file(path, "mesh file")
-    # An OBJ's objects ("o") stay parts of their own, named as the file names them: trimesh otherwise joins
-    # those of one material into one, named after the first (a sidecar naming two walls gave both the first's).
-    options = {"split_objects": True} if path.suffix.lower() == ".obj" else {}
+    # A scene JSON's map for this mesh first, then the sidecar beside the file for what the map does not name.
+    table = MaterialMap.merged(materials, read_sidecar(path))
+    # Where names choose materials, an OBJ's objects ("o") stay parts of their own, named as the file names them:
+    # trimesh otherwise joins those of one material into one, named after the first (a sidecar naming two walls
+    # gave both the first's). Only then: a city of 3000 objects loads in 0.66 s split, 0.06 s joined.
+    options = {"split_objects": True} if path.suffix.lower() == ".obj" and table is not None else {}
     try:
         loaded = trimesh.load(path, force="scene", process=False, **options)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise LivoxVizError(f"{path}: not a mesh trimesh can read ({type(exc).__name__}: {exc})") from None
-    # A scene JSON's map for this mesh first, then the sidecar beside the file for what the map does not name.
-    table = MaterialMap.merged(materials, read_sidecar(path))
     parts = []
     names_seen: list[str] = []
     for node in loaded.graph.nodes_geometry:
