@@ -336,19 +336,15 @@ class LivoxVizApp:
             return
         source = self.session.overlay.source
         base = self.session.config.with_pattern_model("rflysim")
-
-        def fit() -> Any:
-            table = source.table if isinstance(source, TableSource) else pattern_table(
-                source.config, source.name, 4.0, source.seed)
-            return fit_reference(table, base=base)
-
         # A daemon thread, not a pool's: quitting during a fit must not wait up to 25 s for it.
         future: Future = Future()
 
         def run() -> None:
             future.set_running_or_notify_cancel()
             try:
-                future.set_result(fit())
+                table = source.table if isinstance(source, TableSource) else pattern_table(
+                    source.config, source.name, 4.0, source.seed)
+                future.set_result(fit_reference(table, base=base))
             except BaseException as exc:  # handed to finish_fit, which says it in the window
                 future.set_exception(exc)
 

@@ -10,7 +10,6 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import nullcontext
-from pathlib import Path
 
 import numpy as np
 
@@ -249,7 +248,7 @@ def cmd_listen(args: argparse.Namespace) -> int:
     # RflySim's wire has no range: its int16 points are decoded with this configuration's, which must be the
     # sender's (a Horizon's 260 m read with the default 600 m puts every point 2.3 times too far). The recording
     # says which it used.
-    label = Path(args.config).stem if args.config else DEFAULT_PRESET
+    label = config_label(args)
     made = (f"livox-viz {__version__} listen: RflySim frames received, their int16 points decoded with the range "
             f"{cfg.range_max:g} m of {label}; each point at its frame's time")
     with StopRequests() as signals, \

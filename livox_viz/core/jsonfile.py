@@ -31,8 +31,20 @@ class _Repeated(Exception):
     """A key given twice in one JSON object (its name is the argument)."""
 
 
-def read_json_file(path: str | os.PathLike[str]) -> Any:
-    """Parse a JSON file, turning every failure into a one-line :class:`ConfigError`.
+def read_json_file(path: str | os.PathLike[str], what: str = "") -> Any:
+    """Parse a JSON file, turning every failure into a one-line :class:`ConfigError`; with ``what`` (``"scene
+    JSON"``), the line says the file is not a readable one of those, and why.
+    """
+    if not what:
+        return _read_json_file(path)
+    try:
+        return _read_json_file(path)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: not a readable {what} ({str(exc).removeprefix(f'{path}: ')})") from None
+
+
+def _read_json_file(path: str | os.PathLike[str]) -> Any:
+    """See :func:`read_json_file`.
 
     NaN and Infinity (which Python's parser accepts but JSON does not) are
     refused with the key that holds them; so are inputs over 64 MiB (read no

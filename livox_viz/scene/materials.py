@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from livox_viz.core.errors import ConfigError, LivoxVizError
+from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.jsonfile import read_json_file
 
 if TYPE_CHECKING:
@@ -309,11 +309,7 @@ def read_sidecar(mesh_path: Path) -> MaterialMap | None:
     path = sidecar_path(mesh_path)
     if not path.is_file():
         return None
-    try:
-        data = read_json_file(path)
-    except ConfigError as exc:
-        raise LivoxVizError(f"{path}: not a readable material sidecar ({str(exc).removeprefix(f'{path}: ')})") from None
-    return MaterialMap.from_json(data, str(path))
+    return MaterialMap.from_json(read_json_file(path, "material sidecar"), str(path))
 
 
 def part_material(part: trimesh.Trimesh, names: Sequence[str], sidecar: MaterialMap | None) -> tuple[

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from livox_viz.config.presets import DESCRIPTION_KEY, shipped_preset_dir, user_config_dir
-from livox_viz.core.errors import ConfigError, LivoxVizError, require_file
+from livox_viz.core.errors import LivoxVizError, require_file
 from livox_viz.core.jsonfile import read_json_file
 from livox_viz.core.poses import Pose
 from livox_viz.scene.materials import (
@@ -240,10 +240,7 @@ def _join(parts: list[trimesh.Trimesh]) -> trimesh.Trimesh:
 # Scene descriptions ------------------------------------------------------------------
 def _scene_from_json(path: Path, reflectance: float = DEFAULT_REFLECTANCE) -> Scene:
 
-    try:
-        data = read_json_file(path)
-    except ConfigError as exc:
-        raise LivoxVizError(f"{path}: not a readable scene JSON ({str(exc).removeprefix(f'{path}: ')})") from None
+    data = read_json_file(path, "scene JSON")
     if not isinstance(data, dict) or not isinstance(data.get("objects"), list):
         raise LivoxVizError(f"{path}: a scene JSON needs an 'objects' list")
     parts = [_with_material(_primitive(obj, index, path.parent), obj, index)

@@ -134,11 +134,15 @@ def publish(frames: Iterable[ScanFrame], sender: UdpSender | ShmSender, speed: f
     """
     report = PublishReport()
     start = clock()
+
+    def wait_until(due: float) -> None:
+        # In steps of at most 0.1 s, so that a stop request is seen while waiting.
+        while (delay := due - clock()) > 0 and not (stop is not None and stop()):
+            sleep(min(delay, 0.1))
+
     for frame in frames:
         if speed is not None:
-            due = start + frame.timestamp / speed
-            while (delay := due - clock()) > 0 and not (stop is not None and stop()):
-                sleep(min(delay, 0.1))
+            wait_until(start + frame.timestamp / speed)
         if stop is not None and stop():
             break
         points = frame.wire_xyz_int16
@@ -151,8 +155,7 @@ def publish(frames: Iterable[ScanFrame], sender: UdpSender | ShmSender, speed: f
     if speed is not None and report.frames:
         # The last frame lasts until its end time too: a real-time run of 0.5 s of scan takes 0.5 s (it reported
         # 1.1-1.25 x real time, its wall time ending as the last frame began).
-        while (delay := start + report.scan_seconds / speed - clock()) > 0 and not (stop is not None and stop()):
-            sleep(min(delay, 0.1))
+        wait_until(start + report.scan_seconds / speed)
     report.send_errors = sender.errors
     report.wall_seconds = clock() - start
     return report
