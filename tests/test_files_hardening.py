@@ -302,6 +302,185 @@ def test_a_full_disk_names_the_file_and_leaves_nothing(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
+# 5b. A full disk stops the writing at a whole frame; closing keeps the frames before -----------------------
+@pytest.fixture(scope="module")
+def four_frames() -> list:
+    from livox_viz import load_preset
+    from livox_viz.casting.scan import LidarScanner
+    from livox_viz.scene.scenes import open_scene
+
+    scene = open_scene("urban")
+    return list(LidarScanner(load_preset("livox_mid70"), scene.mesh, scene.vehicle_pose, seed=1).frames(0.4))
+
+
+def _read_sensor_points(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The points (sensor FRD) and their frame numbers of a file, read by third-party readers (plyfile, pypcd4,
+    laspy, numpy, the csv module)."""
+    import csv
+
+    import laspy
+    import pypcd4
+    from plyfile import PlyData
+
+    from livox_viz.core.rotations import flu_from_frd
+
+    if path.suffix == ".ply":
+        vertex = PlyData.read(str(path))["vertex"]
+        return np.column_stack([vertex["x"], vertex["y"], vertex["z"]]), np.asarray(vertex["frame"])
+    if path.suffix == ".pcd":
+        data = pypcd4.PointCloud.from_path(path).pc_data
+        return np.column_stack([data["x"], data["y"], data["z"]]), np.asarray(data["frame"])
+    if path.suffix == ".las":
+        las = laspy.read(path)
+        flu = np.column_stack([las.x, las.y, las.z])
+        return flu_from_frd(flu), np.asarray(las["frame"])  # FLU and FRD differ by y and z signs: its own inverse
+    if path.suffix == ".npz":
+        data = np.load(path)
+        return data["xyz_sensor"], data["frame"]
+    with open(path, newline="") as handle:
+        rows = list(csv.reader(line for line in handle if not line.startswith("#")))
+    columns = {name: np.array([float(row[k]) for row in rows[1:]]) for k, name in enumerate(rows[0])}
+    return np.column_stack([columns["x"], columns["y"], columns["z"]]), columns["frame"]
+
+
+def _assert_holds(path: Path, frames: list) -> None:
+    xyz, frame = _read_sensor_points(path)
+    np.testing.assert_allclose(xyz, np.concatenate([f.xyz_decoded for f in frames]), atol=2e-4)
+    assert frame.tolist() == np.concatenate([np.full(len(f), f.index) for f in frames]).tolist()
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".pcd", ".las", ".npz", ".csv"])
+def test_a_disk_too_full_for_the_next_frame_stops_the_writing_and_close_keeps_the_frames_before(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, four_frames: list, suffix: str) -> None:
+    """The writer checks the disk before each frame: a frame that does not fit is not written, nor any later one
+    (the writer has stopped), and closing makes the file of the whole frames before, as readers see it."""
+    from livox_viz.files import export
+
+    asked: list[str] = []
+
+    def free(folder: str) -> int:
+        asked.append(str(folder))
+        return 1 << 40 if len(asked) <= 2 else 4096
+
+    monkeypatch.setattr(export, "free_bytes", free)
+    out = tmp_path / f"rec{suffix}"
+    writer = export.PointCloudWriter(out, "sensor")
+    writer.write(four_frames[0])
+    writer.write(four_frames[1])
+    for frame in four_frames[2:]:
+        with pytest.raises(export.WritingStopped, match=r"disk is full \(0\.0 MiB free"):
+            writer.write(frame)
+    assert (writer.frames, writer.count) == (2, len(four_frames[0]) + len(four_frames[1]))
+    assert writer.close() == out
+    _assert_holds(out, four_frames[:2])
+    assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]
+    assert all(Path(folder).parent == tmp_path for folder in asked)  # the disk of the destination
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".pcd", ".csv", ".las", ".npz"])
+def test_only_las_and_npz_ask_room_for_a_second_copy_of_the_points(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, four_frames: list, suffix: str) -> None:
+    """PLY, PCD and CSV are finished in place (a rename): a disk that holds each frame takes them all. LAS and NPZ
+    are assembled from the points when closed: the writer stops while the disk still holds that copy."""
+    from livox_viz.files import export
+
+    whole = tmp_path / "whole" / f"rec{suffix}"
+    whole.parent.mkdir()
+    with export.PointCloudWriter(whole, "sensor") as writer:
+        for frame in four_frames:
+            writer.write(frame)
+    free = export.FREE_MARGIN + whole.stat().st_size  # the room of the whole file, once
+    monkeypatch.setattr(export, "free_bytes", lambda folder: free)
+    out = tmp_path / f"rec{suffix}"
+    with export.PointCloudWriter(out, "sensor") as writer:
+        written = 0
+        for frame in four_frames:
+            try:
+                writer.write(frame)
+                written += 1
+            except export.WritingStopped:
+                break
+    if suffix in (".las", ".npz"):
+        assert 1 <= written < len(four_frames)  # the points and their copy outgrow the room before the end
+        assert out.stat().st_size <= free - export.FREE_MARGIN  # what it kept free held the file it made
+    else:
+        assert written == len(four_frames)
+    _assert_holds(out, four_frames[:written])
+
+
+FILE_LIMIT_SCRIPT = """
+import json, resource, signal, sys
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG, as a full disk's ENOSPC
+from livox_viz import load_preset
+from livox_viz.casting.scan import LidarScanner
+from livox_viz.files.export import PointCloudWriter, WritingStopped
+from livox_viz.scene.scenes import open_scene
+scene = open_scene("urban")
+frames = list(LidarScanner(load_preset("livox_mid70"), scene.mesh, scene.vehicle_pose, seed=1).frames(0.4))
+writer = PointCloudWriter(sys.argv[2], "sensor", ascii=sys.argv[3] == "ascii")
+resource.setrlimit(resource.RLIMIT_FSIZE, (int(sys.argv[1]), resource.RLIM_INFINITY))
+stopped = ""
+for frame in frames:
+    try:
+        writer.write(frame)
+    except WritingStopped as error:
+        stopped = str(error)
+        break
+writer.close()
+print(json.dumps([writer.frames, stopped]))
+"""
+
+
+@pytest.mark.parametrize(("suffix", "mode"), [(".ply", "binary"), (".pcd", "binary"), (".pcd", "ascii"),
+                                              (".csv", "ascii"), (".las", "binary")])
+def test_a_write_that_fails_inside_a_frame_is_cut_back_to_the_frames_before(
+        tmp_path: Path, four_frames: list, suffix: str, mode: str) -> None:
+    """A write the disk refuses halfway through a frame (a file size limit stands in for the full disk: the same
+    short write, then EFBIG): the part written is cut off, and closing keeps the whole frames before it."""
+    import subprocess
+    import sys
+
+    from livox_viz.files.export import PointCloudWriter
+
+    whole = tmp_path / f"whole{suffix}"
+    with PointCloudWriter(whole, "sensor", ascii=mode == "ascii") as writer:
+        for frame in four_frames:
+            writer.write(frame)
+    out = tmp_path / f"cut{suffix}"
+    limit = int(whole.stat().st_size * 0.6)  # inside the third of four frames of about one size
+    result = subprocess.run([sys.executable, "-c", FILE_LIMIT_SCRIPT, str(limit), str(out), mode],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    kept, stopped = json.loads(result.stdout.splitlines()[-1])
+    assert kept == 2 and "cannot write" in stopped and str(out) in stopped
+    _assert_holds(out, four_frames[:2])
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([out.name, whole.name])
+
+
+def test_npz_columns_cut_back_to_the_rows_appended_whole(tmp_path: Path) -> None:
+    """An append that fails after some columns were written: every column goes back to the whole chunks."""
+    from livox_viz.files.npzstream import NpzColumns
+
+    work = tmp_path / "work"
+    work.mkdir()
+    columns = NpzColumns(work, {"xyz": ("<f8", (3,)), "t": ("<f8", ()), "frame": ("<u4", ())})
+    chunks = [{"xyz": np.full((n, 3), k + 0.5), "t": np.arange(n) + 10.0 * k, "frame": np.full(n, k)}
+              for k, n in enumerate((5, 7, 9))]
+    columns.append(chunks[0])
+    columns.append(chunks[1])
+    columns._files["frame"].close()
+    columns._files["frame"] = open(work / "frame.raw", "rb")  # the last column's write fails (not writable)
+    with pytest.raises(OSError):
+        columns.append(chunks[2])
+    assert (work / "xyz.raw").stat().st_size == 24 * (5 + 7 + 9)  # the failed chunk's first column was written
+    columns.cut_to_rows()
+    assert [(work / f"{name}.raw").stat().st_size for name in ("xyz", "t", "frame")] == [24 * 12, 8 * 12, 4 * 12]
+    columns.finish(tmp_path / "cut.npz")
+    data = np.load(tmp_path / "cut.npz")
+    for name in ("xyz", "t", "frame"):
+        np.testing.assert_array_equal(data[name], np.concatenate([chunks[0][name], chunks[1][name]]))
+
+
 # 6. Inputs are read no further than their limit ----------------------------------------------------
 ENDLESS_SCRIPT = """
 import resource, sys

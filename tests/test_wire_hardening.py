@@ -243,6 +243,42 @@ def test_a_recording_under_nohup_outlives_the_hang_up(tmp_path: Path) -> None:
     np.testing.assert_array_equal(np.load(out)["frame_pose"][:, 0], [0, 1, 2])
 
 
+@pytest.mark.parametrize("suffix", [".npz", ".pcd"])
+def test_a_full_disk_ends_the_recording_with_the_frames_received_before(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], suffix: str) -> None:
+    """The disk fills after two frames: listening stops with status 1, says so, and the recording holds the two
+    frames (and only their rows in the NPZ's receiving table) instead of being lost."""
+    from livox_viz.files import export
+
+    asked: list[int] = []
+
+    def free(folder: str) -> int:
+        asked.append(1)
+        return 1 << 40 if len(asked) <= 2 else 0
+
+    monkeypatch.setattr(export, "free_bytes", free)
+    port = free_udp_port()
+    out = tmp_path / f"rec{suffix}"
+    listener = Listening(["--host", "127.0.0.1", "--port", str(port), "--frames", "10", "--timeout", "20",
+                          "--record", str(out)])
+    frames = _three_frames()
+    _send_frames(port, frames)
+    assert listener.join() == 1  # at the third frame, not after ten or the timeout
+    err = capsys.readouterr().err
+    assert f"{out}: the disk is full (0.0 MiB free" in err and "the 2 frames received before are kept" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]
+    step = load_preset("livox_mid70").range_max / 32767
+    if suffix == ".npz":
+        data = np.load(out)
+        np.testing.assert_array_equal(data["xyz_int16"], np.concatenate([p for _, _, p in frames[:2]]))
+        np.testing.assert_array_equal(data["received_frames"][:, 0], [0, 1])
+        np.testing.assert_array_equal(data["frame_pose"][:, 0], [0, 1])
+    else:
+        fields = read_pcd(out)
+        np.testing.assert_allclose(np.column_stack([fields["x"], fields["y"], fields["z"]]),
+                                   np.concatenate([p for _, _, p in frames[:2]]) * step, atol=1e-4)
+
+
 # 3. A datagram whose posAng is NaN or inf --------------------------------------------------------
 def test_a_frame_with_a_nan_or_infinite_pose_is_dropped_and_counted(tmp_path: Path,
                                                                     capsys: pytest.CaptureFixture[str]) -> None:

@@ -18,7 +18,7 @@ from livox_viz.casting.scan import LidarScanner, ScanFrame
 from livox_viz.config.presets import DEFAULT_PRESET, load_preset
 from livox_viz.config.sensor import load_config
 from livox_viz.core.workload import check_points
-from livox_viz.files.export import FORMATS, PointCloudWriter
+from livox_viz.files.export import FORMATS, PointCloudWriter, WritingStopped
 from livox_viz.wire.received import RECORDING_FIELDS, RECORDING_TABLE_COLUMNS, RecordingClock
 from livox_viz.wire.rflysim import REQUEST_PORT_BASE, parse_host_port, send_protocol_destination, sensor_request
 from livox_viz.wire.transport import (
@@ -251,6 +251,7 @@ def cmd_listen(args: argparse.Namespace) -> int:
     label = config_label(args)
     made = (f"livox-viz {__version__} listen: RflySim frames received, their int16 points decoded with the range "
             f"{cfg.range_max:g} m of {label}; each point at its frame's time")
+    stopped = ""
     with StopRequests() as signals, \
             PointCloudWriter(out, extra_fields=RECORDING_FIELDS, source=made, npz_rule=RECORDING_NPZ_RULE
                              ) if out is not None else nullcontext() as writer:
@@ -263,8 +264,15 @@ def cmd_listen(args: argparse.Namespace) -> int:
                 stop.heard()
                 numbered = clock.number(frame, time.monotonic() - stop.start)
                 if writer is not None:
-                    writer.write(numbered, {"sender_frame": numbered.sender_index,
-                                            "sender_time": numbered.sender_time, "session": numbered.session})
+                    try:
+                        writer.write(numbered, {"sender_frame": numbered.sender_index,
+                                                "sender_time": numbered.sender_time, "session": numbered.session})
+                    except WritingStopped:
+                        # What was recorded is the user's data: the file is finished with the frames before.
+                        stopped = (f"{out}: {writer.stopped}: recording stopped; the {writer.frames} frames "
+                                   "received before are kept")
+                        clock.forget_last()
+                        break
         finally:
             receiver.close()
             if writer is not None:
@@ -280,6 +288,9 @@ def cmd_listen(args: argparse.Namespace) -> int:
     dropped = drops_text(receiver.assembler.drops)
     print(f"received {report.frames} frames, {report.points:,} points{restarts}" + (f"; {dropped}" if dropped else "")
           + f"; receiver CPU {cpu:.2f} ms per frame" + (f"; recorded to {out}" if writer is not None else ""))
+    if stopped:
+        print(f"{PROG}: {stopped}", file=sys.stderr)
+        return 1
     if signals.signum is None:
         return 0
     kept = f"; the recording {out} was kept ({report.frames} frames)" if writer is not None else ""

@@ -6,6 +6,16 @@ finished file over it on :meth:`PointCloudWriter.close`; on any failure (a full
 disk included) the work folder is removed, the message names the file, and
 the old file, if any, is kept. An existing read-only file is refused.
 
+**A full disk.** PLY, PCD and CSV are written in place: their header goes over
+room kept for it at the start of the points, and that file is renamed into
+place, so finishing one needs no free space. LAS and NPZ are assembled from
+the points at the end, a second copy. Before each frame the writer checks that
+the disk holds the frame and what finishing needs; where it does not, or where
+a write fails all the same, nothing of that frame stays and the writer stops
+(:class:`WritingStopped`): :meth:`PointCloudWriter.close` still makes the file
+of the whole frames written before, which is what ``listen`` does with a
+recording (``scan``, which can be run again, gives up and keeps the old file).
+
 **Which points.** PLY, PCD, LAS and CSV hold what a RflySim client receives:
 each point decoded from the int16 wire (steps of ``range / 32767``), in the
 sensor frame at its own time (``sensor``) or placed in the world with the
@@ -39,6 +49,7 @@ own ``intensity`` (the byte x 256, LAS's 16-bit scale), ``return_number`` and
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import shutil
@@ -56,6 +67,18 @@ from livox_viz.core.rotations import enu_from_ned, flu_from_frd
 from livox_viz.files.npzstream import NpzColumns
 
 FORMATS = (".ply", ".pcd", ".las", ".npz", ".csv")
+#: Formats written in place: the points go straight into the file, after room kept for the header (PLY, PCD) or
+#: after the header itself (CSV), so finishing one is a rename and needs no free space.
+IN_PLACE = (".ply", ".pcd", ".csv")
+#: Room kept at the start of a PLY or PCD for its header beyond what it holds with no point, bytes: the counts'
+#: digits and a PCD's offset (a header that outgrows it is copied in front of the points instead).
+HEADER_ROOM = 256
+#: Free space left on the disk beyond a frame and what finishing the file needs, bytes (the file system's own
+#: bookkeeping, the other writers of the disk between the check and the write).
+FREE_MARGIN = 1 << 20
+#: What finishing a LAS or NPZ needs beyond its points, per frame (an NPZ's frame poses and receiving table) and in
+#: all (headers, members), bytes.
+FINISH_PER_FRAME, FINISH_FIXED = 1024, 1 << 16
 FRAMES = ("sensor", "world")
 FRAME_DESCRIPTION = {
     "sensor": "sensor FRD (x forward, y right, z down), metres, at each point's own time",
@@ -131,6 +154,18 @@ def frame_records(frame: PointFrame, coordinates: str, extra_fields: Sequence[tu
     return records
 
 
+class WritingStopped(LivoxVizError):
+    """A frame could not be written (a full disk): the file holds the whole frames before it, and the writer takes
+    no more; :meth:`PointCloudWriter.close` still finishes the file of those frames."""
+
+
+def free_bytes(folder: str | os.PathLike[str]) -> int:
+    """Bytes this process may still write on the disk holding ``folder`` (root may use the blocks kept for it)."""
+    status = os.statvfs(folder)
+    blocks = status.f_bfree if os.geteuid() == 0 else status.f_bavail
+    return blocks * status.f_frsize
+
+
 class PointCloudWriter:
     """Streams frames into one point-cloud file; the format follows the extension.
 
@@ -157,6 +192,10 @@ class PointCloudWriter:
     ----------
     npz_arrays : dict of str to ndarray
         Arrays an NPZ gets besides its columns when it is closed (e.g. one row per received frame).
+    count, frames : int
+        Points and frames written.
+    stopped : str
+        Why writing stopped (a full disk), else empty: :meth:`close` makes the file of the frames before.
 
     Examples
     --------
@@ -180,6 +219,14 @@ class PointCloudWriter:
         self.extra_fields = tuple(extra_fields)
         self.npz_arrays: dict[str, np.ndarray] = {}
         self.count = 0
+        self.frames = 0
+        self.stopped = ""
+        #: Bytes of the points written (the body, with its header or the room kept for it; an NPZ's columns).
+        self._written = 0
+        #: The room kept for a PLY's or PCD's header at the start of the body, bytes.
+        self._header_room = 0
+        #: A failed write could not be cut back to whole frames: closing keeps nothing.
+        self._unusable = False
         self._body: BinaryIO | None = None
         self._npz: NpzColumns | None = None
         self._npz_poses: list[np.ndarray] = []
@@ -205,12 +252,19 @@ class PointCloudWriter:
         if self.format == ".npz":
             self._npz = NpzColumns(work, {**_NPZ_ARRAYS, **{name: (t, ()) for name, t in self.extra_fields}})
             return
-        self._body = open(work / "body", "wb")
+        # Unbuffered: what a failed write left can be cut off (a buffer would still hold it and write it later).
+        self._body = open(work / "body", "wb", buffering=0)
         if self.format == ".csv":
             made = f"source: {self.source}; " if self.source else ""
-            self._body.write(f"# livox-viz scan; {made}coordinates: {FRAME_DESCRIPTION[self.coordinates]}; "
-                             f"{POINTS_RULE}\n".encode())
-            self._body.write((",".join(name for name, _ in self._fields) + "\n").encode())
+            start = (f"# livox-viz scan; {made}coordinates: {FRAME_DESCRIPTION[self.coordinates]}; "
+                     f"{POINTS_RULE}\n" + ",".join(name for name, _ in self._fields) + "\n").encode()
+        elif self.format in IN_PLACE:
+            self._header_room = len(self._header()) + HEADER_ROOM
+            start = b" " * self._header_room
+        else:
+            return
+        self._put(start)
+        self._written = len(start)
 
     @property
     def _fields(self) -> tuple[tuple[str, str], ...]:
@@ -226,43 +280,85 @@ class PointCloudWriter:
         """
         if self._closed:
             raise LivoxVizError(f"{self.path}: the writer is closed")
+        if self.stopped:
+            raise WritingStopped(f"{self.path}: {self.stopped}; the old file, if any, is kept")
         values = {name: np.broadcast_to(np.asarray((extra or {})[name], dtype=t), (len(frame),))
                   for name, t in self.extra_fields}
-        try:
-            self._write(frame, values)
-        except OSError as exc:
-            raise LivoxVizError(f"{self.path}: cannot write ({_reason(exc)}); the old file, if any, is kept") \
-                from exc
-        self.count += len(frame)
-
-    def _write(self, frame: PointFrame, extra: dict[str, np.ndarray]) -> None:
         if self._npz is not None:
-            self._npz.append({
+            payload: bytes | dict[str, np.ndarray] = {
                 "xyz_sensor": frame.xyz_decoded, "xyz_world": frame.xyz_world, "xyz_int16": frame.xyz_int16,
                 "range": frame.range_m, "t": frame.t, "frame": np.full(len(frame), frame.index),
-                **{name: getattr(frame, name) for name in LIVOX_FIELDS}, **extra,
-            })
-            self._npz_poses.append(np.concatenate([[frame.index], frame.sensor_pose.as_array(),
-                                                   frame.end_pose.as_array()]))
-            return
-        assert self._body is not None
+                **{name: getattr(frame, name) for name in LIVOX_FIELDS}, **values}
+            size = self._npz.chunk_bytes(payload)
+        else:
+            payload = self._encode(frame, values)
+            size = len(payload)
+        self._make_room(size)
+        try:
+            if isinstance(payload, dict):
+                assert self._npz is not None
+                self._npz.append(payload)
+                self._npz_poses.append(np.concatenate([[frame.index], frame.sensor_pose.as_array(),
+                                                       frame.end_pose.as_array()]))
+            else:
+                self._put(payload)
+        except OSError as exc:
+            self._cut_back()
+            self.stopped = f"cannot write ({_reason(exc)})"
+            raise WritingStopped(f"{self.path}: {self.stopped}; the old file, if any, is kept") from exc
+        self._written += size
+        self.count += len(frame)
+        self.frames += 1
+
+    def _make_room(self, size: int) -> None:
+        """Stop writing (:class:`WritingStopped`, nothing of the frame written) unless the disk holds ``size`` more
+        bytes, what finishing the file will then need, and :data:`FREE_MARGIN`."""
+        finish = 0 if self.format in IN_PLACE else (self._written + size + FINISH_FIXED
+                                                     + FINISH_PER_FRAME * (self.frames + 1))
+        need = size + finish + FREE_MARGIN
+        free = free_bytes(self._work.path)
+        if free < need:
+            self.stopped = (f"the disk is full ({free / 2**20:.1f} MiB free; the next frame and finishing the file "
+                            f"need {need / 2**20:.1f} MiB)")
+            raise WritingStopped(f"{self.path}: {self.stopped}; the old file, if any, is kept")
+
+    def _encode(self, frame: PointFrame, extra: dict[str, np.ndarray]) -> bytes:
+        """A frame's bytes in the body: LAS's raw records, or the points as the file holds them."""
         if self.format == ".las":
             records = _las_records(frame, self.coordinates, self.extra_fields, extra)
             if len(records):
                 self._low = np.minimum(self._low, [records[axis].min() for axis in "xyz"])
                 self._high = np.maximum(self._high, [records[axis].max() for axis in "xyz"])
-            self._body.write(records.tobytes())
-            return
+            return records.tobytes()
         if self.format == ".pcd" and self.coordinates == "world" and self.offset is None and len(frame):
             self.offset = np.round(np.median(frame_points(frame, "world"), axis=0) / 1000.0) * 1000.0 + 0.0  # no -0
         records = frame_records(frame, self.coordinates, self.extra_fields, extra, self.format, self.offset)
         if self.format == ".csv" or self.ascii:
             formats = ["%.6f"] * 4 + ["%.9f", "%d"] + ["%d"] * len(LIVOX_FIELDS) + [
                 "%.9f" if t[1] == "f" else "%d" for _, t in self.extra_fields]
-            np.savetxt(self._body, _records_as_columns(records), fmt=formats,
-                       delimiter="," if self.format == ".csv" else " ")
-        else:
-            self._body.write(records.tobytes())
+            text = io.BytesIO()
+            np.savetxt(text, _records_as_columns(records), fmt=formats, delimiter="," if self.format == ".csv" else " ")
+            return text.getvalue()
+        return records.tobytes()
+
+    def _put(self, data: bytes) -> None:
+        """Append ``data`` to the body (an unbuffered file may take a write in pieces)."""
+        assert self._body is not None
+        view = memoryview(data)
+        while view.nbytes:
+            done = self._body.write(view)
+            view = view[done:]
+
+    def _cut_back(self) -> None:
+        """After a failed write: the body or the NPZ's columns cut back to the whole frames written."""
+        try:
+            if self._npz is not None:
+                self._npz.cut_to_rows()
+            elif self._body is not None:
+                os.ftruncate(self._body.fileno(), self._written)
+                self._body.seek(self._written)
+        except OSError:  # the frames cannot be told apart any more: nothing of them is kept
+            self._unusable = True
 
     def close(self) -> Path:
         """Finish the file and move it into place; returns its path.
@@ -274,9 +370,14 @@ class PointCloudWriter:
         """
         if self._closed:
             return self.path
+        if self._unusable:
+            self.abort()
+            raise LivoxVizError(f"{self.path}: {self.stopped}; the old file, if any, is kept")
         try:
             with atomic_path(self.path) as tmp:
-                if self._npz is not None:
+                if self.format in IN_PLACE:
+                    self._finish_in_place(tmp)
+                elif self._npz is not None:
                     poses = np.array(self._npz_poses).reshape(-1, 13)
                     self._npz.finish(tmp, {**self.npz_arrays, "frame_pose": poses, "frame_of_reference": np.array(
                         json.dumps({**FRAME_DESCRIPTION, "points": self.npz_rule,
@@ -286,15 +387,28 @@ class PointCloudWriter:
                 else:
                     assert self._body is not None
                     self._body.close()
-                    if self.format == ".las":
-                        self._finish_las(tmp)
-                    else:
-                        with open(tmp, "wb") as out, open(self._work.path / "body", "rb") as body:
-                            out.write(self._header())
-                            shutil.copyfileobj(body, out, 1 << 20)
+                    self._finish_las(tmp)
         finally:
             self.abort()
         return self.path
+
+    def _finish_in_place(self, tmp: Path) -> None:
+        """A PLY, PCD or CSV: its header over the room kept for it, and the body renamed to ``tmp``."""
+        assert self._body is not None
+        body = self._work.path / "body"
+        if self.format != ".csv":
+            header = self._header(self._header_room)
+            if header is not None:
+                os.pwrite(self._body.fileno(), header, 0)
+            else:  # a header that outgrew its room (an offset of astronomical size): in front of a copy
+                self._body.close()
+                with open(tmp, "wb") as out, open(body, "rb") as points:
+                    out.write(self._header())
+                    points.seek(self._header_room)
+                    shutil.copyfileobj(points, out, 1 << 20)
+                return
+        self._body.close()
+        os.replace(body, tmp)
 
     def abort(self) -> None:
         """Drop everything written so far; the destination is left as it was, the work folder removed."""
@@ -320,9 +434,23 @@ class PointCloudWriter:
             self.abort()
 
     # Headers -------------------------------------------------------------------------
-    def _header(self) -> bytes:
-        if self.format == ".csv":
-            return b""
+    def _header(self, room: int | None = None) -> bytes | None:
+        """The PLY's or PCD's header; with ``room``, exactly that long (a comment line fills it), or None when it
+        does not fit."""
+        lines = self._header_lines()
+        text = "\n".join(lines) + "\n"
+        if room is None:
+            return text.encode()
+        fill = room - len(text.encode()) - 1  # the filling line's own newline
+        comment = "comment" if self.format == ".ply" else "#"
+        if fill < len(comment) + 1:
+            return None
+        # The last comment, after those a reader shows first.
+        last = next(k for k, line in enumerate(lines) if line.startswith(("element", "VERSION")))
+        lines.insert(last, comment + " " * (fill - len(comment)))
+        return ("\n".join(lines) + "\n").encode()
+
+    def _header_lines(self) -> list[str]:
         fields = self._fields
         frame = f"frame {self.coordinates}: {FRAME_DESCRIPTION[self.coordinates]}"
         if self.format == ".ply":
@@ -333,7 +461,7 @@ class PointCloudWriter:
                      f"comment {POINTS_RULE}", f"element vertex {self.count}"]
             lines += [f"property {types[t]} {name}" for name, t in fields]
             lines.append("end_header")
-            return ("\n".join(lines) + "\n").encode()
+            return lines
         sizes = {"<f4": ("4", "F"), "<f8": ("8", "F"), "<u4": ("4", "U"), "<i4": ("4", "I"), "u1": ("1", "U")}
         offset = np.zeros(3) if self.offset is None else self.offset
         lines = [
@@ -353,7 +481,7 @@ class PointCloudWriter:
             f"POINTS {self.count}",
             f"DATA {'ascii' if self.ascii else 'binary'}",
         ]
-        return ("\n".join(lines) + "\n").encode()
+        return lines
 
     def _finish_las(self, tmp: Path) -> None:
         """The LAS file from the raw body, with an offset and scale that hold every point."""

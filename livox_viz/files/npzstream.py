@@ -8,6 +8,7 @@ the result like any ``numpy.savez`` file.
 
 from __future__ import annotations
 
+import os
 import shutil
 import zipfile
 from pathlib import Path
@@ -46,6 +47,19 @@ class NpzColumns:
                 raise LivoxVizError(f"column {name} has shape {values.shape}; allowed: (n, {tail})")
             values.tofile(self._files[name])
         self.rows += next(iter(lengths.values()), 0)
+
+    def chunk_bytes(self, arrays: dict[str, np.ndarray]) -> int:
+        """Bytes :meth:`append` of ``arrays`` would write."""
+        return sum(int(np.prod(np.shape(arrays[name]))) * np.dtype(dtype).itemsize
+                   for name, (dtype, _) in self.columns.items())
+
+    def cut_to_rows(self) -> None:
+        """After a failed :meth:`append`: every column cut back to the rows appended whole (the files are closed;
+        a failure to flush the rest of a buffer is what failed, and is not raised)."""
+        self.discard()
+        for name, (dtype, tail) in self.columns.items():
+            row_bytes = int(np.prod(tail, dtype=np.int64)) * np.dtype(dtype).itemsize
+            os.truncate(self._work / f"{name}.raw", self.rows * row_bytes)
 
     def finish(self, path: Path, extra: dict[str, np.ndarray] | None = None) -> None:
         """Write the archive to ``path`` (a temporary file the caller renames): the columns, then ``extra``."""

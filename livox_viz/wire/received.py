@@ -231,6 +231,14 @@ class RecordingClock:
             self._newest = (time, arrival)
         return frame
 
+    def forget_last(self) -> None:
+        """Take back the last frame numbered (a recording that ends without it): its row of :attr:`table`, and its
+        session if it began one."""
+        number = self.table.pop()[1]
+        if number == len(self.sessions) - 1 and not any(row[1] == number for row in self.table):
+            source = self.sessions.pop()
+            self.restarts -= int(source in self.sessions)  # it began as a restart of that sender
+
     def table_array(self) -> np.ndarray:
         """``(n, 5)`` float64 :attr:`table`."""
         return np.array(self.table, dtype=np.float64).reshape(-1, len(RECORDING_TABLE_COLUMNS))
