@@ -156,3 +156,29 @@ def test_packed_imu_and_odometry_read_back_as_written(tmp_path: Path) -> None:
     transform = messages["/tf"][7][1].transforms[0]
     assert transform.child_frame_id == "base_link" and transform.transform.rotation.w == pytest.approx(
         odom[7].pose.pose.orientation.w)
+
+
+def test_imu_covariances_state_the_noise_the_samples_have(tmp_path: Path) -> None:
+    """With --imu-noise, each IMU message's covariance diagonals are the white noise's variance per sample
+    (density^2 x rate), which the samples of a hovering sensor show; a perfect IMU's stay all zero ("unknown")."""
+    gyroscope_density, accelerometer_density, rate = 0.01, 0.1, 200.0
+    assert main(["scan", "--seconds", "2", "--scene", "open_field", "--imu-rate", str(rate), "--imu-noise",
+                 f"{gyroscope_density},0,{accelerometer_density},0", "--rosbag", str(tmp_path / "noisy")]) == 0
+    assert main(["scan", "--seconds", "0.3", "--scene", "open_field", "--rosbag", str(tmp_path / "perfect")]) == 0
+    imu = [m for _, m in read_bag(tmp_path / "noisy")["/livox/imu"]]
+    rates = np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z] for m in imu])
+    forces = np.array([[m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z] for m in imu])
+    gyroscope_variance = gyroscope_density**2 * rate  # 0.02 (rad/s)^2
+    accelerometer_variance = accelerometer_density**2 * rate  # 2 (m/s^2)^2
+    for m in imu:
+        np.testing.assert_allclose(np.reshape(m.angular_velocity_covariance, (3, 3)),
+                                   np.eye(3) * gyroscope_variance, rtol=1e-12)
+        np.testing.assert_allclose(np.reshape(m.linear_acceleration_covariance, (3, 3)),
+                                   np.eye(3) * accelerometer_variance, rtol=1e-12)
+        assert m.orientation_covariance[0] == -1
+    # A hovering sensor turns not at all and feels gravity alone: what varies is the noise (1200 values each).
+    assert len(imu) >= 400
+    assert np.var(rates) == pytest.approx(gyroscope_variance, rel=0.15)
+    assert np.var(forces - forces.mean(axis=0)) == pytest.approx(accelerometer_variance, rel=0.15)
+    for _, m in read_bag(tmp_path / "perfect")["/livox/imu"]:
+        assert not np.any(m.angular_velocity_covariance) and not np.any(m.linear_acceleration_covariance)

@@ -152,7 +152,8 @@ def _open_bag(args, cfg, scanner, trajectory, pose):
     imu = ImuStream(flight, option("imu_rate"), noise, seed=args.seed, start=0.0,
                     mount=mount if imu_frame == "lidar" else None)
     names = RosNames.parse(args.ros_names) if args.ros_names else RosNames()
-    with RosbagWriter(args.rosbag, mount, names, lasers=cfg.lasers, imu_frame=imu_frame) as writer:
+    with RosbagWriter(args.rosbag, mount, names, lasers=cfg.lasers, imu_frame=imu_frame,
+                      imu_variances=noise.sample_variances(option("imu_rate"))) as writer:
         sink = _BagSink(writer, imu, flight)
         yield sink
         sink.motion_until(args.seconds, inclusive=True)  # the samples at the scan's very end

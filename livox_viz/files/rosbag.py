@@ -13,7 +13,9 @@ needed. Topics (the Livox ROS driver 2's names by default, all settable):
   ``intensity``) and its SDK1 tag, whose return-number bits are 0x10 for a first
   return (0x00 nearer than the sensor's return-0 range), 0x20 and 0x30 for a
   second and third: FAST-LIO keeps the points with ``tag & 0x30`` 0x00 or 0x10;
-* ``/livox/imu``: ``sensor_msgs/msg/Imu`` (no orientation: covariance[0] = -1), in
+* ``/livox/imu``: ``sensor_msgs/msg/Imu`` (no orientation: covariance[0] = -1; the
+  rates' and accelerations' covariances state the white noise's variance per
+  sample on their diagonals, all zero, "unknown", for a perfect IMU), in
   ``base_link`` (the vehicle's body origin and axes) by default, or in
   ``livox_frame`` (the lidar's origin and axes, lever-arm effects included) as the
   Livox driver publishes its built-in IMU: ``imu_frame``;
@@ -151,10 +153,15 @@ class RosbagWriter:
     imu_frame : {"body", "lidar"}
         The frame the IMU samples given to :meth:`write_imu` are in: the vehicle's (``base_link``) or the
         lidar's (``livox_frame``, the Livox driver's convention); it names their ``frame_id``.
+    imu_variances : (float, float)
+        The IMU's noise variance per sample, gyroscope (rad/s)^2 and accelerometer (m/s^2)^2
+        (:meth:`~livox_viz.motion.imu.ImuNoise.sample_variances`): the diagonals of its messages' covariances.
+        0 (a perfect IMU's) states none: the covariance stays all zero, ``sensor_msgs/Imu``'s "unknown".
     """
 
     def __init__(self, path: str | os.PathLike[str], mount: Pose, names: RosNames | None = None,
-                 time_base: float = DEFAULT_TIME_BASE, lasers: int = 1, imu_frame: str = "body") -> None:
+                 time_base: float = DEFAULT_TIME_BASE, lasers: int = 1, imu_frame: str = "body",
+                 imu_variances: tuple[float, float] = (0.0, 0.0)) -> None:
         self.path = Path(path)
         if os.path.lexists(self.path):  # a dangling symbolic link too: the bag would be renamed onto it
             raise LivoxVizError(f"{self.path}: exists; allowed: a new folder name for the bag (nothing is replaced)")
@@ -164,6 +171,7 @@ class RosbagWriter:
         if imu_frame not in IMU_FRAMES:
             raise LivoxVizError(f"IMU frame {imu_frame!r}; allowed: {', '.join(IMU_FRAMES)}")
         self.imu_frame = imu_frame
+        self.imu_variances = (float(imu_variances[0]), float(imu_variances[1]))
         self.time_base_ns = round(time_base * 1e9)
         self.lasers = lasers
         self.frames = 0
@@ -298,14 +306,15 @@ class RosbagWriter:
             vector = types["geometry_msgs/msg/Vector3"]
             no_orientation = np.zeros(9)
             no_orientation[0] = -1.0
+            gyroscope, accelerometer = (np.diag(np.full(3, variance)).reshape(9) for variance in self.imu_variances)
 
             def build(stamp: int, v: np.ndarray):
                 return types["sensor_msgs/msg/Imu"](
                     header=self._header(stamp, frame_id),
                     orientation=types["geometry_msgs/msg/Quaternion"](0.0, 0.0, 0.0, 1.0),
                     orientation_covariance=no_orientation, angular_velocity=vector(*v[:3]),
-                    angular_velocity_covariance=np.zeros(9), linear_acceleration=vector(*v[3:]),
-                    linear_acceleration_covariance=np.zeros(9))
+                    angular_velocity_covariance=gyroscope, linear_acceleration=vector(*v[3:]),
+                    linear_acceleration_covariance=accelerometer)
 
             self._imu_layout = FixedLayout(self.store, "sensor_msgs/msg/Imu", build, 6)
         stamps = self.time_base_ns + np.round(samples.t * 1e9).astype(np.int64)

@@ -75,6 +75,11 @@ class ImuNoise:
             if not (math.isfinite(value) and 0 <= value <= high):
                 raise LivoxVizError(f"IMU {name} = {value!r}; allowed: 0 to {high:g}")
 
+    def sample_variances(self, rate: float) -> tuple[float, float]:
+        """The white noise's variance per sample at ``rate`` Hz: gyroscope (rad/s)^2, accelerometer (m/s^2)^2
+        (``(density * sqrt(rate))^2``, what an IMU message's covariance states; the bias walk is not in it)."""
+        return self.gyroscope_noise_density**2 * rate, self.accelerometer_noise_density**2 * rate
+
 
 @dataclass(frozen=True)
 class ImuSamples:
