@@ -87,17 +87,59 @@ def test_three_chunks_in_any_order(order: tuple[int, ...]) -> None:
     assert results[:2] == [None, None] and results[2] == (2.0, payload)
 
 
+def _feed_all(assembler: Reassembler, datagram: bytes, source: object = None) -> list[tuple[float, bytes]]:
+    """Every frame one datagram makes ready."""
+    ready = []
+    done = assembler.feed(datagram, source)
+    while done is not None:
+        ready.append(done)
+        done = assembler.next_ready()
+    return ready
+
+
 def test_incomplete_and_stale_frames_are_dropped() -> None:
-    assembler = Reassembler()
-    first = split_datagrams(pack_payload(np.zeros(6), random_points(25_000)), 1.0)
-    second = split_datagrams(pack_payload(np.zeros(6), random_points(25_000, seed=1)), 2.0)
-    assembler.feed(first[0])
-    for datagram in second:
-        result = assembler.feed(datagram)
-    assert result is not None and result[0] == 2.0
-    assert assembler.drops["incomplete frame"] == 1
-    assert assembler.feed(first[1]) is None and assembler.drops["stale chunk"] == 1
+    """A frame missing a chunk holds the sender's later frames back until ``reorder_frames`` of them are complete;
+    then it is given up, they come out in order, and its late chunk is stale."""
+    assembler = Reassembler(reorder_frames=2)
+    payloads = [pack_payload(np.zeros(6), random_points(25_000, seed=k)) for k in range(4)]
+    frames = [split_datagrams(payload, 1.0 + k) for k, payload in enumerate(payloads)]
+    assert len(frames[0]) == 3
+    assert _feed_all(assembler, frames[0][0]) == []
+    held = [r for d in frames[1] + frames[2] for r in _feed_all(assembler, d)]
+    assert held == [] and assembler.drops["incomplete frame"] == 0  # two complete frames wait for the first
+    assert assembler.pending_bytes == sum(len(d) - 24 for d in [frames[0][0], *frames[1], *frames[2]])
+    released = [r for d in frames[3] for r in _feed_all(assembler, d)]
+    assert released == [(2.0, payloads[1]), (3.0, payloads[2]), (4.0, payloads[3])]
+    assert assembler.drops["incomplete frame"] == 1 and assembler.restarts == 0
+    assert _feed_all(assembler, frames[0][1]) == [] and assembler.drops["stale chunk"] == 1
     assert assembler.pending_bytes == 0
+
+
+@pytest.mark.parametrize("late", [1, 2])
+def test_chunks_reordered_across_frames_give_every_frame_in_order(late: int) -> None:
+    """The last chunk of a frame arrives after the whole next frame (``late`` frames later): nothing is lost,
+    the frames come out in the order they were sent, and no restart is seen (RflySim's frames of a few
+    datagrams each, on a network that reorders)."""
+    assembler = Reassembler()
+    payloads = [pack_payload(np.full(6, k, np.float32), random_points(15_000, seed=k)) for k in range(1 + late)]
+    frames = [split_datagrams(payload, 0.1 * k) for k, payload in enumerate(payloads)]
+    assert len(frames[0]) == 2
+    order = [frames[0][0], *[d for frame in frames[1:] for d in frame], frames[0][1]]
+    ready = [r for d in order for r in _feed_all(assembler, d)]
+    assert ready == [(0.1 * k, payload) for k, payload in enumerate(payloads)]
+    assert (assembler.frames, assembler.restarts, sum(assembler.drops.values())) == (1 + late, 0, 0)
+
+
+def test_frames_of_two_senders_wait_only_for_their_own() -> None:
+    """A frame missing a chunk holds back its own sender's later frames, never another sender's."""
+    assembler = Reassembler()
+    mine = [split_datagrams(pack_payload(np.zeros(6), random_points(15_000, seed=k)), 0.1 * k) for k in range(2)]
+    other = split_datagrams(pack_payload(np.ones(6), random_points(10, seed=9)), 0.05)
+    assert _feed_all(assembler, mine[0][0], "a") == []
+    assert [r for d in mine[1] for r in _feed_all(assembler, d, "a")] == []
+    assert [r[0] for r in _feed_all(assembler, other[0], "b")] == [0.05] and assembler.source == "b"
+    ready = _feed_all(assembler, mine[0][1], "a")
+    assert [r[0] for r in ready] == [0.0, 0.1] and assembler.source == "a"
 
 
 @pytest.mark.parametrize(
@@ -134,7 +176,7 @@ def test_fuzzed_reassembler_never_crashes_or_grows(datagrams: list[bytes]) -> No
         if result is not None:
             assert isinstance(result[1], bytes) and len(result[1]) <= 400
         assert len(assembler._pending) <= 2
-        assert assembler.pending_bytes <= 2 * 400
+        assert assembler.pending_bytes <= 2 * (1 + assembler.reorder_frames) * 400  # each may hold later frames
 
 
 def test_the_fuzz_bound_is_reachable() -> None:
@@ -168,10 +210,11 @@ def test_timestamps_going_back_are_a_restart_not_deafness() -> None:
 def test_one_forged_datagram_costs_no_frame() -> None:
     assembler = Reassembler()
     forged = struct.pack("<4i1d", 1234567890, 52, 0, 1, 1e300) + struct.pack("<6fi", 0, 0, 0, 0, 0, 0, 0)
-    assert assembler.feed(frame_datagrams(0.0)[0]) is None
-    assert assembler.feed(forged) is not None  # a well-formed empty frame: it is one
-    delivered = [assembler.feed(d) for t in (0.1, 0.2) for d in frame_datagrams(t)]
-    assert [r[0] for r in delivered if r is not None] == [0.1, 0.2]
+    assert _feed_all(assembler, frame_datagrams(0.0)[0]) == []
+    assert _feed_all(assembler, forged) == []  # a well-formed empty frame: it waits for the frame begun before
+    delivered = [r for t in (0.1, 0.2) for d in frame_datagrams(t) for r in _feed_all(assembler, d)]
+    # The incomplete first frame given up, the forged one is delivered in its place, and every later frame.
+    assert [r[0] for r in delivered] == [1e300, 0.1, 0.2]
 
 
 def test_a_duplicate_frame_is_dropped() -> None:
@@ -283,3 +326,32 @@ def test_a_frame_whose_point_count_lies_is_counted_once_and_the_next_arrives() -
     assert len(frames) == 1 and frames[0].timestamp == pytest.approx(0.2)
     np.testing.assert_array_equal(frames[0].xyz_int16, good)
     assert receiver.report.bad_payloads == 1 and receiver.assembler.drops["bad payload"] == 1
+
+
+def test_a_receiver_yields_every_frame_a_late_chunk_frees_in_order() -> None:
+    """Over UDP: a frame's last chunk after the whole next frame; the datagram that completes the first frame
+    frees the second too, and the receiver yields both, in order, with their points and its report counting
+    both."""
+    import time
+
+    from livox_viz.wire.transport import UdpReceiver
+
+    receiver = UdpReceiver("127.0.0.1", 0)
+    points = [random_points(15_000, seed=k) for k in range(2)]
+    frames_sent = [split_datagrams(pack_payload(np.full(6, k, np.float32), p), 0.1 * (k + 1))
+                   for k, p in enumerate(points)]
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        for datagram in [frames_sent[0][0], *frames_sent[1], frames_sent[0][1]]:
+            sender.sendto(datagram, ("127.0.0.1", receiver.port))
+        deadline = time.monotonic() + 10
+        frames = []
+        for frame in receiver.frames(lambda: len(frames) >= 2 or time.monotonic() > deadline):
+            frames.append(frame)
+    finally:
+        sender.close()
+        receiver.socket.close()
+    assert [f.timestamp for f in frames] == pytest.approx([0.1, 0.2])
+    for frame, sent in zip(frames, points, strict=True):
+        np.testing.assert_array_equal(frame.xyz_int16, sent)
+    assert (receiver.report.frames, receiver.report.points) == (2, 30_000)

@@ -136,6 +136,8 @@ class _SenderState:
 
     newest_done: float = -math.inf
     last_delivered: tuple[float, int] | None = None
+    #: Complete frames waiting for one the sender began before them, (arrival, timestamp, payload) in arrival order.
+    held: list[tuple[int, float, bytes]] = field(default_factory=list)
 
 
 class Reassembler:
@@ -145,10 +147,18 @@ class Reassembler:
     same time (two simulators started together, or a publisher beside RflySim)
     give two frames, never one mixed from both.
 
-    Memory is bounded: at most ``max_pending`` frames wait at once (the one
-    heard from least recently makes room), a frame may claim at most
-    ``max_frame_bytes``, and at most ``max_sources`` senders are remembered;
-    garbage never grows it.
+    Memory is bounded: at most ``max_pending`` frames wait for chunks at once
+    (the one heard from least recently makes room), each holding up to
+    ``reorder_frames`` complete later frames of its sender, a frame may claim at
+    most ``max_frame_bytes``, and at most ``max_sources`` senders are
+    remembered; garbage never grows it.
+
+    Frames come out in the order their senders began them: a frame complete
+    while one its sender began before is still missing chunks (datagrams
+    reordered across the two frames' boundary) waits for it, and the older one
+    is given up as incomplete once ``reorder_frames`` later frames of that
+    sender are complete. A lost chunk thus delays the frames after it by up to
+    ``reorder_frames`` frames; in-order frames are never held.
 
     It never goes deaf: a sender's timestamps may go back (a restarted
     publisher or RflySim, or one absurd timestamp before them). A frame that
@@ -167,6 +177,8 @@ class Reassembler:
         Largest chunk count accepted; default what ``max_frame_bytes`` needs.
     max_sources : int
         Senders whose last frame is remembered (for restarts and duplicates); the least recent is forgotten.
+    reorder_frames : int
+        Complete frames of a sender that wait for an older one of its frames before that one is given up.
 
     Attributes
     ----------
@@ -180,16 +192,21 @@ class Reassembler:
         Source addresses heard from (one forgotten and heard again counts again).
     last_error : str
         The last drop's reason or restart, for the status line.
+    source : Hashable
+        The sender of the frame :meth:`feed` or :meth:`next_ready` returned last.
     """
 
     _REMEMBERED = 16
 
     def __init__(self, max_frame_bytes: int = 64 << 20, max_pending: int = 4, max_chunks: int | None = None,
-                 max_sources: int = 256) -> None:
+                 max_sources: int = 256, reorder_frames: int = 2) -> None:
         self.max_frame_bytes = max_frame_bytes
         self.max_chunks = max_chunks or math.ceil(max_frame_bytes / MAX_CHUNK)
         self.max_pending = max_pending
         self.max_sources = max_sources
+        self.reorder_frames = reorder_frames
+        self.source: Hashable = None
+        self._ready: deque[tuple[Hashable, float, bytes]] = deque()
         self.drops: Counter[str] = Counter()
         self.frames = 0
         self.restarts = 0
@@ -208,6 +225,39 @@ class Reassembler:
         del self._pending[key]
         self._given_up.append(key)
         self._drop("incomplete frame")
+        self._release(key[0])
+
+    def _release(self, source: Hashable) -> None:
+        """The sender's held frames that no longer wait for an older frame of it, delivered in order."""
+        state = self._senders.get(source)
+        while state is not None and state.held:
+            arrival = state.held[0][0]
+            if any(key[0] == source and frame.arrival < arrival for key, frame in self._pending.items()):
+                return
+            _, timestamp, payload = state.held.pop(0)
+            self._deliver(source, state, timestamp, payload)
+
+    def _deliver(self, source: Hashable, sender: _SenderState, timestamp: float, payload: bytes) -> None:
+        fingerprint = (timestamp, hash(payload))
+        if fingerprint == sender.last_delivered:
+            self._drop("duplicate frame")
+            return
+        sender.last_delivered = fingerprint
+        if timestamp < sender.newest_done:
+            self.restarts += 1
+            self.last_error = (f"timestamps went back from {sender.newest_done:.6g} s to {timestamp:.6g} s: "
+                               "a restarted sender or clock")
+        sender.newest_done = timestamp
+        self.frames += 1
+        self._ready.append((source, timestamp, payload))
+
+    def next_ready(self) -> tuple[float, bytes] | None:
+        """Another frame the last datagram made ready (one completed may free frames that waited for it), or
+        None; its sender in :attr:`source`."""
+        if not self._ready:
+            return None
+        self.source, timestamp, payload = self._ready.popleft()
+        return timestamp, payload
 
     def _sender(self, source: Hashable) -> _SenderState:
         state = self._senders.get(source)
@@ -220,31 +270,36 @@ class Reassembler:
         return state
 
     def feed(self, datagram: bytes, source: Hashable = None) -> tuple[float, bytes] | None:
-        """Take one datagram from ``source`` (e.g. the sender's address); returns ``(timestamp, payload)``
-        when it completes a frame of that source."""
+        """Take one datagram from ``source`` (e.g. the sender's address); returns ``(timestamp, payload)`` of a
+        frame it made ready (its sender in :attr:`source`; more with :meth:`next_ready`), or None."""
+        self._take(datagram, source)
+        return self.next_ready()
+
+    def _take(self, datagram: bytes, source: Hashable) -> None:
+        """:meth:`feed`'s work: the frames it makes ready go to the queue :meth:`next_ready` takes."""
         if len(datagram) < DATAGRAM_HEADER.size:
             self._drop("truncated header")
-            return None
+            return
         checksum, length, index, count, timestamp = DATAGRAM_HEADER.unpack_from(datagram, 0)
         if checksum != FRAME_CHECKSUM:
             self._drop("wrong checksum")
-            return None
+            return
         if length != len(datagram):
             self._drop("length field does not match the datagram")
-            return None
+            return
         if not 1 <= count <= self.max_chunks:
             self._drop("chunk count out of range")
-            return None
+            return
         if not 0 <= index < count:
             self._drop("chunk index out of range")
-            return None
+            return
         if not math.isfinite(timestamp):
             self._drop("timestamp not finite")
-            return None
+            return
         key = (source, timestamp)
         if key in self._given_up:
             self._drop("stale chunk")
-            return None
+            return
         frame = self._pending.get(key)
         if frame is None:
             if len(self._pending) >= self.max_pending:
@@ -253,43 +308,37 @@ class Reassembler:
             frame = self._pending[key] = _PendingFrame(count, self._arrivals)
         if frame.count != count:
             self._drop("chunk count differs within a frame")
-            return None
+            return
         chunk = datagram[DATAGRAM_HEADER.size :]
         if index in frame.chunks:
             self._drop("duplicate chunk")
-            return None
+            return
         if frame.size + len(chunk) > self.max_frame_bytes:
             del self._pending[key]
             self._given_up.append(key)
             self._drop("frame too large")
-            return None
+            self._release(source)
+            return
         frame.chunks[index] = chunk
         frame.size += len(chunk)
         if len(frame.chunks) < count:
-            return None
+            return
         del self._pending[key]
-        # Chunks come in order within a sender, so a frame it began before this one will not complete.
-        for older in [k for k, f in self._pending.items() if k[0] == source and f.arrival < frame.arrival]:
-            self._give_up(older)
-        payload = b"".join(frame.chunks[i] for i in range(count))
         sender = self._sender(source)
-        fingerprint = (timestamp, hash(payload))
-        if fingerprint == sender.last_delivered:
-            self._drop("duplicate frame")
-            return None
-        sender.last_delivered = fingerprint
-        if timestamp < sender.newest_done:
-            self.restarts += 1
-            self.last_error = (f"timestamps went back from {sender.newest_done:.6g} s to {timestamp:.6g} s: "
-                               "a restarted sender or clock")
-        sender.newest_done = timestamp
-        self.frames += 1
-        return timestamp, payload
+        sender.held.append((frame.arrival, timestamp, b"".join(frame.chunks[i] for i in range(count))))
+        sender.held.sort(key=lambda held: held[0])
+        self._release(source)
+        # Frames the sender began before the held ones, still incomplete after reorder_frames later ones: lost.
+        while len(sender.held) > self.reorder_frames:
+            first = sender.held[0][0]
+            self._give_up(min((k for k, f in self._pending.items() if k[0] == source and f.arrival < first),
+                              key=lambda k: self._pending[k].arrival))
 
     @property
     def pending_bytes(self) -> int:
-        """Bytes held for frames not complete yet."""
-        return sum(frame.size for frame in self._pending.values())
+        """Bytes held for frames not complete yet, and complete ones waiting for an older frame."""
+        return (sum(frame.size for frame in self._pending.values())
+                + sum(len(held[2]) for state in self._senders.values() for held in state.held))
 
 
 def frame_problem(frame: LivoxFrame) -> str | None:

@@ -207,17 +207,22 @@ class UdpReceiver:
             cpu = time.process_time()
             self.report.datagrams += 1
             done = self.assembler.feed(bytes(buffer[:size]), address)
-            frame = None
-            if done is not None:
+            ready: list[LivoxFrame] = []
+            while done is not None:  # one datagram may free frames that waited for the one it completed
+                sender = self.assembler.source
+                frame = None
                 try:
-                    frame = unpack_payload(done[1], done[0], f"{address[0]}:{address[1]}")
+                    frame = unpack_payload(done[1], done[0], f"{sender[0]}:{sender[1]}")
                 except LivoxVizError as exc:
                     self.report.bad_payloads += 1
                     self.assembler.drops["bad payload"] += 1
                     self.assembler.last_error = str(exc)
                 frame = _usable(frame, self.assembler)
+                if frame is not None:
+                    ready.append(frame)
+                done = self.assembler.next_ready()
             self.report.cpu_seconds += time.process_time() - cpu
-            if frame is not None:
+            for frame in ready:
                 self.report.frames += 1
                 self.report.points += frame.xyz_int16.shape[0]
                 yield frame
