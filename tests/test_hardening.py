@@ -188,6 +188,10 @@ def test_a_stopped_scan_keeps_what_it_scanned(tmp_path: Path, signum: int) -> No
     out, bag = tmp_path / "big.las", tmp_path / "big_bag"
     process = start_writing(tmp_path, ["scan", "--seconds", "300", "--scene", "open_field", "--out", str(out),
                                        "--rosbag", str(bag)])
+    # Signalled once the LAS's points pass two frames' (a loaded machine may take seconds for the first frames).
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and sum(p.stat().st_size for p in tmp_path.glob(".big.las*/body")) < 2 << 20:
+        time.sleep(0.05)
     process.send_signal(signum)
     _, err = process.communicate(timeout=120)
     assert process.returncode == 128 + signum, err
