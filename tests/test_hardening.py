@@ -17,6 +17,7 @@ from pathlib import Path
 import laspy
 import numpy as np
 import pytest
+import trimesh
 
 from livox_viz.cli import main
 from livox_viz.core.atomic import remove_dead_leftovers, write_text_atomic
@@ -202,8 +203,55 @@ def test_a_stopped_scan_keeps_what_it_scanned(tmp_path: Path, signum: int) -> No
     from mcap.reader import make_reader
 
     with open(next(bag.glob("*.mcap")), "rb") as handle:
-        clouds = sum(1 for _, channel, _ in make_reader(handle).iter_messages() if channel.topic == "/livox/lidar")
+        stamps: dict[str, list[int]] = {}
+        for _, channel, message in make_reader(handle).iter_messages():
+            stamps.setdefault(channel.topic, []).append(message.log_time)
+    clouds = len(stamps["/livox/lidar"])
     assert clouds >= frames.size
+    # The IMU and the ground truth end with the frames kept (at the last one's end), not at the 300 s asked.
+    start = min(stamps["/livox/lidar"])
+    frame_ns = 100_000_000  # the Mid-70's 10 Hz
+    for topic in ("/livox/imu", "/odom", "/tf"):
+        assert max(stamps[topic]) - start == pytest.approx(clouds * frame_ns, abs=5_000_000), topic
+
+
+SWALLOWED_SIGNAL_SCRIPT = """
+import os, signal, sys
+import livox_viz.cli.scan_commands as commands
+from livox_viz.cli import main
+real = commands.scene_from_args
+def swallowing(args):
+    try:  # as trimesh imports its optional dependencies: under except BaseException
+        os.kill(os.getpid(), signal.SIGTERM)
+    except BaseException:
+        pass
+    return real(args)
+commands.scene_from_args = swallowing
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_signal_a_library_swallows_during_start_up_still_stops_the_scan(tmp_path: Path) -> None:
+    """SIGTERM raised while a library imports under ``except BaseException`` (trimesh does): the scan still stops
+    after its first frame, keeps it, and exits 143, instead of running its whole length with status 0."""
+    out = tmp_path / "cloud.ply"
+    result = subprocess.run([sys.executable, "-c", SWALLOWED_SIGNAL_SCRIPT, "scan", "--seconds", "30", "--out",
+                             str(out)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert result.returncode == 143, result.stderr
+    assert "stopped by SIGTERM after 0.1 of 30 s" in result.stderr and "Traceback" not in result.stderr
+    assert len(trimesh.load(out).vertices) > 1000
+
+
+def test_a_swallowed_signal_ends_a_command_that_finished_with_its_status(tmp_path: Path) -> None:
+    """A command without a stop of its own (``info``) that ran to its end after a swallowed SIGHUP says so and
+    returns 129, as the shell expects of a process told to stop."""
+    script = SWALLOWED_SIGNAL_SCRIPT.replace("scan_commands", "pattern_commands").replace(
+        "scene_from_args", "config_from_args").replace("SIGTERM", "SIGHUP")
+    result = subprocess.run([sys.executable, "-c", script, "info"], capture_output=True, text=True, timeout=120,
+                            cwd=tmp_path)
+    assert result.returncode == 129, result.stderr
+    assert "SIGHUP arrived while starting" in result.stderr and "Traceback" not in result.stderr
+    assert "point rate         100,000 pts/s" in result.stdout  # info printed its figures
 
 
 def test_a_dead_runs_leftovers_are_removed_by_the_next_run(tmp_path: Path) -> None:

@@ -20,7 +20,7 @@ from livox_viz.core.errors import LivoxVizError
 
 from . import fit_commands, pattern_commands, scan_commands, wire_commands
 from .common import PROG, Command, UsageError
-from .signals import Terminated, raise_terminated, signal_status, take_signals
+from .signals import Terminated, raise_stop, signal_name, signal_status, take_raised, take_signals
 
 ENTRY_POINT_GROUP = "livox_viz.commands"
 MODEL_COMMANDS: tuple[Command, ...] = (
@@ -92,9 +92,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     # A command that must keep what it has (listen --record, publish, the window) takes the signals
     # itself for a while (signals.StopRequests); everything else unwinds and removes its temporaries.
-    previous = take_signals(raise_terminated, (signal.SIGTERM, signal.SIGHUP))
+    previous = take_signals(raise_stop)
+    take_raised()
     try:
-        return int(args.handler(args) or 0)
+        status = int(args.handler(args) or 0)
+        swallowed = take_raised()
+        if swallowed is not None and status == 0:
+            # Raised during the start-up and swallowed by a library on its way: the command ran to its end.
+            print(f"{PROG}: {signal_name(swallowed)} arrived while starting and was lost in a library's import; "
+                  "the command had finished", file=sys.stderr)
+            return signal_status(swallowed)
+        return status
     except LivoxVizError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
@@ -111,6 +119,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{PROG}: stopped by {exc}; unfinished files were removed", file=sys.stderr)
         return signal_status(exc.signum)
     finally:
+        take_raised()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
 

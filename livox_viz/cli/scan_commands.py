@@ -80,6 +80,8 @@ def cmd_scan(args: argparse.Namespace) -> int:
             points += len(frame)
             progress.update(scanner.time)
             if stop.requested:
+                if bag is not None:
+                    bag.end = frame.end_time  # its IMU and ground truth end with the frames
                 break
     progress.close()
     if points == 0:
@@ -120,10 +122,12 @@ class _BagSink:
     The IMU is made a frame at a time (:class:`~livox_viz.motion.imu.ImuStream`): memory stays flat.
     """
 
-    def __init__(self, writer, imu: ImuStream, flight: Trajectory) -> None:
+    def __init__(self, writer, imu: ImuStream, flight: Trajectory, end: float) -> None:
         self.writer = writer
         self.imu = imu
         self.flight = flight
+        #: Where the IMU and ground truth end, seconds: the scan's end, or its last frame's when it stopped early.
+        self.end = end
 
     def write(self, frame) -> None:
         self.writer.write_frame(frame)
@@ -154,9 +158,9 @@ def _open_bag(args, cfg, scanner, trajectory, pose):
     names = RosNames.parse(args.ros_names) if args.ros_names else RosNames()
     with RosbagWriter(args.rosbag, mount, names, lasers=cfg.lasers, imu_frame=imu_frame,
                       imu_variances=noise.sample_variances(option("imu_rate"))) as writer:
-        sink = _BagSink(writer, imu, flight)
+        sink = _BagSink(writer, imu, flight, args.seconds)
         yield sink
-        sink.motion_until(args.seconds, inclusive=True)  # the samples at the scan's very end
+        sink.motion_until(sink.end, inclusive=True)  # the samples at the scan's very end
 
 
 def _imu_noise(text: str) -> tuple[float, float, float, float]:

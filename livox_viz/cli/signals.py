@@ -18,6 +18,10 @@ from types import FrameType, TracebackType
 
 #: The signals a command stops on.
 STOP_SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+#: The signals :func:`raise_stop` raised, until :func:`take_raised`: one a library swallowed on its way (trimesh
+#: imports its optional dependencies under ``except BaseException``) still stops the command, at its next
+#: :class:`StopRequests` or when it returns.
+_RAISED: list[int] = []
 
 
 class Terminated(BaseException):
@@ -46,9 +50,20 @@ def signal_name(signum: int) -> str:
     return "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
 
 
-def raise_terminated(signum: int, _frame: FrameType | None) -> None:
-    """The default handler of SIGTERM and SIGHUP."""
+def raise_stop(signum: int, _frame: FrameType | None) -> None:
+    """The command line's handler outside :class:`StopRequests`: the signal is noted (:func:`take_raised`), then
+    raised, :class:`KeyboardInterrupt` for Ctrl-C and :class:`Terminated` for the others."""
+    _RAISED.append(int(signum))
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
     raise Terminated(signum)
+
+
+def take_raised() -> int | None:
+    """The first signal :func:`raise_stop` raised since the last call (None if none), forgetting them all."""
+    first = _RAISED[0] if _RAISED else None
+    _RAISED.clear()
+    return first
 
 
 def in_main_thread() -> bool:
@@ -105,6 +120,10 @@ class StopRequests:
 
     def __enter__(self) -> StopRequests:
         self._previous = take_signals(self._note)
+        if self._previous:
+            earlier = take_raised()  # raised before and swallowed on its way: it asked to stop all the same
+            if earlier is not None:
+                self._note(earlier, None)
         return self
 
     def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
