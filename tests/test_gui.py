@@ -600,7 +600,7 @@ def test_the_window_and_render_start_as_their_command_lines_say(tmp_path: Path) 
     args = build_parser(COMMANDS).parse_args([
         "render", "--preset", "livox_mid70_risley", "--returns", "datasheet", "--scene-colour", "reflectivity",
         "--reflectance", "0.9", "--up", "y", "--out", str(tmp_path / "r.png")])
-    session = _session(args)
+    session = _session(args, "render")
     assert session.display.scene_colour == "reflectivity"
     assert session.scene_options == {"up": "y", "reflectance": 0.9}
     session.advance_to(0.1)

@@ -355,3 +355,34 @@ def test_a_dead_runs_leftover_link_is_removed_and_never_followed(tmp_path: Path)
     assert remove_dead_leftovers(tmp_path) == [link]
     assert not link.is_symlink() and not link.exists()
     assert (users / "data.las").read_bytes() == b"keep me"
+
+
+@pytest.mark.parametrize(("argv", "words"), [
+    (["scan", "--seconds", "1e308", "--out", "x.ply"], "asks for 4,611,686,018,427,387,904 points"),
+    (["pattern", "--seconds", "1e308", "--out", "x.npz"], "asks for 4,611,686,018,427,387,904 points"),
+    (["coverage", "--seconds", "0.1,1e20"], "allowed: at most 200 million"),
+    (["render", "--seconds", "1e308", "--out", "x.png"], "allowed: at most 100,000,000"),
+    (["scan", "--seconds", "1e-300", "--out", "x.ply"], "holds no point"),
+    (["publish", "--seconds", "1e-300", "--to", "127.0.0.1:9"], "holds no point"),
+])
+def test_absurd_scan_times_are_one_line_before_any_work(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                        capsys: pytest.CaptureFixture[str], argv: list[str],
+                                                        words: str) -> None:
+    """A time whose point count overflows int64 (it was a traceback, a negative count that passed the budget and
+    printed 0.00 %, or a render drawing the rosette's random stream until memory ran out), or one that holds no
+    point: refused in one line, nothing written."""
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert words in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert "--force" not in err or argv[0] in ("scan", "pattern")  # only those commands have it
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_points_before_saturates_instead_of_overflowing() -> None:
+    from livox_viz.patterns.stream import MOST_POINTS, points_before
+
+    assert points_before(1e308, 100_000.0) == MOST_POINTS and points_before(1e-300, 100_000.0) == 0
+    assert points_before(2.0, 100_000.0) == 200_000
+    counts = points_before(np.array([1e20, 1e308, 0.5]), 100_000.0)
+    assert counts.tolist() == [MOST_POINTS, MOST_POINTS, 50_000]

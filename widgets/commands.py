@@ -29,12 +29,19 @@ from livox_viz.cli.common import (
 from livox_viz.cli.signals import StopRequests, signal_name, signal_status
 from livox_viz.cli.wire_commands import add_receiver_arguments, open_receiver
 from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.workload import check_points
+from livox_viz.patterns.stream import points_before
 
 
-def _session(args: argparse.Namespace):
-    from .session import Session
+def _session(args: argparse.Namespace, command: str):
+    from .session import Session, check_window
 
     config = config_from_args(args)
+    check_window(config)
+    # The picture after S seconds draws the pattern's S seconds (its random draws run in order), and a flight lasts
+    # them: the scan's budget, checked before any of it.
+    check_points(points_before(args.seconds, config.point_rate), f"{command} --seconds {args.seconds:g}",
+                 can_force=False)
     scene, pose, caster = scene_from_args(args)
     # The window plays on: a built-in flight lasts two minutes, or the render's seconds.
     trajectory = trajectory_from_args(args, pose, max(args.seconds, GUI_FLIGHT_SECONDS), whole_file=True)
@@ -95,7 +102,7 @@ def cmd_gui(args: argparse.Namespace) -> int:
     if args.listen and problem:
         raise UsageError(f"gui --listen needs a display ({problem}); record with 'listen --record' instead")
     if problem:
-        session = _session(args)
+        session = _session(args, "gui")
         _check_covered(session, args.seconds)
         folder = Path(args.offscreen_dir)
         try:
@@ -111,7 +118,7 @@ def cmd_gui(args: argparse.Namespace) -> int:
             render_offscreen(session, args.seconds, path, views=views, size=size if views == "both" else square)
             print(f"  {path}")
         return 0
-    session = _session(args)
+    session = _session(args, "gui")
     receiver = None
     if args.listen:
         receiver, where = open_receiver(args, session.config)
@@ -136,7 +143,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
     out = check_output_path(args.out, (".png",))
     size = _size(args.size)
-    session = _session(args)
+    session = _session(args, "render")
     _check_covered(session, args.seconds)
     render_offscreen(session, args.seconds, out, views=args.view, size=size)
     print(f"rendered {args.view} after {args.seconds:g} s of scan time to {out} ({size[0]}x{size[1]})")

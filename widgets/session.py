@@ -36,6 +36,14 @@ from .overlay import WINDOWS, ReferenceOverlay, window_capacity
 from .playback import Playback
 from .ring import CoverageCounts, DensityGrid, PointRing
 
+#: The integration window a session starts with (an index of :data:`~widgets.overlay.WINDOWS`).
+FIRST_WINDOW = 1
+
+
+def check_window(config: SensorConfig, index: int = FIRST_WINDOW) -> None:
+    """Refuse a configuration whose pattern the integration window ``index`` cannot hold (:data:`WINDOW_BUDGET`)."""
+    check_points(window_capacity(WINDOWS[index], config.point_rate), "the integration window", WINDOW_BUDGET)
+
 #: The units a step can advance by, as the user names them, and the stream unit behind each.
 STEP_UNITS: dict[str, str] = {"arc": "arc", "petal": "petal", "figure-8": "figure8", "flower": "flower",
                               "frame": "frame"}
@@ -131,7 +139,7 @@ class Session:
         self.caster = caster or EmbreeCaster(scene.mesh)
         self.playback = Playback()
         self.display = DisplayOptions()
-        self.window_index = 1
+        self.window_index = FIRST_WINDOW
         self.message = ""
         self.overlay = ReferenceOverlay()
         #: How the scenes the window cycles to are opened (``open_scene``'s ``up`` and ``reflectance``): as the
@@ -141,7 +149,7 @@ class Session:
         self.source = None
         self._received_points = 0
         self._listeners: list[Callable[[str], None]] = []
-        check_points(window_capacity(self.window, config.point_rate), "the integration window", WINDOW_BUDGET)
+        check_window(config)
         self.config = config
         self._fit_display()
         self._make_rings()

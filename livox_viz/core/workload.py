@@ -18,8 +18,9 @@ POINT_BUDGET = 100_000_000
 WINDOW_BUDGET = 4_000_000
 
 
-def check_points(points: float, what: str, budget: int = POINT_BUDGET, force: bool = False) -> None:
-    """Refuse ``points`` above ``budget`` unless ``force``.
+def check_points(points: float, what: str, budget: int = POINT_BUDGET, force: bool = False,
+                 can_force: bool = True) -> None:
+    """Refuse ``points`` above ``budget`` unless ``force``, and less than one point.
 
     Parameters
     ----------
@@ -30,7 +31,11 @@ def check_points(points: float, what: str, budget: int = POINT_BUDGET, force: bo
     budget : int
     force : bool
         The user asked for it anyway.
+    can_force : bool
+        Whether the command has ``--force`` (the message offers it).
     """
+    if not points >= 1:
+        raise LivoxVizError(f"{what} holds no point; allowed: at least one point's time (1 / the point rate)")
     if points > budget and not force:
-        hint = "; pass --force to go on anyway" if budget == POINT_BUDGET else ""
+        hint = "; pass --force to go on anyway" if budget == POINT_BUDGET and can_force else ""
         raise LivoxVizError(f"{what} asks for {points:,.0f} points; allowed: at most {budget:,}{hint}")

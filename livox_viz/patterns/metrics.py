@@ -243,7 +243,7 @@ def pattern_coverage(
         raise LivoxVizError(f"integration times {list(seconds)!r}; allowed: numbers > 0 seconds")
     counts = points_before(times, config.point_rate)
     if counts.max() > 200_000_000:
-        raise LivoxVizError(f"{times.max():g} s is {counts.max()} points; allowed: at most 200 million")
+        raise LivoxVizError(f"{times.max():g} s is {counts.max():,} points; allowed: at most 200 million")
     grid = _grid(config.field_of_view, cell_deg)
     pattern = make_pattern(config, seed)
     seen = np.zeros(grid.inside_mask.size, dtype=bool)

@@ -20,6 +20,10 @@ import numpy as np
 from livox_viz.config.sensor import SERIES_MODELS, SensorConfig
 from livox_viz.core.buffers import RecycledBlocks
 
+#: The largest count :func:`points_before` gives: a longer time is that many points (far past any budget), not an
+#: integer that overflows (``--seconds 1e308``).
+MOST_POINTS = 2**62
+
 
 def points_before(seconds, rate: float):
     """How many points a stream of ``rate`` points/s emits in [0, ``seconds``): the one seconds-to-points rule.
@@ -37,10 +41,14 @@ def points_before(seconds, rate: float):
     Returns
     -------
     count : int, or (k,) int64 for an array of times
+        At most :data:`MOST_POINTS`.
     """
     if np.ndim(seconds):
-        return np.maximum(0, np.ceil(np.asarray(seconds, dtype=np.float64) * rate - 1e-9)).astype(np.int64)
-    return max(0, math.ceil(seconds * rate - 1e-9))
+        with np.errstate(over="ignore"):  # a time past 1e300 s is inf points, then the most
+            counts = np.ceil(np.asarray(seconds, dtype=np.float64) * rate - 1e-9)
+        return np.clip(counts, 0, MOST_POINTS).astype(np.int64)
+    value = seconds * rate - 1e-9
+    return MOST_POINTS if not value < MOST_POINTS else max(0, math.ceil(value))
 
 
 class _TimesOnDemand:
