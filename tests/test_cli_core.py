@@ -68,6 +68,30 @@ def test_coverage_json(capsys: pytest.CaptureFixture[str]) -> None:
     assert 0.08 < table[0]["fraction"] < table[1]["fraction"] < 1
 
 
+def test_coverage_runs_the_integration_times_its_help_names(capsys: pytest.CaptureFixture[str]) -> None:
+    """Without --seconds, coverage reports the four times its help text promises (0.1, 0.5, 1 and 2 s), in that
+    order: the default list is what a user reads in --help, so a changed entry is a silent change of the table."""
+    code, out, _ = run(capsys, "coverage", "--json")
+    assert code == 0
+    assert [row["seconds"] for row in json.loads(out)["coverage"]] == [0.1, 0.5, 1.0, 2.0]
+
+
+@pytest.mark.parametrize(("text", "allowed"), [("0", True), ("1", True), ("0.5", True), ("-0.001", False),
+                                               ("1.001", False), ("nan", False)])
+def test_a_reflectance_is_allowed_from_0_to_1_both_ends_included(text: str, allowed: bool) -> None:
+    """--reflectance takes the closed range [0, 1] its message names: 0 is a black surface (no return) and 1 a
+    perfect white one, both physical; just outside either end, or NaN, is refused with the range."""
+    import argparse
+
+    from livox_viz.cli.common import reflectance_value
+
+    if allowed:
+        assert reflectance_value(text) == float(text)
+    else:
+        with pytest.raises(argparse.ArgumentTypeError, match="a reflectance from 0 to 1"):
+            reflectance_value(text)
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
