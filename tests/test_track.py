@@ -302,6 +302,29 @@ def test_a_mid360_scan_hits_all_around(tmp_path: Path) -> None:
     assert np.histogram(azimuth, bins=8, range=(-180, 180))[0].min() > 0  # every octant around
 
 
+@pytest.mark.parametrize(("fov", "line"), [
+    (FieldOfView.cone(19.17), "cone of half-angle 19.17 deg"),
+    (FieldOfView.ellipse(70.4, 77.2), "ellipse 70.4 x 77.2 deg"),
+    (FieldOfView.band(-7.0, 52.0), "360 deg band, elevation -7 to 52 deg"),
+    (FieldOfView.outline(np.array([[-10.0, -5.0], [10.0, -5.0], [10.0, 5.0], [-10.0, 5.0]])),
+     "outline 20 x 10 deg (4 vertices)"),
+])
+def test_a_field_of_view_describes_itself_by_its_own_shape(fov: FieldOfView, line: str) -> None:
+    """describe() names each shape with the figures a specification sheet gives (a cone's half-angle, the full
+    width and height otherwise, a band's elevations): the line info and the window print, written out by hand."""
+    assert fov.describe() == line
+
+
+def test_a_band_holds_its_edges_and_no_azimuth_beyond_a_half_turn() -> None:
+    """A band is the closed box [-180, 180] x [low, high] deg (its bounds and outline): both elevation edges and
+    both azimuth ends are inside, a hair beyond any of them is not, as a cone holds its own rim."""
+    band = FieldOfView.band(-7.0, 52.0)
+    edges = np.array([[0.0, -7.0], [0.0, 52.0], [-180.0, 0.0], [180.0, 0.0], [-180.0, -7.0], [180.0, 52.0]])
+    assert band.contains(edges).all()
+    beyond = np.array([[0.0, -7.001], [0.0, 52.001], [-180.001, 0.0], [180.001, 0.0], [190.0, 10.0], [270.0, 0.0]])
+    assert not band.contains(beyond).any()
+
+
 def test_fields_of_view_round_trip_and_refuse_nonsense(tmp_path: Path) -> None:
     config = replace(load_preset("livox_avia"), fov=FieldOfView.ellipse(70.4, 77.2))
     path = tmp_path / "a.json"
