@@ -129,6 +129,35 @@ def test_noise_has_no_track(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
         assert not out.exists()
 
 
+def test_a_base_that_explains_a_line_at_first_order_either_sign_stays_f_a() -> None:
+    """The base pair is swapped only when f_A explains no line at first order: a line at -f_A (order (-1, 0)) is
+    one, as (1, 0) is ("both signs free"), so (-10, 7) Hz explaining -f_A and f_B stays as it is; a pair whose
+    first-order line is f_B's alone is swapped, its orders with it."""
+    from livox_viz.fitting.track_fit import BaseChoice, _normalise
+
+    kept = BaseChoice((-10.0, 7.0), ((-1, 0), (0, 1)), 1.0)
+    assert _normalise(kept) == kept
+    swapped = _normalise(BaseChoice((-10.0, 7.0), ((0, 1), (2, 1)), 1.0))
+    assert swapped == BaseChoice((7.0, -10.0), ((1, 0), (1, 2)), 1.0)
+
+
+def test_laser_rows_project_and_model_are_the_sums_over_the_rows() -> None:
+    """LaserRows' blocked projections and model, with the basis made for them (basis left out), against the
+    design matrix written out: sum_n z_n exp(-i 2 pi f t_n) and sum_j c_j exp(i 2 pi f_j t_n), t_n = t0 + n dt,
+    over rows that fill two blocks and part of a third."""
+    from livox_viz.fitting.series_lsq import LaserRows
+
+    rng = np.random.default_rng(3)
+    n, t0, dt = 5000, 0.3, 1e-4
+    z = rng.normal(size=n) + 1j * rng.normal(size=n)
+    hz = np.array([3.0, -17.5, 120.25])
+    design = np.exp(2j * np.pi * np.outer(t0 + np.arange(n) * dt, hz))
+    rows = LaserRows(z, t0, dt)
+    np.testing.assert_allclose(rows.project(hz), design.conj().T @ z, rtol=1e-9, atol=1e-9)
+    coefficients = np.array([1.0 + 2.0j, -0.5j, 3.0])
+    np.testing.assert_allclose(rows.model(hz, coefficients), design @ coefficients, rtol=1e-9, atol=1e-9)
+
+
 def test_the_stream_is_the_series_however_it_is_cut() -> None:
     fit = fit_track(turning_head())
     config = SensorConfig(data_width=500, data_height=30, data_check_freq=10, pattern_model="track",
