@@ -137,6 +137,16 @@ def test_a_csv_time_column_sets_the_rate(tmp_path: Path, capsys: pytest.CaptureF
     assert main(["fit", "--model", "risley", str(path), "--rate", "200000"]) == 0
 
 
+def test_a_csv_that_is_not_utf8_names_the_byte_and_line_of_the_first_bad_byte(tmp_path: Path) -> None:
+    """The refusal of a Latin-1 CSV points at the first byte UTF-8 cannot read, counted by hand here: after a
+    30-byte header line and two 11-byte rows (newlines included), the degree sign 0xB0 that follows "0.2,1.2" on
+    the fourth line is byte 30 + 22 + 7 = 59 (from 0)."""
+    path = tmp_path / "latin1.csv"
+    path.write_bytes(b"Time/s,Azimuth/deg,Zenith/deg\n0.0,1.0,89\n0.1,1.1,89\n0.2,1.2\xb0,89\n")
+    with pytest.raises(LivoxVizError, match=r"not UTF-8 text \(byte 59, line 4\)"):
+        load_reference(path)
+
+
 def test_a_csv_whose_time_column_counts_rows_takes_the_rate_given(tmp_path: Path) -> None:
     path = tmp_path / "index.csv"
     _livox_csv(path, 1.0, rows=2000)
