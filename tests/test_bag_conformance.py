@@ -90,6 +90,29 @@ def test_messages_are_in_log_time_order_and_decode(bag: Path) -> None:
     assert counts["/livox/lidar"] == counts["/livox/points"] == 6 and counts["/livox/imu"] >= 120
 
 
+def test_each_pointcloud2_is_dense_and_holds_only_finite_points(bag: Path) -> None:
+    """sensor_msgs/PointCloud2's is_dense says "no invalid points": PCL's fromROSMsg and most filters skip the NaN
+    check when it is true. Every /livox/points cloud says so, and its x, y, z, read through the message's own
+    fields with the MCAP ROS 2 decoder, are finite float32 (a cloud marked not dense would cost a consumer a
+    pass; one marked dense with NaN in it would break it)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    clouds = 0
+    with open(bag / metadata(bag)["relative_file_paths"][0], "rb") as handle:
+        for _schema, _channel, _message, cloud in make_reader(handle, decoder_factories=[DecoderFactory()]) \
+                .iter_decoded_messages(topics=["/livox/points"]):
+            assert cloud.is_dense is True and cloud.height == 1 and cloud.width > 0
+            offsets = {f.name: f.offset for f in cloud.fields if f.name in ("x", "y", "z")}
+            assert all(f.datatype == 7 for f in cloud.fields if f.name in offsets)  # FLOAT32
+            layout = np.dtype({"names": list(offsets), "formats": ["<f4"] * 3, "offsets": list(offsets.values()),
+                               "itemsize": cloud.point_step})
+            xyz = np.frombuffer(bytes(cloud.data), dtype=layout, count=cloud.width)
+            assert all(np.isfinite(xyz[name]).all() for name in offsets)
+            clouds += 1
+    assert clouds == 6
+
+
 # LAS --------------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module", params=["world", "sensor"])
 def las_file(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
