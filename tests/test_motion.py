@@ -156,6 +156,19 @@ def test_tum_round_trip_and_errors(tmp_path: Path) -> None:
             load_tum(path)
 
 
+@pytest.mark.parametrize("column", ["t", "position", "quaternion"])
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_a_trajectory_with_one_non_finite_value_anywhere_is_refused(column: str, bad: float) -> None:
+    """One NaN or infinity in the times, the positions or the quaternions alone is refused by name, the other two
+    being finite: none of the later checks would see it (NaN compares false, so neither the time order nor the
+    quaternion length test catches it) and the spline would carry it into every pose."""
+    values = {"t": np.array([0.0, 1.0, 2.0]), "position": np.zeros((3, 3)),
+              "quaternion": np.tile([0.0, 0.0, 0.0, 1.0], (3, 1))}
+    values[column].flat[4 if column != "t" else 1] = bad
+    with pytest.raises(LivoxVizError, match="NaN or infinite values; allowed: finite numbers"):
+        Trajectory("bad", values["t"], values["position"], values["quaternion"])
+
+
 def sharp_turns(seconds: float = 12.0, spacing: float = 2.0) -> Trajectory:
     """A hand-written TUM flight: poses ``spacing`` s apart round a 10 m square, a 90-degree turn at each, rolling
     and pitching a little (sparse and sharp: the case that showed the rays and /odom apart)."""
