@@ -55,6 +55,20 @@ def test_coverage_hand_computed_case() -> None:
     np.testing.assert_allclose(coverage_curve(points, [0, 1, 2, 3, 6], 1.0, 0.5), [0, 1 / 12, 1 / 12, 2 / 12, 3 / 12])
 
 
+def test_a_coverage_grid_cannot_be_changed_after_it_is_made() -> None:
+    """A CoverageGrid is immutable: the metrics keep one grid per (fov, cell) in an lru_cache and hand the same
+    object to every caller, and its inside mask is cached from the cell size it was made with. A caller that set
+    cell_deg would get a mask for another cell size and spoil the grid for every other caller; so setting a field
+    raises (the dataclass is frozen) and the hand-computed 12 cells of radius 1 at 0.5 deg stay 12."""
+    import dataclasses
+
+    grid = CoverageGrid(1.0, 0.5)
+    assert grid.cell_count == 12
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        grid.cell_deg = 0.25  # type: ignore[misc]
+    assert grid.cell_deg == 0.5 and grid.cell_count == 12
+
+
 def test_full_grid_is_full_coverage() -> None:
     grid = CoverageGrid(2.0, 0.1)
     half = grid.cells_per_side
