@@ -30,7 +30,7 @@ import numpy as np
 from livox_viz.config.presets import DESCRIPTION_KEY, shipped_preset_dir, user_config_dir
 from livox_viz.core.errors import LivoxVizError, require_file
 from livox_viz.core.jsonfile import read_json_file
-from livox_viz.core.poses import Pose
+from livox_viz.core.poses import MAX_POSITION_M, Pose
 from livox_viz.scene.materials import (
     DEFAULT_REFLECTANCE,
     SIDECAR_SUFFIX,
@@ -48,6 +48,11 @@ if TYPE_CHECKING:
 
 DEFAULT_SCENE = "urban"
 UP_AXES = ("z", "y")
+#: A scene's largest extent in any axis, metres: Embree casts in float32 (a scene 100 km across casts within
+#: 3 mm; one reaching 1000 km out met wrong triangles near the sensor).
+MAX_SCENE_SPAN_M = 100_000.0
+#: A terrain's most cells a side (two million triangles).
+MAX_TERRAIN_CELLS = 1000
 _TO_NED = {
     "z": np.array([[1.0, 0, 0], [0, -1, 0], [0, 0, -1]]),
     "y": np.array([[0, 0, 1.0], [-1, 0, 0], [0, -1, 0]]),
@@ -219,6 +224,7 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: flo
     if not np.all(np.isfinite(vertices)):
         bad = int((~np.isfinite(vertices)).any(axis=1).sum())
         raise LivoxVizError(f"{path}: {bad} vertices are NaN or infinite; allowed: finite coordinates in metres")
+    check_span(mesh, str(path))
     mesh.vertices = vertices @ _TO_NED[up].T
     return mesh if reflectance is None else fill_reflectance(mesh, reflectance)
 
@@ -249,7 +255,9 @@ def _scene_from_json(path: Path, reflectance: float = DEFAULT_REFLECTANCE) -> Sc
         raise LivoxVizError(f"{path}: the scene has no objects")
     pose_values = data.get("vehicle_pose", [0, 0, -1.5, 0, 0, 0])
     pose = Pose.parse(",".join(str(v) for v in pose_values))
-    return Scene(path.stem, fill_reflectance(_join(parts), reflectance), pose, str(data.get(DESCRIPTION_KEY, "")))
+    mesh = _join(parts)
+    check_span(mesh, str(path))
+    return Scene(path.stem, fill_reflectance(mesh, reflectance), pose, str(data.get(DESCRIPTION_KEY, "")))
 
 
 def _with_material(mesh: trimesh.Trimesh, obj: dict[str, Any], index: int) -> trimesh.Trimesh:
@@ -264,14 +272,42 @@ def _with_material(mesh: trimesh.Trimesh, obj: dict[str, Any], index: int) -> tr
 
 
 def _vector(obj: dict[str, Any], key: str, length: int, where: str) -> np.ndarray:
+    """A centre: ``length`` finite numbers within :data:`~livox_viz.core.poses.MAX_POSITION_M` of the origin."""
     value = obj.get(key)
     try:
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         array = np.zeros(0)
-    if array.shape != (length,) or not np.all(np.isfinite(array)):
-        raise LivoxVizError(f"{where}: '{key}' = {value!r}; allowed: {length} finite numbers")
+    if array.shape != (length,) or not np.all(np.isfinite(array)) or np.abs(array).max() > MAX_POSITION_M:
+        raise LivoxVizError(f"{where}: '{key}' = {value!r}; allowed: {length} finite numbers within "
+                            f"{MAX_POSITION_M:g} m of the origin")
     return array
+
+
+def _size(obj: dict[str, Any], length: int, where: str) -> np.ndarray:
+    """An object's ``size``: ``length`` numbers > 0, each at most :data:`MAX_SCENE_SPAN_M`."""
+    value = obj.get("size")
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        array = np.zeros(0)
+    if array.shape != (length,) or not np.all((array > 0) & (array <= MAX_SCENE_SPAN_M)):
+        raise LivoxVizError(f"{where}: 'size' = {value!r}; allowed: {length} numbers > 0 and at most "
+                            f"{MAX_SCENE_SPAN_M:g} m")
+    return array
+
+
+def check_span(mesh: trimesh.Trimesh, where: str) -> None:
+    """Refuse a scene wider than :data:`MAX_SCENE_SPAN_M` in any axis.
+
+    Embree casts in float32 around the scene's middle: with geometry 1000 km away, rays near the sensor met the
+    wrong triangles (a hit at 18.9 m came back at 0.8 m), and farther out every ray missed.
+    """
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    span = float(np.ptp(vertices, axis=0).max()) if len(vertices) else 0.0
+    if not span <= MAX_SCENE_SPAN_M:
+        raise LivoxVizError(f"{where}: the scene spans {span:.4g} m; allowed: at most {MAX_SCENE_SPAN_M:g} m across "
+                            "(rays are cast in float32: move far parts nearer or leave them out)")
 
 
 def _number(obj: dict[str, Any], key: str, where: str, default: float | None = None) -> float:
@@ -297,13 +333,16 @@ def _primitive(obj: Any, index: int, folder: Path) -> trimesh.Trimesh:
         return mesh
     center = _vector(obj, "center", 3, where)
     if kind == "box":
-        return trimesh.creation.box(_vector(obj, "size", 3, where), trimesh.transformations.translation_matrix(center))
+        return trimesh.creation.box(_size(obj, 3, where), trimesh.transformations.translation_matrix(center))
     if kind == "ground":
-        size = _vector(obj, "size", 2, where)
+        size = _size(obj, 2, where)
         return _grid(center, size, 1, lambda x, y: np.zeros_like(x))
     if kind == "terrain":
-        size = _vector(obj, "size", 2, where)
-        cells = int(_number(obj, "cells", where, 100))
+        size = _size(obj, 2, where)
+        cells = obj.get("cells", 100)
+        if isinstance(cells, bool) or not isinstance(cells, int) or not 1 <= cells <= MAX_TERRAIN_CELLS:
+            raise LivoxVizError(f"{where}: 'cells' = {cells!r}; allowed: a whole number from 1 to "
+                                f"{MAX_TERRAIN_CELLS} (cells a side, two triangles each)")
         amplitude = _number(obj, "amplitude", where, 2.0)
         wavelength = _number(obj, "wavelength", where, 20.0)
         k = 2 * math.pi / wavelength
@@ -321,7 +360,7 @@ def _primitive(obj: Any, index: int, folder: Path) -> trimesh.Trimesh:
         mesh.apply_translation(center)
         return mesh
     if kind == "roof":
-        return _roof(center, _vector(obj, "size", 3, where))
+        return _roof(center, _size(obj, 3, where))
     raise LivoxVizError(f"{where}: unknown type {kind!r}; allowed: ground, terrain, box, cylinder, sphere, roof, mesh")
 
 
