@@ -303,16 +303,18 @@ def test_one_listener_hears_two_publishers_in_a_row_and_a_forged_datagram(
                                 "--record", str(received)])
     assert main(["publish", "--to", f"127.0.0.1:{port}", "--seconds", "0.5", "--speed", "5"]) == 0
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as forger:
-        forger.sendto(struct.pack("<4i1d", 1234567890, 52, 0, 1, 1e300) + struct.pack("<6fi", 0, 0, 0, 0, 0, 0, 0),
-                      ("127.0.0.1", port))
+        for stamp in (1e300, 1e9):  # an absurd time (dropped and counted), then a Unix-like one (a frame)
+            forger.sendto(struct.pack("<4i1d", 1234567890, 52, 0, 1, stamp) + struct.pack("<6fi", 0, 0, 0, 0, 0, 0, 0),
+                          ("127.0.0.1", port))
     time.sleep(0.2)
-    # The publisher restarts: its clock starts at 0 again, far behind the forged 1e300.
+    # The publisher restarts: its clock starts at 0 again, far behind the forged 1e9.
     assert main(["publish", "--to", f"127.0.0.1:{port}", "--seconds", "0.5", "--speed", "5"]) == 0
     listener.join(30)
     assert not listener.is_alive()
     out = capsys.readouterr()
     # Each publisher run and the forger send from their own port: three senders, each its own session.
     assert "received 11 frames" in out.out and "senders 3" in out.err and "3 sender sessions" in out.out
+    assert "1 dropped (timestamp beyond 1e+10 s 1)" in out.out
     data = np.load(received)
     # The recording says how its int16 points were decoded (the wire carries no range), not that it is a scan.
     notes = json.loads(str(data["frame_of_reference"]))
@@ -440,3 +442,14 @@ def test_a_scene_90_km_across_still_casts_exactly_near_the_sensor(tmp_path: Path
     # millimetres plus the int16 step of where they landed.
     gap, _ = cKDTree(clouds[0]).query(clouds[1])
     assert abs(len(clouds[1]) - len(clouds[0])) <= 5 and np.mean(gap > 600 / 32767 + 0.005) < 1e-3
+
+
+def test_a_pipe_among_the_users_presets_blocks_no_command(user_presets: Path) -> None:
+    """A FIFO named ``*.json`` in the user's preset folder (which every command lists) is passed over: reading it
+    blocked ``presets``, ``info`` and every other command until a writer came."""
+    os.mkfifo(user_presets / "stray.json")
+    (user_presets / "mine.json").write_text(json.dumps(SEED_JSON))
+    result = subprocess.run([sys.executable, "-m", "livox_viz", "presets"], capture_output=True, text=True,
+                            timeout=60, env={**os.environ, "LIVOX_VIZ_PRESETS": str(user_presets)})
+    assert result.returncode == 0, result.stderr
+    assert "mine" in result.stdout and "stray" not in result.stdout

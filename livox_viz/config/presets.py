@@ -105,7 +105,8 @@ def list_presets() -> list[PresetInfo]:
             continue
         index = _index_descriptions(folder)
         for path in sorted(folder.glob("*.json")):
-            if path.name == _INDEX_FILE:
+            # Only files: a pipe named *.json among the user's presets would block every command reading it.
+            if path.name == _INDEX_FILE or not path.is_file():
                 continue
             found.append(PresetInfo(path.stem, path, _describe(path, index), shipped))
     return found

@@ -341,13 +341,21 @@ class Reassembler:
                 + sum(len(held[2]) for state in self._senders.values() for held in state.held))
 
 
+#: The largest timestamp a frame may carry, seconds (317 years; a Unix time is 1.7e9): a recording's clock runs on
+#: from a sender's times, and one frame stamped 1e300 left every later frame of it at 2e300.
+MAX_TIMESTAMP_S = 1e10
+
+
 def frame_problem(frame: LivoxFrame) -> str | None:
-    """Why a well-formed frame cannot be used (a NaN or infinite posAng or timestamp), or None.
+    """Why a well-formed frame cannot be used (a NaN or infinite posAng or timestamp, a timestamp beyond
+    :data:`MAX_TIMESTAMP_S`), or None.
 
     Such a frame has no place in the world; a client drops it and counts it under this reason.
     """
     if not math.isfinite(frame.timestamp):
         return "timestamp not finite"
+    if abs(frame.timestamp) > MAX_TIMESTAMP_S:
+        return f"timestamp beyond {MAX_TIMESTAMP_S:g} s"
     if not np.all(np.isfinite(frame.pos_ang)):
         return "posAng not finite"
     return None
