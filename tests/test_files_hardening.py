@@ -293,6 +293,7 @@ def test_a_full_disk_names_the_file_and_leaves_nothing(tmp_path: Path) -> None:
         for name in ("cloud.ply", "cloud.pcd", "cloud.las", "cloud.npz", "cloud.csv"):
             runs.append((limit, ["scan", "--seconds", "0.4", "--out", name]))
         runs.append((limit, ["scan", "--seconds", "0.4", "--rosbag", "bag"]))
+        runs += [(limit, ["pattern", "--seconds", "2", "--out", name]) for name in ("pattern.npz", "pattern.csv")]
     result = subprocess.run([sys.executable, "-c", FULL_DISK_SCRIPT, json.dumps(runs)], cwd=tmp_path,
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr

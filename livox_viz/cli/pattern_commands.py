@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -12,12 +13,13 @@ from livox_viz.casting.codec import max_decode_error
 from livox_viz.config.presets import list_presets
 from livox_viz.config.sensor import EULER_KEY_RFLYSIM, SensorConfig
 from livox_viz.core.atomic import atomic_path, make_work_dir
+from livox_viz.core.errors import LivoxVizError, os_error_reason
 from livox_viz.core.progress import Progress
 from livox_viz.core.workload import check_points
 from livox_viz.files.npzstream import NpzColumns
 from livox_viz.patterns.factory import make_pattern
 from livox_viz.patterns.metrics import LIVOX_CELL_DEG, pattern_coverage
-from livox_viz.patterns.stream import points_before
+from livox_viz.patterns.stream import PatternStream, points_before
 
 from .common import (
     Command,
@@ -185,6 +187,18 @@ def cmd_pattern(args: argparse.Namespace) -> int:
     progress = Progress(f"pattern -> {out.name}", args.seconds, "s")
     block = max(cfg.points_per_frame, 100_000)
     labels = list(pattern.take(0).labels())
+    try:
+        _write_pattern(out, pattern, total, block, labels, progress, cfg.point_rate)
+    except OSError as exc:
+        raise LivoxVizError(f"{out}: cannot write ({os_error_reason(exc)}); the old file, if any, is kept") from exc
+    progress.close()
+    print(f"wrote {total:,} points ({args.seconds:g} s, seed {args.seed}) to {out}")
+    return 0
+
+
+def _write_pattern(out: Path, pattern: PatternStream, total: int, block: int, labels: list[str], progress: Progress,
+                   rate: float) -> None:
+    """The ``total`` points of ``pattern`` into ``out`` (NPZ or CSV), ``block`` points at a time."""
     if out.suffix.lower() == ".npz":
         work = make_work_dir(out)
         try:
@@ -195,11 +209,11 @@ def cmd_pattern(args: argparse.Namespace) -> int:
                 while pattern.position < total:
                     chunk = pattern.take(min(block, total - pattern.position))
                     table.append({"xy_deg": chunk.xy_deg, "t": chunk.t, **chunk.labels()})
-                    progress.update(chunk.stop / cfg.point_rate)
+                    progress.update(chunk.stop / rate)
                 with atomic_path(out) as tmp:
                     table.finish(tmp)
             finally:
-                table.close()
+                table.discard()  # closed by finish; after a failure, what its buffers could not write goes
         finally:
             import shutil
 
@@ -211,10 +225,7 @@ def cmd_pattern(args: argparse.Namespace) -> int:
                 chunk = pattern.take(min(block, total - pattern.position))
                 columns = [chunk.xy_deg[:, 0], chunk.xy_deg[:, 1], chunk.t, *chunk.labels().values()]
                 np.savetxt(handle, np.column_stack(columns), fmt=["%.9g"] * 3 + ["%d"] * len(labels), delimiter=",")
-                progress.update(chunk.stop / cfg.point_rate)
-    progress.close()
-    print(f"wrote {total:,} points ({args.seconds:g} s, seed {args.seed}) to {out}")
-    return 0
+                progress.update(chunk.stop / rate)
 
 
 def _pattern_arguments(parser: argparse.ArgumentParser) -> None:

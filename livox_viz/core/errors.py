@@ -32,3 +32,8 @@ def require_file(path, what: str = "file") -> None:
         raise LivoxVizError(f"{path}: is not a regular file; allowed: a {what}")
     if path.stat().st_size == 0:
         raise LivoxVizError(f"{path}: is empty; allowed: a {what}")
+
+
+def os_error_reason(exc: OSError) -> str:
+    """An OSError in words; numpy's short writes ("100000 requested and 59904 written") carry no errno."""
+    return exc.strerror or f"{exc}: is the disk full?"

@@ -62,7 +62,7 @@ import numpy as np
 
 from livox_viz.casting.point_frame import PointFrame
 from livox_viz.core.atomic import WorkDir, atomic_path
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, os_error_reason
 from livox_viz.core.rotations import enu_from_ned, flu_from_frd
 from livox_viz.files.npzstream import NpzColumns
 
@@ -304,7 +304,7 @@ class PointCloudWriter:
                 self._put(payload)
         except OSError as exc:
             self._cut_back()
-            self.stopped = f"cannot write ({_reason(exc)})"
+            self.stopped = f"cannot write ({os_error_reason(exc)})"
             raise WritingStopped(f"{self.path}: {self.stopped}; the old file, if any, is kept") from exc
         self._written += size
         self.count += len(frame)
@@ -418,7 +418,7 @@ class PointCloudWriter:
                 try:
                     self._body.close()
                 except OSError as exc:  # its unwritten buffer: a full disk; the folder goes anyway
-                    self.abort_error = _reason(exc)
+                    self.abort_error = os_error_reason(exc)
             if self._npz is not None:
                 self._npz.discard()
         finally:
@@ -502,11 +502,6 @@ class PointCloudWriter:
                              "reflectivity", "tag", *(name for name, _ in self.extra_fields)):
                     points[name] = records[name]
                 writer.write_points(points)
-
-
-def _reason(exc: OSError) -> str:
-    """An OSError in words; numpy's short writes carry no errno."""
-    return exc.strerror or f"{exc}: is the disk full?"
 
 
 def _records_as_columns(records: np.ndarray) -> np.ndarray:
