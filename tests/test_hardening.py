@@ -78,6 +78,8 @@ BAD_INPUTS: list[tuple[list[str], str]] = [
     (["pattern", "--seed", "-1", "--out", "p.npz"], "allowed: a whole number from 0"),
     (["scan", "--seed", "-1", "--out", "p.ply"], "allowed: a whole number from 0"),
     (["coverage", "--seed", "-1"], "allowed: a whole number from 0"),
+    (["listen", "--port", "0", "--frames", "0"], "allowed: a whole number >= 1"),
+    (["listen", "--port", "0", "--frames", "-5"], "allowed: a whole number >= 1"),
     (["render", "--seed", "-1", "--out", "r.png"], "allowed: a whole number from 0"),
     (["publish", "--seed", "-1", "--to", "127.0.0.1:9"], "allowed: a whole number from 0"),
     (["fit", "short.npy"], "allowed: at least 0.1 s"),
@@ -453,3 +455,14 @@ def test_a_pipe_among_the_users_presets_blocks_no_command(user_presets: Path) ->
                             timeout=60, env={**os.environ, "LIVOX_VIZ_PRESETS": str(user_presets)})
     assert result.returncode == 0, result.stderr
     assert "mine" in result.stdout and "stray" not in result.stdout
+
+
+def test_a_reader_that_goes_away_ends_the_output_quietly() -> None:
+    """``livox-viz info | head -1``: the pipe's reader leaves; the command stops without an error line (it said
+    "error: Broken pipe") and with the status of a writer killed by SIGPIPE."""
+    process = subprocess.Popen([sys.executable, "-m", "livox_viz", "info"], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE)
+    process.stdout.close()  # the reader is gone before the first line
+    err = process.stderr.read().decode()
+    assert process.wait(timeout=60) == 128 + signal.SIGPIPE, err
+    assert err == ""

@@ -304,7 +304,8 @@ def _listen_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", help="sensor JSON giving the range (int16 scale); default the default preset")
     parser.add_argument("--seq-id", type=int, help="SeqID in a Config.json")
     parser.add_argument("--record", help="write the frames to .ply .pcd .las .npz or .csv")
-    parser.add_argument("--frames", type=int, help="stop after this many frames")
+    parser.add_argument("--frames", type=whole_number(1, 2**62, "a whole number >= 1"),
+                        help="stop after this many frames")
     parser.add_argument("--seconds", type=positive_float, help="stop after this many wall seconds")
     parser.add_argument("--timeout", type=positive_float, help="stop after this many seconds without a frame")
 
