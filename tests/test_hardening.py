@@ -463,6 +463,7 @@ def test_a_reader_that_goes_away_ends_the_output_quietly() -> None:
     process = subprocess.Popen([sys.executable, "-m", "livox_viz", "info"], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE)
     process.stdout.close()  # the reader is gone before the first line
-    err = process.stderr.read().decode()
+    with process.stderr:
+        err = process.stderr.read().decode()
     assert process.wait(timeout=60) == 128 + signal.SIGPIPE, err
     assert err == ""
