@@ -467,3 +467,19 @@ def test_a_reader_that_goes_away_ends_the_output_quietly() -> None:
         err = process.stderr.read().decode()
     assert process.wait(timeout=60) == 128 + signal.SIGPIPE, err
     assert err == ""
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ('{"asset": {"version": "2.0"}, "meshes": [', "malformed JSON at line 1 column 42"),
+    ("garbage\x00", "malformed JSON at line 1 column 1"),
+    ("[" * 100_000, "nested"),
+])
+def test_a_broken_gltf_is_named_with_what_is_wrong(tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str,
+                                                   words: str) -> None:
+    """A truncated, garbage or deeply nested .gltf (JSON) gets the JSON reader's line; trimesh's said
+    "FileNotFoundError: model.gltf" of the file that was there."""
+    mesh = tmp_path / "model.gltf"
+    mesh.write_text(text)
+    assert main(["scan", "--scene", str(mesh), "--seconds", "0.05", "--out", str(tmp_path / "o.npz")]) == 2
+    err = capsys.readouterr().err
+    assert f"{mesh}: not a readable glTF file (JSON)" in err and words in err and "FileNotFound" not in err
