@@ -199,6 +199,7 @@ def test_a_stopped_scan_keeps_what_it_scanned(tmp_path: Path, signum: int) -> No
     _, err = process.communicate(timeout=120)
     assert process.returncode == 128 + signum, err
     assert "Traceback" not in err and "stopped by" in err and "kept" in err
+    assert "stopping after the frame in hand" in err  # said when the signal came, before the files were finished
     assert sorted(p.name for p in tmp_path.iterdir()) == ["big.las", "big_bag"]
     frames = np.unique(np.asarray(laspy.read(out).frame))
     assert frames.size >= 2 and np.array_equal(frames, np.arange(frames.size))  # whole frames from the first

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
@@ -67,7 +68,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
         # Ctrl-C, SIGTERM and SIGHUP stop the scan after the frame in hand: the files are finished with what was
         # scanned until then (a 10-minute flight's bag stopped at minute 8 keeps its 8 minutes), not removed.
         # Entered first, so a second signal while they are being finished is noted too, not raised.
-        stop = files.enter_context(StopRequests())
+        stop = files.enter_context(StopRequests(_say_stopping))
         writer = files.enter_context(PointCloudWriter(out, coordinates=args.frame, ascii=args.ascii, source=made)
                                      ) if out else None
         bag = files.enter_context(_open_bag(args, cfg, scanner, trajectory, pose)) if args.rosbag else None
@@ -99,6 +100,14 @@ def cmd_scan(args: argparse.Namespace) -> int:
         return signal_status(stop.signum)
     print(f"wrote {points:,} points of {_frames(frames)} ({args.seconds:g} s, {args.frame} frame{moving}) to {where}")
     return 0
+
+
+def _say_stopping(signum: int) -> None:
+    """Said at once when a stop signal arrives: the frame in hand may take long (a datasheet scan's first frame
+    compiles its loops, up to a minute on a slow machine). Written with one system call, not through ``sys.stderr``:
+    the signal may land inside the progress line's own write."""
+    os.write(2, f"\n{PROG}: {signal_name(signum)}: stopping after the frame in hand (the first frame of a datasheet "
+                "scan compiles its loops first); the files keep what was scanned\n".encode())
 
 
 def _frames(count: int) -> str:
