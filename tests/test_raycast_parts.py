@@ -179,3 +179,17 @@ def test_occlusion_is_a_hit_nearer_than_each_rays_own_limit_as_trimesh_finds_it(
         np.testing.assert_array_equal(caster.occluded(one, rays, short), np.zeros(n, dtype=bool))
     with pytest.raises(ValueError):
         caster.occluded(origins, directions, limits[:-1])
+
+
+@pytest.mark.parametrize("count", [1, 2, 3, 7])
+def test_each_ray_is_measured_from_its_own_origin_whatever_their_number(box: trimesh.Trimesh, count: int) -> None:
+    """Rays from ``count`` different origins along x into the box's face at x = -1: each distance is its own
+    origin's gap to the face (two origins were once a case of their own: one shared origin or one a ray)."""
+    caster = EmbreeCaster(box)
+    start = -3.0 - np.arange(count)  # 2, 3, 4, ... metres before the face
+    origins = np.column_stack([start, np.linspace(-0.5, 0.5, count), np.zeros(count)])
+    directions = np.tile([1.0, 0.0, 0.0], (count, 1))
+    distance, triangle = caster.hits(origins, directions, 100.0)
+    np.testing.assert_allclose(distance, -1.0 - start, rtol=1e-12)
+    assert np.all(triangle >= 0)
+    np.testing.assert_allclose(caster.distances(origins, directions, 100.0), -1.0 - start, rtol=1e-12)
