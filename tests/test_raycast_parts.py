@@ -181,11 +181,14 @@ def test_occlusion_is_a_hit_nearer_than_each_rays_own_limit_as_trimesh_finds_it(
         caster.occluded(origins, directions, limits[:-1])
 
 
+@pytest.mark.parametrize("exact", [False, True])
 @pytest.mark.parametrize("count", [1, 2, 3, 7])
-def test_each_ray_is_measured_from_its_own_origin_whatever_their_number(box: trimesh.Trimesh, count: int) -> None:
+def test_each_ray_is_measured_from_its_own_origin_whatever_their_number(box: trimesh.Trimesh, count: int,
+                                                                        exact: bool) -> None:
     """Rays from ``count`` different origins along x into the box's face at x = -1: each distance is its own
-    origin's gap to the face (two origins were once a case of their own: one shared origin or one a ray)."""
-    caster = EmbreeCaster(box)
+    origin's gap to the face, by Embree's float32 and by the hit triangle's plane (``exact``), whose code has a
+    case of its own for one shared origin."""
+    caster = EmbreeCaster(box, exact=exact)
     start = -3.0 - np.arange(count)  # 2, 3, 4, ... metres before the face
     origins = np.column_stack([start, np.linspace(-0.5, 0.5, count), np.zeros(count)])
     directions = np.tile([1.0, 0.0, 0.0], (count, 1))
