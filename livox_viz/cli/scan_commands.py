@@ -169,7 +169,7 @@ def _open_bag(args, cfg, scanner, trajectory, pose):
                       imu_variances=noise.sample_variances(option("imu_rate"))) as writer:
         sink = _BagSink(writer, imu, flight, args.seconds)
         yield sink
-        sink.motion_until(sink.end, inclusive=True)  # the samples at the scan's very end
+        sink.motion_until(sink.end, inclusive=True)  # the samples at its very end (the last frame's when stopped)
 
 
 def _imu_noise(text: str) -> tuple[float, float, float, float]:
