@@ -484,3 +484,20 @@ def test_a_broken_gltf_is_named_with_what_is_wrong(tmp_path: Path, capsys: pytes
     assert main(["scan", "--scene", str(mesh), "--seconds", "0.05", "--out", str(tmp_path / "o.npz")]) == 2
     err = capsys.readouterr().err
     assert f"{mesh}: not a readable glTF file (JSON)" in err and words in err and "FileNotFound" not in err
+
+
+def test_objects_smaller_than_a_metre_are_scenes_too(tmp_path: Path) -> None:
+    """A sphere of 0.3 m radius, a post 0.5 m high and 0.1 m thick, a 0.2 m box: sizes under a metre are sizes (the
+    checks refuse 0 and negatives only), and the scan meets them where they stand."""
+    scene = tmp_path / "small.json"
+    scene.write_text(json.dumps({"objects": [
+        {"type": "sphere", "center": [5, 0, 0], "radius": 0.3},
+        {"type": "cylinder", "center": [5, 1, 0], "radius": 0.1, "height": 0.5},
+        {"type": "box", "center": [5, -1, 0], "size": [0.2, 0.2, 0.2]},
+    ], "vehicle_pose": [0, 0, 0, 0, 0, 0]}))
+    out = tmp_path / "o.npz"
+    assert main(["scan", "--scene", str(scene), "--seconds", "0.2", "--out", str(out)]) == 0
+    hits = np.load(out)["xyz_world"]
+    for centre, reach in (((5, 0, 0), 0.31), ((5, 1, 0), 0.26), ((5, -1, 0), 0.18)):
+        near = np.linalg.norm(hits - np.array(centre), axis=1) <= reach
+        assert near.sum() > 10, centre
