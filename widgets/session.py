@@ -263,8 +263,7 @@ class Session:
         """Pick :data:`WINDOWS` ``[index]`` and refill it from the stream (keeps the scan time)."""
         if not 0 <= index < len(WINDOWS):
             raise LivoxVizError(f"window index {index}; allowed: 0 to {len(WINDOWS) - 1}")
-        check_points(window_capacity(WINDOWS[index], self.config.point_rate), "the integration window",
-                     WINDOW_BUDGET)
+        check_window(self.config, index)
         self.window_index = index
         self._make_rings()
         start_time = 0.0 if self.window is None else max(0.0, self.scan_time - self.window)

@@ -274,30 +274,28 @@ def _with_material(mesh: trimesh.Trimesh, obj: dict[str, Any], index: int) -> tr
     return set_face_materials(mesh, own, gain, np.full(faces, index))
 
 
-def _vector(obj: dict[str, Any], key: str, length: int, where: str) -> np.ndarray:
-    """A centre: ``length`` finite numbers within :data:`~livox_viz.core.poses.MAX_POSITION_M` of the origin."""
+def _numbers(obj: dict[str, Any], key: str, length: int, where: str, bound: float, positive: bool) -> np.ndarray:
+    """``obj[key]``: ``length`` numbers of size at most ``bound`` (NaN and inf fail that), and > 0 if ``positive``."""
     value = obj.get(key)
     try:
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         array = np.zeros(0)
-    if array.shape != (length,) or not np.all(np.isfinite(array)) or np.abs(array).max() > MAX_POSITION_M:
-        raise LivoxVizError(f"{where}: '{key}' = {value!r}; allowed: {length} finite numbers within "
-                            f"{MAX_POSITION_M:g} m of the origin")
+    if array.shape != (length,) or not np.all((np.abs(array) <= bound) & ((array > 0) | (not positive))):
+        allowed = (f"numbers > 0 and at most {bound:g} m" if positive else
+                   f"finite numbers within {bound:g} m of the origin")
+        raise LivoxVizError(f"{where}: '{key}' = {value!r}; allowed: {length} {allowed}")
     return array
+
+
+def _vector(obj: dict[str, Any], key: str, length: int, where: str) -> np.ndarray:
+    """A centre: ``length`` finite numbers within :data:`~livox_viz.core.poses.MAX_POSITION_M` of the origin."""
+    return _numbers(obj, key, length, where, MAX_POSITION_M, positive=False)
 
 
 def _size(obj: dict[str, Any], length: int, where: str) -> np.ndarray:
     """An object's ``size``: ``length`` numbers > 0, each at most :data:`MAX_SCENE_SPAN_M`."""
-    value = obj.get("size")
-    try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        array = np.zeros(0)
-    if array.shape != (length,) or not np.all((array > 0) & (array <= MAX_SCENE_SPAN_M)):
-        raise LivoxVizError(f"{where}: 'size' = {value!r}; allowed: {length} numbers > 0 and at most "
-                            f"{MAX_SCENE_SPAN_M:g} m")
-    return array
+    return _numbers(obj, "size", length, where, MAX_SCENE_SPAN_M, positive=True)
 
 
 def check_span(mesh: trimesh.Trimesh, where: str) -> None:
