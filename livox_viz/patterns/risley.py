@@ -16,21 +16,28 @@ step per sample and phi_j its phase at k = 0,
               R_{s,j} = exp(i w_j s L),        T_{j,d} = c_{laser(d),j} exp(i phi_j) exp(i w_j d).
 
 P is computed from k0 directly (not by recurrence, so nothing drifts however
-long the stream runs); R and T are made once. That is a (rows x J) by (J x L)
-product, a small GEMM, which BLAS does several times faster than the
-row-vector-times-table product it replaces; it runs under
-:func:`~livox_viz.core.blas.one_blas_thread`, as OpenBLAS would otherwise split
-it over threads that spin. A block is the sensor's frame when the frame splits
-into rows, so a frame is one product written straight into the chunk; a chunk
-that covers part of a block copies from the last block made, which is kept.
-Every sample is therefore computed by the same product however the stream is
-cut: bit for bit.
+long the stream runs); R and T are made once. Blocks start at fixed absolute
+sample indices (multiples of the block) and all have one shape, so a sample is
+always element (s, d) of the same product, however the stream is cut.
 
-Around the product a frame costs little more (issue 19: within 1.3 x the bare
-product's time): a stream read block after block makes the left sides P R of
-the next :data:`_BATCH` blocks in one numpy pass each (each block's P still from
-its own k0, the same arithmetic element by element), a block-sized chunk's
-arrays and views are made once and reused, and the chunk is filled in directly
+**The product is our own compiled loop, not BLAS** (issue 36). A BLAS GEMM's
+result for an element depends on how the library tiles and threads the
+product: OpenBLAS split a (40 x 10) by (10 x 250) product over two threads
+when called one way and not another, and on an AMD EPYC 4 537 of 60 000
+values of the same samples differed by an ulp depending on where the stream
+was cut (BLAS threads spin on products this small anyway). The loop
+:func:`_block_product` sums the terms of each element in one fixed order with
+plain IEEE multiplications and additions (no fused multiply-add, no
+reassociation: numba's default), so an element's value depends on its inputs
+alone: the same whatever the cut, the thread, the BLAS library or its kernel,
+and the vector width of the CPU. It runs at 0.7-1 x BLAS's speed (two rows at
+a time, each table element loaded once for both; ``benchmarks/bench_risley.py``).
+
+Around the product a frame costs little more: a stream read block after block
+makes the left sides P R of the next :data:`_BATCH` blocks in one numpy pass
+each (each block's P still from its own k0, the same arithmetic element by
+element), a block-sized chunk's arrays and views are made once and reused, and
+the chunk is filled in directly
 (:meth:`~livox_viz.patterns.stream.PatternChunk.from_stream`).
 """
 
@@ -42,7 +49,7 @@ import sys
 import numpy as np
 
 from livox_viz.config.sensor import SensorConfig
-from livox_viz.core.blas import one_blas_thread
+from livox_viz.core.compiled import LazyKernels
 from livox_viz.core.errors import ConfigError
 from livox_viz.patterns.stream import PatternChunk, PatternStream
 
@@ -55,9 +62,6 @@ _FRAME_BLOCK = 65_536
 _BATCH = 16
 #: The figure-8 rotations of every Risley chunk: none (one shared empty array, read-only).
 _NO_ROTATIONS = np.zeros(0)
-#: OpenBLAS multiplies on one thread anyway when m x n x k is at most this (its GEMM_MULTITHREAD_THRESHOLD of 4 x
-#: 65 536, interface/gemm.c): a frame's product that small is not pinned (a pin costs 2.5 us of a 30 us frame).
-_ONE_THREAD_ANYWAY = 4 * 65536
 _NO_ROTATIONS.flags.writeable = False
 
 
@@ -111,8 +115,10 @@ class RisleyPattern(PatternStream):
         laser = np.arange(row) % params.lasers
         # The terms' phases at k = 0 go into the table too: a block's phasors are then exp(2 pi i frac(w k)).
         start_phasors = np.exp(1j * params.term_phase)[:, None]
-        self._table = np.ascontiguousarray(params.coefficients[laser].T * start_phasors
-                                           * np.exp(2j * np.pi * np.mod(cycles, 1.0)))
+        table = params.coefficients[laser].T * start_phasors * np.exp(2j * np.pi * np.mod(cycles, 1.0))
+        #: T of the block product, ``(J, row)`` complex128, and its real and imaginary parts as the loop reads them.
+        self._table = np.ascontiguousarray(table)
+        self._table_re, self._table_im = np.ascontiguousarray(table.real), np.ascontiguousarray(table.imag)
         advance = (np.arange(rows, dtype=np.float64) * row)[:, None] * self._cycles_per_sample[None, :]
         self._row_steps = np.exp(2j * np.pi * np.mod(advance, 1.0))
         # The left-hand sides (row_steps * phasors) of up to _BATCH blocks in a row, made together.
@@ -126,8 +132,7 @@ class RisleyPattern(PatternStream):
         # The blocks held: from sample _held_first, _held of them (none yet; block 0 then starts a batch).
         self._held_first, self._held = 0, 0
         self._frames = _FrameBuffers(rows, row)
-        #: Whether a block's product needs BLAS pinned to one thread (larger than OpenBLAS multiplies alone).
-        self._pin = rows * row * terms > _ONE_THREAD_ANYWAY
+        self._product = _KERNELS("block_product")
         self._kept = (-1, np.empty((rows, row), dtype=np.complex128))
         self._position = 0
 
@@ -138,22 +143,17 @@ class RisleyPattern(PatternStream):
             out, xy = self._frames.get()
             index = (start - self._held_first) // block  # _left_side's first lines, spelled out: a call costs
             left = self._left_sides[index] if 0 <= index < self._held else self._left_side(start)
-            if self._pin:
-                with one_blas_thread():
-                    np.matmul(left, self._table, out=out)
-            else:
-                np.matmul(left, self._table, out=out)
+            self._product(left, self._table_re, self._table_im, out)
             return PatternChunk.from_stream(self.config, start, xy, _NO_ROTATIONS)
         path = self._path_buffer(count)
         stop = start + count
-        with one_blas_thread():  # once for the chunk: the blocks are made under it
-            for first in range(start - start % block, stop, block):
-                if first >= start and first + block <= stop:
-                    out = path[first - start : first - start + block].reshape(self._rows, self._row)
-                    np.matmul(self._left_side(first), self._table, out=out)
-                    continue
-                low, high = max(first, start), min(first + block, stop)
-                path[low - start : high - start] = self._kept_block(first).ravel()[low - first : high - first]
+        for first in range(start - start % block, stop, block):
+            if first >= start and first + block <= stop:
+                out = path[first - start : first - start + block].reshape(self._rows, self._row)
+                self._product(self._left_side(first), self._table_re, self._table_im, out)
+                continue
+            low, high = max(first, start), min(first + block, stop)
+            path[low - start : high - start] = self._kept_block(first).ravel()[low - first : high - first]
         return PatternChunk.from_stream(self.config, start, path.view(np.float64).reshape(count, 2), _NO_ROTATIONS)
 
     def _left_side(self, first: int) -> np.ndarray:
@@ -178,10 +178,9 @@ class RisleyPattern(PatternStream):
         return self._left_sides[0]
 
     def _kept_block(self, first: int) -> np.ndarray:
-        """The block starting at sample ``first``, made once and kept until another is asked for (the caller
-        holds one BLAS thread)."""
+        """The block starting at sample ``first``, made once and kept until another is asked for."""
         if self._kept[0] != first:
-            np.matmul(self._left_side(first), self._table, out=self._kept[1])
+            self._product(self._left_side(first), self._table_re, self._table_im, self._kept[1])
             self._kept = (first, self._kept[1])
         return self._kept[1]
 
@@ -232,6 +231,63 @@ def _unheld_refcounts() -> tuple[int, int]:
 
 
 _UNHELD_BUFFER, _UNHELD_VIEW = _unheld_refcounts()
+
+
+def _block_product(left: np.ndarray, table_re: np.ndarray, table_im: np.ndarray, out: np.ndarray) -> None:
+    """``out = left @ table`` for one block, each element's terms summed in order j = 0 .. J-1 (compiled).
+
+    Every element is ``sum_j (a_j t_j - b_j u_j) + i (a_j u_j + b_j t_j)`` (a + ib from ``left``, t + iu from
+    the table) in plain IEEE arithmetic, accumulated from 0 in term order, so its value depends on its inputs
+    alone, never on where the element sits in the block, the vector width, or a library's tiling. Rows go two
+    at a time: each table element is loaded once for both.
+
+    Parameters
+    ----------
+    left : (rows, J) complex128
+        The block's left side, P R.
+    table_re, table_im : (J, row) float64
+        The real and imaginary parts of T.
+    out : (rows, row) complex128
+        Written: the block's points, x + iy in degrees.
+    """
+    rows, terms = left.shape
+    row = table_re.shape[1]
+    x0 = np.empty(row)
+    y0 = np.empty(row)
+    x1 = np.empty(row)
+    y1 = np.empty(row)
+    for s in range(0, rows - 1, 2):
+        x0[:] = 0.0
+        y0[:] = 0.0
+        x1[:] = 0.0
+        y1[:] = 0.0
+        for j in range(terms):
+            a0, b0 = left[s, j].real, left[s, j].imag
+            a1, b1 = left[s + 1, j].real, left[s + 1, j].imag
+            for d in range(row):
+                t, u = table_re[j, d], table_im[j, d]
+                x0[d] += a0 * t - b0 * u
+                y0[d] += a0 * u + b0 * t
+                x1[d] += a1 * t - b1 * u
+                y1[d] += a1 * u + b1 * t
+        for d in range(row):
+            out[s, d] = complex(x0[d], y0[d])
+            out[s + 1, d] = complex(x1[d], y1[d])
+    if rows % 2:
+        s = rows - 1
+        x0[:] = 0.0
+        y0[:] = 0.0
+        for j in range(terms):
+            a0, b0 = left[s, j].real, left[s, j].imag
+            for d in range(row):
+                t, u = table_re[j, d], table_im[j, d]
+                x0[d] += a0 * t - b0 * u
+                y0[d] += a0 * u + b0 * t
+        for d in range(row):
+            out[s, d] = complex(x0[d], y0[d])
+
+
+_KERNELS = LazyKernels(globals())
 
 
 def risley_xy(params, t: np.ndarray, laser: np.ndarray | None = None) -> np.ndarray:
