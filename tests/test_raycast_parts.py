@@ -193,6 +193,11 @@ def test_each_ray_is_measured_from_its_own_origin_whatever_their_number(box: tri
     origins = np.column_stack([start, np.linspace(-0.5, 0.5, count), np.zeros(count)])
     directions = np.tile([1.0, 0.0, 0.0], (count, 1))
     distance, triangle = caster.hits(origins, directions, 100.0)
-    np.testing.assert_allclose(distance, -1.0 - start, rtol=1e-12)
+    expected = -1.0 - start
+    # The plane's distance is float64 arithmetic; Embree's is float32 in the box's own frame, whose coordinates
+    # here reach |x| = 2 + count: its t is good to a few float32 ulps of that (1.2e-7 relative each), so 4 ulps of
+    # the largest coordinate. Measured from another ray's origin the error is >= 1 m.
+    rtol, atol = (1e-12, 0.0) if exact else (0.0, 4 * float(np.spacing(np.float32(np.abs(start).max()))))
+    np.testing.assert_allclose(distance, expected, rtol=rtol, atol=atol)
     assert np.all(triangle >= 0)
-    np.testing.assert_allclose(caster.distances(origins, directions, 100.0), -1.0 - start, rtol=1e-12)
+    np.testing.assert_allclose(caster.distances(origins, directions, 100.0), expected, rtol=rtol, atol=atol)
