@@ -17,22 +17,70 @@ from pathlib import Path
 import numpy as np
 
 BASELINES = Path(__file__).parent / "baselines"
-VIEWS = ("pattern", "scene")
-#: What the baselines show: the default preset in the urban scene, 0.5 s of scan, 480 x 360 pixels.
+#: Each baseline: the preset and the view it shows, one per family of pattern (the rosette, a Risley track, a wide
+#: track band, a 360-degree panorama) and the scene, in the urban scene after 0.5 s of scan, 480 x 360 pixels.
+VIEWS: dict[str, tuple[str, str]] = {
+    "pattern": ("livox_mid70", "pattern"), "scene": ("livox_mid70", "scene"),
+    "risley": ("livox_mid70_risley", "pattern"), "band": ("livox_horizon", "pattern"),
+    "panorama": ("livox_mid360", "pattern"),
+}
 SCAN_SECONDS = 0.5
 SIZE = (480, 360)
 
 
 def render_view(view: str, out: Path, scene=None) -> Path:
-    """Render one view exactly as its baseline was rendered."""
+    """Render one baseline's picture (a key of :data:`VIEWS`) exactly as it was rendered."""
     from livox_viz.widgets.app import render_offscreen
     from livox_viz.widgets.session import Session
 
     from livox_viz import load_preset
     from livox_viz.scene.scenes import open_scene
 
-    session = Session(load_preset("livox_mid70"), scene or open_scene("urban"), seed=0, preset_name="livox_mid70")
-    return render_offscreen(session, SCAN_SECONDS, out, views=view, size=SIZE)
+    preset, shown = VIEWS[view]
+    session = Session(load_preset(preset), scene or open_scene("urban"), seed=0, preset_name=preset)
+    return render_offscreen(session, SCAN_SECONDS, out, views=shown, size=SIZE)
+
+
+#: The panel's baseline: the window's parameter dock for the default preset, in a 1600 x 900 window.
+PANEL = "panel"
+
+
+def grab_panel(window, out: Path) -> Path:
+    """Save the window's parameter dock as drawn (Qt's own grab of the widget)."""
+    window.dock.widget().grab().toImage().save(str(out))
+    return out
+
+
+_PANEL_SCRIPT = """
+import sys
+from livox_viz.widgets.mainwindow import MainWindow, application
+from livox_viz.widgets.session import Session
+from livox_viz import load_preset
+from livox_viz.scene.scenes import open_scene
+from tests.baseline_images import grab_panel
+app = application()
+window = MainWindow(Session(load_preset("livox_mid70"), open_scene("urban"), preset_name="livox_mid70"),
+                    size=(1600, 900), warm=False)
+window.show()
+for _ in range(20):
+    app.processEvents()
+grab_panel(window, sys.argv[1])
+window.close()
+"""
+
+
+def render_panel(out: Path) -> Path:
+    """Render the panel's baseline in a child process on a private X server."""
+    import os
+    import subprocess
+
+    from tests.xserver import private_display
+
+    with private_display("1920x1200x24") as display:
+        env = {**os.environ, "DISPLAY": display, "QT_QPA_PLATFORM": "xcb"}
+        subprocess.run([sys.executable, "-c", _PANEL_SCRIPT, str(out)], env=env, check=True,
+                       cwd=Path(__file__).resolve().parent.parent)
+    return out
 
 
 def read_image(path: Path) -> np.ndarray:
@@ -55,7 +103,10 @@ def update(views: list[str]) -> None:
     for view in views:
         target = BASELINES / f"{view}.png"
         before = read_image(target) if target.exists() else None
-        render_view(view, target)
+        if view == PANEL:
+            render_panel(target)
+        else:
+            render_view(view, target)
         after = read_image(target)
         change = "new" if before is None else f"{100 * changed_fraction(before, after):.2f} % of the pixels changed"
         print(f"{target}: {change}")
@@ -63,8 +114,9 @@ def update(views: list[str]) -> None:
 
 
 if __name__ == "__main__":
-    chosen = sys.argv[1:] or list(VIEWS)
-    unknown = sorted(set(chosen) - set(VIEWS))
+    known = [*VIEWS, PANEL]
+    chosen = sys.argv[1:] or known
+    unknown = sorted(set(chosen) - set(known))
     if unknown:
-        sys.exit(f"unknown view {', '.join(unknown)}; allowed: {', '.join(VIEWS)}")
+        sys.exit(f"unknown view {', '.join(unknown)}; allowed: {', '.join(known)}")
     update(chosen)

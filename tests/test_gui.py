@@ -1,4 +1,4 @@
-"""The GUI, off-screen with small windows: sliders, playback, window, files, images."""
+"""The window's controller and views, off-screen with small pictures: parameters, playback, files, images."""
 
 from __future__ import annotations
 
@@ -16,18 +16,18 @@ import pytest
 pv = pytest.importorskip("pyvista")
 
 from livox_viz.widgets.app import LivoxVizApp, render_offscreen  # noqa: E402
-from livox_viz.widgets.controls import PATTERN_SLIDERS, SENSOR_SLIDERS, slider_range  # noqa: E402
-from livox_viz.widgets.keys import KEYS  # noqa: E402
+from livox_viz.widgets.controls import FRAME_PARAMS, PATTERN_PARAMS  # noqa: E402
 from livox_viz.widgets.overlay import WINDOWS, TableSource  # noqa: E402
 from livox_viz.widgets.session import Session  # noqa: E402
 
 from livox_viz import PARAM_RANGES, SensorConfig, load_preset  # noqa: E402
+from livox_viz.config.param_docs import value_bounds  # noqa: E402
 from livox_viz.scene.materials import face_materials  # noqa: E402
 from livox_viz.scene.scenes import open_scene  # noqa: E402
 
 from .xserver import private_display, x_tools  # noqa: E402
 
-ROSETTE_SLIDERS = PATTERN_SLIDERS["rflysim"]
+ROSETTE_PARAMS = PATTERN_PARAMS["rflysim"]
 
 BASELINES = Path(__file__).parent / "baselines"
 SIZE = (640, 360)
@@ -53,8 +53,8 @@ NEW_VALUES = {
 }
 
 
-@pytest.mark.parametrize("name", [n for n, _ in ROSETTE_SLIDERS + SENSOR_SLIDERS])
-def test_each_slider_changes_config_and_points(app: LivoxVizApp, name: str) -> None:
+@pytest.mark.parametrize("name", ROSETTE_PARAMS + FRAME_PARAMS)
+def test_each_parameter_changes_config_and_points(app: LivoxVizApp, name: str) -> None:
     session = app.session
     session.advance_to(0.2)
     before = session.pattern_ring.ordered(session.pattern_ring.positions).copy()
@@ -71,7 +71,6 @@ def test_each_slider_changes_config_and_points(app: LivoxVizApp, name: str) -> N
         assert after.shape != before.shape or not np.allclose(after, before)
     radius = np.hypot(after[:, 0], after[:, 1]).max()
     assert radius <= session.config.half_fov_deg + 1e-4
-    assert app.sliders.value(name) == pytest.approx(NEW_VALUES[name])
 
 
 def test_fov_slider_moves_the_drawn_points(app: LivoxVizApp) -> None:
@@ -82,24 +81,22 @@ def test_fov_slider_moves_the_drawn_points(app: LivoxVizApp) -> None:
     assert max(abs(bounds[0]), abs(bounds[1]), abs(bounds[2]), abs(bounds[3])) == pytest.approx(15.0, abs=0.05)
 
 
-def test_integer_sliders_snap(app: LivoxVizApp) -> None:
+def test_integer_parameters_snap(app: LivoxVizApp) -> None:
     app.on_param("figure8_per_flower", 6.4)
     assert app.session.config.figure8_per_flower == 6
-    assert app.sliders.value("figure8_per_flower") == 6
 
 
 @pytest.mark.parametrize(("name", "value"), [("camera_fov", 500.0), ("data_width", -3.0), ("petal_height", np.nan)])
-def test_slider_past_its_end_shows_a_message(app: LivoxVizApp, name: str, value: float) -> None:
+def test_a_value_past_its_end_shows_a_message(app: LivoxVizApp, name: str, value: float) -> None:
     config = app.session.config
-    app.on_param(name, value)
+    assert not app.on_param(name, value)
     assert app.session.config == config
     assert PARAM_RANGES[name].name in app.session.message and "allowed" in app.session.message
-    assert app.sliders.value(name) == pytest.approx(config.param_value(name))
 
 
-def test_slider_ranges_are_the_validated_ranges() -> None:
-    for name, _ in ROSETTE_SLIDERS + PATTERN_SLIDERS["risley"] + SENSOR_SLIDERS:
-        low, high = slider_range(name)
+def test_control_ranges_are_the_validated_ranges() -> None:
+    for name in ROSETTE_PARAMS + PATTERN_PARAMS["risley"] + PATTERN_PARAMS["track"] + FRAME_PARAMS:
+        low, high = value_bounds(name)
         assert PARAM_RANGES[name].contains(low) and PARAM_RANGES[name].contains(high)
 
 
@@ -201,13 +198,13 @@ def test_read_only_screenshot_folder_keeps_running(app: LivoxVizApp, tmp_path: P
         for target in (read_only, not_a_folder):
             app.session.message = ""
             app.screenshot_dir = target
-            app._guarded(app.save_screenshot)()
+            app.guarded(app.save_screenshot)
             messages[target] = app.session.message
             assert str(target) in messages[target]
         assert "read-only" in messages[read_only]
         # The s key's writer thread says why too, rather than "saving" for ever.
         app.screenshot_dir = read_only
-        app._guarded(app.take_screenshot)()
+        app.guarded(app.take_screenshot)
         app._writer.shutdown(wait=True)
         assert app.session.message.startswith("screenshot not saved") and "read-only" in app.session.message
         assert list(read_only.iterdir()) == [] and not_a_folder.read_text() == "a file where the folder should be"
@@ -229,7 +226,7 @@ def test_preset_save_and_cycle(app: LivoxVizApp, user_presets: Path) -> None:
     seen = []
     for _ in range(len(names)):
         before = app.session.config
-        app._guarded(app.next_preset)()
+        app.guarded(app.next_preset)
         seen.append((app.session.preset_name, app.session.message, app.session.config == before))
     broken = [entry for entry in seen if "zz_broken" in entry[1]]
     # The broken preset leaves the configuration as it was and says which file and why.
@@ -255,7 +252,7 @@ def _image(path: Path) -> np.ndarray:
 CHANGED_LIMIT = 0.002
 
 
-@pytest.mark.parametrize("view", ["pattern", "scene"])
+@pytest.mark.parametrize("view", ["pattern", "scene", "risley", "band", "panorama"])
 def test_image_regression(urban, tmp_path: Path, view: str) -> None:
     """Compares only; the baselines are renewed by their own step (tests/baseline_images.py)."""
     from tests.baseline_images import render_view
@@ -272,17 +269,16 @@ def test_image_regression_sees_a_missing_vehicle(urban, tmp_path: Path) -> None:
     """The comparison fails when the vehicle, the FOV cone and the sensor are not drawn."""
     session = Session(load_preset("livox_mid70"), urban, seed=0, preset_name="livox_mid70")
     app = LivoxVizApp(session, off_screen=True, window_size=(480, 360), views="scene")
+    plotter = app.plotters["scene"]
     try:
         # Numbers before pictures: the actors sit where the pose says.
         sensor = session.sensor_pose.origin
-        centre = np.array(app.plotter.actors["sensor"].GetCenter())
+        centre = np.array(plotter.actors["sensor"].GetCenter())
         np.testing.assert_allclose(centre, sensor * [1, -1, -1], atol=1e-6)
         for name in ("vehicle", "fov-cone", "sensor"):
-            app.plotter.actors[name].SetVisibility(False)
+            plotter.actors[name].SetVisibility(False)
         session.advance_to(0.5)
-        app.refresh()
-        app.render()
-        image = np.asarray(app.plotter.screenshot(None, return_img=True))[..., :3]
+        image = app.current_image()
     finally:
         app.close()
     assert _changed_fraction(image, _image(BASELINES / "scene.png")) > CHANGED_LIMIT
@@ -305,8 +301,9 @@ def test_a_new_mount_moves_the_drawn_sensor(app: LivoxVizApp, tmp_path: Path, se
         (2.0, 0.0, -3.0))).origin
     np.testing.assert_allclose(app.session.sensor_pose.origin, expected, atol=1e-12)
     to_display = np.array([1, -1, -1])
-    np.testing.assert_allclose(app.plotter.actors["sensor"].GetCenter(), expected * to_display, atol=1e-6)
-    cone = app.plotter.actors["fov-cone"]
+    actors = app.plotters["scene"].actors
+    np.testing.assert_allclose(actors["sensor"].GetCenter(), expected * to_display, atol=1e-6)
+    cone = actors["fov-cone"]
     apex = np.array(cone.user_matrix) @ [0.0, 0.0, 0.0, 1.0]
     np.testing.assert_allclose(apex[:3], expected * to_display, atol=1e-9)  # the cone starts at the sensor
     assert np.linalg.norm(np.asarray(cone.GetMapper().GetInput().points), axis=1).max() == pytest.approx(1.6)
@@ -350,21 +347,28 @@ def _real_window(tmp_path: Path, xdotool: str, display: str) -> None:
     try:
         gui = subprocess.Popen([sys.executable, "-m", "livox_viz", "gui", "--size", "1200x700"], cwd=tmp_path,
                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        window = subprocess.run([xdotool, "search", "--sync", "--onlyvisible", "--name", "livox-viz"], env=env,
+        window = subprocess.run([xdotool, "search", "--sync", "--onlyvisible", "--name", "^livox-viz - "], env=env,
                                 capture_output=True, text=True, timeout=60).stdout.split()
         assert window, "the livox-viz window did not appear"
+        title = subprocess.run([xdotool, "getwindowname", window[0]], env=env, capture_output=True, text=True,
+                               timeout=10).stdout.strip()
+        assert title == "livox-viz - livox_mid70"
+        # No window manager here: give the window the keyboard, then type as a user does (XTEST).
+        subprocess.run([xdotool, "windowfocus", "--sync", window[0]], env=env, check=True, timeout=10)
         time.sleep(2.0)
-        # e is also VTK's own "exit" key: the window must stay (the screenshot after it proves it).
-        for key in ("space", "space", "Right", "c", "e", "s", "p"):
-            subprocess.run([xdotool, "key", "--window", window[0], key], env=env, check=True, timeout=10)
+        # e and q are also VTK's own keys, 3 its stereo: the window stays (the screenshot after them proves it).
+        for key in ("space", "space", "3", "Right", "c", "e", "s", "p"):
+            subprocess.run([xdotool, "key", key], env=env, check=True, timeout=10)
             time.sleep(0.5)
-        subprocess.run([xdotool, "key", "--window", window[0], "q"], env=env, check=True, timeout=10)
+        time.sleep(1.0)
+        subprocess.run([xdotool, "key", "q"], env=env, check=True, timeout=10)
         out, err = gui.communicate(timeout=60)
         assert gui.returncode == 0, err
         shots = list((tmp_path / "screenshots").glob("livox-viz-*.png"))
         assert len(shots) == 1 and shots[0].with_suffix(".json").exists()
         sidecar = json.loads(shots[0].with_suffix(".json").read_text())
-        assert sidecar["reference"] == "livox_avia"  # e picked the first preset with a track (in the same plane)
+        # Right paused the scan; c moved the colouring on from time.
+        assert sidecar["paused"] and sidecar["pattern_colour"] == "figure-8"
         assert len(list((tmp_path / "presets").glob("*.json"))) == 1
     finally:
         gui = locals().get("gui")
@@ -378,7 +382,7 @@ def test_reference_overlay_plays_in_step(app: LivoxVizApp) -> None:
     from livox_viz.fitting.reference import ReferencePattern
 
     session = app.session
-    app._guarded(app.toggle_reference)()
+    app.guarded(app.toggle_reference)
     assert "no reference" in session.message
     xy = ScanPattern(session.config, seed=0).take(200_000).xy_deg
     session.overlay.set_source(TableSource(ReferencePattern("same", xy, np.arange(len(xy)) / 1e5, 1e5)), 0.0)
@@ -458,8 +462,12 @@ def test_density_image_follows_the_window(app: LivoxVizApp) -> None:
     assert max(marks.values()) <= table.scalar_range[1] + 1e-9
     session.display.drawing = "auto"
     app.refresh()
-    assert not bar.GetDrawAnnotations() and bar.GetNumberOfLabels() == 5
     assert app.pattern_view.actor.GetVisibility()  # 10 000 points < the view's pixels
+    # Back to the points' time colours: the bar is marked with the window's own start and end.
+    assert bar.GetLookupTable() is app.pattern_view.actor.mapper.lookup_table
+    table = bar.GetLookupTable()
+    marks = sorted(table.GetAnnotatedValue(k).ToFloat() for k in range(table.GetNumberOfAnnotatedValues()))
+    assert marks[0] == pytest.approx(0.16) and marks[-1] == pytest.approx(0.26)
 
 
 def test_scene_cycle_survives_a_broken_mesh(app: LivoxVizApp, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -475,7 +483,7 @@ def test_scene_cycle_survives_a_broken_mesh(app: LivoxVizApp, tmp_path: Path, mo
     session.scene_options = {"up": "z", "reflectance": 0.9}  # the window's --reflectance
     seen = []
     for _ in range(6):
-        app._guarded(app.cycle_scene)()
+        app.guarded(app.cycle_scene)
         seen.append((session.scene.name, session.message))
         if session.scene.name == "b_box.obj":
             assert np.all(face_materials(session.scene.mesh)[0] == 0.9)
@@ -489,29 +497,27 @@ def test_scene_cycle_survives_a_broken_mesh(app: LivoxVizApp, tmp_path: Path, mo
     assert app.scene_view.scene_actor.GetMapper().GetInput().n_cells == len(session.scene.mesh.faces)
 
 
-def test_risley_preset_sliders_and_model_switch(app: LivoxVizApp) -> None:
+def test_risley_preset_parameters_and_model_switch(app: LivoxVizApp) -> None:
     session = app.session
-    app._guarded(app.toggle_pattern_model)()
+    app.guarded(app.toggle_pattern_model)
     assert "no Risley track" in session.message and session.config.pattern_model == "rflysim"
     session.set_config(load_preset("livox_mid70_risley"), "livox_mid70_risley")
-    shown = app.sliders.param_widgets()
-    assert {"prism_rpm_a", "deflection_b", "laser_spacing"} <= set(shown) and "petal_height" not in shown
-    assert app.sliders.value("prism_rpm_a") == pytest.approx(4664.0)
+    assert session.config.param_value("prism_rpm_a") == pytest.approx(4664.0)
     assert session.display.step_unit == "frame"
     session.advance_to(0.1)
     reach = np.hypot(*session.pattern_ring.ordered(session.pattern_ring.positions)[:, :2].T).max()
     app.on_param("deflection_a", 8.0)
-    assert session.config.risley.deflection_deg[0] == 8.0 and app.sliders.value("deflection_a") == 8.0
+    assert session.config.risley.deflection_deg[0] == 8.0
     session.advance_to(0.1)
     smaller = np.hypot(*session.pattern_ring.ordered(session.pattern_ring.positions)[:, :2].T).max()
     assert smaller < reach - 8.0  # the outer rim moved in with prism A's deflection
     app.toggle_pattern_model()
-    assert session.config.pattern_model == "rflysim" and "petal_height" in app.sliders.param_widgets()
+    assert session.config.pattern_model == "rflysim"
     app.toggle_pattern_model()
     assert session.config.pattern_model == "risley" and session.config.risley.deflection_deg[0] == 8.0
 
 
-def test_charts_follow_the_sliders_and_the_reference(app: LivoxVizApp) -> None:
+def test_charts_follow_the_parameters_and_the_reference(app: LivoxVizApp) -> None:
     from livox_viz.widgets.overlay import PresetSource
 
     from livox_viz.patterns.metrics import config_curves
@@ -538,7 +544,7 @@ def test_charts_follow_the_sliders_and_the_reference(app: LivoxVizApp) -> None:
     assert not np.allclose(before, after)
 
 
-def test_fit_key_moves_the_sliders_to_the_reference(app: LivoxVizApp) -> None:
+def test_fit_key_moves_the_parameters_to_the_reference(app: LivoxVizApp) -> None:
     from livox_viz import ScanPattern
     from livox_viz.fitting.reference import ReferencePattern
 
@@ -546,16 +552,15 @@ def test_fit_key_moves_the_sliders_to_the_reference(app: LivoxVizApp) -> None:
     truth = session.config.with_param("petal_height", 4.0).with_param("spacing_exponent", 1.7)
     xy = ScanPattern(truth, seed=3).take(150_000).xy_deg
     session.overlay.set_source(TableSource(ReferencePattern("truth", xy, np.arange(len(xy)) / 1e5, 1e5)), 0.0)
-    app._guarded(app.fit_to_reference)()
+    app.guarded(app.fit_to_reference)
     assert "fitting the rosette to truth" in session.message  # on a worker: the window plays on
-    app._guarded(app.fit_to_reference)()
+    app.guarded(app.fit_to_reference)
     assert "fitting to truth already" in session.message
     app.tick()
     assert app.finish_fit()
     assert "fitted to truth" in session.message
     assert session.config.petal_height == pytest.approx(4.0, abs=1e-3)
-    assert app.sliders.value("petal_height") == pytest.approx(session.config.petal_height)
-    assert app.sliders.value("spacing_exponent") == pytest.approx(1.7, abs=1e-3)
+    assert session.config.spacing_exponent == pytest.approx(1.7, abs=1e-3)
 
 
 def test_a_moving_vehicle_is_followed_and_its_cloud_frame_switches(urban) -> None:
@@ -568,12 +573,13 @@ def test_a_moving_vehicle_is_followed_and_its_cloud_frame_switches(urban) -> Non
         camera_before = np.array(app.scene_view.renderer.camera.position)
         session.advance_to(1.0)
         app.refresh()
-        moved = np.array(app.plotter.actors["vehicle"].user_matrix)[:3, 3]
+        actors = app.plotters["scene"].actors
+        moved = np.array(actors["vehicle"].user_matrix)[:3, 3]
         expected = trajectory.pose_at(1.0).origin * [1, -1, -1]
         np.testing.assert_allclose(moved, expected, atol=1e-9)
         np.testing.assert_allclose(np.array(app.scene_view.renderer.camera.position) - camera_before,
                                    expected - urban.vehicle_pose.origin * [1, -1, -1], atol=1e-9)
-        assert "path" in app.plotter.actors
+        assert "path" in actors
         world = session.scene_ring.ordered(session.scene_ring.positions).copy()
         app.toggle_cloud_frame()
         assert session.display.cloud_frame == "sensor" and session.scan_time == pytest.approx(1.0)
@@ -608,25 +614,184 @@ def test_the_window_and_render_start_as_their_command_lines_say(tmp_path: Path) 
     np.testing.assert_array_equal(session.scene_ring.scalars[live], session.scene_ring.reflectivity[live])
 
 
-@pytest.mark.parametrize("size", [(640, 360), (1600, 900)])
-def test_the_help_overlay_fits_inside_the_pattern_view(urban, size: tuple[int, int]) -> None:
-    """Every key's line shows: the overlay lies within its view, below the state lines, at any window size (at a
-    fixed font it ran above a 1600 x 900 window's top and past the view's right edge)."""
-    session = Session(load_preset("livox_mid70"), urban, seed=0, preset_name="livox_mid70")
-    application = LivoxVizApp(session, off_screen=True, window_size=size)
+# Honest drawing, picking, exports (issue 31) ----------------------------------------------------------
+def test_a_scene_pick_returns_the_values_stored_for_the_point_and_two_picks_their_distance(app: LivoxVizApp) -> None:
+    from livox_viz.casting.scan import MountedCaster
+    from livox_viz.patterns.factory import make_pattern
+
+    session = app.session
+    session.advance_to(0.3)
+    app.refresh()
+    app.render(every=True)
+    renderer = app.scene_view.renderer
+    ring = session.scene_ring
+    # The frames themselves, cast again: what a pick must give back for a point is in their arrays.
+    frame = MountedCaster(session.config, session.caster, session.vehicle_pose, None, 0).cast(
+        make_pattern(session.config, 0).take(30_000))
+    picked = []
+    for slot in ring.live_slots()[:: max(1, ring.count // 40)]:
+        world = np.append(ring.positions[slot].astype(float) * [1, -1, -1], 1.0)  # NED to the display's z-up
+        renderer.SetWorldPoint(*world)
+        renderer.WorldToDisplay()
+        x, y, _ = renderer.GetDisplayPoint()
+        width, height = renderer.GetSize()
+        if not (5 < x < width - 5 and 5 < y < height - 5):
+            continue
+        found = app.pick_scene(x, y)
+        if found is None:
+            continue
+        index = int(np.flatnonzero(frame.t == found["t_s"])[0])  # the pulse it came from (one return each)
+        assert found["range_m"] == pytest.approx(frame.range_m[index], rel=1e-6)
+        np.testing.assert_allclose(found["xyz_sensor"], frame.xyz_decoded[index], atol=1e-5)
+        decoded = frame.xyz_decoded[index]
+        assert found["azimuth_deg"] == pytest.approx(math.degrees(math.atan2(decoded[1], decoded[0])), abs=1e-4)
+        assert found["elevation_deg"] == pytest.approx(
+            math.degrees(math.atan2(-decoded[2], math.hypot(decoded[0], decoded[1]))), abs=1e-4)
+        assert found["reflectivity"] == frame.reflectivity[index] and found["tag"] == frame.tag[index]
+        assert found["return_number"] == frame.return_number[index]
+        assert found["frame"] == index // session.config.points_per_frame
+        picked.append(found)
+        if len(picked) >= 2:
+            break
+    assert len(picked) == 2
+    distance = float(np.linalg.norm(np.subtract(picked[1]["xyz_world"], picked[0]["xyz_world"])))
+    assert picked[1]["distance_m"] == pytest.approx(distance) and f"{distance:.3f} m" in app.pick_text
+    assert "picks" in app.plotters["scene"].actors
+    # A click where no point is picks nothing, and says so.
+    session.restart()
+    app.refresh()
+    assert app.pick_scene(x, y) is None and "no point" in app.pick_text
+
+
+def test_a_pattern_pick_gives_the_angles_and_time_of_the_nearest_sample(app: LivoxVizApp) -> None:
+    session = app.session
+    session.advance_to(0.2)
+    app.refresh()
+    app.render(every=True)
+    renderer = app.pattern_view.renderer
+    ring = session.pattern_ring
+    slot = ring.live_slots()[1234]
+    renderer.SetWorldPoint(float(ring.positions[slot, 0]), float(ring.positions[slot, 1]), 0.0, 1.0)
+    renderer.WorldToDisplay()
+    x, y, _ = renderer.GetDisplayPoint()
+    found = app.pick_pattern(x, y)
+    xy = ring.positions[ring.live_slots(), :2].astype(float)
+    nearest = np.argmin(np.hypot(xy[:, 0] - found["x_deg"], xy[:, 1] - found["y_deg"]))
+    assert found["distance_deg"] < 0.5  # within a pixel or two of the sample
+    assert found["t_s"] == ring.times[ring.live_slots()[nearest]]
+    assert found["t_s"] == pytest.approx(found["index"] / session.config.point_rate)
+
+
+def test_the_windows_cloud_exports_as_scan_writes_it(app: LivoxVizApp, tmp_path: Path) -> None:
+    """File > Export: the window's points again, by scan's writers, read back with plyfile."""
+    from livox_viz.widgets.files import window_export
+    from plyfile import PlyData
+
+    session = app.session
+    session.advance_to(0.8)
+    written = window_export(session, tmp_path / "window.ply")()
+    ring = session.scene_ring
+    assert written == ring.count
+    vertices = PlyData.read(str(tmp_path / "window.ply"))["vertex"]
+    exported = np.column_stack([vertices["x"], vertices["y"], vertices["z"]])
+    np.testing.assert_allclose(exported, ring.ordered(ring.positions), atol=2e-3)  # the window's float32 copy
+    np.testing.assert_array_equal(vertices["reflectivity"], ring.ordered(ring.reflectivity))
+
+
+def test_time_bars_show_their_own_start_and_end_with_distinct_marks() -> None:
+    from livox_viz.widgets.views import time_marks
+
+    for low, high in ((105.5, 106.0), (0.0, 0.5), (1234.9, 1235.0), (0.0, 10.0), (99.99, 100.0)):
+        marks = time_marks(low, high)
+        texts = list(marks.values())
+        assert min(marks) == low and max(marks) == high
+        assert len(set(texts)) == len(texts) >= 2, marks  # the old bar read "106" on every tick
+        assert all(float(text) == pytest.approx(value, abs=10 ** -len(text.split(".")[-1]))
+                   for value, text in marks.items())
+
+
+@pytest.mark.parametrize(("mode", "count"), [("petal", 20), ("figure-8", 10), ("flower", 5), ("arc", 4)])
+def test_categorical_colourings_get_a_legend_of_categories(app: LivoxVizApp, mode: str, count: int) -> None:
+    app.session.advance_to(0.3)
+    app.set_pattern_colour(mode)
+    app.refresh()
+    bar, table = app.pattern_view.scalar_bar, app.pattern_view.actor.mapper.lookup_table
+    assert bar.GetDrawAnnotations() and bar.GetNumberOfLabels() == 0
+    assert table.n_values == count and table.scalar_range == (-0.5, count - 0.5)
+    colours = {tuple(table.values[k]) for k in range(count)}
+    assert len(colours) == count  # distinct colours, not a ramp's neighbours
+    names = [table.GetAnnotation(k) for k in range(table.GetNumberOfAnnotatedValues())]
+    assert names[0].startswith(mode if mode != "arc" else "1 ") and len(names) <= 12
+    values = app.session.pattern_ring.scalars[app.session.pattern_ring.live_slots()]
+    assert set(np.unique(values)) <= set(range(count))
+
+
+def test_reflectivity_under_ideal_returns_says_why_it_is_one_colour(app: LivoxVizApp) -> None:
+    app.session.advance_to(0.2)
+    app.set_scene_colour("reflectivity")
+    app.refresh()
+    assert "ideal returns carry no intensity" in app.hud.scene_state.GetText(2)
+    app.set_returns_model("datasheet")
+    app.refresh()
+    assert "no intensity" not in app.hud.scene_state.GetText(2)
+
+
+def test_skipped_points_and_thinned_clouds_are_said(app: LivoxVizApp) -> None:
+    """A tick too far behind skips points: the view says how many of those fired it holds, and why."""
+    session = app.session
+    session.set_config(session.config.with_param("data_width", 5000), "fast")  # 2 000 000 points/s
+    session.advance_to(0.5)
+    app.refresh()
+    text = app.hud.state.GetText(2)
+    assert session.pattern_ring.count == 400_000 and session.points_fired_in_window() == 1_000_000
+    assert "400,000 points of 1,000,000 fired (600,000 skipped" in text
+    scene = app.hud.scene_state.GetText(2)
+    assert f"drawing {app.scene_view.drawn_count():,}" in scene or app.scene_view.stride() == 1
+    # The coverage chart says where a curve stops when the point budget ends it before 4 s.
+    assert "(to 1 s" in app.charts.ours_coverage.label
+
+
+def test_the_panorama_fills_the_view_at_a_readable_height_with_every_mark(urban, tmp_path: Path) -> None:
+    session = Session(load_preset("livox_mid360"), urban, seed=0, preset_name="livox_mid360")
+    app = LivoxVizApp(session, off_screen=True, window_size=(1600, 900), views="pattern")
     try:
-        application.hud.help_visible = True
-        application.refresh()
-        application.render()
-        renderer = application.pattern_view.renderer
-        box = [0.0] * 4
-        application.hud.help.GetBoundingBox(renderer, box)
-        left, bottom = application.hud.help.GetPositionCoordinate().GetComputedDisplayValue(renderer)
-        width, height = size
-        low_x, low_y, high_x, high_y = renderer.GetViewport()
-        assert left >= low_x * width and bottom >= low_y * height
-        assert left + box[1] <= high_x * width and bottom + box[3] <= 0.95 * high_y * height
-        assert box[1] > 0.5 * (high_x - low_x) * width  # and uses the view's width, not a corner of it
-        assert application.hud.help.GetInput().count("\n") + 1 >= len(KEYS)
+        view = app.pattern_view
+        renderer = view.renderer
+        x0, x1, y0, y1 = session.config.field_of_view.bounds
+        corners = []
+        for x, y in ((x0, y0 * view.stretch), (x1, y1 * view.stretch)):
+            renderer.SetWorldPoint(x, y, 0.0, 1.0)
+            renderer.WorldToDisplay()
+            corners.append(renderer.GetDisplayPoint()[:2])
+        width, height = renderer.GetSize()
+        band_width, band_height = corners[1][0] - corners[0][0], corners[1][1] - corners[0][1]
+        assert band_width > 0.6 * width and band_height > 0.3 * height  # it was 50 px of 600
+        assert corners[0][0] > 0 and corners[1][0] < 0.85 * width  # whole, clear of the colour bar
+        texts = view.guide_labels
+        assert {"-180°", "-90°", "0°", "90°", "180°"} <= set(texts)
+        assert {"0°", "10°", "20°", "30°", "40°", "50°"} <= set(texts)
+        # A click finds true degrees: the stretch is undone.
+        session.advance_to(0.1)
+        found = session.nearest_pattern_point(*view.plane_point((30.0, 20.0 * view.stretch, 0.0)))
+        assert abs(found["y_deg"] - 20.0) < 3.0
     finally:
-        application.close()
+        app.close()
+
+
+def test_a_wide_reference_fits_the_view_and_stays_behind_our_points(app: LivoxVizApp) -> None:
+    from livox_viz.widgets.overlay import PresetSource
+
+    app.set_reference(PresetSource(load_preset("livox_hap"), "livox_hap"))
+    app.session.advance_to(1.0)
+    app.refresh()
+    view = app.pattern_view
+    renderer = view.renderer
+    r0, r1, s0, s1 = load_preset("livox_hap").field_of_view.bounds
+    for x, y in ((r0, s0), (r1, s1)):
+        renderer.SetWorldPoint(x, y, 0.0, 1.0)
+        renderer.WorldToDisplay()
+        px, py, _ = renderer.GetDisplayPoint()
+        width, height = renderer.GetSize()
+        assert 0 <= px <= width and 0 <= py <= height
+    camera_z = renderer.camera.position[2]
+    assert view.reference_actor.GetPosition()[2] < view.actor.GetPosition()[2] < camera_z  # ours in front

@@ -11,12 +11,13 @@ import trimesh
 pv = pytest.importorskip("pyvista")
 
 from livox_viz.widgets.app import LivoxVizApp  # noqa: E402
-from livox_viz.widgets.controls import RETURN_SLIDERS, slider_range  # noqa: E402
+from livox_viz.widgets.controls import RETURN_PARAMS  # noqa: E402
 from livox_viz.widgets.session import TAG_CLASSES, Session, tag_classes  # noqa: E402
 from livox_viz.widgets.views import REFLECTIVITY_MARKS  # noqa: E402
 
 from livox_viz import PARAM_RANGES, load_preset  # noqa: E402
 from livox_viz.casting.returns import RETRO_TOP, reflectivity_byte  # noqa: E402
+from livox_viz.config.param_docs import value_bounds  # noqa: E402
 from livox_viz.core.poses import Pose  # noqa: E402
 from livox_viz.scene.materials import set_face_materials  # noqa: E402
 from livox_viz.scene.scenes import Scene, open_scene  # noqa: E402
@@ -30,32 +31,29 @@ def app():
     application.close()
 
 
-def test_d_switches_the_return_model_and_t_its_sliders(app: LivoxVizApp) -> None:
+def test_d_switches_the_return_model_and_t_its_page(app: LivoxVizApp) -> None:
     session = app.session
     assert session.config.returns_model == "ideal"
     session.advance_to(0.2)
     ideal = session.scene_ring.count
     app.toggle_returns_model()
-    assert session.config.returns_model == "datasheet" and app.sliders.page == "returns"
+    assert session.config.returns_model == "datasheet" and app.page == "returns"
     assert "returns datasheet" in session.message
-    shown = app.sliders.param_widgets()
-    assert {name for name, _ in RETURN_SLIDERS} <= set(shown) and "petal_height" not in shown
     session.advance_to(0.2)
     assert 0 < session.scene_ring.count < ideal  # dark asphalt far along the street drops out
     app.on_param("returns_range_sigma", 0.05)
     assert session.config.return_params.range_sigma_m == ((20.0, 0.05),)
-    assert app.sliders.value("returns_range_sigma") == pytest.approx(0.05)
-    app.on_param("returns_detection_range_10", 5000.0)  # past the slider's end: refused, named
+    app.on_param("returns_detection_range_10", 5000.0)  # past the range's end: refused, named
     assert "LivoxVizReturns detection_range_10" in session.message
     app.toggle_slider_page()
-    assert app.sliders.page == "pattern" and "petal_height" in app.sliders.param_widgets()
+    assert app.page == "pattern"
     app.toggle_returns_model()
-    assert session.config.returns_model == "ideal" and app.sliders.page == "pattern"
+    assert session.config.returns_model == "ideal" and app.page == "pattern"
 
 
-def test_return_slider_ranges_are_the_validated_ranges() -> None:
-    for name, _ in RETURN_SLIDERS:
-        low, high = slider_range(name)
+def test_return_control_ranges_are_the_validated_ranges() -> None:
+    for name in RETURN_PARAMS:
+        low, high = value_bounds(name)
         assert PARAM_RANGES[name].contains(low) and PARAM_RANGES[name].contains(high)
 
 

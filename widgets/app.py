@@ -1,10 +1,14 @@
-"""The livox-viz window: it wires the session to the views, the sliders, the heads-up text and the keys.
+"""The window's controller: it wires the session to the views, and does what keys, menus and the panel ask.
 
-The controller is thin: every slider calls :meth:`LivoxVizApp.on_param`
-(name, value), which asks the :class:`~livox_viz.widgets.session.Session` for the
-new configuration; the session tells the views (they subscribe) and the
-controller only brings the sliders back in line. Keys come from the one key
-table in :mod:`livox_viz.widgets.keys`.
+The controller is thin and knows no Qt: every parameter control calls
+:meth:`LivoxVizApp.on_param` (name, value), which asks the
+:class:`~livox_viz.widgets.session.Session` for the new configuration; the
+session tells the views (they subscribe). Each view draws into a plotter of
+its own: a Qt interactor in the window
+(:mod:`~livox_viz.widgets.mainwindow`), an off-screen plotter in ``render``
+and the tests, so both show the same pictures from the same code. Keys and
+menus call the methods named in the one key table,
+:mod:`livox_viz.widgets.keys`.
 """
 
 from __future__ import annotations
@@ -21,23 +25,26 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pyvista as pv
 
-from livox_viz import LivoxVizError, list_presets, load_config
+from livox_viz import LivoxVizError, SensorConfig, list_presets, load_config
 from livox_viz.config.sensor import PARAM_RANGES
 from livox_viz.core.blas import blas_threads
 
 from . import files
 from .charts import CurveCharts
-from .controls import SLIDER_PAGES, Sliders
 from .hud import HeadsUp
-from .keys import KEYS
 from .overlay import WINDOWS, PresetSource, TableSource
 from .playback import next_choice
 from .session import CLOUD_FRAMES, DRAWINGS, SCENE_COLOURS, Session, pattern_colours, step_units
-from .views import PatternView, SceneView
+from .views import CAMERA_PRESETS, PatternView, SceneView
 
-TIMER_MS = 33
+#: The parts of a window, left to right, and their share of its width in an off-screen picture of all of them.
+VIEW_NAMES: tuple[str, ...] = ("pattern", "scene", "charts")
+VIEW_WEIGHTS: dict[str, int] = {"pattern": 5, "scene": 4, "charts": 3}
+#: The pages of the parameter panel: the pattern model's parameters or the return model's.
+PANEL_PAGES: tuple[str, ...] = ("pattern", "returns")
 
 
 def quiet_vtk() -> None:
@@ -48,61 +55,78 @@ def quiet_vtk() -> None:
     vtkObject.GlobalWarningDisplayOff()
 
 
+def view_sizes(views: str, size: tuple[int, int]) -> dict[str, tuple[int, int]]:
+    """Each part's pixels in an off-screen picture of ``views`` (``"both"``: pattern, scene and charts side by
+    side, :data:`VIEW_WEIGHTS` of the width; one view: all of it)."""
+    if views != "both":
+        return {views: size}
+    width, height = size
+    total = sum(VIEW_WEIGHTS.values())
+    widths = [width * VIEW_WEIGHTS[name] // total for name in VIEW_NAMES]
+    widths[0] += width - sum(widths)
+    return {name: (w, height) for name, w in zip(VIEW_NAMES, widths, strict=True)}
+
+
+def offscreen_plotter(size: tuple[int, int]) -> pv.Plotter:
+    """An off-screen plotter for one view, as the window's are set up (no multisampling: it costs a factor of 3 on
+    a million points in software GL)."""
+    plotter = pv.Plotter(off_screen=True, window_size=size, title="livox-viz")
+    plotter.ren_win.SetMultiSamples(0)
+    plotter.ren_win.LineSmoothingOn()
+    return plotter
+
+
 class LivoxVizApp:
-    """The GUI controller.
+    """The controller of the views.
 
     Parameters
     ----------
     session : Session
     off_screen : bool
-        Render without a window (tests, ``livox-viz render``).
+        Make off-screen plotters for the views (tests, ``livox-viz render``); the window passes its own
+        ``plotters`` instead.
     window_size : tuple of int
-        Pixels.
+        Pixels of all the views together, for off-screen plotters.
     views : {"both", "pattern", "scene"}
-        ``both`` is the full GUI with sliders; one view alone is for renders.
+        ``both`` is pattern, scene and charts; one view alone is for renders.
     screenshot_dir : Path
-        Where ``s`` saves.
+        Where a screenshot goes.
+    plotters : dict, optional
+        ``{"pattern": plotter, "scene": plotter, "charts": plotter}`` (those of ``views``): the window's own.
     """
 
-    def __init__(self, session: Session, off_screen: bool = False, window_size: tuple[int, int] = (1600, 900),
-                 views: str = "both", screenshot_dir: Path = files.SCREENSHOT_DIR) -> None:
+    def __init__(self, session: Session, off_screen: bool = True, window_size: tuple[int, int] = (1600, 900),
+                 views: str = "both", screenshot_dir: Path = files.SCREENSHOT_DIR,
+                 plotters: Mapping[str, pv.BasePlotter] | None = None) -> None:
         if views not in ("both", "pattern", "scene"):
             raise LivoxVizError(f"view {views!r}; allowed: both, pattern, scene")
-        if off_screen:
+        if plotters is None:
+            if not off_screen:
+                raise LivoxVizError("an on-screen window needs its plotters (livox_viz.widgets.mainwindow)")
             quiet_vtk()
+            plotters = {name: offscreen_plotter(size) for name, size in view_sizes(views, window_size).items()}
         self.session = session
         self.views = views
+        self.plotters = dict(plotters)
         self.screenshot_dir = Path(screenshot_dir)
-        if views == "both":
-            # Pattern, scene and the charts above; the sliders of each below.
-            plotter = pv.Plotter(off_screen=off_screen, shape=(2, 3), row_weights=[5, 1], col_weights=[5, 4, 3],
-                                 window_size=window_size, border=False, title="livox-viz")
-        else:
-            plotter = pv.Plotter(off_screen=off_screen, window_size=window_size, title="livox-viz")
-        # Multisampling costs a factor of 3 on a million points in software GL; smooth lines instead.
-        plotter.ren_win.SetMultiSamples(0)
-        plotter.ren_win.LineSmoothingOn()
-        self.plotter = plotter
-        self.pattern_view = PatternView(plotter, session, (0, 0)) if views in ("both", "pattern") else None
-        scene_spot = (0, 1) if views == "both" else (0, 0)
-        self.scene_view = SceneView(plotter, session, scene_spot) if views in ("both", "scene") else None
-        self.sliders: Sliders | None = None
-        self.charts = CurveCharts(plotter, (0, 2), session) if views == "both" else None
-        self._ready = False  # pyvista calls each slider's callback once as it is created
-        if views == "both":
-            self.sliders = Sliders(plotter, session.config, self.on_param, self.on_speed, self.on_window,
-                                   session.playback.speed, session.window_index)
-        self.hud = HeadsUp(plotter, self.pattern_view and self.pattern_view.subplot,
-                           self.scene_view and self.scene_view.subplot)
-        for row in KEYS:
-            for key, method in row.bindings:
-                plotter.add_key_event(key, self._guarded(getattr(self, method)))
-        if plotter.iren is not None:
-            # VTK's own character keys (e exits, f flies the camera, s/w switch surfaces, p picks) would act
-            # too: our keys take the character away first.
-            plotter.iren.interactor.AddObserver("CharEvent", _swallow_our_keys, 10.0)
+        self.pattern_view = PatternView(plotters["pattern"], session) if "pattern" in plotters else None
+        self.scene_view = SceneView(plotters["scene"], session) if "scene" in plotters else None
+        self.charts = CurveCharts(plotters["charts"], (0, 0), session) if "charts" in plotters else None
+        self.hud = HeadsUp(plotters.get("pattern"), plotters.get("scene"))
+        #: The parameter panel's page: the pattern model's parameters or the return model's.
+        self.page = "pattern"
+        #: The last picks in the scene view (at most two: a distance), and the last answer of any pick, in words.
+        self.picks: list[dict[str, Any]] = []
+        self.pick_text = ""
+        #: ``defer(stages, action, what) -> bool``: True when the compiled loops of ``stages`` are loaded (the
+        #: action runs now); otherwise the window keeps ``action`` for when they are, says so, and returns False.
+        #: None runs every action at once (renders and tests compile what they need on first use).
+        self.defer: Callable[[set[str], Callable[[], None], str], bool] | None = None
+        #: Called after a change the parameter panel must follow (the configuration or its page).
+        self.on_panel_change: Callable[[], None] | None = None
         session.subscribe(self._on_change)
         self._last_render: float | None = None
+        self.fps = 0.0
         self._writer: ThreadPoolExecutor | None = None  # screenshots being written
         self._fit: tuple[Future, str, float] | None = None  # the f key's fit running: its future, reference, start
         self._reference_choices: tuple[tuple, list[str]] | None = None
@@ -111,56 +135,70 @@ class LivoxVizApp:
         self._preset_cursor = -1
         self._scene_cursor = -1
         self._ready = True
-        self._sync_sliders()
         self.refresh()
-
-    def _guarded(self, action):
-        """Run a key action; bad input becomes a message in the window, never a crash."""
-
-        def run() -> None:
-            try:
-                action()
-            except (LivoxVizError, OSError) as exc:
-                self.session.message = str(exc)
-            self.refresh()
-
-        return run
 
     def _on_change(self, what: str) -> None:
-        if what == "config":
-            self._sync_sliders()
+        if what == "config" and self.on_panel_change is not None:
+            self.on_panel_change()
 
-    def _sync_sliders(self) -> None:
-        if self.sliders is not None:
-            self.sliders.sync(self.session.config, self.session.playback.speed, self.session.window_index)
+    def guarded(self, action: Callable[[], Any]) -> str | None:
+        """Run a key's or menu's action: bad input becomes the session's message, never a crash. The message when
+        the action was refused, else None."""
+        try:
+            action()
+        except (LivoxVizError, ValueError) as exc:
+            self.session.message = str(exc)
+        except OSError as exc:
+            where = f"{exc.filename}: " if exc.filename else ""
+            self.session.message = f"{where}{exc.strerror or exc}"
+        else:
+            return None
+        finally:
+            self.refresh()
+        return self.session.message
 
-    # Sliders ----------------------------------------------------------------------------
-    def on_param(self, name: str, value: float) -> None:
-        """A slider moved: snap integers, validate, restart the pattern from the new configuration."""
+    # Applying a configuration ----------------------------------------------------------------
+    def when_ready(self, stages: set[str], action: Callable[[], None], what: str = "") -> bool:
+        """Run ``action`` now if the compiled loops of ``stages`` are loaded, else when they are (:attr:`defer`);
+        whether it ran now."""
+        if self.defer is not None and not self.defer(stages, action, what):
+            return False
+        action()
+        return True
+
+    def apply_config(self, config: SensorConfig, preset_name: str | None = None, what: str = "") -> bool:
+        """Show ``config`` now, or once the compiled loops it needs are loaded; whether it was applied now."""
+        from livox_viz.casting.warm import stages_for
+
+        return self.when_ready(stages_for(config, self.session.trajectory is not None),
+                               lambda: self.session.set_config(config, preset_name), what)
+
+    # Parameters --------------------------------------------------------------------------------
+    def on_param(self, name: str, value: float) -> bool:
+        """A parameter control changed: snap integers, validate, restart the pattern from the new configuration.
+
+        A value outside the allowed range is refused with a message naming the range; the scan goes on with the
+        old value. Returns whether the value was taken.
+        """
         if not self._ready:
-            return
+            return False
         if PARAM_RANGES[name].integer and math.isfinite(value):
             value = float(round(value))
-        self.session.set_param(name, value)
-        self._sync_sliders()  # back to the value taken: snapped, or the old one if refused
-        self.refresh()
+        return self.session.set_param(name, value)
 
     def on_speed(self, speed: float) -> None:
-        """The speed slider, in x real time."""
-        if not self._ready:
-            return
+        """The playback speed, in x real time."""
         self.session.playback.set_speed(speed)
-        self.sliders.show_playback(self.session.playback.speed, self.session.window_index)
-        self.refresh()
 
     def on_window(self, index: int) -> None:
-        """The integration window slider, an index into :data:`~livox_viz.widgets.overlay.WINDOWS`."""
-        if not self._ready:
-            return
+        """The integration window, an index into :data:`~livox_viz.widgets.overlay.WINDOWS`."""
         if index != self.session.window_index:
-            self._guarded(lambda: self.session.set_window(index))()
-        self._sync_sliders()
-        self.refresh()
+            self.session.set_window(index)
+
+    def set_window_seconds(self, seconds: float | None) -> None:
+        """The integration window as any number of seconds (0.01 to 10), or None for unlimited."""
+        self.session.set_window_seconds(seconds)
+        self.session.message = f"integration window {'unlimited' if seconds is None else f'{seconds:g} s'}"
 
     # Key actions (named in the key table) -------------------------------------------------
     def toggle_pause(self) -> None:
@@ -174,21 +212,20 @@ class LivoxVizApp:
     def cycle_step_unit(self) -> None:
         display = self.session.display
         display.step_unit = next_choice(step_units(self.session.config), display.step_unit)
+        self.session.message = f"step unit: {display.step_unit}"
 
     def reset(self) -> None:
         self.session.restart()
 
     def faster(self) -> None:
         self.session.playback.set_speed(self.session.playback.speed * 2.0)
-        self._sync_sliders()
 
     def slower(self) -> None:
         self.session.playback.set_speed(self.session.playback.speed / 2.0)
-        self._sync_sliders()
 
     def cycle_window(self) -> None:
-        self.session.set_window((self.session.window_index + 1) % len(WINDOWS))
-        self._sync_sliders()
+        index = self.session.window_index
+        self.session.set_window(0 if index is None else (index + 1) % len(WINDOWS))
 
     def cycle_pattern_colour(self) -> None:
         display = self.session.display
@@ -200,27 +237,54 @@ class LivoxVizApp:
         display.scene_colour = next_choice(SCENE_COLOURS, display.scene_colour)
         self.session.recolour()
 
+    def set_pattern_colour(self, mode: str) -> None:
+        if mode not in pattern_colours(self.session.config):
+            raise LivoxVizError(f"pattern colour {mode!r}; allowed: {', '.join(pattern_colours(self.session.config))}")
+        self.session.display.pattern_colour = mode
+        self.session.recolour()
+
+    def set_scene_colour(self, mode: str) -> None:
+        if mode not in SCENE_COLOURS:
+            raise LivoxVizError(f"scene colour {mode!r}; allowed: {', '.join(SCENE_COLOURS)}")
+        self.session.display.scene_colour = mode
+        self.session.recolour()
+
+    def set_returns_model(self, model: str) -> None:
+        """Cast with the "ideal" or the "datasheet" return model; the panel shows the return model's sheet with the
+        latter. The first datasheet use waits for its compiled loops (the window keeps playing meanwhile)."""
+        if model == self.session.config.returns_model:
+            return
+        from livox_viz.casting.warm import stages_for
+
+        config = self.session.config.with_returns_model(model)
+
+        def switch() -> None:
+            self.page = "returns" if model == "datasheet" else "pattern"
+            self.session.set_config(config)
+            returns = self.session.config.return_params
+            self.session.message = (f"returns {model}" + (f": range noise {100 * returns.range_sigma_m[0][1]:g} cm, "
+                                                          f"{returns.detection_range(0.1):.0f} m at 10 %"
+                                                          if model == "datasheet" else ""))
+
+        self.when_ready(stages_for(config, self.session.trajectory is not None), switch, f"returns {model}")
+
     def toggle_returns_model(self) -> None:
-        """Cast with the ideal or the datasheet return model; the sliders show the return model's with the latter."""
-        model = "ideal" if self.session.config.returns_model == "datasheet" else "datasheet"
-        self.session.set_returns_model(model)
-        if self.sliders is not None:
-            self.sliders.page = "returns" if model == "datasheet" else "pattern"
-            self._sync_sliders()
-        returns = self.session.config.return_params
-        self.session.message = (f"returns {model}" + (f": range noise {100 * returns.range_sigma_m[0][1]:g} cm, "
-                                                      f"{returns.detection_range(0.1):.0f} m at 10 %"
-                                                      if model == "datasheet" else ""))
+        """Cast with the ideal or the datasheet return model."""
+        self.set_returns_model("ideal" if self.session.config.returns_model == "datasheet" else "datasheet")
 
     def toggle_slider_page(self) -> None:
-        """Show the pattern's sliders or the return model's under the pattern view."""
-        if self.sliders is not None:
-            self.sliders.page = next_choice(SLIDER_PAGES, self.sliders.page)
-            self._sync_sliders()
-            self.session.message = f"sliders: {self.sliders.page}"
+        """The panel shows the pattern's parameters or the return model's."""
+        self.page = next_choice(PANEL_PAGES, self.page)
+        self.session.message = f"parameters: {self.page}"
+        if self.on_panel_change is not None:
+            self.on_panel_change()
 
     def toggle_jitter_scope(self) -> None:
-        self.session.set_jitter_scope("figure" if self.session.config.jitter_scope == "flower" else "flower")
+        from dataclasses import replace
+
+        scope = "figure" if self.session.config.jitter_scope == "flower" else "flower"
+        self.apply_config(replace(self.session.config, jitter_scope=scope))
+        self.session.message = f"random rotation after each {scope}"
 
     def toggle_pattern_model(self) -> None:
         """Switch between RflySim's rosette and the track (Risley or general) of the same configuration."""
@@ -234,36 +298,48 @@ class LivoxVizApp:
         else:
             raise LivoxVizError("this configuration has no Risley track; load one with n/b "
                                 "(e.g. livox_mid70_risley or livox_horizon) or --preset")
-        self.session.set_config(config.with_pattern_model(model))
-        self.session.message = f"pattern model {model}"
+        if self.apply_config(config.with_pattern_model(model), None, f"pattern model {model}"):
+            self.session.message = f"pattern model {model}"
 
     def toggle_cloud_frame(self) -> None:
         """World or sensor accumulation of the cloud; the window is cast again in the new way."""
         display = self.session.display
+        if self.session.trajectory is None:
+            self.session.message = ("w: the sensor does not move (no --trajectory), so the cloud is the same in the "
+                                    "world and the sensor frame")
+            return
         display.cloud_frame = next_choice(CLOUD_FRAMES, display.cloud_frame)
-        if self.session.trajectory is not None:  # a sensor that stays puts its points in the same places either way
-            self.session.set_window(self.session.window_index)
+        self.session.set_window_seconds(self.session.window)
         self.session.message = f"cloud in the {display.cloud_frame} frame"
 
     def cycle_drawing(self) -> None:
         """Pattern view: density image when points outnumber pixels (auto), always points, always density."""
         self.session.display.drawing = next_choice(DRAWINGS, self.session.display.drawing)
+        self.session.message = f"drawing: {self.session.display.drawing}"
 
     def cycle_scene(self) -> None:
         """The next scene: the shipped ones, then mesh files in the user's scenes folder.
 
         A file that does not load leaves the current scene and says why; the next press moves on.
         """
-        from livox_viz.scene.scenes import open_scene, scene_choices
+        from livox_viz.scene.scenes import open_scene
+
+        choice = self.next_scene_choice()
+        scene = open_scene(choice, **self.session.scene_options)
+        self.session.set_scene(scene)
+        self.session.sources["scene"] = choice
+        self.session.message = f"scene {scene.name}"
+
+    def next_scene_choice(self) -> str:
+        """The scene ``m`` moves to: the one after the current among the shipped scenes and the user's meshes."""
+        from livox_viz.scene.scenes import scene_choices
 
         choices = scene_choices()
         if self._scene_cursor < 0:
             names = [Path(c).name if os.sep in c else c for c in choices]
             self._scene_cursor = names.index(self.session.scene.name) if self.session.scene.name in names else -1
         self._scene_cursor = (self._scene_cursor + 1) % len(choices)
-        scene = open_scene(choices[self._scene_cursor], **self.session.scene_options)
-        self.session.set_scene(scene)
-        self.session.message = f"scene {scene.name}"
+        return choices[self._scene_cursor]
 
     def _require_reference(self) -> None:
         if self.session.overlay.source is None:
@@ -291,14 +367,14 @@ class LivoxVizApp:
         from livox_viz.config.presets import shipped_preset_dir, user_preset_dir
 
         plane = self.session.config.pattern_plane
-        files = []
+        found = []
         for folder in (shipped_preset_dir(), user_preset_dir()):
             try:
-                files += [(entry.path, entry.stat().st_mtime_ns) for entry in os.scandir(folder)
+                found += [(entry.path, entry.stat().st_mtime_ns) for entry in os.scandir(folder)
                           if entry.name.endswith(".json")]
             except OSError:
                 continue
-        key = (plane, tuple(sorted(files)))
+        key = (plane, tuple(sorted(found)))
         if self._reference_choices is not None and self._reference_choices[0] == key:
             return list(self._reference_choices[1])
         choices = []
@@ -320,13 +396,29 @@ class LivoxVizApp:
         current = self.session.overlay.source
         name = current.name if isinstance(current, PresetSource) else None
         chosen = next_choice(choices, name if name in choices else None)
-        source = None if chosen is None else PresetSource(load_preset(chosen), chosen, self.session.seed)
+        if chosen is None:
+            self.set_reference(None)
+            return
+        from livox_viz.casting.warm import stages_for
+
+        config = load_preset(chosen)
+        self.when_ready(stages_for(config) - {"ideal"},
+                        lambda: self.set_reference(PresetSource(config, chosen, self.session.seed)),
+                        f"reference {chosen}")
+
+    def set_reference(self, source: TableSource | PresetSource | None) -> None:
+        """Overlay ``source`` (None: none) and fit the pattern view's camera to it."""
+        if source is not None and source.plane != self.session.config.pattern_plane:
+            raise LivoxVizError(f"reference {source.name} is a {source.plane} pattern and this configuration a "
+                                f"{self.session.config.pattern_plane} one; allowed: a reference in the same plane")
         self.session.overlay.set_source(source, self.session.scan_time)
-        self.session.message = f"reference {chosen}" if chosen else "no reference"
+        self.session.message = f"reference {source.name}" if source is not None else "no reference"
+        if self.pattern_view is not None:
+            self.pattern_view.reset_camera()
 
     def fit_to_reference(self) -> None:
-        """Fit the rosette's parameters to the reference's track on a worker, and move the sliders there when it is
-        done (:meth:`finish_fit`; each tick looks): a fit takes 10-25 s, which the window plays on through."""
+        """Fit the rosette's parameters to the reference's track on a worker, and move the parameters there when it
+        is done (:meth:`finish_fit`; each tick looks): a fit takes 10-25 s, which the window plays on through."""
         from livox_viz.fitting.reference import pattern_table
         from livox_viz.fitting.rosette_fit import fit_reference
 
@@ -352,6 +444,11 @@ class LivoxVizApp:
         self._fit = (future, source.name, time.perf_counter())
         self.session.message = f"fitting the rosette to {source.name} (10-25 s; the window plays on)"
 
+    @property
+    def fitting(self) -> str | None:
+        """The reference a fit is running against, or None."""
+        return self._fit[1] if self._fit is not None else None
+
     def _fit_age(self) -> float:
         return time.perf_counter() - self._fit[2] if self._fit is not None else 0.0
 
@@ -368,49 +465,115 @@ class LivoxVizApp:
         except (LivoxVizError, OSError) as exc:
             self.session.message = f"fit to {name} failed: {exc}"
             return False
-        self.session.set_config(result.config, f"fitted-to-{name}")
+        self.apply_config(result.config, f"fitted-to-{name}")
         self.session.message = f"fitted to {name} in {seconds:.1f} s: shape rms {result.shape.rms_deg:.3f} deg"
         return True
 
-    def toggle_help(self) -> None:
-        self.hud.help_visible = not self.hud.help_visible
-
     def reset_cameras(self) -> None:
+        """Both views' cameras back to fit everything drawn (the pattern view the reference too)."""
         for view in (self.pattern_view, self.scene_view):
             if view is not None:
                 view.reset_camera()
 
+    def set_scene_camera(self, preset: str) -> None:
+        """The scene view's camera: one of :data:`~livox_viz.widgets.views.CAMERA_PRESETS`, or ``"follow"`` to move
+        with the vehicle from where it is."""
+        if self.scene_view is None:
+            return
+        if preset == "follow":
+            self.scene_view.follow = not self.scene_view.follow
+            self.session.message = ("the scene's camera follows the vehicle" if self.scene_view.follow
+                                    else "the scene's camera stays where it is")
+            return
+        if preset not in CAMERA_PRESETS:
+            raise LivoxVizError(f"camera {preset!r}; allowed: {', '.join(CAMERA_PRESETS)}, follow")
+        self.scene_view.reset_camera(preset)
+
+    # Picking -------------------------------------------------------------------------------
+    def pick_scene(self, x_px: float, y_px: float) -> dict[str, Any] | None:
+        """The cloud's point under the display position ``(x_px, y_px)`` of the scene view (VTK's pixels, origin
+        bottom left), or None; a second pick also gives the distance between the two (:attr:`pick_text`)."""
+        if self.scene_view is None:
+            return None
+        from vtkmodules.vtkRenderingCore import vtkPointPicker
+
+        picker = vtkPointPicker()
+        picker.SetTolerance(0.008)
+        picker.PickFromListOn()
+        picker.AddPickList(self.scene_view.actor)
+        if not picker.Pick(x_px, y_px, 0.0, self.scene_view.renderer) or picker.GetPointId() < 0:
+            self.pick_text = "no point of the cloud there"
+            return None
+        found = self.session.scene_point(int(picker.GetPointId()))
+        self.picks = [*self.picks[-1:], found]
+        text = (f"range {found['range_m']:.3f} m, azimuth {found['azimuth_deg']:.2f} deg, elevation "
+                f"{found['elevation_deg']:.2f} deg, reflectivity {found['reflectivity']}, tag 0x{found['tag']:02x}, "
+                f"return {found['return_number']}, t {found['t_s']:.4f} s, frame {found['frame']}")
+        if len(self.picks) == 2:
+            distance = float(np.linalg.norm(np.subtract(self.picks[1]["xyz_world"], self.picks[0]["xyz_world"])))
+            found["distance_m"] = distance
+            text += f"; {distance:.3f} m from the point picked before"
+        self.pick_text = text
+        self.scene_view.mark_picks([p["xyz_world"] for p in self.picks])
+        return found
+
+    def pick_pattern(self, x_px: float, y_px: float) -> dict[str, float] | None:
+        """The pattern's sample nearest to the display position ``(x_px, y_px)`` of the pattern view, or None."""
+        if self.pattern_view is None:
+            return None
+        renderer = self.pattern_view.renderer
+        renderer.SetDisplayPoint(x_px, y_px, 0.0)
+        renderer.DisplayToWorld()
+        world = renderer.GetWorldPoint()
+        x_deg, y_deg = self.pattern_view.plane_point((world[0] / world[3], world[1] / world[3], 0.0))
+        found = self.session.nearest_pattern_point(x_deg, y_deg)
+        if found is None:
+            self.pick_text = "no pattern point in the window"
+            return None
+        self.pick_text = (f"pattern point x {found['x_deg']:.3f} deg, y {found['y_deg']:.3f} deg, t "
+                          f"{found['t_s']:.5f} s, sample {found['index']:,}")
+        return found
+
     # Files ------------------------------------------------------------------------------
+    def view_images(self) -> dict[str, np.ndarray]:
+        """Each view's picture as it is now, brought up to date and rendered first (pyvista's screenshot renders
+        only on its first call, so keys pressed since the last tick were not in the picture)."""
+        self.refresh()
+        self.render(every=True)
+        return {name: np.asarray(plotter.screenshot(None, return_img=True))
+                for name, plotter in self.plotters.items()}
+
+    def current_image(self) -> np.ndarray:
+        """The views side by side, left to right as in the window: what a screenshot holds."""
+        images = self.view_images()
+        parts = [images[name] for name in VIEW_NAMES if name in images]
+        height = min(part.shape[0] for part in parts)
+        return np.concatenate([part[:height, :, :3] for part in parts], axis=1)
+
     def save_screenshot(self, folder: Path | None = None) -> Path:
-        """Save the window as PNG with a JSON sidecar (configuration, seed, scan time, cameras); returns when
-        both are written."""
+        """Save the views as PNG with a JSON sidecar from which ``render --sidecar`` makes the same picture; returns
+        when both are written."""
         path = files.unused_screenshot_path(Path(folder) if folder is not None else self.screenshot_dir)
-        files.write_png(self._current_image(), path)
-        files.write_sidecar(path, files.sidecar(self.session, self.cameras(), self.plotter.window_size))
+        image = self.current_image()
+        files.write_png(image, path)
+        files.write_sidecar(path, self.sidecar())
         self.session.message = f"saved {path}"
         return path
 
     def take_screenshot(self) -> Path:
-        """The ``s`` key: capture the window now; a writer thread encodes the PNG and writes the sidecar.
+        """The ``s`` key: capture the views now; a writer thread encodes the PNG and writes the sidecar.
 
         Encoding 1600x900 pixels takes 70-250 ms here, which the window would otherwise stand still for. The
         message says "saving", then "saved" (or why not); :meth:`close` waits for the files.
         """
         path = files.unused_screenshot_path(self.screenshot_dir)
-        image = self._current_image()
-        data = files.sidecar(self.session, self.cameras(), self.plotter.window_size)
+        image = self.current_image()
+        data = self.sidecar()
         if self._writer is None:
             self._writer = ThreadPoolExecutor(1, thread_name_prefix="livox-viz-screenshot")
         self.session.message = f"saving {path}"
         self._writer.submit(self._write_screenshot, image, path, data)
         return path
-
-    def _current_image(self) -> Any:
-        """The window as it is now, what the sidecar describes: brought up to date and rendered first (pyvista's
-        screenshot renders only on its first call, so keys pressed since the last tick were not in the picture)."""
-        self.refresh()
-        self.render()
-        return self.plotter.screenshot(None, return_img=True)
 
     def _write_screenshot(self, image: Any, path: Path, data: dict[str, Any]) -> None:
         # On the writer thread: whatever stops the files is said in the window, never lost with the thread.
@@ -425,6 +588,38 @@ class LivoxVizApp:
             return
         self.session.message = f"saved {path}"
 
+    def sidecar(self) -> dict[str, Any]:
+        """What a screenshot's sidecar holds: everything ``render --sidecar`` needs to draw the picture again."""
+        return files.sidecar(self.session, self.drawing_state(), self.cameras(),
+                             {name: list(plotter.window_size) for name, plotter in self.plotters.items()})
+
+    def drawing_state(self) -> dict[str, Any]:
+        """How the views draw beyond the session's own state: colour maps, point sizes, panel page, follow."""
+        state: dict[str, Any] = {"panel_page": self.page}
+        if self.pattern_view is not None:
+            state["pattern"] = {"colour_map": self.pattern_view.colour_map, "point_size": self.pattern_view.point_size}
+        if self.scene_view is not None:
+            state["scene"] = {"colour_map": self.scene_view.colour_map, "point_size": self.scene_view.point_size,
+                              "follow": self.scene_view.follow, "grid": self.scene_view.grid_actor is not None,
+                              "axes": self.scene_view.axes_actor is not None}
+        return state
+
+    def apply_drawing_state(self, state: Mapping[str, Any]) -> None:
+        """The inverse of :meth:`drawing_state` (a sidecar's, for ``render --sidecar``)."""
+        for name, view in (("pattern", self.pattern_view), ("scene", self.scene_view)):
+            given = state.get(name)
+            if view is None or not isinstance(given, Mapping):
+                continue
+            if given.get("colour_map"):
+                view.set_colour_map(str(given["colour_map"]))
+            if given.get("point_size"):
+                view.set_point_size(float(given["point_size"]))
+        scene = state.get("scene")
+        if self.scene_view is not None and isinstance(scene, Mapping):
+            self.scene_view.follow = bool(scene.get("follow", self.scene_view.follow))
+            self.scene_view.show_grid(bool(scene.get("grid")))
+            self.scene_view.show_axes(bool(scene.get("axes")))
+
     def cameras(self) -> dict[str, Any]:
         """Each view's camera, for the sidecar."""
         cameras = {}
@@ -433,8 +628,26 @@ class LivoxVizApp:
                 camera = view.renderer.camera
                 cameras[name] = {"position": list(camera.position), "focal_point": list(camera.focal_point),
                                  "up": list(camera.up), "parallel_scale": camera.parallel_scale,
-                                 "view_angle": camera.view_angle}
+                                 "view_angle": camera.view_angle, "parallel": bool(camera.parallel_projection)}
         return cameras
+
+    def apply_cameras(self, cameras: Mapping[str, Any]) -> None:
+        """Put each view's camera where :meth:`cameras` found it."""
+        for name, view in (("pattern", self.pattern_view), ("scene", self.scene_view)):
+            given = cameras.get(name)
+            if view is None or not isinstance(given, Mapping):
+                continue
+            camera = view.renderer.camera
+            if given.get("parallel"):
+                camera.enable_parallel_projection()
+            else:
+                camera.disable_parallel_projection()
+            camera.position = tuple(given["position"])
+            camera.focal_point = tuple(given["focal_point"])
+            camera.up = tuple(given["up"])
+            camera.parallel_scale = float(given["parallel_scale"])
+            camera.view_angle = float(given["view_angle"])
+            view.renderer.ResetCameraClippingRange()
 
     def save_preset(self) -> Path:
         """Write the current configuration as a user preset (never over a shipped one)."""
@@ -456,8 +669,8 @@ class LivoxVizApp:
             self._preset_cursor = names.index(self.session.preset_name)
         self._preset_cursor = (self._preset_cursor + direction) % len(presets)
         info = presets[self._preset_cursor]
-        self.session.set_config(load_config(info.path), info.name)
-        self.session.message = f"preset {info.name}"
+        if self.apply_config(load_config(info.path), info.name, f"preset {info.name}"):
+            self.session.message = f"preset {info.name}"
 
     # Drawing ----------------------------------------------------------------------------
     def tick(self, now: float | None = None) -> None:
@@ -468,79 +681,80 @@ class LivoxVizApp:
 
     def refresh(self) -> None:
         """Bring every actor and text up to date with the session (no render)."""
-        if not self._ready:
+        if not getattr(self, "_ready", False):
             return
         for view in (self.pattern_view, self.scene_view, self.charts):
             if view is not None:
                 view.update()
-        self.hud.update(self.session, show_scene=self.scene_view is not None)
+        self.hud.update(self.session, density_shown=self.pattern_view is not None and self.pattern_view.density_shown(),
+                        drawn=self.scene_view.drawn_count() if self.scene_view is not None else 0)
 
-    def render(self) -> None:
-        """Render once and update the frames-per-second figure."""
-        self.plotter.ren_win.Render()
+    def render(self, every: bool = False, draw: Callable[[pv.BasePlotter], None] | None = None) -> None:
+        """Render the views (the charts only when they changed, or ``every``) and update the frames per second.
+
+        ``draw(plotter)`` renders one view (default: its render window's ``Render``); the window passes Qt's
+        repaint instead, as a direct render there is drawn twice (once more by the paint it schedules).
+        """
+        for name, plotter in self.plotters.items():
+            if name == "charts" and not every and not (self.charts is not None and self.charts.dirty):
+                continue
+            if draw is None:
+                plotter.ren_win.Render()
+            else:
+                draw(plotter)
+            if name == "charts" and self.charts is not None:
+                self.charts.dirty = False
         now = time.perf_counter()
         if self._last_render is not None:
             instant = 1.0 / max(now - self._last_render, 1e-6)
-            self.hud.fps = instant if self.hud.fps == 0 else 0.8 * self.hud.fps + 0.2 * instant
+            self.fps = instant if self.fps == 0 else 0.8 * self.fps + 0.2 * instant
         self._last_render = now
 
-    def show(self, stop: Callable[[], bool] | None = None) -> None:
-        """Open the window and play until it is closed, or until ``stop()`` is true (checked every tick).
-
-        A signal must not raise inside VTK's event loop (VTK swallows the
-        exception and the window plays on): the caller notes it and ``stop``
-        reports it, so the window closes on the next tick.
-        """
-        iren = self.plotter.iren
-        iren.add_observer("TimerEvent", lambda *_: self._on_timer(stop))
-        iren.create_timer(TIMER_MS, repeating=True)
-        try:
-            self.plotter.show(auto_close=True)
-        finally:
-            if self._writer is not None:  # the screenshots taken last are written before the command returns
-                self._writer.shutdown(wait=True)
-
-    def _on_timer(self, stop: Callable[[], bool] | None = None) -> None:
-        if stop is not None and stop():
-            self.plotter.iren.terminate_app()
-            return
-        try:
-            self.tick()
-        except LivoxVizError as exc:
-            self.session.message = str(exc)
-        self.render()
-
     def close(self) -> None:
-        """Close the window once the screenshots being written are on disk."""
+        """Close the views once the screenshots being written are on disk."""
         if self._writer is not None:
             self._writer.shutdown(wait=True)
             self._writer = None
         self._fit = None  # a fit still running is not waited for: its result is not wanted any more
         if self.charts is not None:
             self.charts.close()
-        self.plotter.close()
-
-
-_OUR_CHARACTERS = {key for row in KEYS for key, _ in row.bindings if len(key) == 1}
-
-
-def _swallow_our_keys(interactor, _event: str) -> None:
-    if interactor.GetKeyCode() in _OUR_CHARACTERS:
-        interactor.SetKeyCode("\0")
+        for plotter in self.plotters.values():
+            plotter.close()
 
 
 def render_offscreen(session: Session, seconds: float, path: Path, views: str = "both",
-                     size: tuple[int, int] = (1600, 900)) -> Path:
-    """Render what the GUI shows after ``seconds`` of scan time into a PNG (atomic)."""
-    app = LivoxVizApp(session, off_screen=True, window_size=size, views=views)
+                     size: tuple[int, int] = (1600, 900), sizes: Mapping[str, tuple[int, int]] | None = None,
+                     prepare: Callable[[LivoxVizApp], None] | None = None) -> Path:
+    """Render what the window shows after ``seconds`` of scan time into a PNG (atomic).
+
+    Parameters
+    ----------
+    session : Session
+    seconds : float
+        Scan time of the picture.
+    path : Path
+    views : {"both", "pattern", "scene"}
+    size : tuple of int
+        Pixels of the whole picture.
+    sizes : mapping, optional
+        Each part's own pixels (a screenshot's sidecar), instead of ``size``'s split.
+    prepare : callable, optional
+        Called with the controller before the picture is drawn (cameras, drawing state).
+    """
+    if sizes is not None:
+        quiet_vtk()
+        plotters = {name: offscreen_plotter(tuple(int(v) for v in sizes[name])) for name in sizes}
+        app = LivoxVizApp(session, views=views, plotters=plotters)
+    else:
+        app = LivoxVizApp(session, off_screen=True, window_size=size, views=views)
     try:
-        session.playback.paused = True
-        session.advance_to(seconds)
+        session.seek(seconds)  # the window that ends there, exactly as a scan played to it holds it
+        if prepare is not None:
+            prepare(app)
         app.refresh()
         if app.charts is not None:
             app.charts.finish()  # the reference's curves are computed on a worker: the picture shows them
-        app.render()
-        files.write_png(app.plotter.screenshot(None, return_img=True), path)
+        files.write_png(app.current_image(), path)
     finally:
         app.close()
     return path
@@ -549,10 +763,10 @@ def render_offscreen(session: Session, seconds: float, path: Path, views: str = 
 def display_problem(environ: Mapping[str, str] | None = None, timeout: float = 3.0) -> str | None:
     """Why no window can be opened here, in words; None when one can.
 
-    VTK's window on Linux is an X11 window: it needs a ``DISPLAY`` whose X
-    server answers (a Wayland session offers one through XWayland). The
-    server is asked once, as VTK would ask it, in a thread given ``timeout``
-    seconds (a forwarded display whose tunnel is gone may never answer).
+    The window on Linux is an X11 window (Qt's xcb platform, which VTK draws into): it needs a ``DISPLAY``
+    whose X server answers (a Wayland session offers one through XWayland). The server is asked once, as Qt
+    would ask it, in a thread given ``timeout`` seconds (a forwarded display whose tunnel is gone may never
+    answer).
 
     Parameters
     ----------
@@ -563,7 +777,7 @@ def display_problem(environ: Mapping[str, str] | None = None, timeout: float = 3
     """
     environ = os.environ if environ is None else environ
     if sys.platform in ("win32", "darwin"):
-        return None  # VTK opens native windows there
+        return None  # Qt opens native windows there
     display = environ.get("DISPLAY", "")
     if not display:
         wayland = environ.get("WAYLAND_DISPLAY")
@@ -577,7 +791,7 @@ def display_problem(environ: Mapping[str, str] | None = None, timeout: float = 3
 def _x11_problem(display: str, timeout: float) -> str | None:
     name = ctypes.util.find_library("X11")
     if name is None:
-        return None  # cannot ask: let VTK try
+        return None  # cannot ask: let Qt try
     try:
         xlib = ctypes.CDLL(name)
     except OSError:
@@ -601,4 +815,3 @@ def _x11_problem(display: str, timeout: float) -> str | None:
     if not answer[0]:
         return f"cannot open the display {display}: no X server answers there, or it refused us"
     return None
-

@@ -36,6 +36,13 @@ def reference_curves(source: TableSource | PresetSource) -> PatternCurves:
     return stream_curves(source.table.xy_deg[:count], source.rate, source.fov)
 
 
+def curve_label(name: str, curves: PatternCurves) -> str:
+    """A coverage curve's legend entry; it says where the curve stops when the point budget cut it short of the
+    chart's 4 s (a 1 M pts/s pattern's first 2 M points are 2 s)."""
+    end = float(curves.seconds[-1]) if len(curves.seconds) else 0.0
+    return name if end >= max(CURVE_SECONDS) - 1e-9 else f"{name} (to {end:g} s: {CURVE_POINTS // 1_000_000} M points)"
+
+
 def _chart(loc: tuple[float, float], x_label: str, y_label: str) -> pv.Chart2D:
     chart = pv.Chart2D(size=(0.96, 0.47), loc=loc, x_label=x_label, y_label=y_label)
     chart.background_color = (0.93, 0.94, 0.96, 1.0)
@@ -73,6 +80,8 @@ class CurveCharts:
         plotter.add_chart(self.coverage, self.density)
         self.ours: PatternCurves | None = None
         self.reference: PatternCurves | None = None
+        #: Whether the charts changed since they were last drawn (the window renders them only then).
+        self.dirty = True
         self._reference_source: object = _NOT_SHOWN
         self._worker: ThreadPoolExecutor | None = None
         self._pending: tuple[object, Future[PatternCurves]] | None = None
@@ -90,7 +99,9 @@ class CurveCharts:
         self.ours = config_curves(self.session.config, self.session.seed)
         self.ours_coverage.update(self.ours.seconds, 100.0 * self.ours.coverage)
         self.ours_density.update(self.ours.density_alpha_deg, self.ours.density / 1e6)
+        self.ours_coverage.label = curve_label("ours", self.ours)
         self._fit_density_axes()
+        self.dirty = True
 
     def update(self) -> None:
         """Follow the overlay: the reference's curves when its source changed (computed on the worker and drawn
@@ -131,7 +142,9 @@ class CurveCharts:
         if shown:
             self.reference_coverage.update(self.reference.seconds, 100.0 * self.reference.coverage)
             self.reference_density.update(self.reference.density_alpha_deg, self.reference.density / 1e6)
+            self.reference_coverage.label = curve_label("reference", self.reference)
         self._fit_density_axes()
+        self.dirty = True
 
     def _fit_density_axes(self) -> None:
         curves = [c for c in (self.ours, self.reference) if c is not None]

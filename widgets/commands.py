@@ -48,6 +48,10 @@ def _session(args: argparse.Namespace, command: str):
     session = Session(config, scene, seed=args.seed, preset_name=config_label(args), vehicle_pose=pose,
                       caster=caster, trajectory=trajectory)
     session.scene_options = {"up": args.up, "reflectance": args.reflectance}
+    session.sources = {"scene": args.scene, "up": args.up, "reflectance": args.reflectance, "pose": args.pose,
+                       "exact": args.exact, "trajectory": args.trajectory, "trajectory_speed": args.trajectory_speed,
+                       "reference": getattr(args, "reference", None),
+                       "reference_rate": getattr(args, "reference_rate", None)}
     session.display.scene_colour = args.scene_colour
     if getattr(args, "reference", None):
         source = reference_source(args.reference, args.reference_rate, args.seed)
@@ -95,7 +99,7 @@ def _check_covered(session, seconds: float) -> None:
 
 
 def cmd_gui(args: argparse.Namespace) -> int:
-    from .app import LivoxVizApp, display_problem, render_offscreen
+    from .app import display_problem, render_offscreen
 
     size = _size(args.size)
     problem = display_problem()
@@ -125,10 +129,12 @@ def cmd_gui(args: argparse.Namespace) -> int:
         session.source = receiver
         session.preset_name = "received"
         session.message = f"listening on {where}"
-    # Ctrl-C, SIGTERM and SIGHUP close the window on its next tick (raised inside VTK's loop, they were lost).
+    # Ctrl-C, SIGTERM and SIGHUP close the window on its next tick (raised inside Qt's loop, they would be lost).
     with StopRequests() as stop:
         try:
-            LivoxVizApp(session, window_size=size).show(stop=lambda: stop.requested)
+            from .mainwindow import run_window
+
+            run_window(session, size, stop=lambda: stop.requested)
         finally:
             if receiver is not None:
                 receiver.close()
@@ -142,11 +148,81 @@ def cmd_render(args: argparse.Namespace) -> int:
     from .app import render_offscreen
 
     out = check_output_path(args.out, (".png",))
+    if args.sidecar:
+        return _render_sidecar(args, out)
     size = _size(args.size)
     session = _session(args, "render")
     _check_covered(session, args.seconds)
     render_offscreen(session, args.seconds, out, views=args.view, size=size)
     print(f"rendered {args.view} after {args.seconds:g} s of scan time to {out} ({size[0]}x{size[1]})")
+    return 0
+
+
+def _render_sidecar(args: argparse.Namespace, out: Path) -> int:
+    """``render --sidecar FILE``: the picture a screenshot's sidecar describes, drawn again."""
+    from livox_viz.config.sensor import SensorConfig
+    from livox_viz.core.jsonfile import read_json_file
+
+    from .app import VIEW_NAMES, render_offscreen
+    from .files import SIDECAR_VERSION
+    from .overlay import WINDOWS
+    from .session import Session
+
+    path = Path(args.sidecar)
+    data = read_json_file(path, "screenshot sidecar")
+    if not isinstance(data, dict) or not isinstance(data.get("livox_viz_sidecar"), int):
+        raise UsageError(f"--sidecar {path}: not a livox-viz screenshot sidecar (no 'livox_viz_sidecar' version); "
+                         "allowed: the .json written beside a screenshot")
+    if data["livox_viz_sidecar"] > SIDECAR_VERSION:
+        raise UsageError(f"--sidecar {path}: format {data['livox_viz_sidecar']} is newer than this livox-viz reads "
+                         f"({SIDECAR_VERSION}); update livox-viz")
+    try:
+        config = SensorConfig.from_json_dict(data["config"])
+        sources = dict(data.get("sources") or {})
+        seconds = float(data["scan_time_s"])
+        sizes = {name: tuple(int(v) for v in data["view_sizes"][name]) for name in VIEW_NAMES
+                 if name in data["view_sizes"]}
+        cameras, drawing = data.get("cameras") or {}, data.get("views") or {}
+    except (KeyError, TypeError, ValueError) as exc:
+        raise UsageError(f"--sidecar {path}: missing or malformed {exc}; allowed: a sidecar as livox-viz writes it"
+                         ) from None
+    for name, size in sizes.items():
+        if not all(64 <= v <= 8192 for v in size):
+            raise UsageError(f"--sidecar {path}: the {name} view is {size[0]}x{size[1]}; allowed: 64 to 8192 pixels")
+    scene_args = argparse.Namespace(
+        scene=sources.get("scene") or data.get("scene") or "urban", up=sources.get("up") or "z",
+        pose=sources.get("pose"), exact=bool(sources.get("exact")),
+        reflectance=sources.get("reflectance") if sources.get("reflectance") is not None else 0.5,
+        trajectory=sources.get("trajectory"), trajectory_speed=sources.get("trajectory_speed"))
+    check_points(points_before(seconds, config.point_rate), f"render --sidecar at {seconds:g} s", can_force=False)
+    scene, pose, caster = scene_from_args(scene_args)
+    trajectory = trajectory_from_args(scene_args, pose, max(seconds, GUI_FLIGHT_SECONDS), whole_file=True)
+    session = Session(config, scene, seed=int(data.get("seed", 0)), preset_name=str(data.get("preset") or ""),
+                      vehicle_pose=pose, caster=caster, trajectory=trajectory)
+    session.sources = sources
+    session.set_window_seconds(data.get("window_s"))
+    display = session.display
+    display.pattern_colour = data.get("pattern_colour", display.pattern_colour)
+    display.scene_colour = data.get("scene_colour", display.scene_colour)
+    display.drawing = data.get("drawing", display.drawing)
+    display.cloud_frame = data.get("cloud_frame", display.cloud_frame)
+    reference = sources.get("reference") or data.get("reference")
+    if reference:
+        session.overlay.set_source(reference_source(str(reference), sources.get("reference_rate"), session.seed), 0.0)
+        session.overlay.visible = bool(data.get("reference_visible", True))
+        window = data.get("reference_window_s")
+        if window in WINDOWS:
+            session.overlay.window_index = WINDOWS.index(window)
+
+    def prepare(app) -> None:
+        app.apply_drawing_state(drawing)
+        app.apply_cameras(cameras)
+
+    views = "both" if len(sizes) == 3 else next(iter(sizes))
+    render_offscreen(session, seconds, out, views=views, sizes=sizes, prepare=prepare)
+    width = sum(size[0] for size in sizes.values())
+    print(f"rendered {path.name}'s picture after {seconds:g} s of scan time to {out} "
+          f"({width}x{max(size[1] for size in sizes.values())})")
     return 0
 
 
@@ -190,6 +266,9 @@ def _render_arguments(parser: argparse.ArgumentParser) -> None:
                         help="which view (default both)")
     parser.add_argument("--size", default="1600x900", help="image size WIDTHxHEIGHT (default 1600x900)")
     parser.add_argument("--out", required=True, help="output PNG")
+    parser.add_argument("--sidecar", help="draw the picture a screenshot's JSON sidecar describes (configuration, "
+                                          "scan time, window, colours, cameras, scene, reference: all from the file; "
+                                          "the other options are not used)")
 
 
 COMMANDS: tuple[Command, ...] = (

@@ -1,4 +1,11 @@
-"""The heads-up text: the state lines of both views, the keys line, the help overlay and messages."""
+"""The text over the views: what each view shows, in words, drawn into the view itself.
+
+It is part of the picture (a screenshot or ``render`` says what it shows):
+the pattern view names the configuration, the scan time and the window, and
+says honestly how many of the points fired it holds; the scene view names the
+scene, the return model and how many of the cloud's points are drawn. The
+window's status bar, menus and help live in Qt (:mod:`~livox_viz.widgets.mainwindow`).
+"""
 
 from __future__ import annotations
 
@@ -6,9 +13,37 @@ import time
 
 import pyvista as pv
 
-from .keys import help_text, keys_line
 from .overlay import window_label
 from .session import Session
+
+#: The views' text: large enough to read at 1280 x 720, light on a dark band so it reads over any point.
+FONT_SIZE = 11
+TEXT_COLOUR = "#e6ebf2"
+
+
+def _text(plotter: pv.Plotter, name: str) -> object:
+    actor = plotter.add_text("", position="upper_left", font_size=FONT_SIZE, color=TEXT_COLOUR, name=name)
+    style = actor.GetTextProperty()
+    style.SetBackgroundColor(0.06, 0.08, 0.11)
+    style.SetBackgroundOpacity(0.55)
+    return actor
+
+
+def window_line(session: Session) -> str:
+    """How many points the pattern view holds of those fired in its window, saying why when it holds fewer."""
+    held = session.pattern_ring.count
+    fired = session.points_fired_in_window()
+    line = f"window {window_label(session.window)}: {held:,} points"
+    if session.source is None and fired > held:
+        if session.window is None:
+            capacity = session.pattern_ring.capacity
+            line += f" (the last {held:,} of {fired:,} fired: the unlimited window holds {capacity:,})"
+        elif session.skipped_points:
+            line += (f" of {fired:,} fired ({session.skipped_points:,} skipped since the start: this machine could "
+                     f"not draw {session.config.point_rate:,} pts/s)")
+        else:
+            line += f" of {fired:,} fired"
+    return line
 
 
 class HeadsUp:
@@ -16,50 +51,18 @@ class HeadsUp:
 
     Parameters
     ----------
-    plotter : pyvista.Plotter
-    pattern_spot, scene_spot : tuple of int or None
-        Subplots of the views shown (None: that view is not in the window).
+    pattern_plotter, scene_plotter : pyvista.Plotter or None
+        The views' plotters (None: that view is not shown).
     """
 
-    def __init__(self, plotter: pv.Plotter, pattern_spot: tuple[int, int] | None,
-                 scene_spot: tuple[int, int] | None) -> None:
-        first = pattern_spot or scene_spot or (0, 0)
-        plotter.subplot(*first)
-        self.state = plotter.add_text("", position="upper_left", font_size=10, color="#dde3ea", name="hud")
-        self.keys = plotter.add_text("", position="lower_left", font_size=9, color="#8a96a8", name="keys")
-        self.help = plotter.add_text("", position=(0.03, 0.12), viewport=True, font_size=9, color="#ffffff",
-                                     name="help")
-        style = self.help.GetTextProperty()
-        style.SetFontFamilyToCourier()
-        style.SetBackgroundColor(0.05, 0.06, 0.09)
-        style.SetBackgroundOpacity(0.92)
-        style.SetFrame(True)
-        style.SetFrameColor(0.95, 0.76, 0.31)
-        # The text is scaled into a box of the view (every key fits, at any window size): at a fixed size the list
-        # outgrew a 1600 x 900 window's view, its first lines above the top and each line past the right edge.
-        self.help.SetTextScaleModeToProp()
-        self.help.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
-        self.help.GetPositionCoordinate().SetValue(0.02, 0.08)
-        self.help.GetPosition2Coordinate().SetCoordinateSystemToNormalizedViewport()
-        self.help.GetPosition2Coordinate().SetValue(0.96, 0.86)
-        self.keys.SetText(0, keys_line())
-        self.help.SetInput(help_text())
-        self.help.SetVisibility(False)
-        self.help_visible = False
-        self.scene_state = None
-        if pattern_spot is not None and scene_spot is not None:
-            plotter.subplot(*scene_spot)
-            self.scene_state = plotter.add_text("", position="upper_left", font_size=10, color="#dde3ea",
-                                                name="scene-hud")
-        self.message = plotter.add_text("", position="lower_left" if self.scene_state else "lower_right",
-                                        font_size=10, color="#ff7b72", name="message")
-        self._message_corner = 0 if self.scene_state else 1
+    def __init__(self, pattern_plotter: pv.Plotter | None, scene_plotter: pv.Plotter | None) -> None:
+        self.state = _text(pattern_plotter, "hud") if pattern_plotter is not None else None
+        self.scene_state = _text(scene_plotter, "scene-hud") if scene_plotter is not None else None
         self._reference_at = -1.0
         self._reference_coverage: float | None = None
-        self.fps = 0.0
 
-    def update(self, session: Session, show_scene: bool) -> None:
-        """All text from the session's state."""
+    def pattern_text(self, session: Session, density_shown: bool = False) -> str:
+        """The pattern view's lines."""
         cfg = session.config
         state = "paused" if session.playback.paused else f"{session.playback.speed:g}x"
         overlay = session.overlay
@@ -70,39 +73,41 @@ class HeadsUp:
             if now - self._reference_at > 0.5 or session.playback.paused or self._reference_coverage is None:
                 self._reference_at = now
                 self._reference_coverage = overlay.coverage()
-            shown = "" if overlay.visible else " (hidden, o)"
+            shown = "" if overlay.visible else " (hidden)"
             value = self._reference_coverage
-            reference = (f"reference {overlay.source.name}{shown}, window {window_label(overlay.window)} (l): "
-                         f"coverage {'-' if value is None else f'{100 * value:.1f} %'}\n")
+            reference = (f"\nreference {overlay.source.name}{shown} (blue), window {window_label(overlay.window)}: "
+                         f"coverage {'-' if value is None else f'{100 * value:.1f} %'}")
         model = {"risley": "Risley track", "track": "track"}.get(cfg.pattern_model, "RflySim rosette")
         lasers = f"   {cfg.lasers} lasers" if cfg.lasers > 1 else ""
         fov = cfg.field_of_view
         fov_text = f"FOV {cfg.camera_fov:g} deg" if fov.shape == "cone" else f"FOV {fov.describe()}"
-        text = (
+        drawing = "density image" if density_shown else "points"
+        return (
             f"{session.preset_name or 'custom'}   {model}{lasers}   {cfg.point_rate:,} pts/s   {fov_text}\n"
             f"t = {session.scan_time:8.3f} s   frame {max(session.frame_index, 0)}   {state}\n"
-            f"window {window_label(session.window)}: {session.pattern_ring.count:,} pts, "
-            f"coverage {100 * session.visible_coverage():.1f} %\n"
-            f"{reference}"
-            f"colour: {session.display.pattern_colour}   drawing: {session.display.drawing} (g)   "
-            f"step: {session.display.step_unit}"
+            f"{window_line(session)}, coverage {100 * session.visible_coverage():.1f} %"
+            f"{reference}\n"
+            f"colour: {session.display.pattern_colour}   drawn as {drawing} ({session.display.drawing})"
             + (f"   jitter per {cfg.jitter_scope}" if cfg.pattern_model == "rflysim" else "")
-            + (f"   {self.fps:4.1f} fps" if self.fps else "")
         )
-        scene_lines = ""
-        if show_scene:
-            moving = ""
-            if session.trajectory is not None:
-                moving = (f"\ntrajectory {session.trajectory.name}, cloud in the {session.display.cloud_frame} "
-                          "frame (w)")
-            scene_lines = (f"scene {session.scene.name}: {len(session.scene.mesh.faces):,} triangles\n"
-                           f"decoded cloud: {session.scene_ring.count:,} returns in the window, "
-                           f"returns {cfg.returns_model} (d)\n"
-                           f"colour: {session.display.scene_colour}  (k){moving}")
+
+    def scene_text(self, session: Session, drawn: int) -> str:
+        """The scene view's lines; ``drawn`` is how many of the cloud's points the view draws."""
+        cfg = session.config
+        count = session.scene_ring.count
+        thinned = f" (drawing {drawn:,}: 1 in {round(count / max(drawn, 1))})" if drawn < count else ""
+        lines = [f"scene {session.scene.name}: {len(session.scene.mesh.faces):,} triangles",
+                 f"decoded cloud: {count:,} returns in the window{thinned}",
+                 f"returns: {cfg.returns_model}   colour: {session.display.scene_colour}"]
+        if session.display.scene_colour == "reflectivity" and cfg.returns_model == "ideal":
+            lines.append("ideal returns carry no intensity (reflectivity 0): turn on the datasheet returns (d)")
+        if session.trajectory is not None:
+            lines.append(f"trajectory {session.trajectory.name}, cloud in the {session.display.cloud_frame} frame")
+        return "\n".join(lines)
+
+    def update(self, session: Session, density_shown: bool = False, drawn: int = 0) -> None:
+        """All text from the session's state."""
+        if self.state is not None:
+            self.state.SetText(2, self.pattern_text(session, density_shown))
         if self.scene_state is not None:
-            self.scene_state.SetText(2, scene_lines)
-        elif scene_lines:
-            text += "\n" + scene_lines
-        self.state.SetText(2, text)
-        self.help.SetVisibility(self.help_visible)
-        self.message.SetText(self._message_corner, session.message)
+            self.scene_state.SetText(2, self.scene_text(session, drawn))

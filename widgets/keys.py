@@ -16,7 +16,8 @@ class KeyRow:
     action : str
         What they do.
     bindings : tuple of (str, str)
-        (VTK key symbol, name of the window's method it calls), one per key.
+        (key, name of the method it calls: the window's, else the controller's), one per key; a key is a
+        character or one of ``space``, ``Right``, ``Up``, ``Down``.
     short : str
         The few words the always-visible keys line shows ("" = not shown there).
     """
@@ -34,20 +35,21 @@ KEYS: tuple[KeyRow, ...] = (
            (("Right", "step"), ("u", "cycle_step_unit")), "step"),
     KeyRow("x", "reset the scan to t = 0", (("x", "reset"),)),
     KeyRow("Up / Down", "speed x2 / /2", (("Up", "faster"), ("Down", "slower")), "speed"),
-    KeyRow("i", "integration window: 0.1, 0.5, 1, 2 s, unlimited (1 M points)", (("i", "cycle_window"),),
-           "window"),
+    KeyRow("i", "integration window: 0.1, 0.5, 1, 2 s, unlimited (1 M points); any other from the panel or the "
+           "Playback menu", (("i", "cycle_window"),), "window"),
     KeyRow("c / k", "pattern colours (time, figure-8, petal, flower, arc; laser for Risley) / scene colours "
            "(range, height, time, reflectivity, return/tag)", (("c", "cycle_pattern_colour"),
                                                                ("k", "cycle_scene_colour")), "colours"),
     KeyRow("d / t", "return model: ideal (each ray's exact first hit, as RflySim) / datasheet (the sensor's sheet: "
-           "noise, detection range, beam footprint, returns, reflectivity, tags) / the sliders of the pattern or of "
-           "the return model", (("d", "toggle_returns_model"), ("t", "toggle_slider_page")), "returns"),
+           "noise, detection range, beam footprint, returns, reflectivity, tags) / the panel shows the pattern's "
+           "parameters or the return model's", (("d", "toggle_returns_model"), ("t", "toggle_slider_page")),
+           "returns"),
     KeyRow("j", "add the random rotation after each flower / after each figure", (("j", "toggle_jitter_scope"),)),
     KeyRow("v", "pattern model: RflySim's rosette / the track (a configuration with Risley or track parameters)",
            (("v", "toggle_pattern_model"),), "model"),
-    KeyRow("s", "screenshot PNG into `screenshots/` with a JSON sidecar (configuration, seed, scan time, cameras)",
-           (("s", "take_screenshot"),), "screenshot"),
-    KeyRow("p", "save the sliders as a user preset (`~/.config/livox-viz/presets`, never over a shipped one)",
+    KeyRow("s", "screenshot of the views (PNG) into `screenshots/` with a JSON sidecar from which `livox-viz render "
+           "--sidecar` draws the same picture", (("s", "take_screenshot"),), "screenshot"),
+    KeyRow("p", "save the parameters as a user preset (`~/.config/livox-viz/presets`, never over a shipped one)",
            (("p", "save_preset"),), "preset"),
     KeyRow("n / b", "next / previous preset", (("n", "next_preset"), ("b", "previous_preset")), "presets"),
     KeyRow("w", "moving sensor: the cloud in the world (each point with the pose of its own time: walls stay sharp) "
@@ -62,27 +64,30 @@ KEYS: tuple[KeyRow, ...] = (
            (("e", "cycle_reference"),), "reference"),
     KeyRow("f", "fit the rosette's parameters to the reference and move the sliders there",
            (("f", "fit_to_reference"),), "fit"),
-    KeyRow("r", "reset the cameras", (("r", "reset_cameras"),)),
-    KeyRow("h", "help overlay", (("h", "toggle_help"),), "help"),
-    KeyRow("q", "quit", (), "quit"),
+    KeyRow("r", "reset the cameras to fit everything drawn (the reference too)", (("r", "reset_cameras"),)),
+    KeyRow("h", "the keys and the mouse", (("h", "toggle_help"),), "help"),
+    KeyRow("q", "quit", (("q", "quit"),), "quit"),
+)
+
+#: What the mouse does in the views (the help lists it after the keys).
+MOUSE: tuple[tuple[str, str], ...] = (
+    ("left drag", "turn the scene's camera (pan the pattern view with the middle button or Shift)"),
+    ("wheel / right drag", "zoom"),
+    ("click a point (scene)", "its range, azimuth and elevation, reflectivity, tag, return number, time and frame "
+                              "in the status bar; a second click also gives the distance between the two"),
+    ("click (pattern)", "the angles and the time of the nearest sample"),
 )
 
 
-def keys_line() -> str:
-    """The always-visible one-line summary."""
-    return "  ".join(f"{row.label.replace(' / ', '/')} {row.short}" for row in KEYS if row.short)
+def help_html() -> str:
+    """The help dialog: every key and mouse action, as an HTML table."""
+    from html import escape
 
-
-def help_text() -> str:
-    """The help overlay: every key and what it does, wrapped to fit the pattern view."""
-    import textwrap
-
-    lines = ["livox-viz keys"]
-    for row in KEYS:
-        wrapped = textwrap.wrap(row.action.replace("`", ""), 60) or [""]
-        lines.append(f"{row.label:<10} {wrapped[0]}")
-        lines.extend(f"{'':<10} {more}" for more in wrapped[1:])
-    return "\n".join(lines)
+    rows = "".join(f"<tr><td><b>{escape(row.label)}</b></td><td>{escape(row.action.replace('`', ''))}</td></tr>"
+                   for row in KEYS)
+    mouse = "".join(f"<tr><td><b>{escape(what)}</b></td><td>{escape(does)}</td></tr>" for what, does in MOUSE)
+    return (f"<h3>Keys</h3><table cellspacing='4'>{rows}</table><h3>Mouse</h3><table cellspacing='4'>{mouse}</table>"
+            "<p>Every key is also in the menus; hover over a parameter for what it does.</p>")
 
 
 def markdown_table() -> str:

@@ -23,9 +23,12 @@ class PointRing:
     ----------
     capacity : int
         Points held at most; writing into a full ring overwrites the oldest.
+    sensor_frame : bool
+        Also keep each point as the sensor measured it (:attr:`sensor_xyz`, :attr:`range_m`,
+        :attr:`return_number`): what a click on a point shows (the scene's cloud).
     """
 
-    def __init__(self, capacity: int) -> None:
+    def __init__(self, capacity: int, sensor_frame: bool = False) -> None:
         if capacity < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity}")
         self.capacity = int(capacity)
@@ -36,6 +39,12 @@ class PointRing:
         #: Per point: the Livox reflectivity byte and tag (scene cloud; zeros for pattern points).
         self.reflectivity = np.zeros(self.capacity, dtype=np.uint8)
         self.tag = np.zeros(self.capacity, dtype=np.uint8)
+        #: Per point, when kept (``sensor_frame``): the decoded point in the sensor's FRD frame (metres), its range
+        #: (metres) and its return number (1-3; 0 unknown). Empty arrays otherwise.
+        kept = self.capacity if sensor_frame else 0
+        self.sensor_xyz = np.zeros((kept, 3), dtype=np.float32)
+        self.range_m = np.zeros(kept, dtype=np.float32)
+        self.return_number = np.zeros(kept, dtype=np.uint8)
         # Slot numbers twice over (any run of live slots is one contiguous slice) and cell offsets: read-only
         # tables shared by every ring of this capacity (making them was most of a preset change's 200 ms).
         self._doubled, self._offsets = _slot_tables(self.capacity)
@@ -55,7 +64,9 @@ class PointRing:
         self.head = 0
 
     def write(self, positions: np.ndarray, scalars: np.ndarray, times: np.ndarray, stream_index: np.ndarray,
-              reflectivity: np.ndarray | None = None, tag: np.ndarray | None = None) -> None:
+              reflectivity: np.ndarray | None = None, tag: np.ndarray | None = None,
+              sensor_xyz: np.ndarray | None = None, range_m: np.ndarray | None = None,
+              return_number: np.ndarray | None = None) -> None:
         """Append points in time order, dropping the oldest when full.
 
         Parameters
@@ -68,16 +79,27 @@ class PointRing:
             Point numbers in the pattern stream.
         reflectivity, tag : (n,) uint8, optional
             The points' Livox reflectivity and tag (default 0).
+        sensor_xyz : (n, 3) float, optional
+            Each point in the sensor's frame, metres (kept by a ``sensor_frame`` ring; default 0).
+        range_m : (n,) float, optional
+            Each point's range, metres (default: the length of ``sensor_xyz``).
+        return_number : (n,) uint8, optional
+            1-3 (default 0: unknown).
         """
         n = positions.shape[0]
         if n == 0:
             return
         reflectivity = np.zeros(n, np.uint8) if reflectivity is None else reflectivity
         tag = np.zeros(n, np.uint8) if tag is None else tag
+        columns = [positions, scalars, times, stream_index, reflectivity, tag]
+        targets = [self.positions, self.scalars, self.times, self.stream_index, self.reflectivity, self.tag]
+        if self.sensor_xyz.shape[0]:
+            local = np.zeros((n, 3), np.float32) if sensor_xyz is None else sensor_xyz
+            ranges = np.linalg.norm(local, axis=1) if range_m is None else range_m
+            columns += [local, ranges, np.zeros(n, np.uint8) if return_number is None else return_number]
+            targets += [self.sensor_xyz, self.range_m, self.return_number]
         if n > self.capacity:
-            positions, scalars = positions[-self.capacity :], scalars[-self.capacity :]
-            times, stream_index = times[-self.capacity :], stream_index[-self.capacity :]
-            reflectivity, tag = reflectivity[-self.capacity :], tag[-self.capacity :]
+            columns = [column[-self.capacity :] for column in columns]
             n = self.capacity
         evicted = self.count + n - self.capacity
         if evicted > 0 and self.on_evict is not None:
@@ -85,12 +107,8 @@ class PointRing:
         first = min(n, self.capacity - self.head)
         for source, target in ((slice(0, first), slice(self.head, self.head + first)),
                                (slice(first, n), slice(0, n - first))):
-            self.positions[target] = positions[source]
-            self.scalars[target] = scalars[source]
-            self.times[target] = times[source]
-            self.stream_index[target] = stream_index[source]
-            self.reflectivity[target] = reflectivity[source]
-            self.tag[target] = tag[source]
+            for column, array in zip(columns, targets, strict=True):
+                array[target] = column[source]
         self.head = (self.head + n) % self.capacity
         self.count = min(self.capacity, self.count + n)
 

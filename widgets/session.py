@@ -14,6 +14,7 @@ writes, and placed in the world with the frame's pose.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -38,11 +39,31 @@ from .ring import CoverageCounts, DensityGrid, PointRing
 
 #: The integration window a session starts with (an index of :data:`~widgets.overlay.WINDOWS`).
 FIRST_WINDOW = 1
+#: The integration windows a user may type, seconds (besides unlimited).
+WINDOW_RANGE = (0.01, 10.0)
 
 
-def check_window(config: SensorConfig, index: int = FIRST_WINDOW) -> None:
-    """Refuse a configuration whose pattern the integration window ``index`` cannot hold (:data:`WINDOW_BUDGET`)."""
-    check_points(window_capacity(WINDOWS[index], config.point_rate), "the integration window", WINDOW_BUDGET)
+def check_window(config: SensorConfig, window: float | None = WINDOWS[FIRST_WINDOW]) -> None:
+    """Refuse a configuration whose pattern the integration window (seconds; None = unlimited) cannot hold
+    (:data:`WINDOW_BUDGET`)."""
+    check_points(window_capacity(window, config.point_rate), "the integration window", WINDOW_BUDGET)
+
+
+def check_window_seconds(seconds: float | None) -> float | None:
+    """An integration window a user typed: None (unlimited) or a finite number of seconds in :data:`WINDOW_RANGE`.
+
+    Raises
+    ------
+    LivoxVizError
+        Naming the value and the allowed range.
+    """
+    if seconds is None:
+        return None
+    if not (isinstance(seconds, (int, float)) and math.isfinite(seconds)
+            and WINDOW_RANGE[0] <= seconds <= WINDOW_RANGE[1]):
+        raise LivoxVizError(f"integration window {seconds!r} s; allowed: {WINDOW_RANGE[0]:g} to {WINDOW_RANGE[1]:g} s, "
+                            "or unlimited")
+    return float(seconds)
 
 #: The units a step can advance by, as the user names them, and the stream unit behind each.
 STEP_UNITS: dict[str, str] = {"arc": "arc", "petal": "petal", "figure-8": "figure8", "flower": "flower",
@@ -139,18 +160,27 @@ class Session:
         self.caster = caster or EmbreeCaster(scene.mesh)
         self.playback = Playback()
         self.display = DisplayOptions()
-        self.window_index = FIRST_WINDOW
+        self._window: float | None = WINDOWS[FIRST_WINDOW]
         self.message = ""
+        #: Points of the model's stream skipped since the last restart because a tick fell too far behind
+        #: (:data:`MAX_POINTS_PER_TICK`): fired by the sensor, never drawn.
+        self.skipped_points = 0
         self.overlay = ReferenceOverlay()
         #: How the scenes the window cycles to are opened (``open_scene``'s ``up`` and ``reflectance``): as the
         #: one it started on.
         self.scene_options: dict[str, object] = {}
         #: A receiver with ``poll() -> list of LivoxFrame`` (the live view); None plays the model.
         self.source = None
+        #: Where the scene, the trajectory and the reference came from, as the command line names them
+        #: (``scene``, ``up``, ``reflectance``, ``pose``, ``trajectory``, ``trajectory_speed``, ``reference``...):
+        #: what a screenshot's sidecar needs to make them again.
+        self.sources: dict[str, object] = {}
         self._received_points = 0
         self._listeners: list[Callable[[str], None]] = []
-        check_window(config)
+        check_window(config, self._window)
         self.config = config
+        #: The configuration as its preset gave it: what a parameter's reset goes back to.
+        self.preset_config = config
         self._fit_display()
         self._make_rings()
         self.restart()
@@ -168,7 +198,12 @@ class Session:
     @property
     def window(self) -> float | None:
         """The integration window, seconds, or None for unlimited."""
-        return WINDOWS[self.window_index]
+        return self._window
+
+    @property
+    def window_index(self) -> int | None:
+        """The window's place among the presets :data:`WINDOWS`, or None for a typed value that is none of them."""
+        return WINDOWS.index(self._window) if self._window in WINDOWS else None
 
     def set_config(self, config: SensorConfig, preset_name: str | None = None) -> None:
         """Show another configuration: restart the scan and tell every view.
@@ -184,6 +219,7 @@ class Session:
         self.config = config
         if preset_name is not None:
             self.preset_name = preset_name
+            self.preset_config = config
         if resize:
             self._make_rings()
         source = self.overlay.source
@@ -222,9 +258,12 @@ class Session:
         """Switch when the random rotation is added ("flower" or "figure") and restart."""
         self.set_config(replace(self.config, jitter_scope=scope))
 
-    def set_scene(self, scene: Scene) -> None:
-        """Cast into another scene (from its own default vehicle pose) and restart the scan."""
-        self.caster = EmbreeCaster(scene.mesh)
+    def set_scene(self, scene: Scene, caster: RayCaster | None = None) -> None:
+        """Cast into another scene (from its own default vehicle pose) and restart the scan.
+
+        ``caster``: one already built for ``scene`` (the window builds it on a worker: a large mesh's takes seconds).
+        """
+        self.caster = caster if caster is not None else EmbreeCaster(scene.mesh)
         self.scene = scene
         self.vehicle_pose = scene.vehicle_pose
         self.restart()
@@ -256,6 +295,7 @@ class Session:
         self.scan_time = 0.0
         self.playback.restart()
         self.frame_index = 0
+        self.skipped_points = 0
         self._clear_rings()
         self.overlay.refill(0.0)
 
@@ -263,20 +303,53 @@ class Session:
         """Pick :data:`WINDOWS` ``[index]`` and refill it from the stream (keeps the scan time)."""
         if not 0 <= index < len(WINDOWS):
             raise LivoxVizError(f"window index {index}; allowed: 0 to {len(WINDOWS) - 1}")
-        check_window(self.config, index)
-        self.window_index = index
+        self.set_window_seconds(WINDOWS[index])
+
+    def set_window_seconds(self, seconds: float | None) -> None:
+        """Integrate over ``seconds`` (:data:`WINDOW_RANGE`; None = unlimited) and refill the window from the
+        stream (keeps the scan time).
+
+        Raises
+        ------
+        LivoxVizError
+            For a value outside :data:`WINDOW_RANGE`, or a window the point budget cannot hold.
+        """
+        seconds = check_window_seconds(seconds)
+        check_window(self.config, seconds)
+        self._window = seconds
         self._make_rings()
-        start_time = 0.0 if self.window is None else max(0.0, self.scan_time - self.window)
-        target = self.scan_time
+        self._refill(self.scan_time)
+
+    def seek(self, scan_time: float) -> None:
+        """Show the integration window that ends at ``scan_time`` seconds (the time scrubber), cast afresh: the
+        same points a scan played to that time holds. Playback pauses."""
+        if not math.isfinite(scan_time) or scan_time < 0:
+            raise LivoxVizError(f"scan time {scan_time!r}; allowed: a time >= 0 s")
+        if self.trajectory is not None:
+            scan_time = min(scan_time, self.trajectory.span[1])
+        self.playback.paused = True
+        self._clear_rings()
+        self._refill(scan_time)
+
+    def _refill(self, target: float) -> None:
+        """Fill the window that ends at ``target`` seconds from the stream: exactly the points a scan played to
+        ``target`` holds (the last ring's worth of the window's), cast in ticks' worth of points."""
+        rate = self.config.point_rate
+        start_time = 0.0 if self.window is None else max(0.0, target - self.window)
+        last = points_before(target, rate)
+        first = max(points_before(start_time, rate), last - self.pattern_ring.capacity)
         self.pattern = make_pattern(self.config, seed=self.seed)
-        self.pattern.skip(points_before(start_time, self.config.point_rate))
-        self.scan_time = start_time
+        self.pattern.skip(first)
+        self.scan_time = max(start_time, first / rate)
+        self.overlay.refill(self.scan_time)
+        while self.pattern.position + MAX_POINTS_PER_TICK < last:
+            self.advance_to((self.pattern.position + MAX_POINTS_PER_TICK) / rate)
         self.advance_to(target)
 
     def _make_rings(self) -> None:
         capacity = window_capacity(self.window, self.config.point_rate)
         self.pattern_ring = PointRing(capacity)
-        self.scene_ring = PointRing(capacity)
+        self.scene_ring = PointRing(capacity, sensor_frame=True)
         fov = self.config.field_of_view
         self.density = DensityGrid(fov.bounds)
         self.coverage_counts = CoverageCounts(fov)
@@ -343,6 +416,7 @@ class Session:
             # Too far behind: jump, keeping only what the window can show.
             keep = min(self.pattern_ring.capacity, MAX_POINTS_PER_TICK)
             self.pattern.skip(missing - keep)
+            self.skipped_points += missing - keep
             missing = keep
         if missing <= 0:
             self.scan_time = max(self.scan_time, scan_time)
@@ -383,7 +457,8 @@ class Session:
         else:
             world = frame.xyz_world_decoded
         self.scene_ring.write(world, self.scene_scalars(world, frame.range_m, frame.t, frame.reflectivity, frame.tag),
-                              frame.t, index, frame.reflectivity, frame.tag)
+                              frame.t, index, frame.reflectivity, frame.tag, sensor_xyz=frame.xyz_decoded,
+                              range_m=frame.range_m, return_number=frame.return_number)
 
     def _drop_old(self) -> None:
         if self.window is not None:
@@ -473,6 +548,71 @@ class Session:
             np.sqrt(ranges, out=ranges)
             ring.scalars[piece] = self.scene_scalars(world, ranges, ring.times[piece], ring.reflectivity[piece],
                                                      ring.tag[piece])
+
+    # What is drawn, and what a click finds -------------------------------------------------
+    def points_fired_in_window(self) -> int:
+        """Points the sensor fired in the integration window that ends now (since the start, when unlimited).
+
+        What the window would hold if nothing were skipped or capped; a live source counts what arrived.
+        """
+        if self.source is not None:
+            return self.pattern_ring.count
+        rate = self.config.point_rate
+        start = 0.0 if self.window is None else max(0.0, self.scan_time - self.window)
+        return points_before(self.scan_time, rate) - points_before(start, rate)
+
+    def nearest_pattern_point(self, x_deg: float, y_deg: float) -> dict[str, float] | None:
+        """The live pattern sample nearest to ``(x_deg, y_deg)`` in the pattern's plane, or None when empty.
+
+        Returns
+        -------
+        dict
+            ``x_deg``, ``y_deg`` (the sample's angles), ``t_s`` (its time, seconds), ``index`` (its number in
+            the stream), ``distance_deg`` (from the point asked).
+        """
+        ring = self.pattern_ring
+        if ring.count == 0:
+            return None
+        best: tuple[float, int] | None = None
+        for piece in ring.live_pieces():
+            xy = ring.positions[piece, :2].astype(np.float64)
+            d2 = np.square(xy[:, 0] - x_deg) + np.square(xy[:, 1] - y_deg)
+            k = int(np.argmin(d2))
+            if best is None or d2[k] < best[0]:
+                best = (float(d2[k]), piece.start + k)
+        assert best is not None
+        slot = best[1]
+        return {"x_deg": float(ring.positions[slot, 0]), "y_deg": float(ring.positions[slot, 1]),
+                "t_s": float(ring.times[slot]), "index": int(ring.stream_index[slot]),
+                "distance_deg": math.sqrt(best[0])}
+
+    def scene_point(self, slot: int) -> dict[str, float | int]:
+        """What the scene's cloud holds for the point in ``slot`` of its ring (a click on it).
+
+        Returns
+        -------
+        dict
+            ``xyz_world`` (NED, metres), ``xyz_sensor`` (decoded, sensor FRD, metres), ``range_m``,
+            ``azimuth_deg`` (positive to the sensor's right), ``elevation_deg`` (positive up),
+            ``reflectivity`` (byte), ``tag`` (byte), ``return_number`` (1-3; 0 unknown), ``t_s``, ``frame``.
+        """
+        ring = self.scene_ring
+        if not 0 <= slot < ring.capacity:
+            raise LivoxVizError(f"slot {slot}; allowed: 0 to {ring.capacity - 1}")
+        local = ring.sensor_xyz[slot].astype(np.float64)
+        t = float(ring.times[slot])
+        if self.source is None:
+            frame = int(ring.stream_index[slot]) // self.config.points_per_frame
+        else:
+            frame = math.floor(t * self.config.data_check_freq + 1e-9)
+        return {
+            "xyz_world": ring.positions[slot].astype(np.float64).tolist(), "xyz_sensor": local.tolist(),
+            "range_m": float(ring.range_m[slot]),
+            "azimuth_deg": math.degrees(math.atan2(local[1], local[0])),
+            "elevation_deg": math.degrees(math.atan2(-local[2], math.hypot(local[0], local[1]))),
+            "reflectivity": int(ring.reflectivity[slot]), "tag": int(ring.tag[slot]),
+            "return_number": int(ring.return_number[slot]), "t_s": t, "frame": frame,
+        }
 
     # Measures ------------------------------------------------------------------------------
     def visible_coverage(self) -> float:

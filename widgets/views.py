@@ -17,13 +17,31 @@ import pyvista as pv
 from livox_viz.core.rotations import FRD_TO_FLU
 
 from .ring import PointRing
-from .session import TAG_CLASSES, Session
+from .session import PATTERN_COLOURS, TAG_CLASSES, Session
 
 #: NED (z down) to the display's z-up frame (north-west-up), as a 4x4 actor matrix.
 NED_TO_DISPLAY = np.eye(4)
 NED_TO_DISPLAY[:3, :3] = FRD_TO_FLU
 PATTERN_UNITS = {"time": "time, s", "figure-8": "figure-8 in flower", "petal": "petal in flower",
                  "flower": "flower in figure", "arc": "arc in figure-8", "laser": "laser"}
+#: The pattern colourings that name a category (a petal, a laser), drawn with a legend of distinct colours.
+CATEGORICAL_PATTERN_COLOURS = ("figure-8", "petal", "flower", "arc", "laser")
+#: The four arcs of a figure-8 in the order they are traced (scan-model.md section 3).
+ARC_NAMES = ("1 upper-left, out", "2 lower-left, in", "3 upper-right, out", "4 lower-right, in")
+#: Distinct colours of categories (Tableau 20's strong half first, then its light half), cycled past twenty.
+CATEGORY_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+                    "#bcbd22", "#17becf", "#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94",
+                    "#f7b6d2", "#c7c7c7", "#dbdb8d", "#9edae5")
+#: Colour maps a user may pick for the continuous colourings (time, range, height).
+COLOUR_MAPS = ("turbo", "viridis", "plasma", "inferno", "cividis", "gray")
+#: Backgrounds a user may pick for the views: (name, bottom colour, top colour or None).
+BACKGROUNDS: dict[str, tuple[str, str | None]] = {"dark": ("#10141c", None), "gradient": ("#1a1f29", "#3b4a63"),
+                                                  "black": ("#000000", None), "white": ("#ffffff", None)}
+#: The reference overlay's look: light blue, translucent, drawn behind our own points.
+REFERENCE_COLOUR = "#8fd3ff"
+#: Pixels at the top of the pattern view that its text's lines take (kept free of the drawing).
+TEXT_BAND_PX = 84
+REFERENCE_DEPTH = -0.5
 SCENE_UNITS = {"range": "range, m", "height": "height, m", "time": "time, s",
                "reflectivity": "reflectivity",
                "return/tag": "return / tag"}
@@ -104,6 +122,61 @@ def one_mesh(parts: list[pv.PolyData]) -> pv.PolyData:
     return mesh
 
 
+def time_marks(low: float, high: float, ticks: int = 5) -> dict[float, str]:
+    """Marks of a time colour bar from ``low`` to ``high`` seconds: its two ends and round times between them, each
+    with as many decimals as their spacing needs, so no two marks read the same (a 0.5 s window at t = 106 s read
+    "106" on every tick).
+
+    Parameters
+    ----------
+    low, high : float
+        Seconds.
+    ticks : int
+        About how many marks.
+    """
+    if not high > low:
+        return {low: f"{low:.3f}"}
+    raw = (high - low) / max(ticks - 1, 1)
+    magnitude = 10.0 ** math.floor(math.log10(raw))
+    step = next(f * magnitude for f in (1, 2, 5, 10) if raw <= f * magnitude)
+    decimals = max(0, -math.floor(math.log10(step) + 1e-9))
+    # The ends are not round: one more decimal than the ticks, and the ticks as many, so the column reads evenly.
+    decimals = max(decimals, max(0, -math.floor(math.log10(high - low) + 1e-9)) + 1)
+    marks = {low: f"{low:.{decimals}f}", high: f"{high:.{decimals}f}"}
+    first = math.ceil(low / step + 1e-9) * step
+    for k in range(int((high - low) / step) + 2):
+        value = first + k * step
+        # Keep clear of the ends' labels (closer than a third of a step would overlap them).
+        if low + step / 3 < value < high - step / 3:
+            marks[value] = f"{value:.{decimals}f}"
+    return dict(sorted(marks.items()))
+
+
+def category_table(labels: list[str]) -> pv.LookupTable:
+    """A lookup table of distinct colours, one per category (scalars 0 .. n-1), annotated with the categories'
+    names: a legend, not a ramp (at most about a dozen names are written; the colours repeat past twenty)."""
+    count = len(labels)
+    colours = [CATEGORY_COLOURS[k % len(CATEGORY_COLOURS)] for k in range(count)]
+    table = pv.LookupTable(cmap=colours if count > 1 else [colours[0], colours[0]], n_values=max(count, 2))
+    table.scalar_range = (-0.5, max(count, 2) - 0.5)
+    every = max(1, math.ceil(count / 12))
+    table.annotations = {float(k): labels[k] for k in range(0, count, every)}
+    return table
+
+
+def pattern_categories(session: Session) -> list[str]:
+    """The category names of the session's categorical pattern colouring, in scalar order."""
+    mode = session.display.pattern_colour
+    config = session.config
+    if mode == "laser":
+        return [f"laser {k + 1}" for k in range(config.lasers)]
+    if mode == "arc":
+        return list(ARC_NAMES)
+    unit, within = PATTERN_COLOURS[mode]
+    count = config.unit_points[within] // config.unit_points[unit]
+    return [f"{mode} {k + 1}" for k in range(count)]
+
+
 def _address(array: np.ndarray) -> int:
     return int(array.__array_interface__["data"][0])
 
@@ -122,55 +195,105 @@ class _View:
     Parameters
     ----------
     plotter : pyvista.Plotter
+        The view's own plotter (a Qt interactor in the window, an off-screen plotter in renders).
     session : Session
     subplot : tuple of int
         Where the view lives in the plotter.
     """
 
-    background: tuple[str, str | None] = ("#10141c", None)
+    background: tuple[str, str | None] = BACKGROUNDS["dark"]
 
-    def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
+    def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int] = (0, 0)) -> None:
         self.plotter = plotter
         self.session = session
         self.subplot = subplot
         plotter.subplot(*subplot)
         self.renderer = plotter.renderer
         plotter.set_background(self.background[0], top=self.background[1])
+        self.point_size = 2.0
+
+    def set_background(self, name: str) -> None:
+        """One of :data:`BACKGROUNDS`."""
+        bottom, top = BACKGROUNDS[name]
+        self.plotter.subplot(*self.subplot)
+        self.plotter.set_background(bottom, top=top)
+
+    def set_point_size(self, pixels: float) -> None:
+        """The cloud's points, in pixels (1-10)."""
+        self.point_size = float(min(max(pixels, 1.0), 10.0))
+        self.actor.GetProperty().SetPointSize(self.point_size)
+
+
+def panorama_stretch(fov) -> float:
+    """How much the pattern view stretches elevation against azimuth: 1 for a boresight pattern (true angles,
+    circles stay round); for a 360-degree band, enough that the band is half as tall as it is wide (the Mid-360's
+    59 x 360 degrees was a strip 50 px tall in a 600 px view)."""
+    if fov.plane != "panorama":
+        return 1.0
+    x0, x1, y0, y1 = fov.bounds
+    return max(1.0, (x1 - x0) / max(y1 - y0, 1e-6) / 2.0)
 
 
 class PatternView(_View):
-    """The angular plane in degrees: FOV circle, degree rings, the live pattern (or its density image)."""
+    """The angular plane in degrees: FOV outline, degree grid, the live pattern (or its density image), the
+    reference behind it.
 
-    def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
+    A 360-degree band is drawn with its elevation stretched (:func:`panorama_stretch`) so that it fills the view's
+    width at a readable height; its marks still read true degrees, and :meth:`plane_point` undoes the stretch.
+    """
+
+    def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int] = (0, 0)) -> None:
         super().__init__(plotter, session, subplot)
         self._guides: list = []
         self._guide_actors: tuple | None = None
         self._ring = session.pattern_ring
+        self.colour_map = "turbo"
         self.poly = ring_polydata(self._ring)
         self.actor = plotter.add_mesh(
-            self.poly, scalars="scalars", cmap="turbo", point_size=2.0, render_points_as_spheres=False,
-            show_scalar_bar=False, name="pattern", reset_camera=False, lighting=False,
+            self.poly, scalars="scalars", cmap=self.colour_map, point_size=self.point_size,
+            render_points_as_spheres=False, show_scalar_bar=False, name="pattern", reset_camera=False, lighting=False,
         )
         self._reference_ring = session.overlay.ring
         self.reference_poly = ring_polydata(self._reference_ring)
+        # Behind our points (farther from the camera), fainter and smaller: the reference never hides ours.
         self.reference_actor = plotter.add_mesh(
-            self.reference_poly, color="#f5f7fa", opacity=0.55, point_size=1.5, render_points_as_spheres=False,
+            self.reference_poly, color=REFERENCE_COLOUR, opacity=0.45, point_size=1.5, render_points_as_spheres=False,
             name="reference", reset_camera=False, lighting=False, scalars=None,
         )
         self.scalar_bar = add_scalar_bar(plotter, PATTERN_UNITS[session.display.pattern_colour], self.actor.mapper)
         self._density_grid = None
         self.density_actor = None
         self._guides_fov = None
+        self._colouring: tuple | None = None
+        self.stretch = panorama_stretch(session.config.field_of_view)
         self._make_density_image()
         self.draw_guides()
+        self._place_actors()
         self.reset_camera()
         session.subscribe(self._on_change)
 
     def _on_change(self, what: str) -> None:
         # The guides are drawn from the FOV alone: redrawn (and the camera refitted) when it changed.
         if what == "config" and self._guides_fov != self.session.config.field_of_view:
+            self.stretch = panorama_stretch(self.session.config.field_of_view)
             self.draw_guides()
+            self._place_actors()
             self.reset_camera()
+
+    def _place_actors(self) -> None:
+        """Every actor of the plane at the view's stretch; the reference and the density image behind ours."""
+        scale = (1.0, self.stretch, 1.0)
+        self.actor.scale = scale
+        self.reference_actor.scale = scale
+        self.reference_actor.position = (0.0, 0.0, REFERENCE_DEPTH)
+        if self.density_actor is not None:
+            self.density_actor.scale = scale
+        for actor in self._guide_actors or ():
+            actor.scale = scale
+
+    def plane_point(self, display_xyz: tuple[float, float, float]) -> tuple[float, float]:
+        """Angles (degrees) in the pattern's plane of a point in the view's world coordinates (the stretch undone)."""
+        return float(display_xyz[0]), float(display_xyz[1]) / self.stretch
 
     def _make_density_image(self) -> None:
         """The density image of the window's points (shown instead of the points when they outnumber pixels)."""
@@ -208,6 +331,7 @@ class PatternView(_View):
         self.density_actor = self.plotter.add_mesh(quad, texture=texture, name="density", reset_camera=False,
                                                    lighting=False, show_scalar_bar=False)
         self.density_actor.SetVisibility(False)
+        self.density_actor.scale = (1.0, getattr(self, "stretch", 1.0), 1.0)
 
     def density_shown(self) -> bool:
         """Whether the view draws the density image rather than the points."""
@@ -221,16 +345,19 @@ class PatternView(_View):
         """The field of view's outline, a degree grid, cross hairs, and the axis names.
 
         The boresight plane gets rings of equal angle off the boresight (kept to the field of view's box);
-        the panorama plane gets lines of azimuth and elevation.
+        the panorama plane gets lines of azimuth and elevation, every one of them marked.
         """
         plotter = self.plotter
         plotter.subplot(*self.subplot)
-        if "grid-labels" in self._guides:
-            plotter.remove_actor("grid-labels", render=False)
+        for name in ("grid-labels", "axis-labels"):
+            if name in self._guides:  # pyvista names a label actor after its name, "-labels" added
+                plotter.remove_actor(f"{name}-labels", render=False)
         self._guides = []
         fov = self.session.config.field_of_view
         self._guides_fov = fov
-        grid_lines, labels, positions = (_panorama_grid(fov) if fov.plane == "panorama" else _boresight_grid(fov))
+        stretch = self.stretch
+        grid_lines, labels, positions = (_panorama_grid(fov, stretch) if fov.plane == "panorama"
+                                         else _boresight_grid(fov))
         # The grid and the outline are one mesh each, handed to the same two actors on every change.
         grid = one_mesh(grid_lines)
         boundary = fov.boundary()
@@ -245,36 +372,95 @@ class PatternView(_View):
         else:
             for actor, mesh in zip(self._guide_actors, (grid, outline), strict=True):
                 actor.mapper.SetInputData(mesh)
+        #: The grid's marks as drawn (degrees), for tests and the curious.
+        self.guide_labels = list(labels)
         if labels:
-            plotter.add_point_labels(positions, labels, font_size=11, text_color="#8a96a8", shape=None,
+            plotter.add_point_labels(positions, labels, font_size=12, text_color="#9aa6b8", shape=None,
                                      show_points=False, name="grid-labels", always_visible=True, reset_camera=False)
             self._guides.append("grid-labels")
         x0, x1, y0, y1 = fov.bounds
-        names = ["azimuth, right", "elevation"] if fov.plane == "panorama" else ["x right", "y up"]
-        centre_x = 0.0 if x0 < 0 < x1 else (x0 + x1) / 2
-        below = y0 - 0.3 * (y1 - y0) if fov.plane == "panorama" else (0.0 if y0 < 0 < y1 else y0) - 0.04 * (y1 - y0)
-        plotter.add_point_labels(
-            [(x1 - (0.2 if fov.plane == "panorama" else -0.01) * (x1 - x0), below, 0),
-             (centre_x + 0.01 * (x1 - x0), y1 + 0.02 * (y1 - y0), 0)],
-            names, font_size=11, text_color="#8a96a8", shape=None, show_points=False, name="axis-labels",
-            always_visible=True, reset_camera=False,
-        )
+        if fov.plane == "panorama":
+            low, high = y0 * stretch, y1 * stretch
+            height = high - low
+            names = ["azimuth, deg (x right)", "elevation, deg"]
+            places = [(-20.0, low - 0.30 * height, 0.0), (-200.0, high + 0.10 * height, 0.0)]
+        else:
+            names = ["x right, deg", "y up, deg"]
+            centre_x = 0.0 if x0 < 0 < x1 else (x0 + x1) / 2
+            places = [(x1 + 0.01 * (x1 - x0), (0.0 if y0 < 0 < y1 else y0) - 0.04 * (y1 - y0), 0.0),
+                      (centre_x + 0.01 * (x1 - x0), y1 + 0.02 * (y1 - y0), 0.0)]
+        plotter.add_point_labels(places, names, font_size=12, text_color="#9aa6b8", shape=None, show_points=False,
+                                 name="axis-labels", always_visible=True, reset_camera=False)
         self._guides.append("axis-labels")
 
-    def reset_camera(self) -> None:
-        """Look straight at the pattern plane, orthographic, the field of view filling the view."""
+    def drawn_bounds(self) -> tuple[float, float, float, float]:
+        """``(x0, x1, y0, y1)`` in the view's coordinates of what :meth:`reset_camera` fits: the field of view,
+        the reference's when one is shown (a wide reference, the HAP's band against the Mid-70, ran past the view's
+        edges), and the guides' marks around them."""
         x0, x1, y0, y1 = self.session.config.field_of_view.bounds
-        half_width, half_height = (x1 - x0) / 2, (y1 - y0) / 2
+        overlay = self.session.overlay
+        if overlay.source is not None and overlay.visible and overlay.source.plane == self.session.config.pattern_plane:
+            r0, r1, s0, s1 = overlay.source.fov.bounds
+            x0, x1, y0, y1 = min(x0, r0), max(x1, r1), min(y0, s0), max(y1, s1)
+        y0, y1 = y0 * self.stretch, y1 * self.stretch
+        if self.session.config.pattern_plane == "panorama":
+            height = y1 - y0
+            # Elevation marks on the left, azimuth marks and the axis name below, the elevation name above.
+            return x0 - 28.0, x1 + 4.0, y0 - 0.36 * height, y1 + 0.18 * height
+        width, height = x1 - x0, y1 - y0
+        return x0 - 0.02 * width, x1 + 0.12 * width, y0 - 0.08 * height, y1 + 0.07 * height
+
+    def reset_camera(self) -> None:
+        """Look straight at the pattern plane, orthographic, everything drawn (the reference too) in the view, with
+        the colour bar's strip on the right and the text's lines at the top kept free."""
+        x0, x1, y0, y1 = self.drawn_bounds()
         width, height = self.renderer.GetSize()
+        aspect = max(width, 1) / max(height, 1)
         camera = self.renderer.camera
         camera.enable_parallel_projection()
-        # The FOV and its labels fit across as well as up, with the colour bar's strip on the right free.
-        centre = ((x0 + x1) / 2 + half_width * 0.12, (y0 + y1) / 2 + half_height * 0.03)
+        # The colour bar and its marks take the view's right 22 %; the text's lines about 80 px at the top.
+        usable = 0.78
+        top = min(0.3, TEXT_BAND_PX / max(height, 1))
+        visible = max((y1 - y0) / (1 - top), (x1 - x0) / (aspect * usable))
+        centre = ((x0 + x1) / 2 + (0.5 - usable / 2) * visible * aspect, (y0 + y1) / 2 + top / 2 * visible)
         camera.focal_point = (*centre, 0)
-        camera.position = (*centre, max(half_width, half_height) * 10)
+        camera.position = (*centre, max(x1 - x0, y1 - y0) * 10)
         camera.up = (0, 1, 0)
-        camera.parallel_scale = max(half_height * 1.18, half_width * 1.32 * height / max(width, 1))
+        camera.parallel_scale = visible / 2 * 1.02
         self.renderer.ResetCameraClippingRange()
+
+    def set_colour_map(self, name: str) -> None:
+        """The continuous (time) colouring's map, one of :data:`COLOUR_MAPS`."""
+        self.colour_map = name
+        self._colouring = None
+
+    def _colour(self) -> None:
+        """The points' lookup table and the bar's marks for the colouring in use: a legend of categories, or the
+        time window's own start and end with round times between."""
+        session = self.session
+        mode = session.display.pattern_colour
+        low, high = session.pattern_scalar_range()
+        categorical = mode in CATEGORICAL_PATTERN_COLOURS
+        key = (mode, self.colour_map, (low, high) if categorical else None)
+        if key != self._colouring:
+            self._colouring = key
+            if categorical:
+                table = category_table(pattern_categories(session))
+            else:
+                table = pv.LookupTable(cmap=self.colour_map, n_values=256)
+            self.actor.mapper.lookup_table = table
+            self.scalar_bar.SetLookupTable(table)
+        table = self.actor.mapper.lookup_table
+        if categorical:
+            self.actor.mapper.scalar_range = table.scalar_range
+            self.scalar_bar.SetNumberOfLabels(0)
+            self.scalar_bar.SetDrawAnnotations(True)
+            return
+        table.scalar_range = (low, high if high > low else low + 1e-6)
+        self.actor.mapper.scalar_range = table.scalar_range
+        table.annotations = time_marks(low, high)
+        self.scalar_bar.SetNumberOfLabels(0)
+        self.scalar_bar.SetDrawAnnotations(True)
 
     def update(self) -> None:
         """Show the ring's current points and colours."""
@@ -295,19 +481,19 @@ class PatternView(_View):
             self.density_lut.scalar_range = (0.0, max(top, 1e-6))
             self.density_lut.annotations = count_marks(top)
             self.density_texture.Modified()
-        bar_table = self.density_lut if density else self.actor.mapper.lookup_table
-        if self.scalar_bar.GetLookupTable() is not bar_table:
-            self.scalar_bar.SetLookupTable(bar_table)
-        # The density's colours are log(1 + count): the bar is marked with counts, not those logarithms.
-        self.scalar_bar.SetNumberOfLabels(0 if density else 5)
-        self.scalar_bar.SetDrawAnnotations(density)
+            if self.scalar_bar.GetLookupTable() is not self.density_lut:
+                self.scalar_bar.SetLookupTable(self.density_lut)
+            # The density's colours are log(1 + count): the bar is marked with counts, not those logarithms.
+            self.scalar_bar.SetNumberOfLabels(0)
+            self.scalar_bar.SetDrawAnnotations(True)
+            self._colouring = None  # the points' table goes back to the bar when the points show again
+        else:
+            self._colour()
         update_ring_polydata(self.poly, self._ring)
         overlay = self.session.overlay
         self._reference_ring = overlay.ring
         update_ring_polydata(self.reference_poly, self._reference_ring)
         self.reference_actor.SetVisibility(overlay.source is not None and overlay.visible)
-        low, high = self.session.pattern_scalar_range()
-        self.actor.mapper.scalar_range = (low, high if high > low else low + 1e-6)
         self.scalar_bar.SetTitle("points/cell" if density else PATTERN_UNITS[self.session.display.pattern_colour])
 
 
@@ -353,20 +539,22 @@ def _boresight_grid(fov) -> tuple[list[pv.PolyData], list[str], list[tuple[float
     return lines, labels, positions
 
 
-def _panorama_grid(fov) -> tuple[list[pv.PolyData], list[str], list[tuple[float, float, float]]]:
-    """Lines of azimuth every 30 degrees and of elevation every 10 across the band, with their labels."""
+def _panorama_grid(fov, stretch: float = 1.0) -> tuple[list[pv.PolyData], list[str], list[tuple[float, float, float]]]:
+    """Lines of azimuth every 45 degrees and of elevation every 10 (or 5, 20) across the band, each marked: the
+    azimuths below the band, the elevations left of it, at the view's ``stretch`` of elevation (the lines are
+    stretched by their actor; the marks are placed here)."""
     _, _, low, high = fov.bounds
     lines, labels, positions = [], [], []
-    for azimuth in range(-150, 181, 30):
+    height = (high - low) * stretch
+    for azimuth in range(-180, 181, 45):
         lines.append(pv.Line((azimuth, low, 0), (azimuth, high, 0)))
-        if azimuth % 90 == 0:
-            labels.append(f"{azimuth}°")
-            positions.append((azimuth + 2.0, low - 0.12 * (high - low), 0.0))
-    step = _ring_step((high - low) * 1.5)
+        labels.append(f"{azimuth}°")
+        positions.append((azimuth - 6.0, low * stretch - 0.14 * height, 0.0))
+    step = _ring_step((high - low) * 4 / 6)  # about six lines across the band: every 10 degrees for the Mid-360
     for elevation in np.arange(math.ceil(low / step) * step, high + 1e-9, step):
         lines.append(pv.Line((-180, elevation, 0), (180, elevation, 0)))
         labels.append(f"{elevation:g}°")
-        positions.append((-178.0, elevation + 0.02 * (high - low), 0.0))
+        positions.append((-206.0, elevation * stretch - 0.03 * height, 0.0))
     return lines, labels, positions
 
 
@@ -419,23 +607,41 @@ def fov_wire(fov, length: float = 1.6) -> pv.PolyData:
     return one_mesh(parts)
 
 
+#: The scene view's camera presets (View menu): behind the sensor looking along its boresight, from above, from
+#: the front, from the side; "follow" keeps the user's angle and zoom and moves with the vehicle.
+CAMERA_PRESETS = ("behind", "top", "front", "side")
+
+
 class SceneView(_View):
-    """The 3D scene (z up on screen), the vehicle, the sensor with its FOV cone, and the decoded cloud."""
+    """The 3D scene (z up on screen), the vehicle, the sensor with its FOV wire, and the decoded cloud.
 
-    background = ("#1a1f29", "#3b4a63")
+    Parameters
+    ----------
+    plotter, session, subplot
+        As :class:`_View`.
+    """
 
-    def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int]) -> None:
+    background = BACKGROUNDS["gradient"]
+
+    def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int] = (0, 0)) -> None:
         super().__init__(plotter, session, subplot)
         self._scene_shown = None
+        self.colour_map = "viridis"
+        self._colouring: tuple | None = None
+        #: Whether the camera moves with the vehicle (keeping the user's angle and zoom).
+        self.follow = session.trajectory is not None
+        self.point_size = 2.5
         self.draw_scene()
         self._ring = session.scene_ring
         self.poly = ring_polydata(self._ring)
         self.actor = plotter.add_mesh(
-            self.poly, scalars="scalars", cmap="viridis", point_size=2.5, render_points_as_spheres=False,
-            show_scalar_bar=False, name="cloud", reset_camera=False, lighting=False,
+            self.poly, scalars="scalars", cmap=self.colour_map, point_size=self.point_size,
+            render_points_as_spheres=False, show_scalar_bar=False, name="cloud", reset_camera=False, lighting=False,
         )
         self.actor.user_matrix = NED_TO_DISPLAY
         self.scalar_bar = add_scalar_bar(plotter, SCENE_UNITS[session.display.scene_colour], self.actor.mapper)
+        self.grid_actor = None
+        self.axes_actor = None
         self.draw_vehicle()
         self.reset_camera()
         session.subscribe(self._on_change)
@@ -444,6 +650,8 @@ class SceneView(_View):
         """Anything the vehicle, the sensor or its cone depend on may have changed: draw them again."""
         if what == "scene":
             self.draw_scene()
+            if self.grid_actor is not None:
+                self.show_grid(True)
         self.draw_vehicle()
         if what == "scene":
             self.reset_camera()
@@ -455,8 +663,37 @@ class SceneView(_View):
         self._scene_shown = self.session.scene
         self.plotter.subplot(*self.subplot)
         self.scene_actor = self.plotter.add_mesh(pv.wrap(self.session.scene.mesh), color="#717d90",
-                                                 smooth_shading=False, name="scene", reset_camera=False)
+                                                 smooth_shading=False, name="scene", reset_camera=False,
+                                                 pickable=False)
         self.scene_actor.user_matrix = NED_TO_DISPLAY
+
+    def show_grid(self, shown: bool) -> None:
+        """A ground grid under the scene, 10 m squares (View menu)."""
+        self.plotter.subplot(*self.subplot)
+        if self.grid_actor is not None:
+            self.plotter.remove_actor(self.grid_actor, render=False)
+            self.grid_actor = None
+        if not shown:
+            return
+        low, high = np.asarray(self.session.scene.mesh.bounds)
+        ground = float(high[2])  # NED: the lowest surface is the largest z
+        x0, y0 = np.floor(low[:2] / 10.0) * 10.0 - 10.0
+        x1, y1 = np.ceil(high[:2] / 10.0) * 10.0 + 10.0
+        lines = [pv.Line((x, y0, ground), (x, y1, ground)) for x in np.arange(x0, x1 + 1e-9, 10.0)]
+        lines += [pv.Line((x0, y, ground), (x1, y, ground)) for y in np.arange(y0, y1 + 1e-9, 10.0)]
+        self.grid_actor = self.plotter.add_mesh(one_mesh(lines), color="#56627a", line_width=1, name="ground-grid",
+                                                reset_camera=False, lighting=False, pickable=False)
+        self.grid_actor.user_matrix = NED_TO_DISPLAY
+
+    def show_axes(self, shown: bool) -> None:
+        """The world's axes at its origin, 5 m long, in the display's frame (x north, y west, z up)."""
+        self.plotter.subplot(*self.subplot)
+        if self.axes_actor is not None:
+            self.plotter.remove_actor(self.axes_actor, render=False)
+            self.axes_actor = None
+        if shown:
+            self.axes_actor = self.plotter.add_axes_at_origin(labels_off=False, line_width=3)
+            self.axes_actor.SetTotalLength(5.0, 5.0, 5.0)
 
     def draw_vehicle(self) -> None:
         """The vehicle at its pose, the sensor and a wire cone of the FOV along its boresight.
@@ -467,8 +704,9 @@ class SceneView(_View):
         plotter = self.plotter
         plotter.subplot(*self.subplot)
         if "vehicle" not in plotter.actors:
-            plotter.add_mesh(quadrotor_mesh(), color="#e8eef5", name="vehicle", reset_camera=False)
-            plotter.add_mesh(pv.Sphere(radius=0.06), color="#f2c14e", name="sensor", reset_camera=False)
+            plotter.add_mesh(quadrotor_mesh(), color="#e8eef5", name="vehicle", reset_camera=False, pickable=False)
+            plotter.add_mesh(pv.Sphere(radius=0.06), color="#f2c14e", name="sensor", reset_camera=False,
+                             pickable=False)
         fov = self.session.config.field_of_view
         if getattr(self, "_cone_fov", None) != fov:
             self._cone_fov = fov
@@ -476,14 +714,15 @@ class SceneView(_View):
                 plotter.actors["fov-cone"].mapper.SetInputData(fov_wire(fov))
             else:
                 plotter.add_mesh(fov_wire(fov), color="#f2c14e", line_width=2, name="fov-cone", reset_camera=False,
-                                 lighting=False)
+                                 lighting=False, pickable=False)
         self.place_vehicle()
         self.draw_path()
 
     def place_vehicle(self) -> None:
         """Move the vehicle, the sensor and the cone to their poses at the current scan time.
 
-        The camera follows the vehicle (moved by as much as it moved), keeping the user's angle and zoom.
+        When following (:attr:`follow`), the camera moves by as much as the vehicle moved, keeping the user's angle
+        and zoom.
         """
         actors = self.plotter.actors
         vehicle = self.session.vehicle_pose_now
@@ -492,7 +731,7 @@ class SceneView(_View):
             actors[name].user_matrix = NED_TO_DISPLAY @ self.session.sensor_pose.matrix
         here = NED_TO_DISPLAY[:3, :3] @ vehicle.origin
         followed = getattr(self, "_followed", None)
-        if followed is not None and not np.array_equal(here, followed):
+        if self.follow and followed is not None and not np.array_equal(here, followed):
             camera = self.renderer.camera
             camera.position = tuple(np.array(camera.position) + here - followed)
             camera.focal_point = tuple(np.array(camera.focal_point) + here - followed)
@@ -509,43 +748,94 @@ class SceneView(_View):
         path = pv.lines_from_points(np.asarray(trajectory.position[::stride]))
         self.plotter.subplot(*self.subplot)
         actor = self.plotter.add_mesh(path, color="#7fd3ff", line_width=2, name="path", reset_camera=False,
-                                      lighting=False)
+                                      lighting=False, pickable=False)
         actor.user_matrix = NED_TO_DISPLAY
 
-    def reset_camera(self) -> None:
-        """Behind and above the vehicle, looking along the sensor's boresight."""
+    def reset_camera(self, preset: str = "behind") -> None:
+        """Put the camera at one of :data:`CAMERA_PRESETS` around the sensor.
+
+        ``behind``: behind and above the vehicle, looking along the sensor's boresight; ``top``: straight down
+        from 60 m, north up; ``front``: in front of the sensor looking back at it; ``side``: from its left.
+        """
+        if preset not in CAMERA_PRESETS:
+            raise ValueError(f"camera preset {preset!r}; allowed: {', '.join(CAMERA_PRESETS)}")
         sensor = self.session.sensor_pose
         boresight = sensor.rotation @ np.array([1.0, 0.0, 0.0])
         flat = np.array([boresight[0], boresight[1], 0.0])
         flat = flat / np.linalg.norm(flat) if np.linalg.norm(flat) > 1e-6 else np.array([1.0, 0, 0])
-        eye_ned = sensor.origin - flat * 9.0 + np.array([0, 0, -4.5])
-        target_ned = sensor.origin + flat * 25.0 + np.array([0, 0, 1.0])
+        left = np.array([flat[1], -flat[0], 0.0])  # NED: x north, y east; the sensor's left is -y of its heading
+        up = (0, 0, 1)
+        if preset == "behind":
+            eye_ned = sensor.origin - flat * 9.0 + np.array([0, 0, -4.5])
+            target_ned = sensor.origin + flat * 25.0 + np.array([0, 0, 1.0])
+        elif preset == "top":
+            target_ned = sensor.origin + flat * 20.0
+            eye_ned = target_ned + np.array([0.0, 0.0, -60.0])
+            up = tuple(NED_TO_DISPLAY[:3, :3] @ flat)
+        elif preset == "front":
+            eye_ned = sensor.origin + flat * 40.0 + np.array([0, 0, -6.0])
+            target_ned = sensor.origin
+        else:
+            eye_ned = sensor.origin + left * 40.0 + flat * 15.0 + np.array([0, 0, -6.0])
+            target_ned = sensor.origin + flat * 15.0
         to_display = NED_TO_DISPLAY[:3, :3]
         camera = self.renderer.camera
         camera.disable_parallel_projection()
         camera.position = tuple(to_display @ eye_ned)
         camera.focal_point = tuple(to_display @ target_ned)
-        camera.up = (0, 0, 1)
+        camera.up = up
         camera.view_angle = 50
         self.renderer.ResetCameraClippingRange()
+        self._followed = NED_TO_DISPLAY[:3, :3] @ self.session.vehicle_pose_now.origin
 
-    def _use_table(self, mode: str) -> None:
-        """The colour table of a scene colour mode: classes for return/tag, log-scaled for reflectivity."""
-        if mode == "return/tag":
-            table = pv.LookupTable(cmap=list(TAG_COLOURS), n_values=len(TAG_COLOURS))
-            table.annotations = dict(enumerate(TAG_CLASSES))
+    def mark_picks(self, points_ned: list) -> None:
+        """Mark the points picked (NED, metres): a ring round each, and the line between two."""
+        self.plotter.subplot(*self.subplot)
+        points = np.asarray(points_ned, dtype=np.float64).reshape(-1, 3)
+        marks = pv.PolyData(points)
+        if points.shape[0] == 2:
+            marks.lines = np.array([2, 0, 1])
+        if "picks" in self.plotter.actors:
+            self.plotter.actors["picks"].mapper.SetInputData(marks)
         else:
-            table = pv.LookupTable(cmap="viridis", n_values=256)
-            if mode == "reflectivity":
-                # 1-255 logarithmically: dark asphalt at grazing incidence, paint and walls, signs.
-                table.log_scale = True
-                table.annotations = REFLECTIVITY_MARKS
-        annotated = mode in ("return/tag", "reflectivity")
-        self.actor.mapper.lookup_table = table
-        self.scalar_bar.SetLookupTable(table)
-        self.scalar_bar.SetNumberOfLabels(0 if annotated else 5)
-        self.scalar_bar.SetDrawAnnotations(annotated)
-        self.scalar_bar.GetAnnotationTextProperty().SetColor(0.87, 0.89, 0.92)
+            actor = self.plotter.add_mesh(marks, color="#ff4fd8", point_size=12, line_width=3, name="picks",
+                                          render_points_as_spheres=True, reset_camera=False, lighting=False,
+                                          pickable=False)
+            actor.user_matrix = NED_TO_DISPLAY
+
+    def set_colour_map(self, name: str) -> None:
+        """The continuous colourings' map (range, height, time), one of :data:`COLOUR_MAPS`."""
+        self.colour_map = name
+        self._colouring = None
+
+    def _colour(self) -> None:
+        """The lookup table and the bar's marks of the scene colouring in use: categories for return/tag, the
+        reflectivity bytes that mean something, a time window's own start and end, numbers for range and height."""
+        mode = self.session.display.scene_colour
+        low, high = self.session.scene_scalar_range()
+        key = (mode, self.colour_map)
+        if key != self._colouring:
+            self._colouring = key
+            if mode == "return/tag":
+                table = pv.LookupTable(cmap=list(TAG_COLOURS), n_values=len(TAG_COLOURS))
+                table.annotations = dict(enumerate(TAG_CLASSES))
+            else:
+                table = pv.LookupTable(cmap="viridis" if mode == "reflectivity" else self.colour_map, n_values=256)
+                if mode == "reflectivity":
+                    # 1-255 logarithmically: dark asphalt at grazing incidence, paint and walls, signs.
+                    table.log_scale = True
+                    table.annotations = REFLECTIVITY_MARKS
+            annotated = mode in ("return/tag", "reflectivity", "time")
+            self.actor.mapper.lookup_table = table
+            self.scalar_bar.SetLookupTable(table)
+            self.scalar_bar.SetNumberOfLabels(0 if annotated else 5)
+            self.scalar_bar.SetDrawAnnotations(annotated)
+            self.scalar_bar.GetAnnotationTextProperty().SetColor(0.87, 0.89, 0.92)
+        table = self.actor.mapper.lookup_table
+        table.scalar_range = (low, high if high > low else low + 1e-6)
+        if mode == "time":
+            table.annotations = time_marks(low, high)
+        self.actor.mapper.scalar_range = table.scalar_range
 
     def stride(self) -> int:
         """Every how many of the cloud's points are drawn: all with the "points" drawing, else at most
@@ -554,19 +844,18 @@ class SceneView(_View):
             return 1
         return lod_stride(self.session.scene_ring.capacity, SCENE_DRAW_LIMIT)
 
+    def drawn_count(self) -> int:
+        """How many of the cloud's points are drawn now (the thinned cloud's, or all)."""
+        ring = self.session.scene_ring
+        stride = self.stride()
+        return ring.count if stride == 1 else len(range(0, ring.count, stride))
+
     def update(self) -> None:
         """Show the ring's current points and colours, and the vehicle where it is now."""
         if self.session.trajectory is not None:
             self.place_vehicle()
         if self._ring is not self.session.scene_ring:
             self._ring = self.session.scene_ring
-        update_ring_polydata(self.poly, self._ring)
-        mode = self.session.display.scene_colour
-        if getattr(self, "_colour_mode", None) != mode:
-            self._colour_mode = mode
-            self._use_table(mode)
-
+        self._colour()
         update_ring_polydata(self.poly, self._ring, self.stride())
-        low, high = self.session.scene_scalar_range()
-        self.actor.mapper.scalar_range = (low, high if high > low else low + 1e-6)
-        self.scalar_bar.SetTitle(SCENE_UNITS[mode])
+        self.scalar_bar.SetTitle(SCENE_UNITS[self.session.display.scene_colour])

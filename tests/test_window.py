@@ -1,0 +1,402 @@
+"""The Qt window (issue 31), in this process under a private Xvfb: layout, panel, keys, menus, picks, files.
+
+Each test drives the real window as a user does (keys through Qt's event path, typed values, slider moves,
+menu actions) and checks numbers against the session first, pictures second. The loops are compiled where a
+test needs them (``warm=False``); the window's background warm-up has its own test, in a child process with an
+empty compile cache (it takes a minute or two: the return model's first compile).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pyvistaqt")
+
+from .xserver import private_display
+
+SCREEN = "1920x1200x24"
+
+
+@pytest.fixture(scope="session")
+def qapp():
+    """The Qt application of the test process, on a private X server (overrides pytest-qt's own)."""
+    with private_display(SCREEN) as display:
+        previous = os.environ.get("DISPLAY")
+        os.environ["DISPLAY"] = display
+        os.environ.pop("WAYLAND_DISPLAY", None)
+        os.environ["QT_QPA_PLATFORM"] = "xcb"
+        from livox_viz.widgets.mainwindow import application
+
+        app = application()
+        yield app
+        app.closeAllWindows()
+        app.processEvents()
+        app.shutdown()  # gone before its X server is: no "X11 connection broke" at the end
+        if previous is None:
+            os.environ.pop("DISPLAY", None)
+        else:
+            os.environ["DISPLAY"] = previous
+
+
+@pytest.fixture(scope="module")
+def urban():
+    from livox_viz.scene.scenes import open_scene
+
+    return open_scene("urban")
+
+
+def make_window(urban, qtbot, preset: str = "livox_mid70", size: tuple[int, int] = (1600, 900), tmp_path=None):
+    from livox_viz.widgets.mainwindow import MainWindow
+    from livox_viz.widgets.session import Session
+
+    from livox_viz import load_preset
+
+    session = Session(load_preset(preset), urban, seed=0, preset_name=preset)
+    session.sources = {"scene": "urban"}
+    kwargs = {"screenshot_dir": tmp_path / "shots"} if tmp_path is not None else {}
+    window = MainWindow(session, size=size, warm=False, **kwargs)
+    qtbot.addWidget(window)
+    window.show()
+    qtbot.waitExposed(window)
+    window.activateWindow()
+    for _ in range(5):
+        window.tick()
+        qtbot.wait(10)
+    return window
+
+
+@pytest.fixture
+def window(urban, qtbot, tmp_path: Path):
+    win = make_window(urban, qtbot, tmp_path=tmp_path)
+    yield win
+    win.close()
+
+
+def widget_rect(widget, window):
+    from qtpy import QtCore
+
+    top_left = widget.mapTo(window, QtCore.QPoint(0, 0))
+    return QtCore.QRect(top_left, widget.size())
+
+
+def visible_rows(window):
+    from livox_viz.widgets.panel import ParamRow
+
+    return [row for row in window.panel.findChildren(ParamRow) if row.isVisible()]
+
+
+def assert_panel_holds(window, expected: set[str]) -> None:
+    """The panel shows exactly ``expected``'s rows, none overlapping another, all inside the window, and no
+    widget of an earlier state is left (deleted, not hidden)."""
+    from livox_viz.widgets.panel import ParamRow
+    from qtpy import QtCore, QtWidgets
+
+    QtWidgets.QApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete.value)
+    QtWidgets.QApplication.processEvents()
+    rows = window.panel.findChildren(ParamRow)
+    assert {row.name for row in rows} == expected == set(window.panel.rows)
+    assert len(rows) == len(expected)  # no orphans
+    content = window.panel.findChildren(QtWidgets.QWidget, "panel-content")
+    assert len(content) == 1
+    rects = [widget_rect(row, window.panel) for row in rows]
+    for k, first in enumerate(rects):
+        assert first.width() > 200 and first.height() >= 40
+        assert window.panel.rect().contains(first), (rows[k].name, first, window.panel.rect())
+        for second in rects[k + 1 :]:
+            assert not first.intersects(second)
+
+
+def press(qtbot, window, key: str) -> None:
+    """A key as the user types it, through Qt's event path (shortcuts included)."""
+    from qtpy import QtCore
+
+    names = {"space": QtCore.Qt.Key.Key_Space, "Right": QtCore.Qt.Key.Key_Right, "Up": QtCore.Qt.Key.Key_Up,
+             "Down": QtCore.Qt.Key.Key_Down}
+    target = window.interactors["pattern"]
+    if key in names:
+        qtbot.keyClick(target, names[key])
+    else:
+        qtbot.keyClick(target, key)
+    qtbot.wait(5)
+
+
+# The window ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("size", [(1280, 720), (1920, 1080)])
+def test_the_window_lays_out_readably_at_common_sizes(urban, qtbot, size: tuple[int, int]) -> None:
+    window = make_window(urban, qtbot, size=size)
+    try:
+        assert window.windowTitle() == "livox-viz - livox_mid70"
+        rects = {name: widget_rect(view, window) for name, view in window.interactors.items()}
+        for name, rect in rects.items():
+            assert rect.width() >= 240 and rect.height() >= 300, (name, rect)
+            assert window.rect().contains(rect)
+        assert not rects["pattern"].intersects(rects["scene"]) and not rects["scene"].intersects(rects["charts"])
+        assert rects["pattern"].width() > rects["charts"].width()
+        dock = widget_rect(window.dock, window)
+        assert not dock.intersects(rects["pattern"])
+        assert_panel_holds(window, {"camera_fov", "petal_height", "spacing_exponent", "tip_exponent",
+                                    "figure8_per_flower", "flowers_per_figure", "jitter_max_deg", "range_max",
+                                    "data_width", "data_height", "data_check_freq"})
+        # The pattern view fits the field of view whole, whatever the window's size.
+        view = window.controller.pattern_view
+        width, height = view.renderer.GetSize()
+        camera = view.renderer.camera
+        half = window.controller.session.config.half_fov_deg
+        assert camera.parallel_scale >= half and camera.parallel_scale * width / height >= half
+        status = window.status_points.text()
+        assert "of" in status and "points" in status and "fps" in window.status_fps.text()
+        assert window.status_returns.text() == "returns: ideal"
+        font = window.status_points.font()
+        assert max(font.pointSize(), font.pixelSize() * 0.75) >= 8  # readable, not the 7 px keys line
+    finally:
+        window.close()
+
+
+def test_every_key_runs_and_the_panel_follows_every_switch(window, qtbot, user_presets: Path) -> None:
+    """Each key through Qt (the key table's shortcuts), then 20 switches of preset, model, page and return model:
+    the panel holds exactly the controls of each new state, and the views keep their actors."""
+    from livox_viz.widgets.controls import FRAME_PARAMS, PATTERN_PARAMS, RETURN_PARAMS
+    from livox_viz.widgets.keys import KEYS
+
+    session = window.controller.session
+    actors = {name: len(plotter.renderer.actors) for name, plotter in window.interactors.items()}
+    before = session.scan_time
+    press(qtbot, window, "space")
+    assert session.playback.paused
+    press(qtbot, window, "Right")
+    assert session.scan_time > before
+    press(qtbot, window, "c")
+    assert session.display.pattern_colour == "figure-8"
+    press(qtbot, window, "Up")
+    assert session.playback.speed == 2.0
+    for row in KEYS:
+        for key, _ in row.bindings:
+            if key in ("q", "f", "m"):  # quit, a 10-25 s fit, a scene load: their own tests
+                continue
+            press(qtbot, window, key)
+            window.tick()
+    if window.help_dialog is not None and window.help_dialog.isVisible():
+        window.toggle_help()
+
+    def expected() -> set[str]:
+        config = session.config
+        page = window.controller.page
+        names = RETURN_PARAMS if page == "returns" else PATTERN_PARAMS[config.pattern_model]
+        return {n for n in (*names, *FRAME_PARAMS) if _has(config, n)}
+
+    switches = ["d", "t", "v", "n", "t", "d", "b", "v", "n", "n", "d", "b", "t", "v", "n", "b", "d", "t", "n", "v"]
+    for key in switches:
+        press(qtbot, window, key)
+        window.tick()
+        assert_panel_holds(window, expected())
+        for row_name, row in window.panel.rows.items():
+            assert row.value == pytest.approx(session.config.param_value(row_name), rel=1e-3, abs=1e-3)
+    assert window.windowTitle() == f"livox-viz - {session.preset_name}"
+    grown = {name: len(plotter.renderer.actors) - actors[name] for name, plotter in window.interactors.items()}
+    assert all(extra <= 2 for extra in grown.values()), grown  # a picked-points marker, a reference: no pile-up
+
+
+def _has(config, name: str) -> bool:
+    from livox_viz import LivoxVizError
+
+    try:
+        config.param_value(name)
+    except LivoxVizError:
+        return False
+    return True
+
+
+def test_every_menu_action_runs(window, qtbot, user_presets: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every action of every menu (the submenus filled as they open); the ones that open a dialog are answered."""
+    from qtpy import QtWidgets
+
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", staticmethod(lambda *a, **k: ("", "")))
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getSaveFileName", staticmethod(lambda *a, **k: ("", "")))
+    monkeypatch.setattr(QtWidgets.QInputDialog, "getDouble", staticmethod(lambda *a, **k: (0.25, True)))
+    monkeypatch.setattr(QtWidgets.QMessageBox, "about", staticmethod(lambda *a, **k: None))
+    skipped = {"Quit", "Fit the rosette to the reference"}
+    ran = []
+
+    def walk(menu) -> None:
+        menu.aboutToShow.emit()
+        for action in menu.actions():
+            if action.menu() is not None:
+                walk(action.menu())
+            elif not action.isSeparator() and action.text() not in skipped:
+                action.trigger()
+                window.tick()
+                ran.append(action.text())
+
+    for top in window.menuBar().actions():
+        walk(top.menu())
+    assert len(ran) >= 60
+    session = window.controller.session
+    assert session.window == 0.25  # the typed window, from Playback > Integration window > Type
+    assert window.isVisible()
+
+
+def test_a_typed_value_outside_the_range_is_refused_in_the_control(window, qtbot) -> None:
+    from qtpy import QtCore
+
+    session = window.controller.session
+    row = window.panel.rows["camera_fov"]
+    config = session.config
+    row.box.lineEdit().selectAll()
+    qtbot.keyClicks(row.box.lineEdit(), "200")
+    qtbot.keyClick(row.box.lineEdit(), QtCore.Qt.Key.Key_Return)
+    assert session.config == config  # the scan goes on with the old value
+    assert row.box.value() == pytest.approx(config.camera_fov)
+    assert "allowed: (0, 180)" in window.status_message.text() or "allowed: (0, 180)" in session.message
+    assert "(0, 180)" in row.range_label.text()
+    # A value inside is taken, and the scan restarts from it.
+    row.box.lineEdit().selectAll()
+    qtbot.keyClicks(row.box.lineEdit(), "40")
+    qtbot.keyClick(row.box.lineEdit(), QtCore.Qt.Key.Key_Return)
+    assert session.config.camera_fov == 40.0 and session.scan_time == 0.0
+
+
+def test_slider_steps_and_reset(window, qtbot) -> None:
+    from qtpy import QtCore
+
+    from livox_viz.config.param_docs import param_doc, slider_value
+
+    session = window.controller.session
+    row = window.panel.rows["petal_height"]
+    row.slider.setFocus()
+    qtbot.keyClick(row.slider, QtCore.Qt.Key.Key_PageUp)  # a step of the slider: taken at once
+    assert session.config.petal_height == pytest.approx(slider_value("petal_height", row.slider.value() / 1000))
+    assert row.box.value() == pytest.approx(session.config.petal_height)
+    before = session.config.petal_height
+    row.box.setFocus()
+    qtbot.keyClick(row.box, QtCore.Qt.Key.Key_Up)
+    assert session.config.petal_height == pytest.approx(before + param_doc("petal_height").step)
+    qtbot.keyClick(row.box, QtCore.Qt.Key.Key_Up, QtCore.Qt.KeyboardModifier.ShiftModifier)
+    assert session.config.petal_height == pytest.approx(before + 1.1 * param_doc("petal_height").step)
+    qtbot.mouseClick(row.reset_button, QtCore.Qt.MouseButton.LeftButton)
+    assert session.config.petal_height == pytest.approx(2.956)
+    assert row.box.textFromValue(10950.0) == "10950"  # never 1.095e+04
+
+
+def test_the_panel_picture_matches_its_baseline(window, qtbot, tmp_path: Path) -> None:
+    """The panel as drawn (fonts, rows, ranges): compared with its baseline, a small tolerance for fonts."""
+    from tests.baseline_images import BASELINES, changed_fraction, grab_panel, read_image
+
+    out = grab_panel(window, tmp_path / "panel.png")
+    baseline = BASELINES / "panel.png"
+    changed = changed_fraction(read_image(out), read_image(baseline))
+    assert changed < 0.02, f"{100 * changed:.2f} % of the panel's pixels differ from {baseline}"
+
+
+def test_the_help_dialog_lists_every_key_inside_the_screen(window, qtbot) -> None:
+    from livox_viz.widgets.keys import KEYS
+
+    press(qtbot, window, "h")
+    dialog = window.help_dialog
+    assert dialog is not None and dialog.isVisible()
+    text = dialog.findChild(__import__("qtpy").QtWidgets.QTextBrowser).toPlainText()
+    assert all(row.label in text for row in KEYS) and "click a point" in text
+    screen = dialog.screen().availableGeometry()
+    assert screen.contains(dialog.frameGeometry()) or screen.contains(dialog.geometry())
+    press(qtbot, window, "h")
+    assert not dialog.isVisible()
+
+
+def test_broken_files_from_the_menu_leave_the_window_as_it_was(window, qtbot, tmp_path: Path) -> None:
+    session = window.controller.session
+    broken = tmp_path / "broken.json"
+    broken.write_text('{"TypeID": 6, "DataWidth": ')
+    config = session.config
+    window.run(lambda: window.open_config(str(broken)))
+    assert session.config == config and "broken.json" in window.status_message.text()
+    assert "malformed JSON" in window.status_message.text()
+    mesh = tmp_path / "bad.obj"
+    mesh.write_text("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    scene = session.scene
+    window.open_scene(str(mesh))
+    qtbot.waitUntil(lambda: not window._jobs, timeout=30_000)
+    window.tick()
+    assert session.scene is scene and "NaN or infinite" in window.status_message.text()
+    table = tmp_path / "table.npy"
+    np.save(table, np.zeros((10, 3, 3)))
+    window.open_reference(str(table))
+    qtbot.waitUntil(lambda: not window._jobs, timeout=30_000)
+    window.tick()
+    assert session.overlay.source is None and "failed" in window.status_message.text()
+    assert window.isVisible()
+
+
+def test_a_screenshot_from_the_window_is_drawn_again_by_render(window, qtbot, tmp_path: Path) -> None:
+    """The sidecar holds everything: ``render --sidecar`` makes the same picture (within fonts' noise)."""
+    from livox_viz.cli import main
+    from tests.baseline_images import changed_fraction, read_image
+
+    c = window.controller
+    c.set_pattern_colour("petal")
+    c.set_scene_colour("time")
+    window.set_colour_map("plasma")
+    window.set_point_size(3)
+    window.toggle_grid()
+    c.set_window_seconds(0.3)
+    c.session.advance_to(1.7)
+    c.toggle_pause()
+    c.session.playback.paused = True
+    c.set_scene_camera("side")
+    path = c.save_screenshot()
+    data = json.loads(path.with_suffix(".json").read_text())
+    assert data["returns_model"] == "ideal" and data["drawing"] == "auto" and data["window_s"] == 0.3
+    assert data["views"]["scene"]["grid"] and data["views"]["pattern"]["colour_map"] == "plasma"
+    again = tmp_path / "again.png"
+    assert main(["render", "--sidecar", str(path.with_suffix(".json")), "--out", str(again)]) == 0
+    changed = changed_fraction(read_image(path), read_image(again))
+    assert changed < 0.01, f"{100 * changed:.2f} % of the pixels differ"
+
+
+def test_the_first_datasheet_use_keeps_the_window_painting(tmp_path: Path, qapp) -> None:
+    """With an empty compile cache, d: the window paints on (the longest gap between two frames under 0.5 s),
+    the ideal model plays meanwhile, and the datasheet model takes over when its loops are ready."""
+    script = textwrap.dedent("""
+        import json, sys, time
+        from livox_viz.widgets.mainwindow import MainWindow, application
+        from livox_viz.widgets.session import Session
+        from livox_viz import load_preset
+        from livox_viz.scene.scenes import open_scene
+        app = application()
+        session = Session(load_preset("livox_mid70"), open_scene("urban"), preset_name="livox_mid70")
+        window = MainWindow(session, size=(1280, 720))
+        window.show()
+        start = time.monotonic()
+        while not window._playing_allowed and time.monotonic() - start < 120:
+            app.processEvents(); time.sleep(0.01)
+        ticks, returns = [], []
+        window.timer.timeout.connect(lambda: (ticks.append(time.monotonic()), returns.append(
+            session.config.returns_model)))
+        window.run(window.controller.toggle_returns_model)
+        asked = time.monotonic()
+        deferred = window._deferred is not None
+        while session.config.returns_model != "datasheet" and time.monotonic() - asked < 400:
+            app.processEvents(); time.sleep(0.002)
+        done = time.monotonic()
+        for _ in range(30):
+            app.processEvents(); time.sleep(0.01)
+        gaps = [b - a for a, b in zip(ticks, ticks[1:]) if a >= asked and b <= done]
+        print(json.dumps({"deferred": deferred, "took": done - asked, "ticks": len(gaps),
+                          "max_gap": max(gaps or [0.0]), "first": returns[:1], "final": session.config.returns_model,
+                          "points": session.scene_ring.count}))
+        window.close()
+    """)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")}
+    result = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    found = json.loads(result.stdout.strip().splitlines()[-1])
+    assert found["deferred"] and found["final"] == "datasheet" and found["first"] == ["ideal"], found
+    assert found["took"] > 5.0, found  # a real first compile, not a warm cache
+    assert found["ticks"] > 2 * found["took"], found  # it painted all along
+    assert found["max_gap"] < 0.5, found

@@ -1,0 +1,758 @@
+"""The livox-viz window: a Qt main window around the VTK views, with native controls.
+
+The pattern view, the scene view and the charts are pyvistaqt interactors
+side by side in a splitter (each its own render window: the charts are drawn
+only when they change); the parameter panel is a dock built from the model's
+parameter table (:mod:`~livox_viz.widgets.panel`); menus hold every action,
+and every key of the key table (:mod:`~livox_viz.widgets.keys`) is a shortcut;
+the status bar shows the scan time, the points in the window and fired, the
+frame rate, the return model, what is being prepared in the background, and
+messages.
+
+Nothing slow runs on the UI thread: the compiled loops load in the background
+(:class:`~livox_viz.widgets.warmup.LoopWarmer`; a configuration that needs
+loops not loaded yet is applied when they are, the window playing the old one
+meanwhile), and a fit, a scene or mesh, a reference table and an export run
+on worker threads. A broken file opened from the menu leaves the window as it
+was, with a message naming what is wrong.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import Future
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("QT_API", "pyside6")
+
+from pyvistaqt import QtInteractor
+from qtpy import QtCore, QtGui, QtWidgets
+
+from livox_viz import LivoxVizError, list_presets, load_config
+from livox_viz.casting.warm import STAGES, stages_for
+from livox_viz.config.sensor import save_config
+
+from . import files
+from .app import VIEW_NAMES, LivoxVizApp, quiet_vtk
+from .keys import KEYS, help_html
+from .overlay import WINDOWS, PresetSource, TableSource, window_label
+from .panel import ParameterPanel, signals_blocked
+from .session import DRAWINGS, SCENE_COLOURS, Session, pattern_colours, step_units
+from .views import BACKGROUNDS, CAMERA_PRESETS, COLOUR_MAPS
+from .warmup import LoopWarmer
+
+TIMER_MS = 33
+#: Qt's names of the key table's VTK key symbols.
+QT_KEYS = {"space": "Space", "Right": "Right", "Up": "Up", "Down": "Down"}
+#: Formats the window's cloud can be exported to (the writers of ``livox-viz scan``).
+EXPORT_FORMATS = (("PLY", ".ply"), ("PCD", ".pcd"), ("LAS 1.4", ".las"), ("NumPy NPZ", ".npz"), ("CSV", ".csv"))
+#: Pixels a click may move between press and release and still be a click (not a drag of the camera).
+CLICK_SLOP = 4
+
+
+def application() -> QtWidgets.QApplication:
+    """The Qt application of this process (made once)."""
+    app = QtWidgets.QApplication.instance()
+    if app is None:
+        QtWidgets.QApplication.setApplicationName("livox-viz")
+        app = QtWidgets.QApplication(["livox-viz"])
+    return app
+
+
+@dataclass
+class _Job:
+    """A background job the status bar shows: what it is, its future, and what to do with its result."""
+
+    what: str
+    future: Future
+    done: Callable[[Any], None]
+    started: float
+
+
+class MainWindow(QtWidgets.QMainWindow):
+    """The window.
+
+    Parameters
+    ----------
+    session : Session
+    size : tuple of int
+        The window's pixels.
+    stop : callable, optional
+        Checked every tick; true closes the window (a signal noted by the command line).
+    screenshot_dir : Path
+    warm : bool
+        Load the compiled loops in the background (tests that need none pass False).
+    """
+
+    def __init__(self, session: Session, size: tuple[int, int] = (1600, 900), stop: Callable[[], bool] | None = None,
+                 screenshot_dir: Path = files.SCREENSHOT_DIR, warm: bool = True) -> None:
+        application()
+        super().__init__()
+        quiet_vtk()
+        self.setObjectName("livox-viz")
+        self.resize(*size)
+        self._stop = stop
+        self._jobs: list[_Job] = []
+        self._deferred: tuple[set[str], Callable[[], None], str] | None = None
+        self._error = False
+        self._press: tuple[str, int, int] | None = None
+        self._closing = False
+        self._sized = False
+        self._pattern_size: tuple[int, int] | None = None
+
+        # The views: one interactor each, side by side.
+        self.splitter = QtWidgets.QSplitter(QtCore.Qt.Orientation.Horizontal, self)
+        self.splitter.setObjectName("views")
+        self.interactors: dict[str, QtInteractor] = {}
+        for name in VIEW_NAMES:
+            interactor = QtInteractor(self.splitter, auto_update=False, multi_samples=0, line_smoothing=True)
+            interactor.setObjectName(f"{name}-view")
+            interactor.setMinimumSize(240, 240)
+            self.splitter.addWidget(interactor)
+            self.interactors[name] = interactor
+        self.splitter.setSizes([5, 4, 3])
+        self.splitter.setChildrenCollapsible(False)
+        self.setCentralWidget(self.splitter)
+        self.controller = LivoxVizApp(session, plotters=self.interactors, screenshot_dir=screenshot_dir)
+        self.controller.defer = self._defer
+        self.controller.on_panel_change = self._panel_follow
+        for name, interactor in self.interactors.items():
+            self._quiet_vtk_keys(interactor)
+            if name in ("pattern", "scene"):
+                self._watch_clicks(name, interactor)
+
+        # The parameter panel.
+        self.panel = ParameterPanel(self.controller, self.say)
+        scroll = QtWidgets.QScrollArea()
+        scroll.setWidgetResizable(True)
+        scroll.setWidget(self.panel)
+        scroll.setHorizontalScrollBarPolicy(QtCore.Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        self.dock = QtWidgets.QDockWidget("Parameters", self)
+        self.dock.setObjectName("parameters")
+        self.dock.setWidget(scroll)
+        self.dock.setFeatures(QtWidgets.QDockWidget.DockWidgetFeature.DockWidgetMovable
+                              | QtWidgets.QDockWidget.DockWidgetFeature.DockWidgetFloatable
+                              | QtWidgets.QDockWidget.DockWidgetFeature.DockWidgetClosable)
+        self.dock.setMinimumWidth(330)
+        self.addDockWidget(QtCore.Qt.DockWidgetArea.LeftDockWidgetArea, self.dock)
+
+        self._make_status_bar()
+        self._make_scrubber()
+        self._make_menus()
+        self._make_shortcuts()
+        self.help_dialog: QtWidgets.QDialog | None = None
+
+        # The compiled loops: what the first frame needs now, the rest in the background.
+        moving = session.trajectory is not None
+        self.warmer: LoopWarmer | None = None
+        if warm:
+            self.warmer = LoopWarmer(stages_for(session.config, moving), STAGES).start()
+        self._playing_allowed = not warm
+        self._first_frame: float | None = None
+        self.opened = time.perf_counter()
+
+        self.timer = QtCore.QTimer(self)
+        self.timer.setInterval(TIMER_MS)
+        self.timer.timeout.connect(self.tick)
+        self.timer.start()
+        self._update_title()
+        self._update_status()
+
+    # Set-up ---------------------------------------------------------------------------------------
+    def _quiet_vtk_keys(self, interactor: QtInteractor) -> None:
+        """VTK's and pyvista's own keys (q closes the view, e exits, 3 turns on stereo, w wireframes...) do nothing
+        in our views: every key is one of ours, through Qt."""
+        iren = interactor.iren
+        if iren is None:
+            return
+        iren.interactor.RemoveObservers("KeyPressEvent")
+        iren.interactor.RemoveObservers("CharEvent")
+
+        def swallow(vtk_interactor, _event: str) -> None:
+            vtk_interactor.SetKeyCode("\0")
+            vtk_interactor.SetKeySym("")
+
+        iren.interactor.AddObserver("CharEvent", swallow, 100.0)
+        iren.interactor.AddObserver("KeyPressEvent", swallow, 100.0)
+
+    def _watch_clicks(self, name: str, interactor: QtInteractor) -> None:
+        """A click (press and release in one place) on a view picks; a drag still turns the camera."""
+        iren = interactor.iren
+        if iren is None:
+            return
+
+        def pressed(vtk_interactor, _event: str) -> None:
+            x, y = vtk_interactor.GetEventPosition()
+            self._press = (name, x, y)
+
+        def released(vtk_interactor, _event: str) -> None:
+            x, y = vtk_interactor.GetEventPosition()
+            press, self._press = self._press, None
+            if press is None or press[0] != name or abs(press[1] - x) > CLICK_SLOP or abs(press[2] - y) > CLICK_SLOP:
+                return
+            self.pick(name, x, y)
+
+        iren.interactor.AddObserver("LeftButtonPressEvent", pressed, 10.0)
+        iren.interactor.AddObserver("LeftButtonReleaseEvent", released, 10.0)
+
+    def _make_status_bar(self) -> None:
+        bar = self.statusBar()
+        bar.setObjectName("status")
+        self.status_time = QtWidgets.QLabel()
+        self.status_points = QtWidgets.QLabel()
+        self.status_fps = QtWidgets.QLabel()
+        self.status_returns = QtWidgets.QLabel()
+        self.busy = QtWidgets.QProgressBar()
+        self.busy.setRange(0, 0)  # a busy indicator, not a percentage
+        self.busy.setMaximumWidth(90)
+        self.busy.setMaximumHeight(14)
+        self.busy.setVisible(False)
+        self.status_busy = QtWidgets.QLabel()
+        self.status_message = QtWidgets.QLabel()
+        self.status_message.setObjectName("message")
+        self.status_message.setTextInteractionFlags(QtCore.Qt.TextInteractionFlag.TextSelectableByMouse)
+        for widget in (self.status_time, self.status_points, self.status_fps, self.status_returns):
+            bar.addPermanentWidget(widget)
+        bar.addWidget(self.busy)
+        bar.addWidget(self.status_busy)
+        bar.addWidget(self.status_message, 1)
+
+    def _make_scrubber(self) -> None:
+        """The time scrubber: a toolbar slider over the scan time played so far, active when paused."""
+        bar = QtWidgets.QToolBar("Time", self)
+        bar.setObjectName("time-bar")
+        bar.setMovable(False)
+        self.scrub_label = QtWidgets.QLabel(" scan time ")
+        self.scrubber = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
+        self.scrubber.setObjectName("scrubber")
+        self.scrubber.setRange(0, 1000)
+        self.scrubber.setToolTip("pause (space), then drag to look back at any scan time played so far")
+        self.scrubber.sliderReleased.connect(self._scrubbed)
+        self.scrubber.valueChanged.connect(self._scrub_moved)
+        bar.addWidget(self.scrub_label)
+        bar.addWidget(self.scrubber)
+        self.addToolBar(QtCore.Qt.ToolBarArea.BottomToolBarArea, bar)
+        self._played = 0.0
+
+    def _action(self, menu: QtWidgets.QMenu, text: str, slot: Callable[[], Any], shortcut: str | None = None,
+                checkable: bool = False, group: QtGui.QActionGroup | None = None, data: Any = None) -> QtGui.QAction:
+        action = QtGui.QAction(text, self)
+        if shortcut:
+            action.setShortcut(QtGui.QKeySequence(shortcut))
+            action.setShortcutContext(QtCore.Qt.ShortcutContext.WindowShortcut)
+        action.setCheckable(checkable)
+        if group is not None:
+            group.addAction(action)
+        if data is not None:
+            action.setData(data)
+        action.triggered.connect(lambda _checked=False: self.run(slot))
+        menu.addAction(action)
+        return action
+
+    def _make_menus(self) -> None:
+        c = self.controller
+        bar = self.menuBar()
+        file = bar.addMenu("&File")
+        self._action(file, "Open sensor config or preset file...", self.open_config, "Ctrl+O")
+        presets = file.addMenu("Open preset")
+        presets.aboutToShow.connect(lambda: self._fill_presets(presets))
+        self._action(file, "Open scene or mesh file...", self.open_scene)
+        scenes = file.addMenu("Open built-in scene")
+        scenes.aboutToShow.connect(lambda: self._fill_scenes(scenes))
+        self._action(file, "Open reference table or preset...", self.open_reference)
+        file.addSeparator()
+        self._action(file, "Save as user preset", c.save_preset)
+        self._action(file, "Save configuration as...", self.save_config_as, "Ctrl+S")
+        export = file.addMenu("Export the window's cloud")
+        for label, suffix in EXPORT_FORMATS:
+            self._action(export, f"{label} ({suffix})...", lambda s=suffix: self.export_cloud(s))
+        self._action(file, "Screenshot (views and sidecar)", c.take_screenshot)
+        file.addSeparator()
+        self._action(file, "Quit", self.close, "Ctrl+Q")
+
+        view = bar.addMenu("&View")
+        self.pattern_colour_menu = view.addMenu("Colour the pattern by")
+        self.pattern_colour_menu.aboutToShow.connect(self._fill_pattern_colours)
+        scene_colours = view.addMenu("Colour the cloud by")
+        group = QtGui.QActionGroup(self)
+        self.scene_colour_actions = {mode: self._action(scene_colours, mode, lambda m=mode: c.set_scene_colour(m),
+                                                        checkable=True, group=group) for mode in SCENE_COLOURS}
+        maps = view.addMenu("Colour map (time, range, height)")
+        group = QtGui.QActionGroup(self)
+        for name in COLOUR_MAPS:
+            self._action(maps, name, lambda n=name: self.set_colour_map(n), checkable=True, group=group)
+        sizes = view.addMenu("Point size")
+        group = QtGui.QActionGroup(self)
+        for pixels in (1, 2, 3, 4, 6, 8):
+            self._action(sizes, f"{pixels} px", lambda p=pixels: self.set_point_size(p), checkable=True, group=group)
+        backgrounds = view.addMenu("Background")
+        group = QtGui.QActionGroup(self)
+        for name in BACKGROUNDS:
+            self._action(backgrounds, name, lambda n=name: self.set_background(n), checkable=True, group=group)
+        drawing = view.addMenu("Pattern drawing")
+        group = QtGui.QActionGroup(self)
+        self.drawing_actions = {mode: self._action(drawing, mode, lambda m=mode: self.set_drawing(m), checkable=True,
+                                                   group=group) for mode in DRAWINGS}
+        view.addSeparator()
+        self.grid_action = self._action(view, "Ground grid in the scene", self.toggle_grid, checkable=True)
+        self.axes_action = self._action(view, "World axes in the scene", self.toggle_axes, checkable=True)
+        cameras = view.addMenu("Scene camera")
+        for preset in CAMERA_PRESETS:
+            self._action(cameras, f"{preset}", lambda p=preset: c.set_scene_camera(p))
+        self.follow_action = self._action(cameras, "follow the vehicle", lambda: c.set_scene_camera("follow"),
+                                          checkable=True)
+        self._action(view, "Reset cameras (fit everything drawn)", c.reset_cameras)
+        view.addSeparator()
+        self.dock_action = self.dock.toggleViewAction()
+        self.dock_action.setText("Parameter panel")
+        view.addAction(self.dock_action)
+
+        play = bar.addMenu("&Playback")
+        self._action(play, "Play / pause", c.toggle_pause)
+        self._action(play, "Step one unit", c.step)
+        units = play.addMenu("Step unit")
+        units.aboutToShow.connect(lambda: self._fill_step_units(units))
+        self._action(play, "Faster (x2)", c.faster)
+        self._action(play, "Slower (/2)", c.slower)
+        windows = play.addMenu("Integration window")
+        group = QtGui.QActionGroup(self)
+        self.window_actions = {}
+        for index, window in enumerate(WINDOWS):
+            self.window_actions[window] = self._action(windows, window_label(window), lambda i=index: c.on_window(i),
+                                                       checkable=True, group=group)
+        self._action(windows, "Type a window...", self.type_window)
+        self._action(play, "Reset the scan to t = 0", c.reset)
+
+        returns = bar.addMenu("&Returns")
+        group = QtGui.QActionGroup(self)
+        self.returns_actions = {model: self._action(returns, text, lambda m=model: c.set_returns_model(m),
+                                                    checkable=True, group=group)
+                                for model, text in (("ideal", "Ideal (each ray's exact first hit, as RflySim)"),
+                                                    ("datasheet", "Datasheet (noise, footprint, returns, tags)"))}
+        self._action(returns, "Show the return model's sheet in the panel", c.toggle_slider_page)
+
+        pattern = bar.addMenu("P&attern")
+        self._action(pattern, "Switch rosette / track", c.toggle_pattern_model)
+        self._action(pattern, "Random rotation after each flower / figure", c.toggle_jitter_scope)
+        self._action(pattern, "Next preset", c.next_preset)
+        self._action(pattern, "Previous preset", c.previous_preset)
+        pattern.addSeparator()
+        self._action(pattern, "Next reference preset", c.cycle_reference)
+        self._action(pattern, "Reference overlay on / off", c.toggle_reference)
+        self._action(pattern, "Reference's own window", c.cycle_reference_window)
+        self._action(pattern, "Fit the rosette to the reference", c.fit_to_reference)
+        self._action(pattern, "Cloud in the world / sensor frame", c.toggle_cloud_frame)
+
+        helper = bar.addMenu("&Help")
+        self._action(helper, "Keys and mouse", self.toggle_help)
+        self._action(helper, "About livox-viz", self.about)
+
+    def _make_shortcuts(self) -> None:
+        """Every key of the key table, window-wide (a spin box being typed in keeps its own keys)."""
+        self.shortcuts: list[QtGui.QShortcut] = []
+        for row in KEYS:
+            for key, method in row.bindings:
+                sequence = QtGui.QKeySequence(QT_KEYS.get(key, key.upper() if len(key) == 1 else key))
+                shortcut = QtGui.QShortcut(sequence, self)
+                shortcut.setContext(QtCore.Qt.ShortcutContext.WindowShortcut)
+                target = getattr(self, method, None) or getattr(self.controller, method)
+                shortcut.activated.connect(lambda t=target: self.run(t))
+                self.shortcuts.append(shortcut)
+
+    # Running actions ------------------------------------------------------------------------------
+    def run(self, action: Callable[[], Any]) -> None:
+        """Run a key's or menu's action: bad input becomes a message in the window, never a crash."""
+        self._error = self.controller.guarded(action) is not None
+        self._after_action()
+
+    def _after_action(self) -> None:
+        self.controller.refresh()
+        self._sync_menus()
+        self._update_status()
+        self._update_title()
+
+    def say(self, text: str, error: bool = False) -> None:
+        """A message in the status bar (red for an error)."""
+        self.controller.session.message = text
+        self._error = error or self._error
+
+    def _defer(self, stages: set[str], action: Callable[[], None], what: str) -> bool:
+        """The controller's gate: True when the loops of ``stages`` are loaded (run now); else ``action`` runs when
+        they are, the window playing the old state meanwhile."""
+        if self.warmer is None or self.warmer.is_ready(stages):
+            return True
+        self._deferred = (stages, action, what)
+        self.say(f"{what or 'the change'} waits for its compiled loops ({', '.join(sorted(stages))}); the window "
+                 "plays on meanwhile")
+        return False
+
+    def _run_deferred(self) -> None:
+        if self._deferred is None or self.warmer is None:
+            return
+        stages, action, what = self._deferred
+        failed = stages & set(self.warmer.failed)
+        if failed:
+            self._deferred = None
+            stage = sorted(failed)[0]
+            self.say(f"{what}: the {stage} loops could not be prepared ({self.warmer.failed[stage]})", error=True)
+            return
+        if self.warmer.is_ready(stages):
+            self._deferred = None
+            self.run(action)
+            if not self._error:
+                self.say(f"{what}: ready" if what else "ready")
+
+    def _background(self, what: str, work: Callable[[], Any], done: Callable[[Any], None]) -> None:
+        """Run ``work`` on a worker thread and ``done(result)`` on the UI thread after; the status bar shows it."""
+        future: Future = Future()
+
+        def run() -> None:
+            future.set_running_or_notify_cancel()
+            try:
+                future.set_result(work())
+            except BaseException as exc:  # said in the window by _finish_jobs
+                future.set_exception(exc)
+
+        threading.Thread(target=run, daemon=True, name=f"livox-viz-{what.split()[0]}").start()
+        self._jobs.append(_Job(what, future, done, time.monotonic()))
+
+    def _finish_jobs(self) -> None:
+        for job in [j for j in self._jobs if j.future.done()]:
+            self._jobs.remove(job)
+            try:
+                result = job.future.result()
+            except (LivoxVizError, OSError, ValueError, MemoryError) as exc:
+                text = str(exc) if not isinstance(exc, OSError) else f"{exc.filename or ''}: {exc.strerror or exc}"
+                self.say(f"{job.what} failed: {text}", error=True)
+                continue
+            self.run(lambda j=job, r=result: j.done(r))
+
+    # The tick -----------------------------------------------------------------------------------
+    def tick(self) -> None:
+        """Advance the scan by the wall time passed, apply what became ready, redraw."""
+        if self._stop is not None and self._stop():
+            self.close()
+            return
+        if not self._playing_allowed:
+            ready = self.warmer is None or self.warmer.is_ready(self.warmer.now)
+            failed = self.warmer is not None and set(self.warmer.now) & set(self.warmer.failed)
+            if failed:
+                self.say(f"the ray caster could not be prepared: {next(iter(self.warmer.failed.values()))}",
+                         error=True)
+            if ready:
+                self._playing_allowed = True
+                self.controller.session.playback.restart()
+        self._finish_jobs()
+        self._run_deferred()
+        session = self.controller.session
+        try:
+            if self._playing_allowed:
+                self.controller.tick()
+            else:
+                self.controller.refresh()
+        except LivoxVizError as exc:
+            self.say(str(exc), error=True)
+        self._played = max(self._played, session.scan_time)
+        self._follow_view_sizes()
+        self.controller.render(draw=QtWidgets.QWidget.update)
+        if self._first_frame is None and self._playing_allowed:
+            self._first_frame = time.perf_counter() - self.opened
+        self._update_status()
+
+    def _follow_view_sizes(self) -> None:
+        """Refit the pattern view when its size changed (the window or a splitter moved): the field of view stays
+        whole in it. The first time, share the width 5 : 4 : 3 among the views."""
+        if not self._sized and self.splitter.width() > 600:
+            self._sized = True
+            total = sum(self.splitter.sizes())
+            self.splitter.setSizes([total * 5 // 12, total * 4 // 12, total - total * 9 // 12])
+        view = self.controller.pattern_view
+        if view is not None:
+            size = tuple(view.renderer.GetSize())
+            if size != self._pattern_size:
+                self._pattern_size = size
+                view.reset_camera()
+
+    # Status, title, menus -------------------------------------------------------------------------
+    def _update_title(self) -> None:
+        self.setWindowTitle(f"livox-viz - {self.controller.session.preset_name or 'custom'}")
+
+    def _update_status(self) -> None:
+        session = self.controller.session
+        state = "paused" if session.playback.paused else f"{session.playback.speed:g}x"
+        self.status_time.setText(f"t = {session.scan_time:.3f} s ({state})")
+        held = session.pattern_ring.count
+        fired = session.points_fired_in_window()
+        self.status_points.setText(f"window {window_label(session.window)}: {held:,} of {fired:,} points")
+        self.status_fps.setText(f"{self.controller.fps:4.1f} fps")
+        self.status_returns.setText(f"returns: {session.config.returns_model}")
+        busy = [job.what for job in self._jobs]
+        if self.warmer is not None and self.warmer.working:
+            busy.append(self.warmer.describe())
+        if not self._playing_allowed:
+            busy.append("starting the ray caster")
+        if self.controller.fitting:
+            busy.append(f"fitting to {self.controller.fitting}")
+        self.busy.setVisible(bool(busy))
+        self.status_busy.setText("; ".join(b for b in busy if b))
+        message = session.message
+        if self.controller.pick_text and not message:
+            message = self.controller.pick_text
+        self.status_message.setText(message)
+        self.status_message.setStyleSheet("color: #d9534f;" if self._error and message else "")
+        paused = session.playback.paused
+        self.scrubber.setEnabled(paused and self._played > 0)
+        if paused and self._played > 0 and not self.scrubber.isSliderDown():
+            with signals_blocked(self.scrubber):
+                self.scrubber.setValue(round(1000 * session.scan_time / self._played))
+        self.scrub_label.setText(f" scan time {session.scan_time:8.3f} s ")
+
+    def _sync_menus(self) -> None:
+        session = self.controller.session
+        for mode, action in self.scene_colour_actions.items():
+            action.setChecked(mode == session.display.scene_colour)
+        for mode, action in self.drawing_actions.items():
+            action.setChecked(mode == session.display.drawing)
+        for window, action in self.window_actions.items():
+            action.setChecked(window == session.window)
+        for model, action in self.returns_actions.items():
+            action.setChecked(model == session.config.returns_model)
+        view = self.controller.scene_view
+        if view is not None:
+            self.follow_action.setChecked(view.follow)
+
+    def _fill_pattern_colours(self) -> None:
+        menu = self.pattern_colour_menu
+        menu.clear()
+        group = QtGui.QActionGroup(menu)
+        current = self.controller.session.display.pattern_colour
+        for mode in pattern_colours(self.controller.session.config):
+            action = self._action(menu, mode, lambda m=mode: self.controller.set_pattern_colour(m), checkable=True,
+                                  group=group)
+            action.setChecked(mode == current)
+
+    def _fill_step_units(self, menu: QtWidgets.QMenu) -> None:
+        menu.clear()
+        group = QtGui.QActionGroup(menu)
+        display = self.controller.session.display
+        for unit in step_units(self.controller.session.config):
+            action = self._action(menu, unit, lambda u=unit: setattr(display, "step_unit", u), checkable=True,
+                                  group=group)
+            action.setChecked(unit == display.step_unit)
+
+    def _fill_presets(self, menu: QtWidgets.QMenu) -> None:
+        menu.clear()
+        for info in list_presets():
+            self._action(menu, f"{info.name}  ({info.description})" if info.description else info.name,
+                         lambda i=info: self.load_preset_file(i.path, i.name))
+
+    def _fill_scenes(self, menu: QtWidgets.QMenu) -> None:
+        from livox_viz.scene.scenes import scene_choices
+
+        menu.clear()
+        for choice in scene_choices():
+            self._action(menu, Path(choice).name if os.sep in choice else choice,
+                         lambda c=choice: self.load_scene(c))
+
+    def _panel_follow(self) -> None:
+        self.panel.follow()
+        self._update_title()
+
+    # Actions the window adds to the controller's --------------------------------------------------
+    def quit(self) -> None:
+        self.close()
+
+    def toggle_help(self) -> None:
+        """The keys and the mouse, in a dialog beside the window (h)."""
+        if self.help_dialog is None:
+            dialog = QtWidgets.QDialog(self)
+            dialog.setObjectName("help")
+            dialog.setWindowTitle("livox-viz - keys and mouse")
+            text = QtWidgets.QTextBrowser(dialog)
+            text.setHtml(help_html())
+            layout = QtWidgets.QVBoxLayout(dialog)
+            layout.addWidget(text)
+            dialog.resize(min(760, self.width() - 40), min(640, self.height() - 40))
+            self.help_dialog = dialog
+        if self.help_dialog.isVisible():
+            self.help_dialog.hide()
+        else:
+            self.help_dialog.show()
+            self.help_dialog.raise_()
+
+    def about(self) -> None:
+        from livox_viz import __version__
+
+        QtWidgets.QMessageBox.about(self, "About livox-viz", f"livox-viz {__version__}: a visualizer and pattern "
+                                    "tuner for RflySim's simulated Livox lidars.")
+
+    def set_colour_map(self, name: str) -> None:
+        for view in (self.controller.pattern_view, self.controller.scene_view):
+            if view is not None:
+                view.set_colour_map(name)
+        self.say(f"colour map {name}")
+
+    def set_point_size(self, pixels: float) -> None:
+        for view in (self.controller.pattern_view, self.controller.scene_view):
+            if view is not None:
+                view.set_point_size(pixels)
+        self.say(f"point size {pixels:g} px")
+
+    def set_background(self, name: str) -> None:
+        for view in (self.controller.pattern_view, self.controller.scene_view):
+            if view is not None:
+                view.set_background(name)
+
+    def set_drawing(self, mode: str) -> None:
+        self.controller.session.display.drawing = mode
+        self.say(f"drawing: {mode}")
+
+    def toggle_grid(self) -> None:
+        view = self.controller.scene_view
+        view.show_grid(view.grid_actor is None)
+        self.grid_action.setChecked(view.grid_actor is not None)
+
+    def toggle_axes(self) -> None:
+        view = self.controller.scene_view
+        view.show_axes(view.axes_actor is None)
+        self.axes_action.setChecked(view.axes_actor is not None)
+
+    def type_window(self) -> None:
+        value, accepted = QtWidgets.QInputDialog.getDouble(
+            self, "Integration window", "seconds (0.01 to 10):", self.controller.session.window or 1.0, 0.01, 10.0, 3)
+        if accepted:
+            self.controller.set_window_seconds(value)
+
+    def pick(self, view: str, x: int, y: int) -> None:
+        """A click on a view: the point picked, in the status bar."""
+        self.controller.session.message = ""
+        if view == "scene":
+            self.controller.pick_scene(x, y)
+        else:
+            self.controller.pick_pattern(x, y)
+        self._update_status()
+
+    def _scrub_moved(self, value: int) -> None:
+        if self.scrubber.isSliderDown():
+            self.scrub_label.setText(f" scan time {value / 1000 * self._played:8.3f} s ")
+        else:
+            self._scrubbed()
+
+    def _scrubbed(self) -> None:
+        target = self.scrubber.value() / 1000 * self._played
+        self.run(lambda: self.controller.session.seek(target))
+
+    # Files ---------------------------------------------------------------------------------------
+    def _ask_open(self, title: str, filters: str) -> str | None:
+        path, _ = QtWidgets.QFileDialog.getOpenFileName(self, title, str(Path.cwd()), filters)
+        return path or None
+
+    def open_config(self, path: str | None = None) -> None:
+        """File > Open sensor config or preset: a RflySim sensor JSON (or Config.json), checked before it is used."""
+        path = path or self._ask_open("Open a sensor configuration", "Sensor JSON (*.json);;All files (*)")
+        if path:
+            self.load_preset_file(Path(path), Path(path).stem)
+
+    def load_preset_file(self, path: Path, name: str) -> None:
+        config = load_config(path)  # a broken file raises here: the window keeps what it had
+        if self.controller.apply_config(config, name, f"{name}"):
+            self.say(f"opened {name}")
+
+    def save_config_as(self, path: str | None = None) -> None:
+        """Write the configuration in use as a sensor JSON RflySim reads."""
+        if path is None:
+            path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Save the configuration", str(Path.cwd()),
+                                                            "Sensor JSON (*.json)")
+        if path:
+            save_config(self.controller.session.config, Path(path))
+            self.say(f"saved {path}")
+
+    def open_scene(self, path: str | None = None) -> None:
+        """File > Open scene or mesh: loaded and its caster built on a worker; the old scene plays meanwhile."""
+        path = path or self._ask_open("Open a scene or mesh",
+                                      "Scenes and meshes (*.json *.obj *.stl *.ply *.glb *.gltf *.off);;All files (*)")
+        if path:
+            self.load_scene(path)
+
+    def cycle_scene(self) -> None:
+        """The m key: the next scene, loaded on a worker (a large mesh takes seconds); the old one plays meanwhile."""
+        self.load_scene(self.controller.next_scene_choice())
+
+    def load_scene(self, choice: str) -> None:
+        from livox_viz.scene.raycast import EmbreeCaster
+        from livox_viz.scene.scenes import open_scene
+
+        options = dict(self.controller.session.scene_options)
+
+        def work():
+            scene = open_scene(choice, **options)
+            return scene, EmbreeCaster(scene.mesh)
+
+        def done(result) -> None:
+            scene, caster = result
+            self.controller.session.set_scene(scene, caster)
+            self.controller.session.sources["scene"] = choice
+            self.say(f"scene {scene.name}")
+
+        self._background(f"loading {Path(choice).name}", work, done)
+
+    def open_reference(self, path: str | None = None) -> None:
+        """File > Open reference: a scan table (.npy, Livox CSV) or a preset file, read on a worker."""
+        path = path or self._ask_open("Open a reference", "Tables and presets (*.npy *.csv *.json);;All files (*)")
+        if path:
+            self.load_reference(path)
+
+    def load_reference(self, text: str) -> None:
+        from .commands import reference_source
+
+        seed = self.controller.session.seed
+
+        def done(source: TableSource | PresetSource) -> None:
+            self.controller.set_reference(source)
+            self.controller.session.sources["reference"] = text
+
+        self._background(f"reading {Path(text).name}", lambda: reference_source(text, None, seed), done)
+
+    def export_cloud(self, suffix: str, path: str | None = None) -> None:
+        """File > Export: the window's cloud, cast again from its stream on a worker into the file by the writers
+        of ``livox-viz scan`` (the same points the window shows, at full precision)."""
+        session = self.controller.session
+        if session.source is not None:
+            raise LivoxVizError("a live view's cloud is not exported here; record it with 'livox-viz listen "
+                                "--record FILE'")
+        if path is None:
+            path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Export the window's cloud",
+                                                            str(Path.cwd() / f"window{suffix}"), f"*{suffix}")
+        if not path:
+            return
+        target = Path(path if path.lower().endswith(suffix) else path + suffix)
+        work = files.window_export(session, target)
+        self._background(f"exporting {target.name}", work, lambda count: self.say(f"exported {count:,} points to "
+                                                                                   f"{target}"))
+
+    # Closing -------------------------------------------------------------------------------------
+    def closeEvent(self, event: QtGui.QCloseEvent) -> None:
+        if self._closing:
+            event.accept()
+            return
+        self._closing = True
+        self.timer.stop()
+        if self.warmer is not None:
+            self.warmer.close()
+        if self.help_dialog is not None:
+            self.help_dialog.close()
+        self.controller.close()
+        event.accept()
+
+
+def run_window(session: Session, size: tuple[int, int], stop: Callable[[], bool] | None = None) -> int:
+    """Open the window and run until it is closed (or ``stop()`` is true); the Qt event loop's status."""
+    app = application()
+    window = MainWindow(session, size=size, stop=stop)
+    window.show()
+    return int(app.exec())

@@ -1,0 +1,448 @@
+"""The parameter panel: a slider and a spin box for every tunable parameter, built from the model's own table.
+
+Each row is made from :data:`~livox_viz.config.sensor.PARAM_RANGES` (the
+allowed range, the same the command line validates) and
+:mod:`livox_viz.config.param_docs` (title, unit, steps, what the parameter does):
+a slider over the allowed range (log scale where the range spans decades), a
+spin box taking a typed value, the unit, and a button that resets the value to
+the preset's. Arrow keys and the wheel step by the parameter's step, by a tenth
+of it with Shift or Ctrl held.
+
+Values flow one way, as in napari's layer controls: a control asks the
+controller for the new value (:meth:`~livox_viz.widgets.app.LivoxVizApp.on_param`),
+the session validates it, and the panel shows what the session holds, with
+its signals blocked while it sets its own controls so nothing feeds back. A
+typed value outside the range is refused in the control (its allowed range is
+shown beside it and in the status bar); the scan goes on with the old value.
+
+The panel is rebuilt from scratch whenever the set of its rows changes
+(another pattern model, preset, page or return model): every widget of the old
+state is deleted with it, so nothing is left over and nothing overlaps.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+from qtpy import QtCore, QtWidgets
+
+from livox_viz.config.param_docs import describe, param_doc, slider_fraction, slider_value, value_bounds
+from livox_viz.config.sensor import PARAM_RANGES, SensorConfig
+from livox_viz.core.errors import LivoxVizError
+
+from .controls import FRAME_PARAMS, PATTERN_PARAMS, RETURN_PARAMS
+from .overlay import WINDOWS
+from .playback import SPEED_RANGE
+from .session import WINDOW_RANGE
+
+#: Slider positions across a parameter's range.
+SLIDER_STEPS = 1000
+#: While a slider is dragged, the scan follows at most this often (ms): each change restarts the pattern.
+LIVE_DRAG_MS = 120
+_MODEL_TITLES = {"rflysim": "Pattern: RflySim rosette (otherParams)", "risley": "Pattern: Risley prisms",
+                 "track": "Pattern: track"}
+
+
+@contextmanager
+def signals_blocked(*widgets: QtCore.QObject) -> Iterator[None]:
+    """Block the widgets' signals while the panel sets them itself (napari's ``qt_signals_blocked``)."""
+    previous = [widget.blockSignals(True) for widget in widgets]
+    try:
+        yield
+    finally:
+        for widget, was in zip(widgets, previous, strict=True):
+            widget.blockSignals(was)
+
+
+class KeepKeys(QtCore.QObject):
+    """Keeps the keys a focused control uses for itself (arrows, pages, digits, letters, space) from the window's
+    shortcuts: Up in a spin box steps its value, it does not double the playback speed."""
+
+    _NAVIGATION = frozenset({
+        QtCore.Qt.Key.Key_Up, QtCore.Qt.Key.Key_Down, QtCore.Qt.Key.Key_Left, QtCore.Qt.Key.Key_Right,
+        QtCore.Qt.Key.Key_PageUp, QtCore.Qt.Key.Key_PageDown, QtCore.Qt.Key.Key_Home, QtCore.Qt.Key.Key_End,
+        QtCore.Qt.Key.Key_Space})
+
+    def eventFilter(self, watched: QtCore.QObject, event: QtCore.QEvent) -> bool:
+        if event.type() == QtCore.QEvent.Type.ShortcutOverride:
+            key = QtCore.Qt.Key(event.key())
+            if key in self._NAVIGATION or (event.text() and event.text().isprintable()):
+                event.accept()
+        return False
+
+
+_KEEP_KEYS: KeepKeys | None = None
+
+
+def keep_keys(*widgets: QtWidgets.QWidget) -> None:
+    """Let each of ``widgets`` keep its own keys while it has the focus (:class:`KeepKeys`)."""
+    global _KEEP_KEYS
+    if _KEEP_KEYS is None:
+        _KEEP_KEYS = KeepKeys()
+    for widget in widgets:
+        widget.installEventFilter(_KEEP_KEYS)
+
+
+def _fine(modifiers: QtCore.Qt.KeyboardModifier) -> bool:
+    wanted = QtCore.Qt.KeyboardModifier.ShiftModifier | QtCore.Qt.KeyboardModifier.ControlModifier
+    return bool(modifiers & wanted)
+
+
+class ValueBox(QtWidgets.QDoubleSpinBox):
+    """A spin box that takes any typed number and leaves judging it to the model (the range is shown, not clamped
+    silently); arrows and the wheel step by ``step``, by ``fine_step`` with Shift or Ctrl, within ``bounds``."""
+
+    def __init__(self, bounds: tuple[float, float], decimals: int, step: float, fine_step: float,
+                 unit: str, parent: QtWidgets.QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.bounds = bounds
+        self.step = step
+        self.fine_step = fine_step
+        self.setDecimals(decimals)
+        # Wide enough to type any number: a value outside the allowed range is refused on commit, with the range.
+        self.setRange(-1e12, 1e12)
+        self.setKeyboardTracking(False)
+        self.setAccelerated(True)
+        if unit:
+            self.setSuffix(f" {unit}")
+        self.setButtonSymbols(QtWidgets.QAbstractSpinBox.ButtonSymbols.UpDownArrows)
+        self.setFixedWidth(136)
+
+    def stepBy(self, steps: int) -> None:
+        fine = _fine(QtWidgets.QApplication.keyboardModifiers())
+        direction = 1 if steps > 0 else -1
+        # Qt multiplies a Ctrl+wheel step by ten; here Ctrl means the fine step.
+        count = abs(steps) if not fine or abs(steps) < 10 else abs(steps) // 10
+        delta = direction * count * (self.fine_step if fine else self.step)
+        low, high = self.bounds
+        self.setValue(min(max(self.value() + delta, low), high))
+        self.editingFinished.emit()
+
+    def textFromValue(self, value: float) -> str:
+        # Plain digits, never 1.095e+04, and no trailing zeros beyond what the value needs.
+        text = f"{value:.{self.decimals()}f}"
+        if "." in text:
+            text = text.rstrip("0").rstrip(".")
+        return text
+
+
+class ParamRow(QtWidgets.QWidget):
+    """One parameter: its title, a slider, a value box with the unit, the allowed range and a reset button.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`~livox_viz.config.sensor.PARAM_RANGES`.
+    value : float
+        Its value now.
+    preset_value : float or None
+        The preset's value (what reset gives back); None: no reset.
+    commit : callable
+        ``commit(name, value) -> bool``: ask for the value; False when it was refused.
+    """
+
+    def __init__(self, name: str, value: float, preset_value: float | None,
+                 commit: Callable[[str, float], bool], parent: QtWidgets.QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.name = name
+        self.setObjectName(f"param-{name}")
+        self._commit = commit
+        self.preset_value = preset_value
+        doc = param_doc(name)
+        spec = PARAM_RANGES[name]
+        tip = describe(name)
+        self.setToolTip(tip)
+        self.title = QtWidgets.QLabel(doc.title)
+        self.title.setToolTip(tip)
+        self.title.setWordWrap(False)
+        unit = f" {doc.unit}" if doc.unit else ""
+        self.range_label = QtWidgets.QLabel(f"allowed {spec.describe()}{unit}".replace("an integer in ", ""))
+        self.range_label.setObjectName("range")
+        self.range_label.setToolTip(tip)
+        self.slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
+        self.slider.setRange(0, SLIDER_STEPS)
+        self.slider.setSingleStep(1)
+        self.slider.setPageStep(SLIDER_STEPS // 20)
+        self.slider.setToolTip(tip)
+        self.box = ValueBox(value_bounds(name), doc.decimals, doc.step, doc.fine_step, doc.unit)
+        self.box.setToolTip(tip)
+        self.reset_button = QtWidgets.QToolButton()
+        self.reset_button.setText("↺")
+        self.reset_button.setEnabled(preset_value is not None)
+        self.reset_button.setToolTip(f"back to the preset's value, {preset_value:g}" if preset_value is not None
+                                     else "no preset value")
+        top = QtWidgets.QHBoxLayout()
+        top.setContentsMargins(0, 0, 0, 0)
+        top.addWidget(self.title, 1)
+        top.addWidget(self.range_label)
+        bottom = QtWidgets.QHBoxLayout()
+        bottom.setContentsMargins(0, 0, 0, 0)
+        bottom.addWidget(self.slider, 1)
+        bottom.addWidget(self.box)
+        bottom.addWidget(self.reset_button)
+        layout = QtWidgets.QVBoxLayout(self)
+        layout.setContentsMargins(2, 4, 2, 4)
+        layout.setSpacing(2)
+        layout.addLayout(top)
+        layout.addLayout(bottom)
+        self._drag_timer = QtCore.QTimer(self)
+        self._drag_timer.setSingleShot(True)
+        self._drag_timer.setInterval(LIVE_DRAG_MS)
+        self._drag_timer.timeout.connect(self._commit_slider)
+        self._refused_timer = QtCore.QTimer(self)
+        self._refused_timer.setSingleShot(True)
+        self._refused_timer.setInterval(1500)
+        self._refused_timer.timeout.connect(lambda: self.box.setStyleSheet(""))
+        self.show_value(value)
+        self.slider.sliderMoved.connect(self._slider_moved)
+        self.slider.sliderReleased.connect(self._commit_slider)
+        self.slider.valueChanged.connect(self._slider_stepped)
+        self.box.editingFinished.connect(self._commit_box)
+        self.reset_button.clicked.connect(self.reset)
+        keep_keys(self.slider, self.box)
+
+    @property
+    def value(self) -> float:
+        """The value the row shows."""
+        return float(self.box.value())
+
+    def show_value(self, value: float) -> None:
+        """Show ``value`` in the slider and the box without asking for it."""
+        self._shown = float(value)
+        with signals_blocked(self.slider, self.box):
+            self.box.setValue(value)
+            self.slider.setValue(round(slider_fraction(self.name, value) * SLIDER_STEPS))
+        self.box.setStyleSheet("")
+
+    def _slider_moved(self, position: int) -> None:
+        with signals_blocked(self.box):
+            self.box.setValue(slider_value(self.name, position / SLIDER_STEPS))
+        if not self._drag_timer.isActive():
+            self._drag_timer.start()
+
+    def _slider_stepped(self, position: int) -> None:
+        if not self.slider.isSliderDown():  # keys or a click on the groove: the value is final
+            with signals_blocked(self.box):
+                self.box.setValue(slider_value(self.name, position / SLIDER_STEPS))
+            self._ask(self.box.value())
+
+    def _commit_slider(self) -> None:
+        self._drag_timer.stop()
+        self._ask(slider_value(self.name, self.slider.value() / SLIDER_STEPS))
+
+    def _commit_box(self) -> None:
+        value = self.box.value()
+        if value != self._shown:
+            self._ask(value)
+
+    def reset(self) -> None:
+        """Back to the preset's value."""
+        if self.preset_value is not None:
+            self._ask(self.preset_value)
+
+    def _ask(self, value: float) -> None:
+        if value == self._shown:
+            return
+        if self._commit(self.name, value):
+            self.show_value(value)
+            return
+        # Refused: the old value stays, and the control says what is allowed.
+        old = self._shown
+        self.show_value(old)
+        self.box.setStyleSheet("background: #5c1f24;")
+        spec = PARAM_RANGES[self.name]
+        unit = param_doc(self.name).unit
+        QtWidgets.QToolTip.showText(self.box.mapToGlobal(QtCore.QPoint(0, self.box.height())),
+                                    f"{value:g} refused; allowed: {spec.describe()} {unit}".strip(), self.box)
+        # A timer of the row's own: it dies with the row, should the panel be rebuilt before it fires.
+        self._refused_timer.start()
+
+
+class ParameterPanel(QtWidgets.QWidget):
+    """Every control of the parameters in use: the pattern model's (or the return model's sheet), the frame
+    structure, and playback (speed, integration window).
+
+    Parameters
+    ----------
+    controller : LivoxVizApp
+        Whose session the panel shows and asks.
+    say : callable
+        ``say(text)``: a message for the status bar.
+    """
+
+    def __init__(self, controller, say: Callable[[str], None], parent: QtWidgets.QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.controller = controller
+        self.say = say
+        self.setObjectName("parameter-panel")
+        self.rows: dict[str, ParamRow] = {}
+        self._layout = QtWidgets.QVBoxLayout(self)
+        self._layout.setContentsMargins(6, 6, 6, 6)
+        self._content: QtWidgets.QWidget | None = None
+        self._layout_key: tuple | None = None
+        self.rebuild()
+
+    # Building --------------------------------------------------------------------------------
+    def layout_key(self) -> tuple:
+        """What decides the panel's rows: the pattern model, the page, the return model, the preset."""
+        session = self.controller.session
+        return (session.config.pattern_model, self.controller.page, session.config.returns_model,
+                session.preset_name, session.config.risley is not None, session.config.track is not None)
+
+    def follow(self) -> None:
+        """Follow the session: rebuild when the rows change, else only show the values it holds."""
+        if self.layout_key() != self._layout_key:
+            self.rebuild()
+        else:
+            self.sync()
+
+    def rebuild(self) -> None:
+        """Make every control again from the session's state (the old ones deleted first)."""
+        if self._content is not None:
+            self._layout.removeWidget(self._content)
+            self._content.setParent(None)
+            self._content.deleteLater()
+        self.rows = {}
+        self._layout_key = self.layout_key()
+        session = self.controller.session
+        config = session.config
+        content = QtWidgets.QWidget(self)
+        content.setObjectName("panel-content")
+        column = QtWidgets.QVBoxLayout(content)
+        column.setContentsMargins(0, 0, 0, 0)
+        column.setSpacing(8)
+        page = self.controller.page
+        if page == "returns":
+            title = f"Return model: {config.returns_model} sheet"
+            names = RETURN_PARAMS
+        else:
+            title = _MODEL_TITLES.get(config.pattern_model, "Pattern")
+            names = PATTERN_PARAMS[config.pattern_model]
+        column.addWidget(self._group(title, names, config))
+        if page == "returns" and config.returns_model != "datasheet":
+            note = QtWidgets.QLabel("These figures act with the datasheet return model (Returns menu, or d).")
+            note.setWordWrap(True)
+            column.insertWidget(0, note)
+        column.addWidget(self._group(self._frame_title(config), FRAME_PARAMS, config))
+        column.addWidget(self._playback_group())
+        column.addStretch(1)
+        self._layout.addWidget(content)
+        self._content = content
+
+    def _frame_title(self, config: SensorConfig) -> str:
+        return (f"Frame: {config.data_width} x {config.data_height} x {config.data_check_freq} Hz = "
+                f"{config.point_rate:,} pts/s")
+
+    def _group(self, title: str, names: tuple[str, ...], config: SensorConfig) -> QtWidgets.QGroupBox:
+        box = QtWidgets.QGroupBox(title)
+        box.setObjectName(f"group-{title.split(':')[0].lower()}")
+        layout = QtWidgets.QVBoxLayout(box)
+        layout.setSpacing(2)
+        preset = self.controller.session.preset_config
+        for name in names:
+            try:
+                value = config.param_value(name)
+            except LivoxVizError:
+                continue  # a parameter this configuration does not have
+            try:
+                preset_value = preset.param_value(name) if preset is not None else None
+            except LivoxVizError:
+                preset_value = None
+            row = ParamRow(name, value, preset_value, self._commit, box)
+            layout.addWidget(row)
+            self.rows[name] = row
+        return box
+
+    def _playback_group(self) -> QtWidgets.QGroupBox:
+        session = self.controller.session
+        box = QtWidgets.QGroupBox("Playback")
+        box.setObjectName("group-playback")
+        form = QtWidgets.QFormLayout(box)
+        self.speed_box = ValueBox(SPEED_RANGE, 3, 0.5, 0.05, "x real time")
+        self.speed_box.setToolTip(f"scan seconds per second of wall time; allowed: {SPEED_RANGE[0]:g} to "
+                                  f"{SPEED_RANGE[1]:g} (Up / Down double and halve it)")
+        self.speed_box.setValue(session.playback.speed)
+        self.speed_box.editingFinished.connect(self._commit_speed)
+        form.addRow("speed", self.speed_box)
+        self.window_choice = QtWidgets.QComboBox()
+        for window in WINDOWS:
+            self.window_choice.addItem("unlimited (1 M points)" if window is None else f"{window:g} s", window)
+        self.window_choice.addItem("typed", "typed")
+        self.window_choice.setToolTip("the integration window: the points of the last so many seconds (i cycles)")
+        self.window_box = ValueBox(WINDOW_RANGE, 3, 0.1, 0.01, "s")
+        self.window_box.setToolTip(f"any integration window from {WINDOW_RANGE[0]:g} to {WINDOW_RANGE[1]:g} s")
+        row = QtWidgets.QHBoxLayout()
+        row.addWidget(self.window_choice, 1)
+        row.addWidget(self.window_box)
+        form.addRow("window", row)
+        self._show_window()
+        keep_keys(self.speed_box, self.window_choice, self.window_box)
+        self.window_choice.activated.connect(self._window_chosen)
+        self.window_box.editingFinished.connect(self._window_typed)
+        return box
+
+    # Following the session ------------------------------------------------------------------------
+    def sync(self) -> None:
+        """Show the session's values (no rebuild)."""
+        config = self.controller.session.config
+        for name, row in self.rows.items():
+            try:
+                value = config.param_value(name)
+            except LivoxVizError:
+                continue
+            if value != row.value:
+                row.show_value(value)
+        frame_group = self.findChild(QtWidgets.QGroupBox, "group-frame")
+        if frame_group is not None:
+            frame_group.setTitle(self._frame_title(config))
+        with signals_blocked(self.speed_box):
+            self.speed_box.setValue(self.controller.session.playback.speed)
+        self._show_window()
+
+    def _show_window(self) -> None:
+        window = self.controller.session.window
+        index = self.controller.session.window_index
+        with signals_blocked(self.window_choice, self.window_box):
+            self.window_choice.setCurrentIndex(index if index is not None else len(WINDOWS))
+            self.window_box.setEnabled(window is not None)
+            if window is not None:
+                self.window_box.setValue(window)
+
+    # Asking ----------------------------------------------------------------------------------------
+    def _commit(self, name: str, value: float) -> bool:
+        taken = self.controller.on_param(name, value)
+        message = self.controller.session.message
+        if not taken:
+            self.say(message or f"{name} = {value:g} refused")
+        return taken
+
+    def _commit_speed(self) -> None:
+        value = self.speed_box.value()
+        if not (math.isfinite(value) and SPEED_RANGE[0] <= value <= SPEED_RANGE[1]):
+            self.say(f"speed {value:g} refused; allowed: {SPEED_RANGE[0]:g} to {SPEED_RANGE[1]:g} x")
+            with signals_blocked(self.speed_box):
+                self.speed_box.setValue(self.controller.session.playback.speed)
+            return
+        self.controller.on_speed(value)
+
+    def _window_chosen(self, index: int) -> None:
+        chosen = self.window_choice.itemData(index)
+        if chosen == "typed":
+            self.window_box.setEnabled(True)
+            self.window_box.setFocus()
+            return
+        self._set_window(chosen)
+
+    def _window_typed(self) -> None:
+        self._set_window(float(self.window_box.value()))
+
+    def _set_window(self, seconds: float | None) -> None:
+        if seconds == self.controller.session.window:
+            return
+        try:
+            self.controller.set_window_seconds(seconds)
+        except LivoxVizError as exc:
+            self.say(str(exc))
+        self._show_window()
