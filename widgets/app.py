@@ -544,11 +544,16 @@ class LivoxVizApp:
                 for name, plotter in self.plotters.items()}
 
     def current_image(self) -> np.ndarray:
-        """The views side by side, left to right as in the window: what a screenshot holds."""
+        """The views side by side, left to right as in the window: what a screenshot holds.
+
+        Each part's pixels are kept (:attr:`image_sizes`) for the sidecar: the images' own, not the render windows'
+        sizes, which in the window lag a resize until its next paint.
+        """
         images = self.view_images()
-        parts = [images[name] for name in VIEW_NAMES if name in images]
-        height = min(part.shape[0] for part in parts)
-        return np.concatenate([part[:height, :, :3] for part in parts], axis=1)
+        parts = [(name, images[name]) for name in VIEW_NAMES if name in images]
+        height = min(part.shape[0] for _, part in parts)
+        self.image_sizes = {name: [int(part.shape[1]), int(height)] for name, part in parts}
+        return np.concatenate([part[:height, :, :3] for _, part in parts], axis=1)
 
     def save_screenshot(self, folder: Path | None = None) -> Path:
         """Save the views as PNG with a JSON sidecar from which ``render --sidecar`` makes the same picture; returns
@@ -590,8 +595,9 @@ class LivoxVizApp:
 
     def sidecar(self) -> dict[str, Any]:
         """What a screenshot's sidecar holds: everything ``render --sidecar`` needs to draw the picture again."""
-        return files.sidecar(self.session, self.drawing_state(), self.cameras(),
-                             {name: list(plotter.window_size) for name, plotter in self.plotters.items()})
+        sizes = getattr(self, "image_sizes", None) or {name: list(plotter.window_size)
+                                                         for name, plotter in self.plotters.items()}
+        return files.sidecar(self.session, self.drawing_state(), self.cameras(), sizes)
 
     def drawing_state(self) -> dict[str, Any]:
         """How the views draw beyond the session's own state: colour maps, point sizes, panel page, follow."""

@@ -58,10 +58,16 @@ class PointRing:
         """Slot of the oldest live point."""
         return (self.head - self.count) % self.capacity
 
-    def clear(self) -> None:
-        """Forget every point (the arrays keep their memory)."""
+    def clear(self, first_index: int = 0) -> None:
+        """Forget every point (the arrays keep their memory).
+
+        ``first_index``: the stream index of the next point written. It goes to slot ``first_index mod capacity``,
+        so a ring filled from any point of a stream lays its points out as one filled from the stream's start:
+        drawn in the same order, the same points overlap the same way (a picture made again from a screenshot's
+        sidecar is the screenshot's).
+        """
         self.count = 0
-        self.head = 0
+        self.head = int(first_index) % self.capacity
 
     def write(self, positions: np.ndarray, scalars: np.ndarray, times: np.ndarray, stream_index: np.ndarray,
               reflectivity: np.ndarray | None = None, tag: np.ndarray | None = None,
@@ -98,12 +104,16 @@ class PointRing:
             ranges = np.linalg.norm(local, axis=1) if range_m is None else range_m
             columns += [local, ranges, np.zeros(n, np.uint8) if return_number is None else return_number]
             targets += [self.sensor_xyz, self.range_m, self.return_number]
+        skipped = 0
         if n > self.capacity:
+            # Only the newest fit; they go where writing all of them would have put them, so a point's slot does
+            # not depend on how the stream was cut into writes.
             columns = [column[-self.capacity :] for column in columns]
-            n = self.capacity
+            skipped, n = n - self.capacity, self.capacity
         evicted = self.count + n - self.capacity
         if evicted > 0 and self.on_evict is not None:
             self.on_evict(self.positions[self._doubled[self.tail : self.tail + evicted]])
+        self.head = (self.head + skipped) % self.capacity
         first = min(n, self.capacity - self.head)
         for source, target in ((slice(0, first), slice(self.head, self.head + first)),
                                (slice(first, n), slice(0, n - first))):

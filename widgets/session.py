@@ -340,6 +340,7 @@ class Session:
         first = max(points_before(start_time, rate), last - self.pattern_ring.capacity)
         self.pattern = make_pattern(self.config, seed=self.seed)
         self.pattern.skip(first)
+        self.pattern_ring.clear(first)
         self.scan_time = max(start_time, first / rate)
         self.overlay.refill(self.scan_time)
         while self.pattern.position + MAX_POINTS_PER_TICK < last:
