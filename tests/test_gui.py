@@ -795,3 +795,48 @@ def test_a_wide_reference_fits_the_view_and_stays_behind_our_points(app: LivoxVi
         assert 0 <= px <= width and 0 <= py <= height
     camera_z = renderer.camera.position[2]
     assert view.reference_actor.GetPosition()[2] < view.actor.GetPosition()[2] < camera_z  # ours in front
+
+
+def test_the_follow_camera_turns_with_the_vehicle_so_the_cloud_stays_in_view(urban) -> None:
+    """On a circle the sensor turns: the camera keeps its place in the vehicle's own frame (it used to keep only
+    its offset in the world, and the cloud ahead of the sensor left the view)."""
+    from livox_viz.widgets.views import _heading
+
+    from livox_viz.motion.flights import builtin_trajectory
+
+    trajectory = builtin_trajectory("circle", 5.0, urban.vehicle_pose, 12.0)
+    session = Session(load_preset("livox_mid70"), urban, seed=0, trajectory=trajectory)
+    app = LivoxVizApp(session, off_screen=True, window_size=SIZE, views="scene")
+    try:
+        assert app.scene_view.follow
+
+        def in_vehicle_frame() -> np.ndarray:
+            vehicle = session.vehicle_pose_now
+            heading = _heading(vehicle.rotation)
+            here = vehicle.origin * [1, -1, -1]
+            offset = np.array(app.scene_view.renderer.camera.position) - here
+            c, s = math.cos(heading), math.sin(heading)
+            return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ offset  # undo the turn (display z up)
+
+        session.advance_to(1.0)
+        app.refresh()
+        start = in_vehicle_frame()
+        for t in (3.0, 5.0, 8.0):
+            session.advance_to(t)
+            app.refresh()
+            np.testing.assert_allclose(in_vehicle_frame(), start, atol=1e-6)
+        assert abs(_heading(session.vehicle_pose_now.rotation) - _heading(trajectory.pose_at(1.0).rotation)) > 0.5
+        # Most of the window's cloud projects inside the view.
+        renderer = app.scene_view.renderer
+        inside = 0
+        ring = session.scene_ring
+        slots = ring.live_slots()[:: max(1, ring.count // 200)]
+        for slot in slots:
+            renderer.SetWorldPoint(*(ring.positions[slot].astype(float) * [1, -1, -1]), 1.0)
+            renderer.WorldToDisplay()
+            x, y, z = renderer.GetDisplayPoint()
+            width, height = renderer.GetSize()
+            inside += 0 <= x <= width and 0 <= y <= height and 0 <= z <= 1
+        assert inside > 0.8 * len(slots)
+    finally:
+        app.close()

@@ -380,7 +380,7 @@ def test_the_first_datasheet_use_keeps_the_window_painting(tmp_path: Path, qapp)
             session.config.returns_model)))
         window.run(window.controller.toggle_returns_model)
         asked = time.monotonic()
-        deferred = window._deferred is not None
+        deferred = "returns" in window._pending
         while session.config.returns_model != "datasheet" and time.monotonic() - asked < 400:
             app.processEvents(); time.sleep(0.002)
         done = time.monotonic()

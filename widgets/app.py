@@ -118,10 +118,10 @@ class LivoxVizApp:
         #: The last picks in the scene view (at most two: a distance), and the last answer of any pick, in words.
         self.picks: list[dict[str, Any]] = []
         self.pick_text = ""
-        #: ``defer(stages, action, what) -> bool``: True when the compiled loops of ``stages`` are loaded (the
+        #: ``defer(stages, action, what, kind) -> bool``: True when the compiled loops of ``stages`` are loaded (the
         #: action runs now); otherwise the window keeps ``action`` for when they are, says so, and returns False.
         #: None runs every action at once (renders and tests compile what they need on first use).
-        self.defer: Callable[[set[str], Callable[[], None], str], bool] | None = None
+        self.defer: Callable[[set[str], Callable[[], None], str, str], bool] | None = None
         #: Called after a change the parameter panel must follow (the configuration or its page).
         self.on_panel_change: Callable[[], None] | None = None
         session.subscribe(self._on_change)
@@ -158,10 +158,10 @@ class LivoxVizApp:
         return self.session.message
 
     # Applying a configuration ----------------------------------------------------------------
-    def when_ready(self, stages: set[str], action: Callable[[], None], what: str = "") -> bool:
-        """Run ``action`` now if the compiled loops of ``stages`` are loaded, else when they are (:attr:`defer`);
-        whether it ran now."""
-        if self.defer is not None and not self.defer(stages, action, what):
+    def when_ready(self, stages: set[str], action: Callable[[], None], what: str = "", kind: str = "config") -> bool:
+        """Run ``action`` now if the compiled loops of ``stages`` are loaded, else when they are (:attr:`defer`; one
+        waits per ``kind``, the newest); whether it ran now."""
+        if self.defer is not None and not self.defer(stages, action, what, kind):
             return False
         action()
         return True
@@ -258,15 +258,15 @@ class LivoxVizApp:
 
         config = self.session.config.with_returns_model(model)
 
-        def switch() -> None:
+        def switch() -> None:  # on the configuration in use when it runs (a preset may have come meanwhile)
             self.page = "returns" if model == "datasheet" else "pattern"
-            self.session.set_config(config)
+            self.session.set_config(self.session.config.with_returns_model(model))
             returns = self.session.config.return_params
             self.session.message = (f"returns {model}" + (f": range noise {100 * returns.range_sigma_m[0][1]:g} cm, "
                                                           f"{returns.detection_range(0.1):.0f} m at 10 %"
                                                           if model == "datasheet" else ""))
 
-        self.when_ready(stages_for(config, self.session.trajectory is not None), switch, f"returns {model}")
+        self.when_ready(stages_for(config, self.session.trajectory is not None), switch, f"returns {model}", "returns")
 
     def toggle_returns_model(self) -> None:
         """Cast with the ideal or the datasheet return model."""
@@ -404,7 +404,7 @@ class LivoxVizApp:
         config = load_preset(chosen)
         self.when_ready(stages_for(config) - {"ideal"},
                         lambda: self.set_reference(PresetSource(config, chosen, self.session.seed)),
-                        f"reference {chosen}")
+                        f"reference {chosen}", "reference")
 
     def set_reference(self, source: TableSource | PresetSource | None) -> None:
         """Overlay ``source`` (None: none) and fit the pattern view's camera to it."""
@@ -717,7 +717,8 @@ class LivoxVizApp:
         self._last_render = now
 
     def close(self) -> None:
-        """Close the views once the screenshots being written are on disk."""
+        """Close the views once the screenshots being written are on disk (nothing is refreshed after)."""
+        self._ready = False
         if self._writer is not None:
             self._writer.shutdown(wait=True)
             self._writer = None

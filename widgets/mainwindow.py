@@ -98,7 +98,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self.resize(*size)
         self._stop = stop
         self._jobs: list[_Job] = []
-        self._deferred: tuple[set[str], Callable[[], None], str] | None = None
+        #: Changes waiting for their compiled loops, by kind: (stages, action, what).
+        self._pending: dict[str, tuple[set[str], Callable[[], None], str]] = {}
         self._error = False
         self._press: tuple[str, int, int] | None = None
         self._closing = False
@@ -186,19 +187,20 @@ class MainWindow(QtWidgets.QMainWindow):
         if iren is None:
             return
 
-        def pressed(vtk_interactor, _event: str) -> None:
-            x, y = vtk_interactor.GetEventPosition()
+        def pressed(*_: object) -> None:
+            x, y = iren.interactor.GetEventPosition()
             self._press = (name, x, y)
 
-        def released(vtk_interactor, _event: str) -> None:
-            x, y = vtk_interactor.GetEventPosition()
+        def released(*_: object) -> None:
+            x, y = iren.interactor.GetEventPosition()
             press, self._press = self._press, None
             if press is None or press[0] != name or abs(press[1] - x) > CLICK_SLOP or abs(press[2] - y) > CLICK_SLOP:
                 return
             self.pick(name, x, y)
 
-        iren.interactor.AddObserver("LeftButtonPressEvent", pressed, 10.0)
-        iren.interactor.AddObserver("LeftButtonReleaseEvent", released, 10.0)
+        # pyvista puts a release's observer on the interactor's style: the interactor swallows the release.
+        iren.add_observer("LeftButtonPressEvent", pressed)
+        iren.add_observer("LeftButtonReleaseEvent", released)
 
     def _make_status_bar(self) -> None:
         bar = self.statusBar()
@@ -368,7 +370,8 @@ class MainWindow(QtWidgets.QMainWindow):
     def run(self, action: Callable[[], Any]) -> None:
         """Run a key's or menu's action: bad input becomes a message in the window, never a crash."""
         self._error = self.controller.guarded(action) is not None
-        self._after_action()
+        if not self._closing:  # q closes the window: nothing left to bring up to date
+            self._after_action()
 
     def _after_action(self) -> None:
         self.controller.refresh()
@@ -381,31 +384,39 @@ class MainWindow(QtWidgets.QMainWindow):
         self.controller.session.message = text
         self._error = error or self._error
 
-    def _defer(self, stages: set[str], action: Callable[[], None], what: str) -> bool:
+    def _defer(self, stages: set[str], action: Callable[[], None], what: str, kind: str = "config") -> bool:
         """The controller's gate: True when the loops of ``stages`` are loaded (run now); else ``action`` runs when
-        they are, the window playing the old state meanwhile."""
+        they are, the window playing the current state meanwhile.
+
+        One request waits per ``kind`` ("config", "returns", "reference"), the newest: a preset chosen while
+        another waits replaces it, and one applied at once drops the one waiting (it would undo it later).
+        """
         if self.warmer is None or self.warmer.is_ready(stages):
+            self._pending.pop(kind, None)
             return True
-        self._deferred = (stages, action, what)
-        self.say(f"{what or 'the change'} waits for its compiled loops ({', '.join(sorted(stages))}); the window "
-                 "plays on meanwhile")
+        self._pending[kind] = (set(stages), action, what)
+        missing = sorted(set(stages) - self.warmer.ready)
+        self.say(f"{what or 'the change'}: waiting for the {', '.join(missing)} loops; the current state plays "
+                 "meanwhile")
         return False
 
     def _run_deferred(self) -> None:
-        if self._deferred is None or self.warmer is None:
+        if not self._pending or self.warmer is None:
             return
-        stages, action, what = self._deferred
-        failed = stages & set(self.warmer.failed)
-        if failed:
-            self._deferred = None
-            stage = sorted(failed)[0]
-            self.say(f"{what}: the {stage} loops could not be prepared ({self.warmer.failed[stage]})", error=True)
-            return
-        if self.warmer.is_ready(stages):
-            self._deferred = None
-            self.run(action)
-            if not self._error:
-                self.say(f"{what}: ready" if what else "ready")
+        for kind in ("config", "returns", "reference"):
+            if kind not in self._pending:
+                continue
+            stages, action, what = self._pending[kind]
+            failed = stages & set(self.warmer.failed)
+            if failed:
+                del self._pending[kind]
+                stage = sorted(failed)[0]
+                self.say(f"{what}: the {stage} loops could not be prepared ({self.warmer.failed[stage]})", error=True)
+            elif self.warmer.is_ready(stages):
+                del self._pending[kind]
+                self.run(action)
+                if not self._error:
+                    self.say(f"{what}: ready" if what else "ready")
 
     def _background(self, what: str, work: Callable[[], Any], done: Callable[[Any], None]) -> None:
         """Run ``work`` on a worker thread and ``done(result)`` on the UI thread after; the status bar shows it."""

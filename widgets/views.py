@@ -558,6 +558,19 @@ def _panorama_grid(fov, stretch: float = 1.0) -> tuple[list[pv.PolyData], list[s
     return lines, labels, positions
 
 
+def _heading(rotation: np.ndarray) -> float:
+    """The vehicle's heading, radians: its x axis turned about the NED vertical (0 north, positive to the east)."""
+    forward = np.asarray(rotation)[:, 0]
+    return math.atan2(forward[1], forward[0])
+
+
+def _turn_about_up(angle: float) -> np.ndarray:
+    """``(3, 3)`` a turn of the display's frame (z up) that a heading change of ``angle`` radians makes (a NED
+    heading turns clockwise seen from above: about the display's z by minus the angle)."""
+    c, s = math.cos(-angle), math.sin(-angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 def _runs(mask: np.ndarray) -> list[np.ndarray]:
     """Index runs where ``mask`` holds."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
@@ -730,13 +743,20 @@ class SceneView(_View):
         for name in ("sensor", "fov-cone"):
             actors[name].user_matrix = NED_TO_DISPLAY @ self.session.sensor_pose.matrix
         here = NED_TO_DISPLAY[:3, :3] @ vehicle.origin
+        heading = _heading(vehicle.rotation)
         followed = getattr(self, "_followed", None)
-        if self.follow and followed is not None and not np.array_equal(here, followed):
-            camera = self.renderer.camera
-            camera.position = tuple(np.array(camera.position) + here - followed)
-            camera.focal_point = tuple(np.array(camera.focal_point) + here - followed)
-            self.renderer.ResetCameraClippingRange()
-        self._followed = here
+        if self.follow and followed is not None:
+            # A chase camera: it moves and turns with the vehicle (about the vertical through it), keeping the
+            # user's angle and zoom in the vehicle's own frame, so what the sensor sees stays in view.
+            was, turned = followed if isinstance(followed, tuple) else (followed, heading)
+            if not (np.array_equal(here, was) and heading == turned):
+                turn = _turn_about_up(heading - turned)
+                camera = self.renderer.camera
+                camera.position = tuple(here + turn @ (np.array(camera.position) - was))
+                camera.focal_point = tuple(here + turn @ (np.array(camera.focal_point) - was))
+                camera.up = tuple(turn @ np.array(camera.up))
+                self.renderer.ResetCameraClippingRange()
+        self._followed = (here, heading)
 
     def draw_path(self) -> None:
         """The trajectory's path as a line (once per trajectory); nothing for a vehicle that stays."""
@@ -786,7 +806,8 @@ class SceneView(_View):
         camera.up = up
         camera.view_angle = 50
         self.renderer.ResetCameraClippingRange()
-        self._followed = NED_TO_DISPLAY[:3, :3] @ self.session.vehicle_pose_now.origin
+        vehicle = self.session.vehicle_pose_now
+        self._followed = (NED_TO_DISPLAY[:3, :3] @ vehicle.origin, _heading(vehicle.rotation))
 
     def mark_picks(self, points_ned: list) -> None:
         """Mark the points picked (NED, metres): a ring round each, and the line between two."""

@@ -86,8 +86,9 @@ class LoopWarmer:
             return ""
         stage, since = next(iter(working.items()))
         age = time.monotonic() - since
-        first = " (first use: about 1-2 min on 2 cores)" if stage == "datasheet" and age > 5 else ""
-        return f"preparing the {stage} loops{first}, {age:.0f} s"
+        first = " (compiled once, 1-2 min on 2 cores, then loaded from the cache)" if stage == "datasheet" and age > 8 \
+            else ""
+        return f"preparing the {stage} loops, {age:.0f} s{first}"
 
     def close(self) -> None:
         """Stop the child process (the thread is a daemon and ends with the program)."""
