@@ -285,6 +285,29 @@ def test_slider_steps_and_reset(window, qtbot) -> None:
     assert row.box.textFromValue(10950.0) == "10950"  # never 1.095e+04
 
 
+def test_a_click_on_a_point_of_the_cloud_says_what_it_is_in_the_status_bar(window, qtbot) -> None:
+    """Through Qt's mouse events, as a user clicks: the point's values in the status bar; a drag is no click."""
+    from qtpy import QtCore
+
+    session = window.controller.session
+    session.playback.paused = True
+    window.tick()
+    view = window.interactors["scene"]
+    renderer = window.controller.scene_view.renderer
+    ring = session.scene_ring
+    for slot in ring.live_slots()[:: max(1, ring.count // 50)]:
+        renderer.SetWorldPoint(*(ring.positions[slot].astype(float) * [1, -1, -1]), 1.0)
+        renderer.WorldToDisplay()
+        x, y, _ = renderer.GetDisplayPoint()
+        if 10 < x < view.width() - 10 and 10 < y < view.height() - 10:
+            break
+    where = QtCore.QPoint(round(x), round(view.height() - 1 - y))  # VTK counts pixels from the bottom
+    qtbot.mouseClick(view, QtCore.Qt.MouseButton.LeftButton, pos=where)
+    window.tick()
+    assert window.status_message.text().startswith("range ") and "azimuth" in window.status_message.text()
+    assert window.controller.picks and window.controller.picks[-1]["t_s"] in ring.times[ring.live_slots()]
+
+
 def test_the_panel_picture_matches_its_baseline(window, qtbot, tmp_path: Path) -> None:
     """The panel as drawn (fonts, rows, ranges): compared with its baseline, a small tolerance for fonts."""
     from tests.baseline_images import BASELINES, changed_fraction, grab_panel, read_image
