@@ -102,7 +102,8 @@ MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off", ".json")
 
 
 def user_scene_dir() -> Path:
-    """The user's own scenes (mesh files or scene JSON): ``$LIVOX_VIZ_SCENES`` or ``~/.config/livox-viz/scenes``."""
+    """The user's own scenes (mesh files or scene JSON): ``$LIVOX_VIZ_SCENES``, else ``scenes`` in the
+    platform's folder (``~/.config/livox-viz/scenes`` on Linux, :func:`~livox_viz.config.presets.user_config_dir`)."""
     return user_config_dir("scenes")
 
 
