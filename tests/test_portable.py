@@ -7,6 +7,7 @@ The user's folders come from platformdirs (Linux's paths unchanged); the platfor
 from __future__ import annotations
 
 import io
+import json
 import os
 import signal
 import subprocess
@@ -110,3 +111,37 @@ def test_stop_signals_name_only_what_the_platform_has(monkeypatch: pytest.Monkey
     monkeypatch.delattr(signal, "SIGHUP")
     monkeypatch.setattr(signal, "SIGBREAK", 21, raising=False)
     assert signals._stop_signals() == (signal.SIGINT, signal.SIGTERM, 21)
+
+
+TETRAHEDRON_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+
+
+@pytest.mark.parametrize("written", ["meshes\\tetra.obj", "meshes/tetra.obj", ".\\meshes\\tetra.obj"])
+def test_a_scene_files_mesh_path_written_on_windows_or_linux(tmp_path: Path, written: str) -> None:
+    from livox_viz.scene.scenes import open_scene
+
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "tetra.obj").write_text(TETRAHEDRON_OBJ)
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps({"objects": [{"type": "mesh", "path": written, "center": [5, 0, 0]}]}))
+    mesh = open_scene(str(scene)).mesh
+    assert len(mesh.faces) == 4 and mesh.bounds[0][0] == pytest.approx(5.0)
+
+
+@pytest.mark.parametrize("written", ["C:\\models\\tetra.obj", "D:/models/tetra.obj", "\\\\server\\share\\t.obj"])
+def test_an_absolute_windows_path_off_windows_is_one_line(tmp_path: Path, written: str) -> None:
+    from livox_viz import LivoxVizError
+    from livox_viz.scene.scenes import open_scene
+
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps({"objects": [{"type": "mesh", "path": written}]}))
+    with pytest.raises(LivoxVizError, match=r"^object 0 \(mesh\) path: .* is an absolute Windows path, which this "
+                                            r"system cannot open; allowed: a path relative to the file") as caught:
+        open_scene(str(scene))
+    assert "\n" not in str(caught.value)
+
+
+def test_a_posix_name_with_a_backslash_that_exists_is_taken_as_written(tmp_path: Path) -> None:
+    (tmp_path / "odd\\name.obj").write_text(TETRAHEDRON_OBJ)
+    assert portable.path_in_file("odd\\name.obj", tmp_path) == tmp_path / "odd\\name.obj"
+    assert portable.path_in_file("sub\\x.obj", tmp_path) == tmp_path / "sub" / "x.obj"

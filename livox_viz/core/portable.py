@@ -15,16 +15,22 @@ where it does not:
   process: there the process is opened and asked whether it still runs.
 * :func:`write_at`: ``os.pwrite`` is POSIX; a seek and a write do the same on a
   file object everywhere.
+* :func:`path_in_file`: a path written inside a file (a scene's mesh) may come from
+  Windows (``meshes\\car.glb``, ``C:\\models\\car.glb``) or from Linux.
 """
 
 from __future__ import annotations
 
 import io
 import os
+import re
 import shutil
 import sys
 from collections.abc import Callable
+from pathlib import Path, PureWindowsPath
 from typing import BinaryIO
+
+from livox_viz.core.errors import LivoxVizError
 
 
 def at_fork_in_child(callback: Callable[[], None]) -> None:
@@ -91,3 +97,30 @@ def write_at(file: BinaryIO | io.RawIOBase, data: bytes, offset: int) -> None:
     file.seek(offset)
     file.write(data)
     file.seek(position)
+
+
+_WINDOWS_LOOKING = re.compile(r"^[A-Za-z]:|\\")
+
+
+def path_in_file(text: str, folder: str | os.PathLike[str]) -> Path:
+    """The file a path written inside a file means: relative to ``folder`` (the file's own), or absolute.
+
+    On Windows both separators and drive letters are native. Elsewhere a Windows-style path (backslashes, a
+    drive letter) written on Windows is read as Windows reads it: ``meshes\\car.glb`` is ``meshes/car.glb``
+    beside the file; an absolute one (``C:\\models\\car.glb``) names a disk this system does not have and is
+    refused in one line. A name that exists as written (a POSIX name may hold a backslash) is taken as written.
+
+    Raises
+    ------
+    LivoxVizError
+        For an absolute Windows path off Windows.
+    """
+    written = Path(folder) / text
+    if sys.platform == "win32" or not _WINDOWS_LOOKING.search(text) or os.path.lexists(written):
+        return written
+    windows = PureWindowsPath(text)
+    if windows.drive or windows.root:
+        raise LivoxVizError(f"{text!r} is an absolute Windows path, which this system cannot open; allowed: a path "
+                            "relative to the file that names it (e.g. meshes\\car.glb or meshes/car.glb), or one "
+                            "absolute here")
+    return Path(folder).joinpath(*windows.parts)
