@@ -5,16 +5,15 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import platformdirs
 
 from livox_viz.config.sensor import SensorConfig, load_config
+from livox_viz.config.shipped import DEFAULT_PRESET, shipped_preset_dir
 from livox_viz.core.errors import ConfigError
 from livox_viz.core.jsonfile import read_json_file
 
-DEFAULT_PRESET = "livox_mid70"
 DESCRIPTION_KEY = "LivoxVizDescription"
 #: The folder name of the user's own files in the platform's configuration folder.
 APP_NAME = "livox-viz"
@@ -41,14 +40,6 @@ class PresetInfo:
     path: Path
     description: str
     shipped: bool
-
-
-def shipped_preset_dir() -> Path:
-    """The folder of the shipped presets: ``presets/`` of a checkout, or the wheel's copy."""
-    checkout = Path(__file__).resolve().parent.parent / "presets"
-    if (checkout / f"{DEFAULT_PRESET}.json").is_file():
-        return checkout
-    return Path(str(resources.files("livox_viz.shipped_presets")))
 
 
 def user_config_dir(kind: str) -> Path:
@@ -133,6 +124,6 @@ def preset_path(name: str) -> Path:
 def load_preset(name_or_path: str | os.PathLike[str] = DEFAULT_PRESET) -> SensorConfig:
     """Load a preset by name (``"livox_mid70"``) or by the path of a JSON file."""
     text = os.fspath(name_or_path)
-    if text.endswith(".json") or os.sep in text:
+    if text.endswith(".json") or "/" in text or "\\" in text or os.sep in text:  # a path (either separator)
         return load_config(text)
     return load_config(preset_path(text))
