@@ -30,6 +30,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
+
 from livox_viz.config.fov import FOV_KEY, FieldOfView
 from livox_viz.config.returns_params import (
     DATASHEETS,
@@ -45,6 +47,8 @@ from livox_viz.config.track_params import TRACK_KEY, TrackParams
 from livox_viz.core.atomic import write_text_atomic
 from livox_viz.core.errors import ConfigError
 from livox_viz.core.jsonfile import dumps_readable, read_json_file
+from livox_viz.core.poses import pose_from_quaternion
+from livox_viz.core.rotations import euler_matrix, quat_from_matrix
 
 JitterScope = Literal["flower", "figure"]
 
@@ -854,20 +858,15 @@ def _insert_after(data: dict[str, Any], key: str, new: dict[str, Any]) -> dict[s
 
 
 def _quaternion_wxyz(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
-    """The rotation of Z-Y-X Euler angles (radians) as a unit quaternion [w, x, y, z]."""
-    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
-    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
-            cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
+    """The rotation of Z-Y-X Euler angles (radians) as a unit quaternion [w, x, y, z] (RflySim's order)."""
+    x, y, z, w = (float(v) for v in quat_from_matrix(euler_matrix(roll, pitch, yaw)))
+    return (w, x, y, z)
 
 
 def _euler_of_quaternion(x: float, y: float, z: float, w: float) -> tuple[float, float, float]:
     """Z-Y-X Euler angles [roll, pitch, yaw] (radians) of a unit quaternion [x, y, z, w]."""
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return (roll, pitch, yaw)
+    pose = pose_from_quaternion(np.zeros(3), np.array([x, y, z, w]))
+    return (pose.roll, pose.pitch, pose.yaw)
 
 
 def _risley_with(risley: RisleyParams, name: str, value: float) -> RisleyParams:
