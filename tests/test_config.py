@@ -89,7 +89,7 @@ def test_config_json_selects_by_seq_id(tmp_path: Path, seed_json: dict) -> None:
     assert load_config(path).data_width == 250
     assert load_config(path, seq_id=3).data_width == 100
     seqs = ", ".join(str(s["SeqID"]) for s in (seed_json, second))
-    with pytest.raises(ConfigError, match=rf"SeqID 7 in VisionSensors; allowed: .* TypeID-6 sensors \({seqs}\)"):
+    with pytest.raises(ConfigError, match=rf"SeqID 7 in VisionSensors; allowed: .* Livox sensors, .* \({seqs}\)"):
         load_config(path, seq_id=7)
 
 
@@ -123,7 +123,7 @@ def test_config_json_without_livox(tmp_path: Path) -> None:
         ({"otherParams": "600"}, r"otherParams = '600'; allowed: a JSON list"),
         ({"SendProtocol": [0, 127, 0, 0, 1]}, r"SendProtocol = .*allowed: a list of 8 integers"),
         ({"SensorPosXYZ": [0, 0]}, r"SensorPosXYZ has 2 values; allowed: 3"),
-        ({"TypeID": 1}, r"TypeID = 1 is not a Livox rosette lidar; allowed: 6"),
+        ({"TypeID": 1}, r"TypeID = 1 is not a Livox lidar; allowed: the Livox TypeIDs are 6 in RflySim SDK v2"),
         ({JITTER_SCOPE_KEY: "petal"}, r"LivoxVizJitterScope = 'petal'; allowed: flower or figure"),
     ],
 )

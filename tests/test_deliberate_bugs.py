@@ -34,6 +34,7 @@ from livox_viz.wire.rflysim import (
     LivoxFrame,
     Reassembler,
     SharedMemoryLink,
+    WireFormat,
     pack_payload,
     split_datagrams,
     unpack_payload,
@@ -147,8 +148,9 @@ class _RecordingSender:
         self.cost = cost
         self.sent_at: list[float] = []
         self.errors = 0
+        self.wire = WireFormat()
 
-    def send(self, timestamp: float, pos_ang: np.ndarray, xyz_int16: np.ndarray) -> int:
+    def send(self, timestamp: float, pos_ang: np.ndarray, xyz_int16: np.ndarray, frame_id: int = 0) -> int:
         self.sent_at.append(self.clock.now)
         self.clock.now += self.cost
         return 1

@@ -33,6 +33,7 @@ from livox_viz.casting.codec import decode_int16
 from livox_viz.casting.ray_kernels import ideal_points, scratch_rows, sensor_rays
 from livox_viz.config.mount import sensor_mount, sensor_world_pose
 from livox_viz.config.sensor import SensorConfig
+from livox_viz.core.portable import at_fork_in_child
 from livox_viz.core.poses import Pose, pose_quaternion
 from livox_viz.core.rotations import quat_rotate
 from livox_viz.motion.track import SensorTrack
@@ -344,7 +345,7 @@ def _forget_frame_pool() -> None:
     _FRAME_POOL, _FRAME_POOL_LOCK = None, threading.Lock()
 
 
-os.register_at_fork(after_in_child=_forget_frame_pool)
+at_fork_in_child(_forget_frame_pool)
 
 
 def _frame_pool(workers: int) -> ThreadPoolExecutor:

@@ -17,9 +17,10 @@ from pathlib import Path
 
 from livox_viz.config.presets import DEFAULT_PRESET, load_preset
 from livox_viz.config.returns_params import RETURN_MODELS
-from livox_viz.config.sensor import SensorConfig, load_config
-from livox_viz.core.atomic import resolve_destination
+from livox_viz.config.sensor import SDKS, SensorConfig, load_config
+from livox_viz.core.atomic import resolve_destination, write_text_atomic
 from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.jsonfile import dumps_readable
 from livox_viz.core.poses import Pose
 from livox_viz.scene.materials import DEFAULT_REFLECTANCE
 
@@ -120,6 +121,24 @@ def add_config_arguments(parser: argparse.ArgumentParser) -> None:
                              "intensity) or datasheet (the sensor's sheet: noise, detection range, beam footprint, "
                              "multiple returns, reflectivity, tags); default: the configuration's own "
                              "(LivoxVizReturns; ideal without one, and the Mid-70's sheet for datasheet)")
+
+
+def add_sdk_argument(parser: argparse.ArgumentParser) -> None:
+    """``--sdk v2|v3``: the RflySim SDK a written configuration is for (default: the one it was read in)."""
+    parser.add_argument("--sdk", choices=SDKS,
+                        help="write the configuration for RflySim SDK v2 (TypeID 6, 8 otherParams) or v3 (TypeID "
+                             "22, or 23 for the Mid-360; EularOrQuat, SensorAngQuat, 16 otherParams); default: "
+                             "as it was read")
+
+
+def write_config_json(path: str, config: SensorConfig, sdk: str | None, extra: dict[str, str] | None = None) -> str:
+    """Write ``config`` (for ``sdk``, or as read) as one RflySim sensor object to ``path``, atomically; returns
+    what was written, in words (``TypeID 22, RflySim SDK v3 form``)."""
+    if sdk is not None:
+        config = config.with_sdk(sdk)
+    write_text_atomic(path, dumps_readable({**config.to_json_dict(), **(extra or {})}))
+    form = "v3 form (EularOrQuat, 16 otherParams)" if config.v3_form else "old form (8 otherParams)"
+    return f"TypeID {config.type_id}, RflySim SDK {config.sdk}, {form}"
 
 
 def add_seed_argument(parser: argparse.ArgumentParser) -> None:

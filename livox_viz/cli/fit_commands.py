@@ -11,8 +11,6 @@ from livox_viz.config.fov import FieldOfView
 from livox_viz.config.presets import DESCRIPTION_KEY
 from livox_viz.config.sensor import SensorConfig, frame_layout
 from livox_viz.config.track_params import TrackParams
-from livox_viz.core.atomic import write_text_atomic
-from livox_viz.core.jsonfile import dumps_readable
 from livox_viz.fitting.compare import compare
 from livox_viz.fitting.plot import plot_comparison
 from livox_viz.fitting.reference import ReferencePattern, is_table, load_table_or_preset
@@ -24,12 +22,14 @@ from .common import (
     Command,
     UsageError,
     add_config_arguments,
+    add_sdk_argument,
     add_seed_argument,
     check_output_path,
     config_from_args,
     config_label,
     positive_float,
     whole_number,
+    write_config_json,
 )
 
 
@@ -44,15 +44,15 @@ def _reference(args: argparse.Namespace) -> ReferencePattern:
 
 
 def _write_preset(args: argparse.Namespace, config: SensorConfig, description: str) -> None:
-    data = config.to_json_dict()
-    data[DESCRIPTION_KEY] = description
-    write_text_atomic(args.out, dumps_readable(data))
-    print(f"wrote {args.out}")
+    what = write_config_json(args.out, config, args.sdk, {DESCRIPTION_KEY: description})
+    print(f"wrote {args.out} ({what})")
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
     if args.out:
         check_output_path(args.out, (".json",))
+    if args.sdk is not None and not args.out:
+        raise UsageError("--sdk says which RflySim SDK the preset of --out is for; give --out too")
     if args.tolerance is not None and args.model != "track":
         raise UsageError("--tolerance goes with --model track")
     if args.beams is not None and args.model == "rflysim":
@@ -207,6 +207,7 @@ def _fit_arguments(parser: argparse.ArgumentParser) -> None:
     add_seed_argument(parser)
     add_config_arguments(parser)
     parser.add_argument("--out", help="write the fitted preset JSON here (RflySim fields from --preset/--config)")
+    add_sdk_argument(parser)
 
 
 def cmd_compare(args: argparse.Namespace) -> int:

@@ -1,4 +1,5 @@
-"""Commands about the pattern alone: ``info``, ``presets``, ``pattern``, ``coverage``."""
+"""Commands about the configuration and the pattern alone: ``info``, ``presets``, ``save``, ``pattern``,
+``coverage``."""
 
 from __future__ import annotations
 
@@ -11,7 +12,13 @@ import numpy as np
 
 from livox_viz.casting.codec import max_decode_error
 from livox_viz.config.presets import list_presets
-from livox_viz.config.sensor import EULER_KEY_RFLYSIM, SensorConfig
+from livox_viz.config.sensor import (
+    EULER_KEY_RFLYSIM,
+    MID360_PRESET,
+    QUATERNION_KEY,
+    V3_MID360_TYPE_ID,
+    SensorConfig,
+)
 from livox_viz.core.atomic import atomic_path, make_work_dir
 from livox_viz.core.errors import LivoxVizError, os_error_reason
 from livox_viz.core.progress import Progress
@@ -25,12 +32,14 @@ from .common import (
     Command,
     UsageError,
     add_config_arguments,
+    add_sdk_argument,
     add_seed_argument,
     check_output_path,
     config_from_args,
     config_label,
     float_list,
     positive_float,
+    write_config_json,
 )
 
 # info ----------------------------------------------------------------------------------
@@ -105,7 +114,11 @@ def cmd_info(args: argparse.Namespace) -> int:
         print(json.dumps({"config": config_label(args), **figures}, indent=2))
         return 0
     model = {"risley": "Risley track", "track": "track"}.get(cfg.pattern_model, "rosette")
-    print(f"{config_label(args)}: Livox {model} (RflySim TypeID {cfg.type_id}), SeqID {cfg.seq_id}")
+    if cfg.type_id == V3_MID360_TYPE_ID:
+        model = f"Mid-360 ({MID360_PRESET}'s track unless the file has its own; RflySim's 64 x 272-point frame)"
+    form = "v3 form: EularOrQuat, 16 otherParams" if cfg.v3_form else "old form: 8 otherParams"
+    print(f"{config_label(args)}: Livox {model} (RflySim TypeID {cfg.type_id}, SDK {cfg.sdk}; {form}), "
+          f"SeqID {cfg.seq_id}")
     fov = cfg.field_of_view
     if fov.shape == "cone":
         print(f"  field of view      {cfg.camera_fov:g} deg (cone of half-angle {cfg.half_fov_deg:g} deg)")
@@ -136,9 +149,14 @@ def cmd_info(args: argparse.Namespace) -> int:
           f"max decode error {max_decode_error(cfg.range_max) * 1e3:.3f} mm")
     # The mounting angles' key has two spellings: say which this file used (saving keeps it).
     spelling = "RflySim's spelling" if cfg.euler_key == EULER_KEY_RFLYSIM else "the original document's spelling"
-    print(f"  mount              at {', '.join(f'{v:g}' for v in cfg.sensor_pos_xyz)} m (FRD of the body), "
-          f"roll/pitch/yaw {', '.join(f'{v:g}' for v in cfg.sensor_ang_euler)} rad, read from {cfg.euler_key} "
-          f"({spelling})")
+    if cfg.mount_quaternion is not None:
+        print(f"  mount              at {', '.join(f'{v:g}' for v in cfg.sensor_pos_xyz)} m (FRD of the body), "
+              f"quaternion [w, x, y, z] {', '.join(f'{v:g}' for v in cfg.sensor_ang_quat or ())} "
+              f"(EularOrQuat {cfg.eular_or_quat:g} > 0.5: {QUATERNION_KEY}, not {cfg.euler_key})")
+    else:
+        print(f"  mount              at {', '.join(f'{v:g}' for v in cfg.sensor_pos_xyz)} m (FRD of the body), "
+              f"roll/pitch/yaw {', '.join(f'{v:g}' for v in cfg.sensor_ang_euler)} rad, read from {cfg.euler_key} "
+              f"({spelling})")
     returns = cfg.return_params
     kind = {1: "single", 2: "dual", 3: "triple"}[returns.returns_per_pulse]
     sheet = (f"detection {', '.join(f'{r:g} m at {100 * p:g} %' for p, r in returns.detection_range_m)}; range "
@@ -267,10 +285,27 @@ def _coverage_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print JSON")
 
 
+# save ----------------------------------------------------------------------------------
+def cmd_save(args: argparse.Namespace) -> int:
+    check_output_path(args.out, (".json",))
+    cfg = config_from_args(args)
+    what = write_config_json(args.out, cfg, args.sdk)
+    print(f"wrote {args.out} ({what})")
+    return 0
+
+
+def _save_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_arguments(parser)
+    add_sdk_argument(parser)
+    parser.add_argument("--out", required=True, help="the sensor JSON to write (one RflySim sensor object)")
+
+
 COMMANDS: tuple[Command, ...] = (
     Command("info", cmd_info, "print the derived figures of a sensor configuration",
             "livox-viz info --preset livox_mid70", _info_arguments),
     Command("presets", cmd_presets, "list the sensor presets", "livox-viz presets", _presets_arguments),
+    Command("save", cmd_save, "write a preset or a sensor JSON for RflySim's SDK v2 or v3 (keys and order kept)",
+            "livox-viz save --preset livox_mid70 --sdk v3 --out Config_v3.json", _save_arguments),
     Command("pattern", cmd_pattern, "write the scan pattern (angles, times, labels) to .npz or .csv",
             "livox-viz pattern --seconds 0.5 --seed 1 --out pattern.npz", _pattern_arguments),
     Command("coverage", cmd_coverage, "FOV coverage against integration time",

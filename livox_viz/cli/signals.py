@@ -1,4 +1,4 @@
-"""How ``livox-viz`` stops on Ctrl-C, SIGTERM and SIGHUP.
+"""How ``livox-viz`` stops on Ctrl-C, SIGTERM and SIGHUP (SIGBREAK on Windows).
 
 By default a command unwinds on any of them (SIGTERM and SIGHUP raise
 :class:`Terminated`, Ctrl-C raises :class:`KeyboardInterrupt`), so every writer
@@ -7,6 +7,9 @@ whose partial result is the user's data (a scan's files, a recording, a live
 publisher, the window) asks instead to be *told*: inside :class:`StopRequests` a signal is
 only noted, the command finishes its current step, closes its files properly
 and returns :func:`signal_status`.
+
+Windows has no SIGHUP: a closed console window sends SIGBREAK (Ctrl-Break too), which is
+taken the same way there. Every signal is named only where the platform has it.
 """
 
 from __future__ import annotations
@@ -16,8 +19,16 @@ import threading
 from collections.abc import Callable
 from types import FrameType, TracebackType
 
+
+def _stop_signals() -> tuple[signal.Signals, ...]:
+    """Ctrl-C, SIGTERM and the hang-up the platform has: SIGHUP (POSIX), SIGBREAK (Windows: a closed console or
+    Ctrl-Break). Looked up by name: naming a signal the platform lacks fails at import (Windows has no SIGHUP)."""
+    hang_ups = (getattr(signal, name, None) for name in ("SIGHUP", "SIGBREAK"))
+    return (signal.SIGINT, signal.SIGTERM, *(sig for sig in hang_ups if sig is not None))
+
+
 #: The signals a command stops on.
-STOP_SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+STOP_SIGNALS: tuple[signal.Signals, ...] = _stop_signals()
 #: The signals :func:`raise_stop` raised, until :func:`take_raised`: one a library swallowed on its way (trimesh
 #: imports its optional dependencies under ``except BaseException``) still stops the command, at its next
 #: :class:`StopRequests` or when it returns.
@@ -25,7 +36,7 @@ _RAISED: list[int] = []
 
 
 class Terminated(BaseException):
-    """SIGTERM or SIGHUP arrived: unwind like Ctrl-C, so writers remove their temporary files.
+    """SIGTERM or SIGHUP (SIGBREAK on Windows) arrived: unwind like Ctrl-C, so writers remove their temporary files.
 
     A :class:`BaseException`, as :class:`KeyboardInterrupt` is, so no ``except Exception`` swallows it.
 

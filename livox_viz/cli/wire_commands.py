@@ -20,7 +20,13 @@ from livox_viz.config.sensor import load_config
 from livox_viz.core.workload import check_points
 from livox_viz.files.export import FORMATS, PointCloudWriter, WritingStopped
 from livox_viz.wire.received import RECORDING_FIELDS, RECORDING_TABLE_COLUMNS, RecordingClock
-from livox_viz.wire.rflysim import REQUEST_PORT_BASE, parse_host_port, send_protocol_destination, sensor_request
+from livox_viz.wire.rflysim import (
+    REQUEST_PORT_BASE,
+    WireFormat,
+    parse_host_port,
+    send_protocol_destination,
+    sensor_request,
+)
 from livox_viz.wire.transport import (
     ShmReceiver,
     ShmSender,
@@ -118,18 +124,20 @@ def cmd_publish(args: argparse.Namespace) -> int:
     trajectory = trajectory_from_args(args, pose, seconds)
     if trajectory is not None and seconds is not None:
         trajectory.check_covers(0.0, seconds)
+    wire = WireFormat.of(cfg)
+    sender: UdpSender | ShmSender
     if args.to:
         host, port = parse_host_port(args.to)
-        sender = UdpSender(host, port)
+        sender = UdpSender(host, port, wire)
         where = f"udp {host}:{port}"
     else:
         destination = send_protocol_destination(cfg)
         if destination.transport == "udp":
-            sender = UdpSender(destination.host, destination.port)
+            sender = UdpSender(destination.host, destination.port, wire)
             where = f"udp {destination.host}:{destination.port} (SendProtocol)"
         else:
             sender = ShmSender(cfg, args.shm_dir)
-            where = f"shared memory {sender.link.path} (SendProtocol[0] = 0)"
+            where = f"shared memory {sender.link.name} (SendProtocol[0] = 0)"
     scanner = LidarScanner(cfg, caster, pose, seed=args.seed, trajectory=trajectory)
     if seconds is not None:
         frames, until = scanner.frames(seconds), f"for {seconds:g} s"
@@ -139,7 +147,8 @@ def cmd_publish(args: argparse.Namespace) -> int:
         frames, until = endless_frames(scanner), "until stopped (Ctrl-C)"
     speed = None if args.unpaced else args.speed
     print(f"publishing {cfg.points_per_frame:,}-ray frames at {cfg.data_check_freq} Hz "
-          f"({'unpaced' if speed is None else f'{speed:g}x real time'}) to {where}, {until}", file=sys.stderr)
+          f"({'unpaced' if speed is None else f'{speed:g}x real time'}) to {where}, {until}; RflySim SDK "
+          f"{cfg.sdk} (TypeID {cfg.type_id}): {wire.describe()}", file=sys.stderr)
     every = _Every(1.0)
 
     def progress(report) -> None:
@@ -179,7 +188,8 @@ def _publish_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speed", type=_speed, default=1.0,
                         help=f"times real time, {SPEED_RANGE[0]:g} to {SPEED_RANGE[1]:g} (default 1)")
     parser.add_argument("--unpaced", action="store_true", help="send as fast as possible")
-    parser.add_argument("--shm-dir", default="/dev/shm", help="folder of the shared memory block (default /dev/shm)")
+    parser.add_argument("--shm-dir", help="folder of the shared memory block's file (default /dev/shm, the "
+                                          "temporary folder on macOS; Windows uses RflySim's named mapping)")
     parser.add_argument("--force", action="store_true", help="allow more points than the documented budget")
 
 
@@ -187,19 +197,21 @@ def _publish_arguments(parser: argparse.ArgumentParser) -> None:
 def open_receiver(args: argparse.Namespace, config) -> tuple[UdpReceiver | ShmReceiver, str]:
     """The receiver ``--port``/``--host``/``--shm`` name, and where it listens in words."""
     if args.shm:
-        receiver = ShmReceiver(config, args.shm_dir)
-        waiting = "" if receiver.link is not None else ", waiting for a publisher to make it"
-        return receiver, f"shared memory {receiver.path}{waiting}"
-    receiver = UdpReceiver(args.host, args.port)
-    return receiver, f"udp {args.host}:{receiver.port}"
+        shm = ShmReceiver(config, args.shm_dir)
+        waiting = "" if shm.link is not None else ", waiting for a publisher to make it"
+        return shm, f"shared memory {shm.path}{waiting}"
+    udp = UdpReceiver(args.host, args.port, "world" if WireFormat.of(config).world_points else "sensor")
+    return udp, f"udp {args.host}:{udp.port}"
 
 
 def add_receiver_arguments(parser: argparse.ArgumentParser) -> None:
     """``--host``, ``--port``, ``--shm``, ``--shm-dir`` (shared with the GUI's live view)."""
     parser.add_argument("--host", default="0.0.0.0", help="address to bind (default 0.0.0.0)")
     parser.add_argument("--port", type=port_value, default=9999, help="UDP port, 0 for any free one (default 9999)")
-    parser.add_argument("--shm", action="store_true", help="read /dev/shm/RflySim3DImg_<SeqID> instead of UDP")
-    parser.add_argument("--shm-dir", default="/dev/shm", help="folder of the shared memory block")
+    parser.add_argument("--shm", action="store_true", help="read RflySim3DImg_<SeqID> (a file in /dev/shm; on Windows "
+                                                           "RflySim's named mapping) instead of UDP")
+    parser.add_argument("--shm-dir", help="folder of the shared memory block's file (default /dev/shm, the temporary "
+                                          "folder on macOS; not used on Windows)")
 
 
 class _Listening:
@@ -233,9 +245,11 @@ class _Listening:
 
 
 #: What a recording's NPZ arrays are (stated in its ``frame_of_reference``).
-RECORDING_NPZ_RULE = ("xyz_int16: the points as received (sensor FRD); xyz_sensor: those decoded (xyz_int16 x "
-                      "range_max / 32767, the listener's range_max); xyz_world and range: the decoded points placed "
-                      "with their frame's posAng, and their distance")
+RECORDING_NPZ_RULE = ("xyz_int16: the points as received (sensor FRD; world NED from RflySim v3's Mid-360, TypeID "
+                      "23); xyz_sensor: those decoded (xyz_int16 x range_max / 32767, the listener's range_max) in "
+                      "the sensor frame; xyz_world and range: the decoded points placed with their frame's posAng "
+                      "(as received for world points), and their distance; channel4: a v3 frame's fourth int16 a "
+                      "point as received (0 for three values a point)")
 
 
 def cmd_listen(args: argparse.Namespace) -> int:
@@ -266,7 +280,8 @@ def cmd_listen(args: argparse.Namespace) -> int:
                 if writer is not None:
                     try:
                         writer.write(numbered, {"sender_frame": numbered.sender_index,
-                                                "sender_time": numbered.sender_time, "session": numbered.session})
+                                                "sender_time": numbered.sender_time, "session": numbered.session,
+                                                "channel4": numbered.channel4})
                     except WritingStopped:
                         # What was recorded is the user's data: the file is finished with the frames before.
                         stopped = (f"{out}: {writer.stopped}: recording stopped; the {writer.frames} frames "
@@ -301,7 +316,9 @@ def cmd_listen(args: argparse.Namespace) -> int:
 
 def _listen_arguments(parser: argparse.ArgumentParser) -> None:
     add_receiver_arguments(parser)
-    parser.add_argument("--config", help="sensor JSON giving the range (int16 scale); default the default preset")
+    parser.add_argument("--config", help="sensor JSON giving the range (int16 scale) and, by its TypeID, where the "
+                                         "points are (23: world); either SDK's frames are taken; default the "
+                                         "default preset")
     parser.add_argument("--seq-id", type=int, help="SeqID in a Config.json")
     parser.add_argument("--record", help="write the frames to .ply .pcd .las .npz or .csv")
     parser.add_argument("--frames", type=whole_number(1, 2**62, "a whole number >= 1"),
@@ -333,7 +350,9 @@ def _request_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--to", required=True, help="HOST[:PORT]; the port defaults to 20010 + --window")
     parser.add_argument("--window", type=whole_number(0, 65535 - REQUEST_PORT_BASE), default=0,
                         help="RflySim window index (default 0)")
-    parser.add_argument("--dry-run", action="store_true", help="print the 92 bytes in hex instead of sending")
+    parser.add_argument("--dry-run", action="store_true",
+                        help="print the request (92 bytes, or 144 for a configuration with EularOrQuat) in hex "
+                             "instead of sending")
 
 
 COMMANDS: tuple[Command, ...] = (
@@ -341,6 +360,6 @@ COMMANDS: tuple[Command, ...] = (
             "livox-viz publish --to 127.0.0.1:9999 --seconds 10 --speed 1", _publish_arguments),
     Command("listen", cmd_listen, "receive RflySim Livox frames, report them, record them",
             "livox-viz listen --port 9999 --record received.npz", _listen_arguments),
-    Command("request", cmd_request, "ask a running RflySim for this sensor (the <16H15f request)",
+    Command("request", cmd_request, "ask a running RflySim for this sensor (<16H15f, or <16H28f with EularOrQuat)",
             "livox-viz request --to 127.0.0.1 --dry-run", _request_arguments),
 )

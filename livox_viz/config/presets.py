@@ -5,15 +5,18 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
+import platformdirs
+
 from livox_viz.config.sensor import SensorConfig, load_config
+from livox_viz.config.shipped import DEFAULT_PRESET, shipped_preset_dir
 from livox_viz.core.errors import ConfigError
 from livox_viz.core.jsonfile import read_json_file
 
-DEFAULT_PRESET = "livox_mid70"
 DESCRIPTION_KEY = "LivoxVizDescription"
+#: The folder name of the user's own files in the platform's configuration folder.
+APP_NAME = "livox-viz"
 _INDEX_FILE = "index.json"
 
 
@@ -39,16 +42,12 @@ class PresetInfo:
     shipped: bool
 
 
-def shipped_preset_dir() -> Path:
-    """The folder of the shipped presets: ``presets/`` of a checkout, or the wheel's copy."""
-    checkout = Path(__file__).resolve().parent.parent / "presets"
-    if (checkout / f"{DEFAULT_PRESET}.json").is_file():
-        return checkout
-    return Path(str(resources.files("livox_viz.shipped_presets")))
-
-
 def user_config_dir(kind: str) -> Path:
-    """A folder of the user's own files: ``$LIVOX_VIZ_<KIND>``, else ``$XDG_CONFIG_HOME/livox-viz/<kind>``.
+    """A folder of the user's own files: ``$LIVOX_VIZ_<KIND>``, else the platform's folder for them.
+
+    That is ``$XDG_CONFIG_HOME/livox-viz/<kind>`` (``~/.config/livox-viz/<kind>``) on Linux,
+    ``%APPDATA%\\livox-viz\\<kind>`` on Windows and ``~/Library/Application Support/livox-viz/<kind>`` on
+    macOS, as ``platformdirs`` knows them.
 
     Parameters
     ----------
@@ -58,12 +57,13 @@ def user_config_dir(kind: str) -> Path:
     explicit = os.environ.get(f"LIVOX_VIZ_{kind.upper()}")
     if explicit:
         return Path(explicit)
-    config_home = os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")
-    return Path(config_home) / "livox-viz" / kind
+    # Roaming on Windows: %APPDATA%, where a user's settings follow them (the local folder is for caches).
+    return Path(platformdirs.PlatformDirs(APP_NAME, appauthor=False, roaming=True).user_config_dir) / kind
 
 
 def user_preset_dir() -> Path:
-    """The user's own presets: ``$LIVOX_VIZ_PRESETS``, else ``$XDG_CONFIG_HOME/livox-viz/presets``."""
+    """The user's own presets: ``$LIVOX_VIZ_PRESETS``, else ``presets`` in the platform's folder
+    (:func:`user_config_dir`)."""
     return user_config_dir("presets")
 
 
@@ -124,6 +124,6 @@ def preset_path(name: str) -> Path:
 def load_preset(name_or_path: str | os.PathLike[str] = DEFAULT_PRESET) -> SensorConfig:
     """Load a preset by name (``"livox_mid70"``) or by the path of a JSON file."""
     text = os.fspath(name_or_path)
-    if text.endswith(".json") or os.sep in text:
+    if text.endswith(".json") or "/" in text or "\\" in text or os.sep in text:  # a path (either separator)
         return load_config(text)
     return load_config(preset_path(text))

@@ -1,4 +1,12 @@
-"""The RflySim Livox sensor configuration (TypeID 6) as a validated, frozen value.
+"""The RflySim Livox sensor configuration as a validated, frozen value.
+
+Two RflySim SDKs are in use. The original document's (v2) has the rosette as TypeID 6. Today's (v3, 2024-25)
+has the same rosette as TypeID 22 and the Livox Mid-360 as TypeID 23 (TypeID 6 is a sound sensor there), and a
+new form of the JSON object: ``EularOrQuat`` (> 0.5: the mount is the quaternion ``SensorAngQuat``, [w, x, y, z]
+here, instead of ``SensorAngEular``) and exactly sixteen ``otherParams``. A v3 SDK takes the old form too (the
+Mid-360's own example has eight otherParams and no EularOrQuat). So the SDK of a configuration is its TypeID's
+(:attr:`SensorConfig.sdk`: what the wire carries), and its form is whether it has ``EularOrQuat``
+(:attr:`SensorConfig.v3_form`: what the request and the file look like).
 
 A :class:`SensorConfig` is built from the JSON object of RflySim's vision-sensor
 list (``Config.json``). Loading and saving keeps every key the model does not
@@ -22,6 +30,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
+
 from livox_viz.config.fov import FOV_KEY, FieldOfView
 from livox_viz.config.returns_params import (
     DATASHEETS,
@@ -32,10 +42,13 @@ from livox_viz.config.returns_params import (
     ReturnParams,
 )
 from livox_viz.config.risley_params import RisleyParams
+from livox_viz.config.shipped import shipped_preset_dir
 from livox_viz.config.track_params import TRACK_KEY, TrackParams
 from livox_viz.core.atomic import write_text_atomic
 from livox_viz.core.errors import ConfigError
 from livox_viz.core.jsonfile import dumps_readable, read_json_file
+from livox_viz.core.poses import pose_from_quaternion
+from livox_viz.core.rotations import euler_matrix, quat_from_matrix
 
 JitterScope = Literal["flower", "figure"]
 
@@ -43,13 +56,39 @@ JitterScope = Literal["flower", "figure"]
 JITTER_SCOPES: tuple[str, ...] = ("flower", "figure")
 
 
+#: RflySim SDK v2's Livox rosette (the original document's sensor).
 LIVOX_TYPE_ID = 6
+#: RflySim SDK v3's Livox rosette ("仿Livox mid40激光雷达"): the same otherParams as TypeID 6.
+V3_ROSETTE_TYPE_ID = 22
+#: RflySim SDK v3's Livox Mid-360: only otherParams[0], the range; scanned here with the ``livox_mid360`` track.
+V3_MID360_TYPE_ID = 23
+#: The Livox TypeIDs of each SDK.
+LIVOX_TYPE_IDS: dict[str, tuple[int, ...]] = {"v2": (LIVOX_TYPE_ID,), "v3": (V3_ROSETTE_TYPE_ID, V3_MID360_TYPE_ID)}
+#: The SDKs a configuration can be written for.
+SDKS: tuple[str, ...] = ("v2", "v3")
+#: What TypeIDs 20 and 21 are in SDK v3 (mechanical lidars), and 6 there (not a lidar), for the refusals.
+_OTHER_V3_SENSORS = {20: "a mechanical lidar in the vehicle's frame", 21: "a mechanical lidar in the world frame"}
+#: RflySim's Mid-360 frame: DataWidth x DataHeight "have no effect" in its Config.json, its client sizes the
+#: block for 64 x 272 points whatever they say.
+MID360_FRAME = (64, 272)
+#: The shipped preset whose track and field of view a TypeID 23 configuration scans with (unless it has its own).
+MID360_PRESET = "livox_mid360"
+#: otherParams of the v3 form: exactly sixteen (RflySim's v3 client refuses other lengths).
+V3_OTHER_PARAMS = 16
 
 
 EULER_KEY_RFLYSIM = "SensorAngEular"
 
 
 EULER_KEY_DOCUMENT = "SensorAngEuler"
+
+
+#: The v3 form's switch: > 0.5 the mount is :data:`QUATERNION_KEY`, else the Euler angles.
+EULAR_OR_QUAT_KEY = "EularOrQuat"
+
+
+#: The v3 form's mounting quaternion, [w, x, y, z] (scalar first, as RflySim's sensor pages write it).
+QUATERNION_KEY = "SensorAngQuat"
 
 
 JITTER_SCOPE_KEY = "LivoxVizJitterScope"
@@ -74,6 +113,10 @@ DEFAULT_SEND_PROTOCOL: tuple[int, ...] = (0, 127, 0, 0, 1, 9999, 0, 0)
 
 
 MAX_POINTS_PER_FRAME = 10_000_000
+
+
+#: Below this length a ``SensorAngQuat`` in use is refused as having no direction (float32 on the wire).
+_MIN_QUATERNION_NORM = 1e-6
 
 
 @dataclass(frozen=True)
@@ -212,7 +255,7 @@ _OTHER_PARAM_FIELDS = (
 
 @dataclass(frozen=True)
 class SensorConfig:
-    """One Livox rosette sensor (RflySim TypeID 6), validated on construction.
+    """One Livox sensor of RflySim (TypeID 6 in SDK v2; 22 or 23 in SDK v3), validated on construction.
 
     Parameters
     ----------
@@ -225,13 +268,19 @@ class SensorConfig:
     camera_fov : float
         Full field of view, degrees (twice the petal length).
     other_params : tuple of float
-        ``otherParams`` as 8 values: range (m), petal height h (deg), spacing
-        exponent p, tip exponent q, figure-8s per flower N8, flowers per
-        figure Nf, maximum jitter (deg), and an unused eighth value.
+        ``otherParams`` as 8 values (16 in the v3 form, the last eight kept as read): range (m), petal
+        height h (deg), spacing exponent p, tip exponent q, figure-8s per flower N8, flowers per figure
+        Nf, maximum jitter (deg), and an unused eighth value. A Mid-360 (TypeID 23) uses only the range.
     sensor_pos_xyz : tuple of float
         Sensor origin in the vehicle body frame (FRD), metres.
     sensor_ang_euler : tuple of float
         Mounting angles [roll, pitch, yaw] relative to the body, radians.
+    eular_or_quat : float, optional
+        The v3 form's ``EularOrQuat`` (None: the old form, without it): above 0.5 the mount is
+        :attr:`sensor_ang_quat`, else :attr:`sensor_ang_euler`.
+    sensor_ang_quat : tuple of float, optional
+        The v3 form's ``SensorAngQuat``, [w, x, y, z] as written (normalised where it is used; one of
+        zero length is refused where it is used).
     seq_id, type_id, target_copter, target_mount_type : int
         RflySim's bookkeeping fields, preserved.
     send_protocol : tuple of int
@@ -265,6 +314,8 @@ class SensorConfig:
     other_params: tuple[float, ...] = (600.0, 2.956, 1.4, 1.18, 10.0, 5.0, 1.0, 0.0)
     sensor_pos_xyz: tuple[float, float, float] = (0.0, 0.0, -0.3)
     sensor_ang_euler: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    eular_or_quat: float | None = None
+    sensor_ang_quat: tuple[float, ...] | None = None
     seq_id: int = 0
     type_id: int = LIVOX_TYPE_ID
     target_copter: int = 1
@@ -282,21 +333,35 @@ class SensorConfig:
     def __post_init__(self) -> None:
         for name in ("data_width", "data_height", "data_check_freq"):
             _check_int(PARAM_RANGES[name], getattr(self, name))
-        PARAM_RANGES["camera_fov"].check(self.camera_fov)
-        if self.type_id != LIVOX_TYPE_ID:
-            raise ConfigError(
-                f"TypeID = {self.type_id!r} is not a Livox rosette lidar; allowed: {LIVOX_TYPE_ID}"
-            )
+        self._check_type_and_form()
+        if self.type_id == V3_MID360_TYPE_ID:
+            # RflySim's Mid-360 has its own frame and pattern: W x H and the rosette's fields say nothing.
+            object.__setattr__(self, "data_width", MID360_FRAME[0])
+            object.__setattr__(self, "data_height", MID360_FRAME[1])
+            _check_finite("CameraFOV", self.camera_fov)
+        else:
+            PARAM_RANGES["camera_fov"].check(self.camera_fov)
         params = tuple(self.other_params)
-        if not 7 <= len(params) <= 8:
+        if self.v3_form and len(params) != V3_OTHER_PARAMS:
+            raise ConfigError(
+                f"otherParams has {len(params)} values; allowed: exactly {V3_OTHER_PARAMS} in a configuration "
+                f"with {EULAR_OR_QUAT_KEY} (RflySim v3), or 8 without it"
+            )
+        if not self.v3_form and not 7 <= len(params) <= 8:
             raise ConfigError(
                 f"otherParams has {len(params)} values; allowed: 7 or 8 "
-                "(range, petal height, p, q, figure-8s per flower, flowers per figure, jitter[, unused])"
+                "(range, petal height, p, q, figure-8s per flower, flowers per figure, jitter[, unused]), "
+                f"or {V3_OTHER_PARAMS} with {EULAR_OR_QUAT_KEY} and {QUATERNION_KEY} (RflySim v3)"
             )
-        for name, value in zip(_OTHER_PARAM_FIELDS, params[:7], strict=True):
-            PARAM_RANGES[name].check(value)
-        if len(params) == 8:
-            _check_finite("otherParams[7]", params[7])
+        if self.type_id == V3_MID360_TYPE_ID:
+            PARAM_RANGES["range_max"].check(params[0])
+            first_free = 1
+        else:
+            for name, value in zip(_OTHER_PARAM_FIELDS, params[:7], strict=True):
+                PARAM_RANGES[name].check(value)
+            first_free = 7
+        for index in range(first_free, len(params)):
+            _check_finite(f"otherParams[{index}]", params[index])
         if self.data_width * self.data_height > MAX_POINTS_PER_FRAME:
             raise ConfigError(
                 f"DataWidth*DataHeight = {self.data_width * self.data_height} points per frame; "
@@ -312,6 +377,12 @@ class SensorConfig:
             raise ConfigError(
                 f"{JITTER_SCOPE_KEY} = {self.jitter_scope!r}; allowed: {' or '.join(JITTER_SCOPES)}"
             )
+        if self.type_id == V3_MID360_TYPE_ID:
+            # The Mid-360 scans its track (the shipped livox_mid360's, unless the configuration carries its own).
+            track, fov = mid360_track()
+            object.__setattr__(self, "pattern_model", "track")
+            object.__setattr__(self, "track", self.track or track)
+            object.__setattr__(self, "fov", self.fov or fov)
         if self.pattern_model not in PATTERN_MODELS:
             raise ConfigError(
                 f"{PATTERN_MODEL_KEY} = {self.pattern_model!r}; allowed: {' or '.join(PATTERN_MODELS)}"
@@ -331,10 +402,107 @@ class SensorConfig:
             if not _is_int(getattr(self, name)):
                 raise ConfigError(f"{name} = {getattr(self, name)!r}; allowed: an integer")
         # Normalise sequences to tuples of floats so equal configs compare equal.
-        object.__setattr__(self, "other_params", tuple(float(v) for v in params) + (0.0,) * (8 - len(params)))
+        padded = max(len(params), 8)
+        object.__setattr__(self, "other_params", tuple(float(v) for v in params) + (0.0,) * (padded - len(params)))
         object.__setattr__(self, "sensor_pos_xyz", tuple(float(v) for v in self.sensor_pos_xyz))
         object.__setattr__(self, "sensor_ang_euler", tuple(float(v) for v in self.sensor_ang_euler))
         object.__setattr__(self, "send_protocol", tuple(int(v) for v in self.send_protocol))
+        if self.eular_or_quat is not None:
+            object.__setattr__(self, "eular_or_quat", float(self.eular_or_quat))
+        if self.sensor_ang_quat is not None:
+            object.__setattr__(self, "sensor_ang_quat", tuple(float(v) for v in self.sensor_ang_quat))
+
+    def _check_type_and_form(self) -> None:
+        """TypeID against the SDKs' Livox sensors, and the v3 form's fields (``EularOrQuat``, ``SensorAngQuat``)."""
+        named = (f"the Livox TypeIDs are {LIVOX_TYPE_ID} in RflySim SDK v2 (the rosette) and "
+                 f"{V3_ROSETTE_TYPE_ID} (the rosette) or {V3_MID360_TYPE_ID} (the Mid-360) in SDK v3")
+        if not _is_int(self.type_id) or self.type_id not in (*LIVOX_TYPE_IDS["v2"], *LIVOX_TYPE_IDS["v3"]):
+            what = _OTHER_V3_SENSORS.get(self.type_id)
+            kind = f" ({what} of RflySim SDK v3)" if what else ""
+            raise ConfigError(f"TypeID = {self.type_id!r}{kind} is not a Livox lidar; allowed: {named}")
+        if self.eular_or_quat is None:
+            if self.sensor_ang_quat is not None:
+                raise ConfigError(f"{QUATERNION_KEY} without {EULAR_OR_QUAT_KEY}; allowed: both (RflySim v3: "
+                                  f"{EULAR_OR_QUAT_KEY} > 0.5 takes the quaternion) or neither")
+            return
+        if self.type_id == LIVOX_TYPE_ID:
+            raise ConfigError(f"TypeID = 6 with {EULAR_OR_QUAT_KEY} (an RflySim v3 configuration) is the sound sensor "
+                              f"of SDK v3, not a Livox lidar; allowed: {named}")
+        if isinstance(self.eular_or_quat, bool) or not isinstance(self.eular_or_quat, (int, float)) \
+                or not math.isfinite(self.eular_or_quat):
+            raise ConfigError(f"{EULAR_OR_QUAT_KEY} = {self.eular_or_quat!r}; allowed: a number (> 0.5: the mount "
+                              f"is {QUATERNION_KEY}, else {self.euler_key})")
+        if self.sensor_ang_quat is None:
+            raise ConfigError(f"missing key {QUATERNION_KEY!r}; a configuration with {EULAR_OR_QUAT_KEY} (RflySim "
+                              "v3) needs it: the mounting quaternion [w, x, y, z]")
+        _check_vector(QUATERNION_KEY, self.sensor_ang_quat, 4)
+        if self.eular_or_quat > 0.5 and math.hypot(*self.sensor_ang_quat) < _MIN_QUATERNION_NORM:
+            raise ConfigError(f"{QUATERNION_KEY} = {list(self.sensor_ang_quat)!r} has zero length, and "
+                              f"{EULAR_OR_QUAT_KEY} > 0.5 mounts the sensor with it; allowed: a rotation "
+                              "quaternion [w, x, y, z] of non-zero length (normalised here)")
+
+    # The SDK and the form --------------------------------------------------------------
+    @property
+    def sdk(self) -> str:
+        """``"v2"`` or ``"v3"``: the RflySim SDK whose sensor the TypeID is (6; 22 or 23), so what the wire carries
+        (three int16 a point and the ``<4i1d`` header; four int16 and the ``<6i1d`` header)."""
+        return "v3" if self.type_id in LIVOX_TYPE_IDS["v3"] else "v2"
+
+    @property
+    def v3_form(self) -> bool:
+        """Whether the configuration has the v3 form (``EularOrQuat``, ``SensorAngQuat``, 16 otherParams): what
+        RflySim's v3 client sends the 144-byte ``<16H28f`` request for (the 92-byte ``<16H15f`` without it)."""
+        return self.eular_or_quat is not None
+
+    @property
+    def mount_quaternion(self) -> tuple[float, float, float, float] | None:
+        """The mount's unit quaternion [x, y, z, w] (sensor FRD -> body FRD) when ``EularOrQuat`` > 0.5 chooses
+        ``SensorAngQuat``; None when the Euler angles are the mount."""
+        if self.eular_or_quat is None or self.eular_or_quat <= 0.5 or self.sensor_ang_quat is None:
+            return None
+        w, x, y, z = self.sensor_ang_quat
+        norm = math.sqrt(w * w + x * x + y * y + z * z)
+        return (x / norm, y / norm, z / norm, w / norm)
+
+    def with_sdk(self, sdk: str) -> SensorConfig:
+        """The same sensor written for RflySim SDK ``sdk`` ("v2" or "v3").
+
+        v3: TypeID 22 (23 for a track that sees all around, the Mid-360's), the v3 form: ``EularOrQuat`` 0 (the
+        Euler angles stay the mount), ``SensorAngQuat`` the same rotation [w, x, y, z], otherParams padded to 16
+        with zeros; the new keys go where RflySim's own files have them. A configuration already in the v3
+        form is kept as it is. v2: TypeID 6, the old form: a quaternion mount becomes Euler angles, the v3 keys
+        go, otherParams keep their first eight.
+
+        Raises
+        ------
+        ConfigError
+            For a Mid-360 (TypeID 23) or otherParams[8..15] not all zero asked for v2 (SDK v2 has neither), or
+            an SDK not in :data:`SDKS`.
+        """
+        if sdk not in SDKS:
+            raise ConfigError(f"SDK {sdk!r}; allowed: {' or '.join(SDKS)}")
+        if sdk == "v3":
+            if self.sdk == "v3" and self.v3_form:
+                return self
+            mid360 = self.type_id == V3_MID360_TYPE_ID or (self.pattern_model == "track"
+                                                           and self.pattern_plane == "panorama")
+            quaternion = _quaternion_wxyz(*self.sensor_ang_euler)
+            source = _insert_after(dict(self.source), self.euler_key, {QUATERNION_KEY: None})
+            source = _insert_after(source, "SensorPosXYZ", {EULAR_OR_QUAT_KEY: None})
+            return replace(self, type_id=V3_MID360_TYPE_ID if mid360 else V3_ROSETTE_TYPE_ID, eular_or_quat=0.0,
+                           sensor_ang_quat=quaternion, source=source,
+                           other_params=self.other_params + (0.0,) * (V3_OTHER_PARAMS - len(self.other_params)))
+        if self.type_id == V3_MID360_TYPE_ID:
+            raise ConfigError(f"RflySim SDK v2 has no Mid-360 (TypeID {V3_MID360_TYPE_ID}); allowed: --sdk v3 for it")
+        extra = self.other_params[8:]
+        if any(extra):
+            raise ConfigError(f"otherParams[8..15] = {[_json_number(v) for v in extra]}: SDK v2 has room for 8 "
+                              "otherParams only; allowed: --sdk v3, or those values all 0")
+        euler = self.sensor_ang_euler
+        if self.mount_quaternion is not None:
+            euler = _euler_of_quaternion(*self.mount_quaternion)
+        return replace(self, type_id=LIVOX_TYPE_ID, eular_or_quat=None, sensor_ang_quat=None,
+                       sensor_ang_euler=euler, other_params=self.other_params[:8])
 
     # Derived figures of the model -------------------------------------------------
     @property
@@ -553,27 +721,47 @@ class SensorConfig:
             "SendProtocol": list(self.send_protocol),
             "CameraFOV": _json_number(self.camera_fov),
             "SensorPosXYZ": [_json_number(v) for v in self.sensor_pos_xyz],
+            **({EULAR_OR_QUAT_KEY: _json_number(self.eular_or_quat)} if self.eular_or_quat is not None else {}),
             self.euler_key: [_json_number(v) for v in self.sensor_ang_euler],
+            **({QUATERNION_KEY: [_json_number(v) for v in self.sensor_ang_quat]}
+               if self.sensor_ang_quat is not None else {}),
             "otherParams": [_json_number(v) for v in self.other_params],
         }
+        if self.type_id == V3_MID360_TYPE_ID:
+            # Its W x H have no effect in RflySim (the frame is 64 x 272): written back as they were read.
+            for key in ("DataWidth", "DataHeight"):
+                if key in self.source:
+                    values[key] = self.source[key]
         out: dict[str, Any] = {}
         for key, old in self.source.items():
+            if key in (EULAR_OR_QUAT_KEY, QUATERNION_KEY) and key not in values:
+                continue  # written as the old form (see with_sdk)
             out[key] = values.pop(key) if key in values else old
         out.update(values)
         if self.jitter_scope != "flower" or JITTER_SCOPE_KEY in out:
             out[JITTER_SCOPE_KEY] = self.jitter_scope
-        if self.pattern_model != "rflysim" or PATTERN_MODEL_KEY in out:
+        implied = self._implied_by_type()
+        if (self.pattern_model != "rflysim" and PATTERN_MODEL_KEY not in implied) or PATTERN_MODEL_KEY in out:
             out[PATTERN_MODEL_KEY] = self.pattern_model
         for key, params in ((RISLEY_KEY, self.risley), (TRACK_KEY, self.track), (FOV_KEY, self.fov)):
-            if params is not None:
+            if params is not None and (key not in implied or key in out):
                 out[key] = params.to_json()
-            else:
+            elif params is None:
                 out.pop(key, None)
         if self.returns is not None:
             out[RETURNS_KEY] = self.returns.to_json()
         else:
             out.pop(RETURNS_KEY, None)
         return out
+
+    def _implied_by_type(self) -> set[str]:
+        """Our keys a TypeID 23 configuration need not carry: the Mid-360's pattern model, and its track and field
+        of view while they are the shipped ones (a RflySim file stays as RflySim wrote it)."""
+        if self.type_id != V3_MID360_TYPE_ID:
+            return set()
+        track, fov = mid360_track()
+        return {PATTERN_MODEL_KEY, *([TRACK_KEY] if self.track == track else []),
+                *([FOV_KEY] if self.fov == fov else [])}
 
     @classmethod
     def from_json_dict(cls, data: Any) -> SensorConfig:
@@ -608,7 +796,17 @@ class SensorConfig:
                 allowed = spec.describe() if spec is not None else "an integer"
                 raise ConfigError(f"{key} = {value!r}; allowed: {allowed}")
             ints[key] = int(value)
-        for key in ("SendProtocol", "otherParams", "SensorPosXYZ", euler_key):
+        v3_form = EULAR_OR_QUAT_KEY in data
+        switch = data.get(EULAR_OR_QUAT_KEY)
+        if v3_form and (isinstance(switch, bool) or not isinstance(switch, (int, float))):
+            # null among them: None is how a configuration says it has no EularOrQuat (the old form).
+            raise ConfigError(f"{EULAR_OR_QUAT_KEY} = {switch!r}; allowed: a number (> 0.5: the mount is "
+                              f"{QUATERNION_KEY}, else {euler_key})")
+        listed = ("SendProtocol", "otherParams", "SensorPosXYZ", euler_key, *((QUATERNION_KEY,) if v3_form else ()))
+        if v3_form and QUATERNION_KEY not in data:
+            raise ConfigError(f"missing key {QUATERNION_KEY!r}; a configuration with {EULAR_OR_QUAT_KEY} (RflySim v3) "
+                              "needs it: the mounting quaternion [w, x, y, z]")
+        for key in listed:
             if not isinstance(data[key], list):
                 raise ConfigError(f"{key} = {data[key]!r}; allowed: a JSON list of numbers")
         other_params = data["otherParams"]
@@ -629,6 +827,8 @@ class SensorConfig:
             other_params=tuple(other_params),
             sensor_pos_xyz=tuple(data["SensorPosXYZ"]),
             sensor_ang_euler=tuple(data[euler_key]),
+            eular_or_quat=data[EULAR_OR_QUAT_KEY] if v3_form else None,
+            sensor_ang_quat=tuple(data[QUATERNION_KEY]) if v3_form else None,
             seq_id=ints["SeqID"],
             type_id=ints["TypeID"],
             target_copter=ints["TargetCopter"],
@@ -643,6 +843,30 @@ class SensorConfig:
             source=dict(data),
             euler_key=euler_key,
         )
+
+
+def _insert_after(data: dict[str, Any], key: str, new: dict[str, Any]) -> dict[str, Any]:
+    """``data`` with the keys of ``new`` right after ``key`` (at the end when ``key`` is not there)."""
+    if key not in data:
+        return {**data, **new}
+    out: dict[str, Any] = {}
+    for name, value in data.items():
+        out[name] = value
+        if name == key:
+            out.update(new)
+    return out
+
+
+def _quaternion_wxyz(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
+    """The rotation of Z-Y-X Euler angles (radians) as a unit quaternion [w, x, y, z] (RflySim's order)."""
+    x, y, z, w = (float(v) for v in quat_from_matrix(euler_matrix(roll, pitch, yaw)))
+    return (w, x, y, z)
+
+
+def _euler_of_quaternion(x: float, y: float, z: float, w: float) -> tuple[float, float, float]:
+    """Z-Y-X Euler angles [roll, pitch, yaw] (radians) of a unit quaternion [x, y, z, w]."""
+    pose = pose_from_quaternion(np.zeros(3), np.array([x, y, z, w]))
+    return (pose.roll, pose.pitch, pose.yaw)
 
 
 def _risley_with(risley: RisleyParams, name: str, value: float) -> RisleyParams:
@@ -709,6 +933,17 @@ def _divisors(number: int) -> list[int]:
     return sorted(set(small + [number // d for d in small]))
 
 
+@functools.lru_cache(maxsize=1)
+def mid360_track() -> tuple[TrackParams, FieldOfView]:
+    """The track and field of view RflySim's TypeID 23 (the Mid-360) is scanned with: the shipped
+    ``livox_mid360`` preset's (fitted to Livox's public Mid-360 table)."""
+    path = shipped_preset_dir() / f"{MID360_PRESET}.json"
+    data = read_json_file(path)
+    if not isinstance(data, Mapping) or TRACK_KEY not in data or FOV_KEY not in data:
+        raise ConfigError(f"{path}: the shipped Mid-360 preset has no {TRACK_KEY} and {FOV_KEY}")
+    return TrackParams.from_json(data[TRACK_KEY]), FieldOfView.from_json(data[FOV_KEY])
+
+
 @functools.lru_cache(maxsize=64)
 def _cone(camera_fov: float) -> FieldOfView:
     return FieldOfView.cone(camera_fov / 2.0)
@@ -741,6 +976,17 @@ def _json_number(value: float) -> int | float:
     return int(value) if float(value).is_integer() and abs(value) < 2**53 else float(value)
 
 
+def _is_livox_entry(sensor: Any) -> bool:
+    """A ``VisionSensors`` entry that is a Livox lidar: TypeID 6 of the v2 form, or 22 or 23 (6 with
+    ``EularOrQuat`` is SDK v3's sound sensor)."""
+    if not isinstance(sensor, Mapping):
+        return False
+    type_id = sensor.get("TypeID")
+    if type_id == LIVOX_TYPE_ID:
+        return EULAR_OR_QUAT_KEY not in sensor
+    return type_id in LIVOX_TYPE_IDS["v3"]
+
+
 def select_sensor(data: Any, seq_id: int | None = None) -> Mapping[str, Any]:
     """Pick the Livox sensor object out of a single object or a ``Config.json``.
 
@@ -749,24 +995,26 @@ def select_sensor(data: Any, seq_id: int | None = None) -> Mapping[str, Any]:
     data : dict
         Either one sensor object, or ``{"VisionSensors": [...]}``.
     seq_id : int, optional
-        The ``SeqID`` to choose; default the first TypeID-6 entry.
+        The ``SeqID`` to choose; default the first Livox entry (TypeID 6 of SDK v2, 22 or 23 of SDK v3).
     """
+    livox_ids = f"TypeID {LIVOX_TYPE_ID}, {V3_ROSETTE_TYPE_ID} or {V3_MID360_TYPE_ID}"
     if isinstance(data, Mapping) and "VisionSensors" in data:
         sensors = data["VisionSensors"]
         if not isinstance(sensors, list):
             raise ConfigError("VisionSensors must be a JSON list of sensor objects")
-        livox = [s for s in sensors if isinstance(s, Mapping) and s.get("TypeID") == LIVOX_TYPE_ID]
+        livox = [s for s in sensors if _is_livox_entry(s)]
         if seq_id is not None:
             chosen = [s for s in livox if s.get("SeqID") == seq_id]
             if not chosen:
                 there = ", ".join(str(s.get("SeqID")) for s in livox) or "none"
-                raise ConfigError(f"no TypeID-6 sensor with SeqID {seq_id} in VisionSensors; allowed: a SeqID of "
-                                  f"its TypeID-6 sensors ({there})")
+                raise ConfigError(f"no Livox sensor with SeqID {seq_id} in VisionSensors; allowed: a SeqID of "
+                                  f"its Livox sensors, {livox_ids} ({there})")
             livox = chosen
         if not livox:
             found = sorted({s.get("TypeID") for s in sensors if isinstance(s, Mapping)}, key=str)
             raise ConfigError(
-                f"VisionSensors holds no Livox sensor (TypeID 6); TypeIDs found: {found or 'none'}"
+                f"VisionSensors holds no Livox sensor ({livox_ids}; 6 only without {EULAR_OR_QUAT_KEY}); "
+                f"TypeIDs found: {found or 'none'}"
             )
         return livox[0]
     if seq_id is not None and isinstance(data, Mapping) and data.get("SeqID") != seq_id:
@@ -782,7 +1030,7 @@ def load_config(path: str | os.PathLike[str], seq_id: int | None = None) -> Sens
     path : path-like
         The JSON file.
     seq_id : int, optional
-        Which sensor of a ``Config.json``; default the first TypeID-6 one.
+        Which sensor of a ``Config.json``; default the first Livox one (TypeID 6, 22 or 23).
     """
     data = read_json_file(path)
     try:

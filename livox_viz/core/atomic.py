@@ -36,6 +36,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.portable import process_alive
 
 _TAG = "livox-viz"
 _LEFTOVER = re.compile(rf"^\..+\.{_TAG}-(\d+)\.[A-Za-z0-9_]+\.(part|work)$")
@@ -70,16 +71,6 @@ def _current_umask() -> int:
     return mask
 
 
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
 def remove_dead_leftovers(folder: str | os.PathLike[str]) -> list[Path]:
     """Remove the temporaries of livox-viz runs that no longer exist; returns what was removed."""
     removed = []
@@ -89,7 +80,7 @@ def remove_dead_leftovers(folder: str | os.PathLike[str]) -> list[Path]:
         return removed
     for entry in entries:
         match = _LEFTOVER.match(entry.name)
-        if match is None or int(match.group(1)) == os.getpid() or _pid_alive(int(match.group(1))):
+        if match is None or int(match.group(1)) == os.getpid() or process_alive(int(match.group(1))):
             continue
         path = Path(entry.path)
         if entry.is_dir(follow_symlinks=False):

@@ -14,12 +14,13 @@ overwritten.
 from __future__ import annotations
 
 import math
-import os
 import sys
 import threading
 import weakref
 
 import numpy as np
+
+from livox_viz.core.portable import at_fork_in_child
 
 
 def _unheld_refcount() -> int:
@@ -85,7 +86,7 @@ def _fresh_locks() -> None:
         pool._lock = threading.Lock()
 
 
-os.register_at_fork(after_in_child=_fresh_locks)
+at_fork_in_child(_fresh_locks)
 
 
 def carve(block: np.ndarray, layout: list[tuple[str, tuple[int, ...], type]]) -> dict[str, np.ndarray]:

@@ -63,6 +63,7 @@ import numpy as np
 from livox_viz.casting.point_frame import PointFrame
 from livox_viz.core.atomic import WorkDir, atomic_path
 from livox_viz.core.errors import LivoxVizError, os_error_reason
+from livox_viz.core.portable import free_disk_bytes, write_at
 from livox_viz.core.rotations import enu_from_ned, flu_from_frd
 from livox_viz.files.npzstream import NpzColumns
 
@@ -161,9 +162,7 @@ class WritingStopped(LivoxVizError):
 
 def free_bytes(folder: str | os.PathLike[str]) -> int:
     """Bytes this process may still write on the disk holding ``folder`` (root may use the blocks kept for it)."""
-    status = os.statvfs(folder)
-    blocks = status.f_bfree if os.geteuid() == 0 else status.f_bavail
-    return blocks * status.f_frsize
+    return free_disk_bytes(folder)
 
 
 class PointCloudWriter:
@@ -399,7 +398,7 @@ class PointCloudWriter:
         if self.format != ".csv":
             header = self._header(self._header_room)
             if header is not None:
-                os.pwrite(self._body.fileno(), header, 0)
+                write_at(self._body, header, 0)
             else:  # a header that outgrew its room (an offset of astronomical size): in front of a copy
                 self._body.close()
                 with open(tmp, "wb") as out, open(body, "rb") as points:

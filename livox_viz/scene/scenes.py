@@ -30,6 +30,7 @@ import numpy as np
 from livox_viz.config.presets import DESCRIPTION_KEY, shipped_preset_dir, user_config_dir
 from livox_viz.core.errors import LivoxVizError, require_file
 from livox_viz.core.jsonfile import read_json_file
+from livox_viz.core.portable import path_in_file
 from livox_viz.core.poses import MAX_POSITION_M, Pose
 from livox_viz.scene.materials import (
     DEFAULT_REFLECTANCE,
@@ -102,7 +103,8 @@ MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off", ".json")
 
 
 def user_scene_dir() -> Path:
-    """The user's own scenes (mesh files or scene JSON): ``$LIVOX_VIZ_SCENES`` or ``~/.config/livox-viz/scenes``."""
+    """The user's own scenes (mesh files or scene JSON): ``$LIVOX_VIZ_SCENES``, else ``scenes`` in the
+    platform's folder (``~/.config/livox-viz/scenes`` on Linux, :func:`~livox_viz.config.presets.user_config_dir`)."""
     return user_config_dir("scenes")
 
 
@@ -318,6 +320,14 @@ def _number(obj: dict[str, Any], key: str, where: str, default: float | None = N
     return float(value)
 
 
+def _mesh_path(obj: dict[str, Any], folder: Path, where: str) -> Path:
+    """A mesh object's file: its ``path`` beside the scene file (or absolute), as Windows or Linux writes it."""
+    try:
+        return path_in_file(str(obj.get("path", "")), folder)
+    except LivoxVizError as exc:
+        raise LivoxVizError(f"{where} path: {exc}") from None
+
+
 def _primitive(obj: Any, index: int, folder: Path) -> trimesh.Trimesh:
     import trimesh
 
@@ -328,7 +338,7 @@ def _primitive(obj: Any, index: int, folder: Path) -> trimesh.Trimesh:
     where = f"object {index} ({kind})"
     if kind == "mesh":
         names = obj.get("materials")
-        mesh = load_mesh_file(folder / str(obj.get("path", "")), str(obj.get("up", "z")), None,
+        mesh = load_mesh_file(_mesh_path(obj, folder, where), str(obj.get("up", "z")), None,
                               None if names is None else MaterialMap.from_json(names, f"{where} materials"))
         mesh.apply_translation(_vector(obj, "center", 3, where) if "center" in obj else np.zeros(3))
         return mesh

@@ -28,7 +28,10 @@ class ReceivedFrame:
 
     Per-point times are not on the wire: every point carries the frame's
     timestamp. Ranges and angles are those of the decoded int16 points. Nor are
-    intensities or tags: reflectivity 0, tag 0x10, return 1 of 1.
+    intensities or tags: reflectivity 0, tag 0x10, return 1 of 1. A v3 frame's
+    fourth value a point is kept as it came (:attr:`channel4`). Points that came
+    in the world frame (the v3 Mid-360's) are placed in the sensor frame with
+    the frame's posAng, so both frames are there whichever the wire used.
 
     Parameters
     ----------
@@ -61,8 +64,19 @@ class ReceivedFrame:
 
     @property
     def sender_index(self) -> int:
-        """The sender's frame number, from its timestamp (clipped into int32: a sender may stamp anything)."""
+        """The sender's frame number: the new header's frame id, else from its timestamp (clipped into int32: a
+        sender may stamp anything)."""
+        if self.wire.frame_id is not None:
+            return int(self.wire.frame_id)
         return int(np.clip(round(self.wire.timestamp * self.frame_rate), -(2**31), 2**31 - 1))
+
+    @cached_property
+    def channel4(self) -> np.ndarray:
+        """``(M,)`` int16 a v3 frame's fourth value of each point as sent (0 for a frame of three values a point:
+        RflySim documents nothing for it; its ROS publisher calls it ``seg``)."""
+        if self.wire.channel4 is None:
+            return np.zeros(len(self), dtype=np.int16)
+        return self.wire.channel4
 
     @property
     def sender_time(self) -> float:
@@ -101,8 +115,12 @@ class ReceivedFrame:
 
     @cached_property
     def xyz_decoded(self) -> np.ndarray:
-        """``(M, 3)`` float64 sensor FRD, metres."""
-        return decode_int16(self.wire.xyz_int16, self.range_max)
+        """``(M, 3)`` float64 sensor FRD, metres (world points brought into the sensor frame with posAng)."""
+        decoded = decode_int16(self.wire.xyz_int16, self.range_max)
+        if self.wire.points_frame == "world":
+            pose = self.sensor_pose
+            return (decoded - pose.origin) @ pose.rotation
+        return decoded
 
     @cached_property
     def range_m(self) -> np.ndarray:
@@ -117,6 +135,8 @@ class ReceivedFrame:
     @cached_property
     def xyz_world_decoded(self) -> np.ndarray:
         """``(M, 3)`` float64 the decoded points in the world NED frame."""
+        if self.wire.points_frame == "world":
+            return decode_int16(self.wire.xyz_int16, self.range_max)
         return self.sensor_pose.origin + self.xyz_decoded @ self.sensor_pose.rotation.T
 
     @property
@@ -146,7 +166,8 @@ class ReceivedFrame:
 
 
 #: Per-point fields of a recording besides the usual ones (see ``PointCloudWriter(extra_fields=...)``).
-RECORDING_FIELDS: tuple[tuple[str, str], ...] = (("sender_frame", "<i4"), ("sender_time", "<f8"), ("session", "<u4"))
+RECORDING_FIELDS: tuple[tuple[str, str], ...] = (("sender_frame", "<i4"), ("sender_time", "<f8"), ("session", "<u4"),
+                                                 ("channel4", "<i4"))
 #: The columns of :attr:`RecordingClock.table`, one row per recorded frame.
 RECORDING_TABLE_COLUMNS = ("index", "session", "sender_frame", "sender_time", "t")
 

@@ -1,17 +1,23 @@
-"""Sending and receiving live frames: UDP sockets and shared memory around :mod:`livox_viz.rflysim`."""
+"""Sending and receiving live frames: UDP sockets and shared memory around :mod:`livox_viz.wire.rflysim`.
+
+A sender writes what the configuration's SDK receives (:class:`~livox_viz.wire.rflysim.WireFormat`); a receiver
+takes both SDKs' frames (either datagram header, three or four int16 a point)."""
 
 from __future__ import annotations
 
 import errno
+import mmap
 import socket
 import sys
 import time
 from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from livox_viz.casting.codec import encode_int16
 from livox_viz.casting.scan import ScanFrame
 from livox_viz.config.sensor import SensorConfig
 from livox_viz.core.errors import LivoxVizError
@@ -19,8 +25,12 @@ from livox_viz.wire.rflysim import (
     LivoxFrame,
     Reassembler,
     SharedMemoryLink,
+    WireFormat,
     frame_problem,
+    open_named_mapping,
+    open_shared_block,
     pack_payload,
+    shm_name,
     shm_path,
     shm_size,
     split_datagrams,
@@ -45,6 +55,28 @@ class PublishReport:
         return self.scan_seconds / self.wall_seconds if self.wall_seconds > 0 else float("inf")
 
 
+def wire_points(frame: ScanFrame, wire: WireFormat) -> np.ndarray:
+    """``(K, channels)`` int16 what the wire carries of a frame: one point per ray (each pulse's first return).
+
+    In the sensor frame (the frame's own int16), or for the v3 Mid-360 in the world NED frame, encoded with the
+    same scale; a world point beyond the range in any axis cannot be encoded and is left out (RflySim's points
+    are scaled by otherParams[0] whatever the frame). The fourth value of a v3 point is 0: RflySim documents
+    nothing for it.
+    """
+    if wire.world_points:
+        first = frame.return_number == 1
+        world = frame.xyz_world[first]
+        fits = np.all(np.abs(world) <= frame.range_max, axis=1)
+        points = encode_int16(world[fits], frame.range_max)
+    else:
+        points = frame.wire_xyz_int16
+    if wire.channels == 3:
+        return points
+    out = np.zeros((points.shape[0], 4), dtype=np.int16)
+    out[:, :3] = points
+    return out
+
+
 class UdpSender:
     """Sends frames as RflySim datagrams to one address; send errors are counted, not fatal.
 
@@ -52,9 +84,12 @@ class UdpSender:
     ----------
     host : str
     port : int
+    wire : WireFormat
+        What the frames look like: v2's (three int16 a point, the old header) by default.
     """
 
-    def __init__(self, host: str, port: int) -> None:
+    def __init__(self, host: str, port: int, wire: WireFormat | None = None) -> None:
+        self.wire = wire or WireFormat()
         try:
             infos = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)
         except socket.gaierror as exc:
@@ -65,10 +100,12 @@ class UdpSender:
         self.errors = 0
         self.last_error = ""
 
-    def send(self, timestamp: float, pos_ang: np.ndarray, xyz_int16: np.ndarray) -> int:
-        """Send one frame (chunk 0 first); returns the datagrams sent."""
+    def send(self, timestamp: float, pos_ang: np.ndarray, points_int16: np.ndarray, frame_id: int = 0) -> int:
+        """Send one frame (``(M, channels)`` int16, chunk 0 first; ``frame_id`` in the new header); returns the
+        datagrams sent."""
         sent = 0
-        for datagram in split_datagrams(pack_payload(pos_ang, xyz_int16), timestamp):
+        ids = frame_id if self.wire.frame_ids else None
+        for datagram in split_datagrams(pack_payload(pos_ang, points_int16), timestamp, frame_id=ids):
             try:
                 self.socket.sendto(datagram, self.address)
                 sent += 1
@@ -91,8 +128,8 @@ class ShmSender:
     Parameters
     ----------
     config : SensorConfig
-    folder : str
-        Where the block lives.
+    folder : str, optional
+        Where the block's file lives (default /dev/shm; Windows has a named mapping instead).
     patience : float
         Seconds a frame waits for a reader to finish its copy, at most.
     """
@@ -100,15 +137,19 @@ class ShmSender:
     #: How long each wait for a reader lasts, seconds.
     POLL_SECONDS = 0.0005
 
-    def __init__(self, config: SensorConfig, folder: str = "/dev/shm", patience: float = 0.05) -> None:
-        self.link = SharedMemoryLink(shm_path(config.seq_id, folder), shm_size(config), create=True)
+    def __init__(self, config: SensorConfig, folder: str | None = None, patience: float = 0.05) -> None:
+        self.wire = WireFormat.of(config)
+        size = shm_size(config)
+        block, name = open_shared_block(config.seq_id, size, folder, create=True)
+        self.link = SharedMemoryLink(None, size, channels=self.wire.channels, block=block, name=name)
         self.patience = patience
         self.errors = 0
         self.last_error = ""
 
-    def send(self, timestamp: float, pos_ang: np.ndarray, xyz_int16: np.ndarray) -> int:
+    def send(self, timestamp: float, pos_ang: np.ndarray, points_int16: np.ndarray, frame_id: int = 0) -> int:
+        """Write one frame (``(M, channels)`` int16; shared memory has no frame id); 1 when written."""
         deadline = time.monotonic() + self.patience
-        while not self.link.write(timestamp, pos_ang, xyz_int16):
+        while not self.link.write(timestamp, pos_ang, points_int16):
             if time.monotonic() >= deadline:
                 self.errors += 1
                 self.last_error = f"the reader still held the previous frame after {self.patience * 1e3:.0f} ms"
@@ -145,8 +186,8 @@ def publish(frames: Iterable[ScanFrame], sender: UdpSender | ShmSender, speed: f
             wait_until(start + frame.timestamp / speed)
         if stop is not None and stop():
             break
-        points = frame.wire_xyz_int16
-        report.datagrams += sender.send(frame.timestamp, frame.sensor_pose.as_array(), points)
+        points = wire_points(frame, sender.wire)
+        report.datagrams += sender.send(frame.timestamp, frame.sensor_pose.as_array(), points, frame.index)
         report.frames += 1
         report.points += len(points)
         report.scan_seconds = frame.end_time
@@ -173,14 +214,17 @@ class ListenReport:
 
 
 class UdpReceiver:
-    """Binds a UDP port and yields complete frames.
+    """Binds a UDP port and yields complete frames, of either SDK.
 
     Parameters
     ----------
     host, port : str, int
+    points_frame : {"sensor", "world"}
+        Where the points that arrive are (the v3 Mid-360 sends world points; the wire does not say).
     """
 
-    def __init__(self, host: str, port: int) -> None:
+    def __init__(self, host: str, port: int, points_frame: str = "sensor") -> None:
+        self.points_frame = points_frame
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 16 << 20)
         try:
@@ -212,7 +256,8 @@ class UdpReceiver:
                 sender = self.assembler.source
                 frame = None
                 try:
-                    frame = unpack_payload(done[1], done[0], f"{sender[0]}:{sender[1]}")
+                    frame = unpack_payload(done[1], done[0], f"{sender[0]}:{sender[1]}", self.assembler.frame_id,
+                                           self.points_frame)
                 except LivoxVizError as exc:
                     self.report.bad_payloads += 1
                     self.assembler.drops["bad payload"] += 1
@@ -273,25 +318,37 @@ def _usable(frame: LivoxFrame | None, assembler: Reassembler) -> LivoxFrame | No
 class ShmReceiver:
     """Polls RflySim's shared-memory block and yields new frames.
 
-    The block may not exist yet: a listener started before its publisher waits for it (as one on UDP waits for
-    datagrams), opening it once the publisher has made it at this configuration's size.
+    The block may not exist yet: a listener started before its publisher waits for its file (as one on UDP waits
+    for datagrams), opening it once the publisher has made it at this configuration's size. On Windows the block
+    is RflySim's named mapping ``RflySim3DImg_<SeqID>``, opened (or made, empty) at once, as RflySim's client does.
     """
 
-    def __init__(self, config: SensorConfig, folder: str = "/dev/shm") -> None:
-        self.path = shm_path(config.seq_id, folder)
-        if not self.path.parent.is_dir():
-            raise LivoxVizError(f"{self.path.parent}: no such folder; allowed: the shared memory folder (/dev/shm)")
+    def __init__(self, config: SensorConfig, folder: str | None = None) -> None:
+        self.wire = WireFormat.of(config)
         self.size = shm_size(config)
         self.link: SharedMemoryLink | None = None
         self.report = ListenReport()
         self.assembler = Reassembler()
+        self.seq_id = config.seq_id
+        if sys.platform == "win32":
+            self.path = Path(shm_name(config.seq_id))
+            self._attach(open_named_mapping(shm_name(config.seq_id), self.size), shm_name(config.seq_id))
+            return
+        self.path = shm_path(config.seq_id, folder)
+        if not self.path.parent.is_dir():
+            raise LivoxVizError(f"{self.path.parent}: no such folder; allowed: the shared memory folder (/dev/shm)")
         self._opened()
 
+    def _attach(self, block: mmap.mmap, name: str) -> None:
+        self.link = SharedMemoryLink(None, self.size, channels=self.wire.channels, block=block, name=name,
+                                     points_frame="world" if self.wire.world_points else "sensor")
+
     def _opened(self) -> bool:
-        """Whether the block is open, opening it if it has appeared at its full size."""
+        """Whether the block is open, opening it if its file has appeared at its full size."""
         if self.link is None and self.path.exists():
             try:
-                self.link = SharedMemoryLink(self.path, self.size)
+                block, name = open_shared_block(self.seq_id, self.size, self.path.parent)
+                self._attach(block, name)
             except LivoxVizError as exc:  # being made (not its size yet), or another configuration's
                 self.assembler.last_error = f"{exc} (is --config the sender's?)"
         return self.link is not None

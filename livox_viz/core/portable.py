@@ -1,0 +1,126 @@
+"""What differs between Windows, macOS and Linux, in one place.
+
+livox-viz runs where RflySim's users are, most of them on Windows. Every
+platform-only name of the standard library is reached here, looked up where the
+platform has it (``getattr`` or a ``sys.platform`` test, so a static check for
+``--platform win32`` or ``darwin`` finds nothing missing), with a fallback
+where it does not:
+
+* :func:`at_fork_in_child`: ``os.register_at_fork`` exists only where ``fork``
+  does (not on Windows); without fork there is no child to repair.
+* :func:`free_disk_bytes`: ``os.statvfs`` and ``os.geteuid`` are POSIX;
+  elsewhere :func:`shutil.disk_usage` says what this user may write.
+* :func:`process_alive`: ``os.kill(pid, 0)`` probes a process on POSIX, but on
+  Windows signal 0 is ``CTRL_C_EVENT`` and any other number terminates the
+  process: there the process is opened and asked whether it still runs.
+* :func:`write_at`: ``os.pwrite`` is POSIX; a seek and a write do the same on a
+  file object everywhere.
+* :func:`path_in_file`: a path written inside a file (a scene's mesh) may come from
+  Windows (``meshes\\car.glb``, ``C:\\models\\car.glb``) or from Linux.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import shutil
+import sys
+from collections.abc import Callable
+from pathlib import Path, PureWindowsPath
+from typing import BinaryIO
+
+from livox_viz.core.errors import LivoxVizError
+
+
+def at_fork_in_child(callback: Callable[[], None]) -> None:
+    """Call ``callback`` in a forked child (``os.register_at_fork``), where the platform can fork at all."""
+    register = getattr(os, "register_at_fork", None)
+    if register is not None:
+        register(after_in_child=callback)
+
+
+def free_disk_bytes(folder: str | os.PathLike[str]) -> int:
+    """Bytes this process may still write on the disk holding ``folder``.
+
+    On POSIX root may also use the blocks the file system keeps for it, as its writes will.
+    """
+    statvfs = getattr(os, "statvfs", None)
+    geteuid = getattr(os, "geteuid", None)
+    if statvfs is None or geteuid is None:
+        return int(shutil.disk_usage(folder).free)
+    status = statvfs(folder)
+    blocks = status.f_bfree if geteuid() == 0 else status.f_bavail
+    return int(blocks * status.f_frsize)
+
+
+def process_alive(pid: int) -> bool:
+    """Whether the process ``pid`` still runs (one we may not signal counts as running)."""
+    if sys.platform == "win32":
+        return _windows_process_alive(pid)
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+if sys.platform == "win32":  # pragma: no cover - Windows only
+
+    def _windows_process_alive(pid: int) -> bool:
+        import ctypes
+
+        query_limited_information, still_active, access_denied = 0x1000, 259, 5
+        kernel32 = ctypes.WinDLL("kernel32", use_last_error=True)
+        handle = kernel32.OpenProcess(query_limited_information, False, pid)
+        if not handle:
+            # Access denied: it exists and belongs to someone else; anything else (an invalid id): gone.
+            return bool(ctypes.get_last_error() == access_denied)
+        try:
+            code = ctypes.c_ulong()
+            if not kernel32.GetExitCodeProcess(handle, ctypes.byref(code)):
+                return True
+            return code.value == still_active
+        finally:
+            kernel32.CloseHandle(handle)
+
+
+def write_at(file: BinaryIO | io.RawIOBase, data: bytes, offset: int) -> None:
+    """Write ``data`` at byte ``offset`` of an open binary file and come back to where it was.
+
+    ``os.pwrite`` does this on POSIX only; the file object's own seek flushes what it buffered first, so the
+    bytes land exactly as pwrite's would.
+    """
+    position = file.tell()
+    file.seek(offset)
+    file.write(data)
+    file.seek(position)
+
+
+_WINDOWS_LOOKING = re.compile(r"^[A-Za-z]:|\\")
+
+
+def path_in_file(text: str, folder: str | os.PathLike[str]) -> Path:
+    """The file a path written inside a file means: relative to ``folder`` (the file's own), or absolute.
+
+    On Windows both separators and drive letters are native. Elsewhere a Windows-style path (backslashes, a
+    drive letter) written on Windows is read as Windows reads it: ``meshes\\car.glb`` is ``meshes/car.glb``
+    beside the file; an absolute one (``C:\\models\\car.glb``) names a disk this system does not have and is
+    refused in one line. A name that exists as written (a POSIX name may hold a backslash) is taken as written.
+
+    Raises
+    ------
+    LivoxVizError
+        For an absolute Windows path off Windows.
+    """
+    written = Path(folder) / text
+    if sys.platform == "win32" or not _WINDOWS_LOOKING.search(text) or os.path.lexists(written):
+        return written
+    windows = PureWindowsPath(text)
+    if windows.drive or windows.root:
+        raise LivoxVizError(f"{text!r} is an absolute Windows path, which this system cannot open; allowed: a path "
+                            "relative to the file that names it (e.g. meshes\\car.glb or meshes/car.glb), or one "
+                            "absolute here")
+    return Path(folder).joinpath(*windows.parts)
