@@ -163,7 +163,7 @@ def test_the_window_lays_out_readably_at_common_sizes(urban, qtbot, size: tuple[
 def test_every_key_runs_and_the_panel_follows_every_switch(window, qtbot, user_presets: Path) -> None:
     """Each key through Qt (the key table's shortcuts), then 20 switches of preset, model, page and return model:
     the panel holds exactly the controls of each new state, and the views keep their actors."""
-    from livox_viz.widgets.controls import FRAME_PARAMS, PATTERN_PARAMS, RETURN_PARAMS
+    from livox_viz.widgets.controls import PATTERN_PARAMS, RETURN_PARAMS, frame_params
     from livox_viz.widgets.keys import KEYS
 
     session = window.controller.session
@@ -190,7 +190,7 @@ def test_every_key_runs_and_the_panel_follows_every_switch(window, qtbot, user_p
         config = session.config
         page = window.controller.page
         names = RETURN_PARAMS if page == "returns" else PATTERN_PARAMS[config.pattern_model]
-        return {n for n in (*names, *FRAME_PARAMS) if _has(config, n)}
+        return {n for n in (*names, *frame_params(config)) if _has(config, n)}
 
     switches = ["d", "t", "v", "n", "t", "d", "b", "v", "n", "n", "d", "b", "t", "v", "n", "b", "d", "t", "n", "v"]
     for key in switches:

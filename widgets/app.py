@@ -288,7 +288,12 @@ class LivoxVizApp:
 
     def toggle_pattern_model(self) -> None:
         """Switch between RflySim's rosette and the track (Risley or general) of the same configuration."""
+        from livox_viz.config.sensor import V3_MID360_TYPE_ID
+
         config = self.session.config
+        if config.type_id == V3_MID360_TYPE_ID:
+            raise LivoxVizError(f"RflySim's Mid-360 (TypeID {V3_MID360_TYPE_ID}) scans its own track and has no "
+                                "rosette; allowed: v with a TypeID 6 or 22 configuration or a Risley or track preset")
         if config.pattern_model != "rflysim":
             model = "rflysim"
         elif config.track is not None:

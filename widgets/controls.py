@@ -25,6 +25,14 @@ RETURN_PARAMS: tuple[str, ...] = ("returns_range_sigma", "returns_detection_rang
                                   "returns_angular_sigma")
 #: The frame structure, which sets the point rate W x H x F.
 FRAME_PARAMS: tuple[str, ...] = ("data_width", "data_height", "data_check_freq")
+
+
+def frame_params(config) -> tuple[str, ...]:
+    """The frame parameters that act on ``config``: RflySim's Mid-360 (TypeID 23) has its own 64 x 272-point frame,
+    so only its frame rate does."""
+    from livox_viz.config.sensor import V3_MID360_TYPE_ID
+
+    return ("data_check_freq",) if config.type_id == V3_MID360_TYPE_ID else FRAME_PARAMS
 SLIDER_PAGES: tuple[str, ...] = ("pattern", "returns")
 
 

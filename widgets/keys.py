@@ -49,15 +49,16 @@ KEYS: tuple[KeyRow, ...] = (
            (("v", "toggle_pattern_model"),), "model"),
     KeyRow("s", "screenshot of the views (PNG) into `screenshots/` with a JSON sidecar from which `livox-viz render "
            "--sidecar` draws the same picture", (("s", "take_screenshot"),), "screenshot"),
-    KeyRow("p", "save the parameters as a user preset (`~/.config/livox-viz/presets`, never over a shipped one)",
+    KeyRow("p", "save the parameters as a user preset (in your presets folder, which `livox-viz presets` names; "
+           "never over a shipped one)",
            (("p", "save_preset"),), "preset"),
     KeyRow("n / b", "next / previous preset", (("n", "next_preset"), ("b", "previous_preset")), "presets"),
     KeyRow("w", "moving sensor: the cloud in the world (each point with the pose of its own time: walls stay sharp) "
            "/ as the sensor sees it (the motion's smear shows)", (("w", "toggle_cloud_frame"),)),
     KeyRow("g", "drawing: auto (the pattern as a density image once points outnumber pixels, the scene's cloud "
            "thinned to 250 000 points) / every point / density", (("g", "cycle_drawing"),)),
-    KeyRow("m", "next scene: the built-in ones, then mesh files in `~/.config/livox-viz/scenes` (a file that fails "
-           "to load leaves a message, not a crash)", (("m", "cycle_scene"),)),
+    KeyRow("m", "next scene: the built-in ones, then mesh files in your scenes folder (a file that fails to load "
+           "leaves a message, not a crash)", (("m", "cycle_scene"),)),
     KeyRow("o / l", "reference overlay on/off / its own integration window (its coverage shows beside ours)",
            (("o", "toggle_reference"), ("l", "cycle_reference_window"))),
     KeyRow("e", "reference: the next preset with a track in the pattern's plane (or the table of `--reference`)",

@@ -32,7 +32,7 @@ from livox_viz.config.param_docs import describe, param_doc, slider_fraction, sl
 from livox_viz.config.sensor import PARAM_RANGES, SensorConfig
 from livox_viz.core.errors import LivoxVizError
 
-from .controls import FRAME_PARAMS, PATTERN_PARAMS, RETURN_PARAMS
+from .controls import PATTERN_PARAMS, RETURN_PARAMS, frame_params
 from .overlay import WINDOWS
 from .playback import SPEED_RANGE
 from .session import WINDOW_RANGE
@@ -325,7 +325,7 @@ class ParameterPanel(QtWidgets.QWidget):
             note = QtWidgets.QLabel("These figures act with the datasheet return model (Returns menu, or d).")
             note.setWordWrap(True)
             column.insertWidget(0, note)
-        column.addWidget(self._group(self._frame_title(config), FRAME_PARAMS, config))
+        column.addWidget(self._group(self._frame_title(config), frame_params(config), config))
         column.addWidget(self._playback_group())
         column.addStretch(1)
         self._layout.addWidget(content)

@@ -26,7 +26,9 @@ from livox_viz.casting.warm import STAGES, warm
 
 #: The child compiles at a lower priority than the window (on 2 cores the window's frames come first): Windows sets
 #: it as it starts the child, elsewhere the child lowers its own (``--background``).
-_BELOW_NORMAL: dict = {"creationflags": subprocess.BELOW_NORMAL_PRIORITY_CLASS} if sys.platform == "win32" else {}
+_BELOW_NORMAL: dict = {}
+if sys.platform == "win32":
+    _BELOW_NORMAL["creationflags"] = subprocess.BELOW_NORMAL_PRIORITY_CLASS
 
 
 class LoopWarmer:

@@ -188,6 +188,10 @@ def cmd_presets(args: argparse.Namespace) -> int:
     for info in presets:
         origin = "" if info.shipped else "  [user]"
         print(f"{info.name:<{width}}  {info.description}{origin}")
+    from livox_viz.config.presets import user_config_dir
+
+    print(f"\nyour presets: {user_config_dir('presets')} (the window's p saves there); your meshes for the window's "
+          f"m: {user_config_dir('scenes')}")
     return 0
 
 
