@@ -840,3 +840,22 @@ def test_the_follow_camera_turns_with_the_vehicle_so_the_cloud_stays_in_view(urb
         assert inside > 0.8 * len(slots)
     finally:
         app.close()
+
+
+def test_a_window_filled_over_ticks_holds_what_one_filled_at_once_holds(app: LivoxVizApp) -> None:
+    """The window fills a new integration window a share per tick (a million points at once held its UI thread for
+    seconds): the same points, and the clock does not run meanwhile."""
+    session = app.session
+    session.advance_to(3.0)
+    session.set_window_seconds(2.0)
+    whole = session.pattern_ring.ordered(session.pattern_ring.positions).copy()
+    session.fill_per_tick = 30_000
+    session.set_window_seconds(0.5)
+    session.set_window_seconds(2.0)
+    ticks = 0
+    while session.filling is not None:
+        assert 0.0 <= session.filling < 1.0
+        session.tick(now=100.0 + ticks)  # a second of wall time a tick: the clock must not move
+        ticks += 1
+    assert ticks == -(-200_000 // 30_000) - 1 and session.scan_time == pytest.approx(3.0)
+    np.testing.assert_array_equal(session.pattern_ring.ordered(session.pattern_ring.positions), whole)

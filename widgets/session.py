@@ -162,6 +162,11 @@ class Session:
         self.display = DisplayOptions()
         self._window: float | None = WINDOWS[FIRST_WINDOW]
         self.message = ""
+        #: Points a refilled window (a new integration window, a seek) casts per tick; 0 casts it all at once
+        #: (renders, tests). The window sets it: a million points at once held its UI thread for seconds.
+        self.fill_per_tick = 0
+        self._filling_to: float | None = None
+        self._fill_from = 0
         #: Points of the model's stream skipped since the last restart because a tick fell too far behind
         #: (:data:`MAX_POINTS_PER_TICK`): fired by the sensor, never drawn.
         self.skipped_points = 0
@@ -296,6 +301,7 @@ class Session:
         self.playback.restart()
         self.frame_index = 0
         self.skipped_points = 0
+        self._filling_to = None
         self._clear_rings()
         self.overlay.refill(0.0)
 
@@ -318,7 +324,8 @@ class Session:
         check_window(self.config, seconds)
         self._window = seconds
         self._make_rings()
-        self._refill(self.scan_time)
+        # The time the window was at, or being filled to (a window still filling has not reached it yet).
+        self._refill(self._filling_to if self._filling_to is not None else self.scan_time)
 
     def seek(self, scan_time: float) -> None:
         """Show the integration window that ends at ``scan_time`` seconds (the time scrubber), cast afresh: the
@@ -343,9 +350,22 @@ class Session:
         self.pattern_ring.clear(first)
         self.scan_time = max(start_time, first / rate)
         self.overlay.refill(self.scan_time)
+        if self.fill_per_tick:
+            self._filling_to = target  # the ticks fill it, a share each (:meth:`tick`)
+            self._fill_from = first
+            self.advance_to(min(target, (first + self.fill_per_tick) / rate))
+            return
         while self.pattern.position + MAX_POINTS_PER_TICK < last:
             self.advance_to((self.pattern.position + MAX_POINTS_PER_TICK) / rate)
         self.advance_to(target)
+
+    @property
+    def filling(self) -> float | None:
+        """How far a window being filled over several ticks has come, 0 to 1; None when none is."""
+        if self._filling_to is None:
+            return None
+        last = points_before(self._filling_to, self.config.point_rate)
+        return (self.pattern.position - self._fill_from) / max(last - self._fill_from, 1)
 
     def _make_rings(self) -> None:
         capacity = window_capacity(self.window, self.config.point_rate)
@@ -377,6 +397,14 @@ class Session:
 
         With a live :attr:`source` the frames that arrived are shown instead of the model's pattern.
         """
+        if self._filling_to is not None:  # a window still being filled: a share a tick, the clock held
+            target = self._filling_to
+            step = min(target, (self.pattern.position + self.fill_per_tick) / self.config.point_rate)
+            added = self.advance_to(step)
+            if step >= target:
+                self._filling_to = None
+            self.playback.restart()
+            return added
         if self.source is not None:
             if self.playback.paused:
                 return 0
