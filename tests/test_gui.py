@@ -615,6 +615,14 @@ def test_the_window_and_render_start_as_their_command_lines_say(tmp_path: Path) 
 
 
 # Honest drawing, picking, exports (issue 31) ----------------------------------------------------------
+def on_screen(renderer, xyz) -> tuple[float, float, float]:
+    """Where the display-frame point ``xyz`` (z up) is drawn in ``renderer``: VTK's pixels (origin bottom left) and
+    depth."""
+    renderer.SetWorldPoint(float(xyz[0]), float(xyz[1]), float(xyz[2]), 1.0)
+    renderer.WorldToDisplay()
+    return renderer.GetDisplayPoint()
+
+
 def test_a_scene_pick_returns_the_values_stored_for_the_point_and_two_picks_their_distance(app: LivoxVizApp) -> None:
     from livox_viz.casting.scan import MountedCaster
     from livox_viz.patterns.factory import make_pattern
@@ -630,10 +638,7 @@ def test_a_scene_pick_returns_the_values_stored_for_the_point_and_two_picks_thei
         make_pattern(session.config, 0).take(30_000))
     picked = []
     for slot in ring.live_slots()[:: max(1, ring.count // 40)]:
-        world = np.append(ring.positions[slot].astype(float) * [1, -1, -1], 1.0)  # NED to the display's z-up
-        renderer.SetWorldPoint(*world)
-        renderer.WorldToDisplay()
-        x, y, _ = renderer.GetDisplayPoint()
+        x, y, _ = on_screen(renderer, ring.positions[slot].astype(float) * [1, -1, -1])  # NED to z up
         width, height = renderer.GetSize()
         if not (5 < x < width - 5 and 5 < y < height - 5):
             continue
@@ -671,9 +676,7 @@ def test_a_pattern_pick_gives_the_angles_and_time_of_the_nearest_sample(app: Liv
     renderer = app.pattern_view.renderer
     ring = session.pattern_ring
     slot = ring.live_slots()[1234]
-    renderer.SetWorldPoint(float(ring.positions[slot, 0]), float(ring.positions[slot, 1]), 0.0, 1.0)
-    renderer.WorldToDisplay()
-    x, y, _ = renderer.GetDisplayPoint()
+    x, y, _ = on_screen(renderer, (ring.positions[slot, 0], ring.positions[slot, 1], 0.0))
     found = app.pick_pattern(x, y)
     xy = ring.positions[ring.live_slots(), :2].astype(float)
     nearest = np.argmin(np.hypot(xy[:, 0] - found["x_deg"], xy[:, 1] - found["y_deg"]))
@@ -760,9 +763,7 @@ def test_the_panorama_fills_the_view_at_a_readable_height_with_every_mark(urban,
         x0, x1, y0, y1 = session.config.field_of_view.bounds
         corners = []
         for x, y in ((x0, y0 * view.stretch), (x1, y1 * view.stretch)):
-            renderer.SetWorldPoint(x, y, 0.0, 1.0)
-            renderer.WorldToDisplay()
-            corners.append(renderer.GetDisplayPoint()[:2])
+            corners.append(on_screen(renderer, (x, y, 0.0))[:2])
         width, height = renderer.GetSize()
         band_width, band_height = corners[1][0] - corners[0][0], corners[1][1] - corners[0][1]
         assert band_width > 0.6 * width and band_height > 0.3 * height  # it was 50 px of 600
@@ -788,9 +789,7 @@ def test_a_wide_reference_fits_the_view_and_stays_behind_our_points(app: LivoxVi
     renderer = view.renderer
     r0, r1, s0, s1 = load_preset("livox_hap").field_of_view.bounds
     for x, y in ((r0, s0), (r1, s1)):
-        renderer.SetWorldPoint(x, y, 0.0, 1.0)
-        renderer.WorldToDisplay()
-        px, py, _ = renderer.GetDisplayPoint()
+        px, py, _ = on_screen(renderer, (x, y, 0.0))
         width, height = renderer.GetSize()
         assert 0 <= px <= width and 0 <= py <= height
     camera_z = renderer.camera.position[2]
@@ -832,9 +831,7 @@ def test_the_follow_camera_turns_with_the_vehicle_so_the_cloud_stays_in_view(urb
         ring = session.scene_ring
         slots = ring.live_slots()[:: max(1, ring.count // 200)]
         for slot in slots:
-            renderer.SetWorldPoint(*(ring.positions[slot].astype(float) * [1, -1, -1]), 1.0)
-            renderer.WorldToDisplay()
-            x, y, z = renderer.GetDisplayPoint()
+            x, y, z = on_screen(renderer, ring.positions[slot].astype(float) * [1, -1, -1])
             width, height = renderer.GetSize()
             inside += 0 <= x <= width and 0 <= y <= height and 0 <= z <= 1
         assert inside > 0.8 * len(slots)

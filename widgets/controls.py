@@ -33,10 +33,3 @@ def frame_params(config) -> tuple[str, ...]:
     from livox_viz.config.sensor import V3_MID360_TYPE_ID
 
     return ("data_check_freq",) if config.type_id == V3_MID360_TYPE_ID else FRAME_PARAMS
-SLIDER_PAGES: tuple[str, ...] = ("pattern", "returns")
-
-
-def panel_params() -> set[str]:
-    """Every parameter some page of the panel shows: all of :data:`~livox_viz.config.sensor.PARAM_RANGES`."""
-    shown = {name for names in PATTERN_PARAMS.values() for name in names}
-    return shown | set(RETURN_PARAMS) | set(FRAME_PARAMS)
