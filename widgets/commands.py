@@ -28,7 +28,7 @@ from livox_viz.cli.common import (
 )
 from livox_viz.cli.signals import StopRequests, signal_name, signal_status
 from livox_viz.cli.wire_commands import add_receiver_arguments, open_receiver
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, quoted
 from livox_viz.core.workload import check_points
 from livox_viz.patterns.stream import points_before
 
@@ -82,9 +82,9 @@ def _size(text: str) -> tuple[int, int]:
     try:
         width, height = (int(v) for v in text.lower().split("x"))
     except ValueError:
-        raise UsageError(f"--size {text!r}; allowed: WIDTHxHEIGHT in pixels, e.g. 1600x900") from None
+        raise UsageError(f"--size {quoted(text)}; allowed: WIDTHxHEIGHT in pixels, e.g. 1600x900") from None
     if not (64 <= width <= 8192 and 64 <= height <= 8192):
-        raise UsageError(f"--size {text!r}; allowed: 64 to 8192 pixels each way")
+        raise UsageError(f"--size {quoted(text)}; allowed: 64 to 8192 pixels each way")
     return width, height
 
 

@@ -17,7 +17,7 @@ from collections.abc import Iterable, Sequence
 from importlib.metadata import entry_points
 
 from livox_viz.core.atomic import remove_unfinished
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, bounded_message
 
 from . import fit_commands, pattern_commands, scan_commands, wire_commands
 from .common import PROG, Command, UsageError
@@ -35,7 +35,7 @@ class _Parser(argparse.ArgumentParser):
     """argparse that exits 2 with a one-line message (argparse's own usage dump is long)."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        self.exit(2, f"{self.prog}: error: {bounded_message(message)}\n")
 
 
 def installed_commands() -> list[Command]:

@@ -19,7 +19,7 @@ from livox_viz.config.presets import DEFAULT_PRESET, load_preset
 from livox_viz.config.returns_params import RETURN_MODELS
 from livox_viz.config.sensor import SDKS, SensorConfig, load_config
 from livox_viz.core.atomic import resolve_destination, write_text_atomic
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, quoted
 from livox_viz.core.jsonfile import dumps_readable
 from livox_viz.core.poses import Pose
 from livox_viz.scene.materials import DEFAULT_REFLECTANCE
@@ -65,9 +65,9 @@ def positive_float(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        raise argparse.ArgumentTypeError(f"{quoted(text)} is not a number") from None
     if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: allowed: a finite number > 0")
+        raise argparse.ArgumentTypeError(f"{quoted(text)}: allowed: a finite number > 0")
     return value
 
 
@@ -75,7 +75,7 @@ def float_list(text: str) -> list[float]:
     """argparse type: comma-separated numbers > 0, e.g. ``0.1,0.5,1``."""
     values = [positive_float(part) for part in text.split(",") if part.strip()]
     if not values:
-        raise argparse.ArgumentTypeError(f"{text!r}: allowed: numbers > 0 separated by commas")
+        raise argparse.ArgumentTypeError(f"{quoted(text)}: allowed: numbers > 0 separated by commas")
     return values
 
 
@@ -86,7 +86,7 @@ def whole_number(low: int, high: int, meaning: str = "") -> Callable[[str], int]
         try:
             value = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+            raise argparse.ArgumentTypeError(f"{quoted(text)} is not a whole number") from None
         if not low <= value <= high:
             raise argparse.ArgumentTypeError(f"{text}: allowed: {meaning or f'{low} to {high}'}")
         return value
@@ -99,9 +99,9 @@ def reflectance_value(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        raise argparse.ArgumentTypeError(f"{quoted(text)} is not a number") from None
     if not math.isfinite(value) or not 0.0 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"{text!r}: allowed: a reflectance from 0 to 1")
+        raise argparse.ArgumentTypeError(f"{quoted(text)}: allowed: a reflectance from 0 to 1")
     return value
 
 
@@ -231,7 +231,7 @@ def trajectory_from_args(args: argparse.Namespace, start: Pose, seconds: float |
             raise UsageError("--trajectory-speed with hover; allowed: with a flight that moves (line, circle, figure8)")
         return builtin_trajectory(text, DEFAULT_TRAJECTORY_SPEED if speed is None else speed, start, seconds)
     if not Path(text).exists():
-        raise UsageError(f"--trajectory {text!r}: no such TUM trajectory file; allowed: a TUM file or a built-in "
+        raise UsageError(f"--trajectory {quoted(text)}: no such TUM trajectory file; allowed: a TUM file or a built-in "
                          f"flight: {', '.join(BUILTIN_TRAJECTORIES)}")
     if speed is not None:
         raise UsageError("--trajectory-speed with a TUM file; allowed: with a built-in flight only (a TUM file "

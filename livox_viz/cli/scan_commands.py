@@ -9,7 +9,7 @@ from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 from livox_viz import __version__
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, quoted
 from livox_viz.core.progress import Progress
 from livox_viz.core.workload import check_points
 from livox_viz.files.export import FORMATS, PointCloudWriter
@@ -178,13 +178,13 @@ def _imu_noise(text: str) -> tuple[float, float, float, float]:
     except ValueError:
         values = []
     if len(values) != 4:
-        raise argparse.ArgumentTypeError(f"{text!r}: allowed: 4 numbers (Kalibr: gyroscope_noise_density, "
+        raise argparse.ArgumentTypeError(f"{quoted(text)}: allowed: 4 numbers (Kalibr: gyroscope_noise_density, "
                                          "gyroscope_random_walk, accelerometer_noise_density, "
                                          "accelerometer_random_walk)")
     try:
         ImuNoise(*values)
     except LivoxVizError as error:
-        raise argparse.ArgumentTypeError(f"{text!r}: {error}") from None
+        raise argparse.ArgumentTypeError(f"{quoted(text)}: {error}") from None
     return tuple(values)
 
 

@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from livox_viz.core.errors import ConfigError
+from livox_viz.core.errors import ConfigError, quoted
 
 PLANES: tuple[str, ...] = ("boresight", "panorama")
 SHAPES: tuple[str, ...] = ("cone", "ellipse", "outline", "band")
@@ -55,7 +55,7 @@ ROUND_TOLERANCE = 0.01
 
 def _number(name: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError(f"{FOV_KEY}.{name} = {value!r}; allowed: a finite number")
+        raise ConfigError(f"{FOV_KEY}.{name} = {quoted(value)}; allowed: a finite number")
     return float(value)
 
 
@@ -85,17 +85,17 @@ class FieldOfView:
 
     def __post_init__(self) -> None:
         if self.shape not in SHAPES:
-            raise ConfigError(f"{FOV_KEY}.shape = {self.shape!r}; allowed: {', '.join(SHAPES)}")
+            raise ConfigError(f"{FOV_KEY}.shape = {quoted(self.shape)}; allowed: {', '.join(SHAPES)}")
         outline = np.zeros((0, 2))
         if self.shape == "cone":
             radius = _number("half_angle_deg", self.half_angle_deg)
             if not 0 < radius < 90:
-                raise ConfigError(f"{FOV_KEY}.half_angle_deg = {radius!r}; allowed: (0, 90)")
+                raise ConfigError(f"{FOV_KEY}.half_angle_deg = {quoted(radius)}; allowed: (0, 90)")
             object.__setattr__(self, "half_angle_deg", radius)
         elif self.shape == "ellipse":
             widths = tuple(_number("half_width_deg", v) for v in self.half_width_deg)
             if len(widths) != 2 or not all(0 < v <= 90 for v in widths):
-                raise ConfigError(f"{FOV_KEY}.half_width_deg = {list(widths)!r}; allowed: 2 numbers in (0, 90]")
+                raise ConfigError(f"{FOV_KEY}.half_width_deg = {quoted(list(widths))}; allowed: 2 numbers in (0, 90]")
             object.__setattr__(self, "half_width_deg", widths)
         elif self.shape == "outline":
             try:
@@ -112,7 +112,7 @@ class FieldOfView:
         else:
             low, high = (_number("elevation_deg", v) for v in self.elevation_deg)
             if not -90 <= low < high <= 90:
-                raise ConfigError(f"{FOV_KEY}.elevation_deg = {[low, high]!r}; allowed: -90 <= low < high <= 90")
+                raise ConfigError(f"{FOV_KEY}.elevation_deg = {quoted([low, high])}; allowed: -90 <= low < high <= 90")
             object.__setattr__(self, "elevation_deg", (low, high))
         outline.setflags(write=False)
         object.__setattr__(self, "outline_deg", outline)
@@ -338,13 +338,13 @@ class FieldOfView:
         needs = {"cone": "half_angle_deg", "ellipse": "half_width_deg", "outline": "outline_deg",
                  "band": "elevation_deg"}
         if shape not in needs:
-            raise ConfigError(f"{FOV_KEY}.shape = {shape!r}; allowed: {', '.join(SHAPES)}")
+            raise ConfigError(f"{FOV_KEY}.shape = {quoted(shape)}; allowed: {', '.join(SHAPES)}")
         key = needs[shape]
         if key not in data:
-            raise ConfigError(f"{FOV_KEY}: a {shape} needs {key!r}")
+            raise ConfigError(f"{FOV_KEY}: a {shape} needs {quoted(key)}")
         value = data[key]
         if shape in ("ellipse", "band") and (not isinstance(value, list) or len(value) != 2):
-            raise ConfigError(f"{FOV_KEY}.{key} = {value!r}; allowed: a list of 2 numbers")
+            raise ConfigError(f"{FOV_KEY}.{key} = {quoted(value)}; allowed: a list of 2 numbers")
         if shape == "outline" and not isinstance(value, list):
             raise ConfigError(f"{FOV_KEY}.outline_deg; allowed: a list of [x, y] vertices")
         return cls(shape, **{key: tuple(value) if shape in ("ellipse", "band") else value})

@@ -11,7 +11,7 @@ import platformdirs
 
 from livox_viz.config.sensor import SensorConfig, load_config
 from livox_viz.config.shipped import DEFAULT_PRESET, shipped_preset_dir
-from livox_viz.core.errors import ConfigError
+from livox_viz.core.errors import ConfigError, quoted
 from livox_viz.core.jsonfile import read_json_file
 
 DESCRIPTION_KEY = "LivoxVizDescription"
@@ -118,7 +118,7 @@ def preset_path(name: str) -> Path:
         if info.name == name:
             return info.path
     names = ", ".join(sorted({info.name for info in list_presets()}))
-    raise ConfigError(f"unknown preset {name!r}; allowed: {names}")
+    raise ConfigError(f"unknown preset {quoted(name)}; allowed: {names}")
 
 
 def load_preset(name_or_path: str | os.PathLike[str] = DEFAULT_PRESET) -> SensorConfig:

@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from livox_viz.core.errors import ConfigError
+from livox_viz.core.errors import ConfigError, quoted
 
 RETURNS_KEY = "LivoxVizReturns"
 #: "ideal": every ray's exact first hit, no noise, as RflySim computes it; "datasheet": the sheet's sensor.
@@ -57,7 +57,7 @@ DEFAULT_SHEET = "mid70"
 
 def _number(name: str, value: Any, low: float, high: float, low_open: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError(f"{RETURNS_KEY}.{name} = {value!r}; allowed: a number in "
+        raise ConfigError(f"{RETURNS_KEY}.{name} = {quoted(value)}; allowed: a number in "
                           f"{'(' if low_open else '['}{low:g}, {high:g}]")
     value = float(value)
     if value > high or value < low or (low_open and value == low):
@@ -70,7 +70,8 @@ def _pairs(name: str, value: Any, count: tuple[int, int], meaning: str) -> tuple
     ok = isinstance(value, (list, tuple)) and count[0] <= len(value) <= count[1] and all(
         isinstance(p, (list, tuple)) and len(p) == 2 for p in value)
     if not ok:
-        raise ConfigError(f"{RETURNS_KEY}.{name} = {value!r}; allowed: {count[0]} to {count[1]} pairs [{meaning}]")
+        raise ConfigError(f"{RETURNS_KEY}.{name} = {quoted(value)}; allowed: {count[0]} to {count[1]} pairs "
+                          f"[{meaning}]")
     return tuple((p[0], p[1]) for p in value)
 
 
@@ -120,7 +121,7 @@ class ReturnParams:
 
     def __post_init__(self) -> None:
         if self.model not in RETURN_MODELS:
-            raise ConfigError(f"{RETURNS_KEY}.model = {self.model!r}; allowed: {' or '.join(RETURN_MODELS)}")
+            raise ConfigError(f"{RETURNS_KEY}.model = {quoted(self.model)}; allowed: {' or '.join(RETURN_MODELS)}")
         sigma = tuple((_number("range_sigma_m range", r, 0, 1e4), _number("range_sigma_m sigma", s, 0, 1))
                       for r, s in _pairs("range_sigma_m", self.range_sigma_m, (1, 16), "range m, sigma m"))
         if any(b[0] <= a[0] for a, b in itertools.pairwise(sigma)):
@@ -134,12 +135,12 @@ class ReturnParams:
             raise ConfigError(f"{RETURNS_KEY}.detection_range_m: two figures need two different reflectivities")
         divergence = self.divergence_deg
         if not isinstance(divergence, (list, tuple)) or len(divergence) != 2:
-            raise ConfigError(f"{RETURNS_KEY}.divergence_deg = {divergence!r}; allowed: [horizontal, vertical] "
+            raise ConfigError(f"{RETURNS_KEY}.divergence_deg = {quoted(divergence)}; allowed: [horizontal, vertical] "
                               "degrees")
         divergence = tuple(_number("divergence_deg", v, 0.001, 5) for v in divergence)  # the sliders' least
         returns = self.returns_per_pulse
         if isinstance(returns, bool) or returns not in (1, 2, 3):
-            raise ConfigError(f"{RETURNS_KEY}.returns_per_pulse = {returns!r}; allowed: 1, 2 or 3")
+            raise ConfigError(f"{RETURNS_KEY}.returns_per_pulse = {quoted(returns)}; allowed: 1, 2 or 3")
         object.__setattr__(self, "range_sigma_m", sigma)
         object.__setattr__(self, "detection_range_m", detection)
         object.__setattr__(self, "divergence_deg", divergence)
@@ -274,7 +275,7 @@ class ReturnParams:
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(data) - known)
         if unknown:
-            raise ConfigError(f"{RETURNS_KEY}: unknown key {unknown[0]!r}; allowed: {', '.join(sorted(known))}")
+            raise ConfigError(f"{RETURNS_KEY}: unknown key {quoted(unknown[0])}; allowed: {', '.join(sorted(known))}")
         values = {key: (tuple(value) if isinstance(value, list) else value) for key, value in data.items()}
         return replace(DATASHEETS[DEFAULT_SHEET], **values)
 

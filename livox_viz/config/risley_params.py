@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from livox_viz.core.errors import ConfigError
+from livox_viz.core.errors import ConfigError, quoted
 
 MAX_LASERS = 64
 MAX_TERMS = 64
@@ -49,7 +49,7 @@ MAX_REACH_DEG = 180.0
 
 def _finite(name: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError(f"LivoxVizRisley.{name} = {value!r}; allowed: a finite number")
+        raise ConfigError(f"LivoxVizRisley.{name} = {quoted(value)}; allowed: a finite number")
     return float(value)
 
 
@@ -84,7 +84,7 @@ class RisleyParams:
     def __post_init__(self) -> None:
         hz = tuple(_finite("prism_hz", v) for v in self.prism_hz)
         if len(hz) != 2 or any(abs(v) > MAX_PRISM_HZ for v in hz):
-            raise ConfigError(f"LivoxVizRisley.prism_hz = {list(self.prism_hz)!r}; allowed: 2 numbers in "
+            raise ConfigError(f"LivoxVizRisley.prism_hz = {quoted(list(self.prism_hz))}; allowed: 2 numbers in "
                               f"[-{MAX_PRISM_HZ:g}, {MAX_PRISM_HZ:g}] Hz")
         phases = tuple(_finite("phase_rad", v) for v in self.phase_rad)
         if len(phases) != 2:
@@ -111,10 +111,11 @@ class RisleyParams:
         deflection = base if self.deflection_deg is None else tuple(
             _finite("deflection_deg", v) for v in self.deflection_deg)
         if len(deflection) != 2 or not all(0 < v <= 45 for v in deflection):
-            raise ConfigError(f"LivoxVizRisley.deflection_deg = {list(deflection)!r}; allowed: 2 numbers in (0, 45]")
+            raise ConfigError(f"LivoxVizRisley.deflection_deg = {quoted(list(deflection))}; allowed: 2 numbers in "
+                              "(0, 45]")
         spacing = _finite("laser_spacing", self.laser_spacing)
         if not 0 <= spacing <= 10:
-            raise ConfigError(f"LivoxVizRisley.laser_spacing = {spacing!r}; allowed: [0, 10]")
+            raise ConfigError(f"LivoxVizRisley.laser_spacing = {quoted(spacing)}; allowed: [0, 10]")
         coefficients.setflags(write=False)
         object.__setattr__(self, "prism_hz", hz)
         object.__setattr__(self, "phase_rad", phases)
@@ -199,7 +200,7 @@ class RisleyParams:
             raise ConfigError(f"LivoxVizRisley must be a JSON object, got {type(data).__name__}")
         for key in ("prism_hz", "phase_rad", "terms", "coefficients_deg"):
             if key not in data:
-                raise ConfigError(f"LivoxVizRisley: missing key {key!r}; it needs prism_hz, phase_rad, terms, "
+                raise ConfigError(f"LivoxVizRisley: missing key {quoted(key)}; it needs prism_hz, phase_rad, terms, "
                                   "coefficients_deg")
         terms = data["terms"]
         if not isinstance(terms, list) or not all(
@@ -214,10 +215,10 @@ class RisleyParams:
             raise ConfigError(f"LivoxVizRisley.coefficients_deg has shape {raw.shape}; allowed: (lasers, terms, 2)")
         for key in ("prism_hz", "phase_rad"):
             if not isinstance(data[key], list) or len(data[key]) != 2:
-                raise ConfigError(f"LivoxVizRisley.{key} = {data[key]!r}; allowed: a list of 2 numbers")
+                raise ConfigError(f"LivoxVizRisley.{key} = {quoted(data[key])}; allowed: a list of 2 numbers")
         deflection = data.get("deflection_deg")
         if deflection is not None and (not isinstance(deflection, list) or len(deflection) != 2):
-            raise ConfigError(f"LivoxVizRisley.deflection_deg = {deflection!r}; allowed: a list of 2 numbers")
+            raise ConfigError(f"LivoxVizRisley.deflection_deg = {quoted(deflection)}; allowed: a list of 2 numbers")
         return cls(
             prism_hz=tuple(data["prism_hz"]),
             phase_rad=tuple(data["phase_rad"]),

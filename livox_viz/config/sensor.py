@@ -45,7 +45,7 @@ from livox_viz.config.risley_params import RisleyParams
 from livox_viz.config.shipped import shipped_preset_dir
 from livox_viz.config.track_params import TRACK_KEY, TrackParams
 from livox_viz.core.atomic import write_text_atomic
-from livox_viz.core.errors import ConfigError
+from livox_viz.core.errors import ConfigError, quoted
 from livox_viz.core.jsonfile import dumps_readable, read_json_file
 from livox_viz.core.poses import pose_from_quaternion
 from livox_viz.core.rotations import euler_matrix, quat_from_matrix
@@ -166,12 +166,12 @@ class ParamRange:
         """Return ``value`` as a float, or raise :class:`ConfigError` naming the range."""
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(
-                f"{self.name} ({self.label}) must be a number, got {value!r}; "
+                f"{self.name} ({self.label}) must be a number, got {quoted(value)}; "
                 f"allowed: {self.describe()}"
             )
         if not self.contains(float(value)):
             raise ConfigError(
-                f"{self.name} ({self.label}) = {value!r} is out of range; "
+                f"{self.name} ({self.label}) = {quoted(value)} is out of range; "
                 f"allowed: {self.describe()}"
             )
         return float(value)
@@ -371,11 +371,11 @@ class SensorConfig:
         _check_vector(self.euler_key, self.sensor_ang_euler, 3)
         if len(self.send_protocol) != 8 or not all(_is_int(v) for v in self.send_protocol):
             raise ConfigError(
-                f"SendProtocol = {list(self.send_protocol)!r}; allowed: a list of 8 integers"
+                f"SendProtocol = {quoted(list(self.send_protocol))}; allowed: a list of 8 integers"
             )
         if self.jitter_scope not in JITTER_SCOPES:
             raise ConfigError(
-                f"{JITTER_SCOPE_KEY} = {self.jitter_scope!r}; allowed: {' or '.join(JITTER_SCOPES)}"
+                f"{JITTER_SCOPE_KEY} = {quoted(self.jitter_scope)}; allowed: {' or '.join(JITTER_SCOPES)}"
             )
         if self.type_id == V3_MID360_TYPE_ID:
             # The Mid-360 scans its track (the shipped livox_mid360's, unless the configuration carries its own).
@@ -385,7 +385,7 @@ class SensorConfig:
             object.__setattr__(self, "fov", self.fov or fov)
         if self.pattern_model not in PATTERN_MODELS:
             raise ConfigError(
-                f"{PATTERN_MODEL_KEY} = {self.pattern_model!r}; allowed: {' or '.join(PATTERN_MODELS)}"
+                f"{PATTERN_MODEL_KEY} = {quoted(self.pattern_model)}; allowed: {' or '.join(PATTERN_MODELS)}"
             )
         if self.pattern_model == "risley" and self.risley is None:
             raise ConfigError(f"{PATTERN_MODEL_KEY} is 'risley' but there is no {RISLEY_KEY} object")
@@ -396,11 +396,11 @@ class SensorConfig:
                               f'{FOV_KEY} band (e.g. {{"shape": "band", "elevation_deg": [-7, 52]}})')
         if self.euler_key not in (EULER_KEY_RFLYSIM, EULER_KEY_DOCUMENT):
             raise ConfigError(
-                f"euler_key = {self.euler_key!r}; allowed: {EULER_KEY_RFLYSIM} or {EULER_KEY_DOCUMENT}"
+                f"euler_key = {quoted(self.euler_key)}; allowed: {EULER_KEY_RFLYSIM} or {EULER_KEY_DOCUMENT}"
             )
         for name in ("seq_id", "target_copter", "target_mount_type"):
             if not _is_int(getattr(self, name)):
-                raise ConfigError(f"{name} = {getattr(self, name)!r}; allowed: an integer")
+                raise ConfigError(f"{name} = {quoted(getattr(self, name))}; allowed: an integer")
         # Normalise sequences to tuples of floats so equal configs compare equal.
         padded = max(len(params), 8)
         object.__setattr__(self, "other_params", tuple(float(v) for v in params) + (0.0,) * (padded - len(params)))
@@ -419,7 +419,7 @@ class SensorConfig:
         if not _is_int(self.type_id) or self.type_id not in (*LIVOX_TYPE_IDS["v2"], *LIVOX_TYPE_IDS["v3"]):
             what = _OTHER_V3_SENSORS.get(self.type_id)
             kind = f" ({what} of RflySim SDK v3)" if what else ""
-            raise ConfigError(f"TypeID = {self.type_id!r}{kind} is not a Livox lidar; allowed: {named}")
+            raise ConfigError(f"TypeID = {quoted(self.type_id)}{kind} is not a Livox lidar; allowed: {named}")
         if self.eular_or_quat is None:
             if self.sensor_ang_quat is not None:
                 raise ConfigError(f"{QUATERNION_KEY} without {EULAR_OR_QUAT_KEY}; allowed: both (RflySim v3: "
@@ -430,14 +430,14 @@ class SensorConfig:
                               f"of SDK v3, not a Livox lidar; allowed: {named}")
         if isinstance(self.eular_or_quat, bool) or not isinstance(self.eular_or_quat, (int, float)) \
                 or not math.isfinite(self.eular_or_quat):
-            raise ConfigError(f"{EULAR_OR_QUAT_KEY} = {self.eular_or_quat!r}; allowed: a number (> 0.5: the mount "
-                              f"is {QUATERNION_KEY}, else {self.euler_key})")
+            raise ConfigError(f"{EULAR_OR_QUAT_KEY} = {quoted(self.eular_or_quat)}; allowed: a number (> 0.5: the "
+                              f"mount is {QUATERNION_KEY}, else {self.euler_key})")
         if self.sensor_ang_quat is None:
             raise ConfigError(f"missing key {QUATERNION_KEY!r}; a configuration with {EULAR_OR_QUAT_KEY} (RflySim "
                               "v3) needs it: the mounting quaternion [w, x, y, z]")
         _check_vector(QUATERNION_KEY, self.sensor_ang_quat, 4)
         if self.eular_or_quat > 0.5 and math.hypot(*self.sensor_ang_quat) < _MIN_QUATERNION_NORM:
-            raise ConfigError(f"{QUATERNION_KEY} = {list(self.sensor_ang_quat)!r} has zero length, and "
+            raise ConfigError(f"{QUATERNION_KEY} = {quoted(list(self.sensor_ang_quat))} has zero length, and "
                               f"{EULAR_OR_QUAT_KEY} > 0.5 mounts the sensor with it; allowed: a rotation "
                               "quaternion [w, x, y, z] of non-zero length (normalised here)")
 
@@ -480,7 +480,7 @@ class SensorConfig:
             an SDK not in :data:`SDKS`.
         """
         if sdk not in SDKS:
-            raise ConfigError(f"SDK {sdk!r}; allowed: {' or '.join(SDKS)}")
+            raise ConfigError(f"SDK {quoted(sdk)}; allowed: {' or '.join(SDKS)}")
         if sdk == "v3":
             if self.sdk == "v3" and self.v3_form:
                 return self
@@ -637,7 +637,7 @@ class SensorConfig:
         Raises :class:`ConfigError` if the value is outside the field's range.
         """
         if name not in PARAM_RANGES:
-            raise ConfigError(f"unknown parameter {name!r}; allowed: {', '.join(PARAM_RANGES)}")
+            raise ConfigError(f"unknown parameter {quoted(name)}; allowed: {', '.join(PARAM_RANGES)}")
         spec = PARAM_RANGES[name]
         value = spec.check(value)
         if spec.integer:
@@ -704,7 +704,7 @@ class SensorConfig:
         A configuration without a return model gets the Mid-70's datasheet.
         """
         if model not in RETURN_MODELS:
-            raise ConfigError(f"return model {model!r}; allowed: {' or '.join(RETURN_MODELS)}")
+            raise ConfigError(f"return model {quoted(model)}; allowed: {' or '.join(RETURN_MODELS)}")
         return replace(self, returns=replace(self.return_params, model=model))
 
     # JSON ---------------------------------------------------------------------------
@@ -778,14 +778,15 @@ class SensorConfig:
             )
         for key in _REQUIRED_KEYS:
             if key not in data:
-                raise ConfigError(f"missing key {key!r}; a RflySim sensor object needs {', '.join(_REQUIRED_KEYS)}")
+                raise ConfigError(f"missing key {quoted(key)}; a RflySim sensor object needs "
+                                  f"{', '.join(_REQUIRED_KEYS)}")
         if EULER_KEY_RFLYSIM in data:
             euler_key = EULER_KEY_RFLYSIM
         elif EULER_KEY_DOCUMENT in data:
             euler_key = EULER_KEY_DOCUMENT
         else:
             raise ConfigError(
-                f"missing key {EULER_KEY_RFLYSIM!r} (or {EULER_KEY_DOCUMENT!r}): "
+                f"missing key {quoted(EULER_KEY_RFLYSIM)} (or {quoted(EULER_KEY_DOCUMENT)}): "
                 "the sensor mounting angles [roll, pitch, yaw] in radians"
             )
         ints: dict[str, int] = {}
@@ -794,13 +795,13 @@ class SensorConfig:
             if not _is_int(value):
                 spec = PARAM_RANGES.get(_INTEGER_KEYS[key])
                 allowed = spec.describe() if spec is not None else "an integer"
-                raise ConfigError(f"{key} = {value!r}; allowed: {allowed}")
+                raise ConfigError(f"{key} = {quoted(value)}; allowed: {allowed}")
             ints[key] = int(value)
         v3_form = EULAR_OR_QUAT_KEY in data
         switch = data.get(EULAR_OR_QUAT_KEY)
         if v3_form and (isinstance(switch, bool) or not isinstance(switch, (int, float))):
             # null among them: None is how a configuration says it has no EularOrQuat (the old form).
-            raise ConfigError(f"{EULAR_OR_QUAT_KEY} = {switch!r}; allowed: a number (> 0.5: the mount is "
+            raise ConfigError(f"{EULAR_OR_QUAT_KEY} = {quoted(switch)}; allowed: a number (> 0.5: the mount is "
                               f"{QUATERNION_KEY}, else {euler_key})")
         listed = ("SendProtocol", "otherParams", "SensorPosXYZ", euler_key, *((QUATERNION_KEY,) if v3_form else ()))
         if v3_form and QUATERNION_KEY not in data:
@@ -808,7 +809,7 @@ class SensorConfig:
                               "needs it: the mounting quaternion [w, x, y, z]")
         for key in listed:
             if not isinstance(data[key], list):
-                raise ConfigError(f"{key} = {data[key]!r}; allowed: a JSON list of numbers")
+                raise ConfigError(f"{key} = {quoted(data[key])}; allowed: a JSON list of numbers")
         other_params = data["otherParams"]
         for index, value in enumerate(other_params):
             _check_finite(f"otherParams[{index}]", value)
@@ -906,7 +907,7 @@ def frame_layout(rate: float, lasers: int = 1, width: int | None = None) -> tupl
     """
     whole = round(rate)
     if not math.isfinite(rate) or whole < 1 or abs(rate - whole) > 1e-6 * rate:
-        raise ConfigError(f"a rate of {rate!r} points/s; RflySim's DataWidth x DataHeight x DataCheckFreq makes "
+        raise ConfigError(f"a rate of {quoted(rate)} points/s; RflySim's DataWidth x DataHeight x DataCheckFreq makes "
                           "whole numbers of points per second only")
     limits = (PARAM_RANGES["data_width"].high, PARAM_RANGES["data_height"].high, PARAM_RANGES["data_check_freq"].high)
     best: tuple[tuple[float, ...], tuple[int, int, int]] | None = None
@@ -955,13 +956,13 @@ def _is_int(value: Any) -> bool:
 
 def _check_int(spec: ParamRange, value: Any) -> None:
     if not _is_int(value):
-        raise ConfigError(f"{spec.name} ({spec.label}) = {value!r}; allowed: {spec.describe()}")
+        raise ConfigError(f"{spec.name} ({spec.label}) = {quoted(value)}; allowed: {spec.describe()}")
     spec.check(value)
 
 
 def _check_finite(name: str, value: Any) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError(f"{name} = {value!r}; allowed: a finite number")
+        raise ConfigError(f"{name} = {quoted(value)}; allowed: a finite number")
 
 
 def _check_vector(name: str, values: Any, length: int) -> None:
@@ -1018,7 +1019,7 @@ def select_sensor(data: Any, seq_id: int | None = None) -> Mapping[str, Any]:
             )
         return livox[0]
     if seq_id is not None and isinstance(data, Mapping) and data.get("SeqID") != seq_id:
-        raise ConfigError(f"the sensor object has SeqID {data.get('SeqID')!r}, not {seq_id}")
+        raise ConfigError(f"the sensor object has SeqID {quoted(data.get('SeqID'))}, not {seq_id}")
     return data
 
 

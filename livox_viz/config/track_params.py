@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from livox_viz.core.errors import ConfigError
+from livox_viz.core.errors import ConfigError, quoted
 
 TRACK_KEY = "LivoxVizTrack"
 FORMS: tuple[str, ...] = ("plane", "spin")
@@ -48,7 +48,7 @@ MAX_SPIN_REACH_DEG = 360.0
 
 def _finite(name: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError(f"{TRACK_KEY}.{name} = {value!r}; allowed: a finite number")
+        raise ConfigError(f"{TRACK_KEY}.{name} = {quoted(value)}; allowed: a finite number")
     return float(value)
 
 
@@ -78,10 +78,10 @@ class TrackParams:
 
     def __post_init__(self) -> None:
         if self.form not in FORMS:
-            raise ConfigError(f"{TRACK_KEY}.form = {self.form!r}; allowed: {' or '.join(FORMS)}")
+            raise ConfigError(f"{TRACK_KEY}.form = {quoted(self.form)}; allowed: {' or '.join(FORMS)}")
         hz = tuple(_finite("base_hz", v) for v in self.base_hz)
         if len(hz) != 2 or any(abs(v) > MAX_BASE_HZ for v in hz):
-            raise ConfigError(f"{TRACK_KEY}.base_hz = {list(self.base_hz)!r}; allowed: 2 numbers in "
+            raise ConfigError(f"{TRACK_KEY}.base_hz = {quoted(list(self.base_hz))}; allowed: 2 numbers in "
                               f"[-{MAX_BASE_HZ:g}, {MAX_BASE_HZ:g}] Hz")
         phases = tuple(_finite("phase_rad", v) for v in self.phase_rad)
         if len(phases) != 2 or any(abs(v) > 1e6 for v in phases):
@@ -155,7 +155,7 @@ class TrackParams:
             raise ConfigError(f"{TRACK_KEY} must be a JSON object, got {type(data).__name__}")
         for key in ("form", "base_hz", "phase_rad", "terms", "coefficients_deg"):
             if key not in data:
-                raise ConfigError(f"{TRACK_KEY}: missing key {key!r}; it needs form, base_hz, phase_rad, terms, "
+                raise ConfigError(f"{TRACK_KEY}: missing key {quoted(key)}; it needs form, base_hz, phase_rad, terms, "
                                   "coefficients_deg")
         terms = data["terms"]
         if not isinstance(terms, list) or not all(
@@ -170,6 +170,6 @@ class TrackParams:
             raise ConfigError(f"{TRACK_KEY}.coefficients_deg has shape {raw.shape}; allowed: (lasers, terms, 2)")
         for key in ("base_hz", "phase_rad"):
             if not isinstance(data[key], list) or len(data[key]) != 2:
-                raise ConfigError(f"{TRACK_KEY}.{key} = {data[key]!r}; allowed: a list of 2 numbers")
+                raise ConfigError(f"{TRACK_KEY}.{key} = {quoted(data[key])}; allowed: a list of 2 numbers")
         return cls(form=data["form"], base_hz=tuple(data["base_hz"]), phase_rad=tuple(data["phase_rad"]),
                    terms=tuple(tuple(t) for t in terms), coefficients=raw[..., 0] + 1j * raw[..., 1])

@@ -62,7 +62,7 @@ import numpy as np
 
 from livox_viz.casting.point_frame import PointFrame
 from livox_viz.core.atomic import WorkDir, atomic_path
-from livox_viz.core.errors import LivoxVizError, os_error_reason
+from livox_viz.core.errors import LivoxVizError, os_error_reason, quoted
 from livox_viz.core.portable import free_disk_bytes, write_at
 from livox_viz.core.rotations import enu_from_ned, flu_from_frd
 from livox_viz.files.npzstream import NpzColumns
@@ -212,7 +212,7 @@ class PointCloudWriter:
         if self.format not in FORMATS:
             raise LivoxVizError(f"{self.path}: unknown format {self.format or '(none)'}; allowed: {', '.join(FORMATS)}")
         if coordinates not in FRAMES:
-            raise LivoxVizError(f"coordinates {coordinates!r}; allowed: {' or '.join(FRAMES)}")
+            raise LivoxVizError(f"coordinates {quoted(coordinates)}; allowed: {' or '.join(FRAMES)}")
         self.coordinates = coordinates
         self.ascii = ascii
         self.extra_fields = tuple(extra_fields)

@@ -54,7 +54,7 @@ import numpy as np
 
 from livox_viz.casting.scan import ScanFrame
 from livox_viz.core.atomic import WorkDir, remove_dead_leftovers
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, quoted
 from livox_viz.core.poses import Pose
 from livox_viz.core.rotations import FRD_TO_FLU, enu_flu_from_ned_frd, enu_from_ned, flu_from_frd, quat_from_matrix
 from livox_viz.files.ros_names import check_ros_names
@@ -126,7 +126,7 @@ class RosNames:
         for part in filter(None, (p.strip() for p in text.split(","))):
             key, _, value = part.partition("=")
             if key not in cls.__dataclass_fields__ or not value:
-                raise LivoxVizError(f"--ros-names {part!r}; allowed: NAME=VALUE with NAME one of "
+                raise LivoxVizError(f"--ros-names {quoted(part)}; allowed: NAME=VALUE with NAME one of "
                                     f"{', '.join(cls.__dataclass_fields__)}")
             values[key] = value
         return cls(**values)
@@ -169,7 +169,7 @@ class RosbagWriter:
             raise LivoxVizError(f"{self.path}: the folder {self.path.absolute().parent} does not exist")
         self.names = names or RosNames()
         if imu_frame not in IMU_FRAMES:
-            raise LivoxVizError(f"IMU frame {imu_frame!r}; allowed: {', '.join(IMU_FRAMES)}")
+            raise LivoxVizError(f"IMU frame {quoted(imu_frame)}; allowed: {', '.join(IMU_FRAMES)}")
         self.imu_frame = imu_frame
         self.imu_variances = (float(imu_variances[0]), float(imu_variances[1]))
         self.time_base_ns = round(time_base * 1e9)

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, quoted
 from livox_viz.core.poses import Pose
 from livox_viz.motion.trajectory import Trajectory
 
@@ -116,12 +116,12 @@ def builtin_trajectory(name: str, speed: float, start: Pose, seconds: float) -> 
         How long, s; the vehicle is at rest again at its end.
     """
     if name not in BUILTIN_TRAJECTORIES:
-        raise LivoxVizError(f"trajectory {name!r}; allowed: a TUM file or a built-in flight: "
+        raise LivoxVizError(f"trajectory {quoted(name)}; allowed: a TUM file or a built-in flight: "
                             f"{', '.join(BUILTIN_TRAJECTORIES)}")
     if not (math.isfinite(speed) and 0 <= speed <= MAX_SPEED):
-        raise LivoxVizError(f"--trajectory-speed {speed!r}; allowed: 0 to {MAX_SPEED:g} m/s")
+        raise LivoxVizError(f"--trajectory-speed {quoted(speed)}; allowed: 0 to {MAX_SPEED:g} m/s")
     if not (math.isfinite(seconds) and seconds > 0):
-        raise LivoxVizError(f"a built-in flight of {seconds!r} s; allowed: a finite time > 0")
+        raise LivoxVizError(f"a built-in flight of {quoted(seconds)} s; allowed: a finite time > 0")
     count = max(2, math.ceil(seconds * BUILTIN_RATE) + 1)
     t = np.linspace(0.0, seconds, count)
     s = path_length(t, speed if name != "hover" else 0.0, seconds)

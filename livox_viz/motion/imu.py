@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, quoted
 from livox_viz.core.poses import Pose
 from livox_viz.motion.trajectory import Trajectory
 
@@ -73,7 +73,7 @@ class ImuNoise:
         for name, value in vars(self).items():
             high = MAX_GYROSCOPE_NOISE if name.startswith("gyroscope") else MAX_ACCELEROMETER_NOISE
             if not (math.isfinite(value) and 0 <= value <= high):
-                raise LivoxVizError(f"IMU {name} = {value!r}; allowed: 0 to {high:g}")
+                raise LivoxVizError(f"IMU {name} = {quoted(value)}; allowed: 0 to {high:g}")
 
     def sample_variances(self, rate: float) -> tuple[float, float]:
         """The white noise's variance per sample at ``rate`` Hz: gyroscope (rad/s)^2, accelerometer (m/s^2)^2
@@ -138,7 +138,7 @@ class ImuStream:
     def __init__(self, trajectory: Trajectory, rate: float = MIN_RATE, noise: ImuNoise | None = None,
                  seed: int = 0, start: float = 0.0, mount: Pose | None = None) -> None:
         if not (math.isfinite(rate) and MIN_RATE <= rate <= MAX_RATE):
-            raise LivoxVizError(f"IMU rate {rate!r} Hz; allowed: {MIN_RATE:g} to {MAX_RATE:g}")
+            raise LivoxVizError(f"IMU rate {quoted(rate)} Hz; allowed: {MIN_RATE:g} to {MAX_RATE:g}")
         self.trajectory = trajectory
         self.rate = rate
         self.noise = noise or ImuNoise()

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from livox_viz.core.errors import LivoxVizError, require_file
+from livox_viz.core.errors import LivoxVizError, quoted, require_file
 from livox_viz.motion.trajectory import Trajectory
 
 #: Poses kept for the scan's span, at most.
@@ -126,7 +126,7 @@ def _parse_lines(path: Path, lines: list[bytes], first_line: int) -> np.ndarray:
         try:
             [float(w) for w in words]
         except ValueError:
-            raise LivoxVizError(f"{path}: line {number} is not numeric: {line.strip()[:60]!r}") from None
+            raise LivoxVizError(f"{path}: line {number} is not numeric: {quoted(line.strip()[:60])}") from None
     raise LivoxVizError(f"{path}: lines {first_line + 1} to {first_line + len(lines)} do not parse as TUM poses")
 
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from livox_viz.config.fov import FieldOfView
 from livox_viz.config.sensor import SensorConfig
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, quoted
 from livox_viz.patterns.factory import make_pattern
 from livox_viz.patterns.stream import points_before
 
@@ -44,7 +44,7 @@ def as_fov(fov: FovLike) -> FieldOfView:
         return fov
     radius = float(fov)
     if not (math.isfinite(radius) and 0 < radius < 90):
-        raise LivoxVizError(f"FOV radius = {fov!r} deg; allowed: a number in (0, 90)")
+        raise LivoxVizError(f"FOV radius = {quoted(fov)} deg; allowed: a number in (0, 90)")
     return FieldOfView.cone(radius)
 
 
@@ -65,7 +65,7 @@ class CoverageGrid:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.cell_deg) and self.cell_deg > 0):
-            raise LivoxVizError(f"cell size = {self.cell_deg!r} deg; allowed: a number > 0")
+            raise LivoxVizError(f"cell size = {quoted(self.cell_deg)} deg; allowed: a number > 0")
         object.__setattr__(self, "fov", as_fov(self.fov))
         x0, x1, y0, y1 = self.fov.bounds
         if ((x1 - x0) / self.cell_deg) * ((y1 - y0) / self.cell_deg) > 4e8:
@@ -240,7 +240,7 @@ def pattern_coverage(
     """
     times = np.asarray(seconds, dtype=np.float64)
     if times.size == 0 or not np.all(np.isfinite(times)) or np.any(times <= 0):
-        raise LivoxVizError(f"integration times {list(seconds)!r}; allowed: numbers > 0 seconds")
+        raise LivoxVizError(f"integration times {quoted(list(seconds))}; allowed: numbers > 0 seconds")
     counts = points_before(times, config.point_rate)
     if counts.max() > 200_000_000:
         raise LivoxVizError(f"{times.max():g} s is {counts.max():,} points; allowed: at most 200 million")

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, quoted
 from livox_viz.core.jsonfile import read_json_file
 
 if TYPE_CHECKING:
@@ -68,10 +68,12 @@ class Material:
     def __post_init__(self) -> None:
         if not (isinstance(self.reflectance, (int, float)) and math.isfinite(self.reflectance)
                 and 0.0 <= self.reflectance <= 1.0):
-            raise LivoxVizError(f"material {self.name!r}: reflectance {self.reflectance!r}; allowed: 0 to 1")
+            raise LivoxVizError(f"material {quoted(self.name)}: reflectance {quoted(self.reflectance)}; allowed: "
+                                "0 to 1")
         if not (isinstance(self.retro_gain, (int, float)) and math.isfinite(self.retro_gain)
                 and 1.0 <= self.retro_gain <= 1e5):
-            raise LivoxVizError(f"material {self.name!r}: retro_gain {self.retro_gain!r}; allowed: 1 to 100000")
+            raise LivoxVizError(f"material {quoted(self.name)}: retro_gain {quoted(self.retro_gain)}; allowed: "
+                                "1 to 100000")
 
     @property
     def retroreflective(self) -> bool:
@@ -111,33 +113,33 @@ def parse_material(value: Any, where: str) -> Material:
                '{"reflectance": R, "retroreflective": true|false, "retro_gain": G}')
     if isinstance(value, str):
         if value not in MATERIALS:
-            raise LivoxVizError(f"{where}: unknown material {value!r}; {allowed}")
+            raise LivoxVizError(f"{where}: unknown material {quoted(value)}; {allowed}")
         return MATERIALS[value]
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         return Material(f"reflectance {value:g}", _reflectance(value, where, allowed))
     if isinstance(value, Mapping):
         unknown = sorted(set(value) - {"reflectance", "retroreflective", "retro_gain", "name"})
         if unknown or "reflectance" not in value:
-            raise LivoxVizError(f"{where}: material {dict(value)!r}; {allowed}")
+            raise LivoxVizError(f"{where}: material {quoted(dict(value))}; {allowed}")
         retro = value.get("retroreflective", "retro_gain" in value)
         if not isinstance(retro, bool):
-            raise LivoxVizError(f"{where}: retroreflective = {retro!r}; allowed: true or false")
+            raise LivoxVizError(f"{where}: retroreflective = {quoted(retro)}; allowed: true or false")
         if not retro and "retro_gain" in value:
-            raise LivoxVizError(f"{where}: retro_gain = {value['retro_gain']!r} with retroreflective = false; "
+            raise LivoxVizError(f"{where}: retro_gain = {quoted(value['retro_gain'])} with retroreflective = false; "
                                 "allowed: a retro_gain only on a retroreflective material")
         gain = value.get("retro_gain", DEFAULT_RETRO_GAIN) if retro else 1.0
         if isinstance(gain, bool) or not isinstance(gain, (int, float)) or not math.isfinite(gain) or not (
                 1 < gain <= 1e5 or not retro):
-            raise LivoxVizError(f"{where}: retro_gain = {gain!r}; allowed: a number in (1, 100000]")
+            raise LivoxVizError(f"{where}: retro_gain = {quoted(gain)}; allowed: a number in (1, 100000]")
         name = str(value.get("name", "retroreflective" if retro else "custom"))
         return Material(name, _reflectance(value["reflectance"], where, allowed), float(gain))
-    raise LivoxVizError(f"{where}: material {value!r}; {allowed}")
+    raise LivoxVizError(f"{where}: material {quoted(value)}; {allowed}")
 
 
 def _reflectance(value: Any, where: str, allowed: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not (
             0 <= value <= 1):
-        raise LivoxVizError(f"{where}: reflectance {value!r}; {allowed}")
+        raise LivoxVizError(f"{where}: reflectance {quoted(value)}; {allowed}")
     return float(value)
 
 
@@ -242,8 +244,8 @@ class MaterialMap:
         for key, _ in self.entries:
             if key not in present and not any(fnmatch.fnmatchcase(n, key) for n in present):
                 shown = ", ".join(repr(n) for n in present[:12]) + (", ..." if len(present) > 12 else "")
-                raise LivoxVizError(f"{self.source}: {key!r} names nothing in {where}; allowed: its part, geometry "
-                                    f"and material names ({shown}) or glob patterns of them")
+                raise LivoxVizError(f"{self.source}: {quoted(key)} names nothing in {where}; allowed: its part, "
+                                    f"geometry and material names ({shown}) or glob patterns of them")
 
     @classmethod
     def merged(cls, first: MaterialMap | None, then: MaterialMap | None) -> MaterialMap | None:
@@ -258,7 +260,7 @@ class MaterialMap:
         if not isinstance(data, Mapping) or not data:
             raise LivoxVizError(f"{source}: a material sidecar must be a JSON object mapping mesh or material "
                                 "names (or glob patterns) to materials")
-        return cls(tuple((str(k), parse_material(v, f"{source}: {k!r}")) for k, v in data.items()), source)
+        return cls(tuple((str(k), parse_material(v, f"{source}: {quoted(k)}")) for k, v in data.items()), source)
 
 
 def material_colour(material: Any) -> np.ndarray | None:

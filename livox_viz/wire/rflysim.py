@@ -44,7 +44,7 @@ import numpy as np
 
 from livox_viz.casting.codec import decode_int16
 from livox_viz.config.sensor import V3_MID360_TYPE_ID, SensorConfig
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, quoted
 
 #: The old datagram header's checksum (``<4i1d``), and the new one's (``<6i1d``, with a frame id).
 FRAME_CHECKSUM = 1234567890
@@ -539,15 +539,15 @@ def parse_host_port(text: str, default_port: int | None = None) -> tuple[str, in
     """``HOST:PORT`` (or ``HOST`` with a default port) -> (host, port)."""
     host, _, port_text = text.rpartition(":") if ":" in text else (text, "", "")
     if not host:
-        raise LivoxVizError(f"address {text!r}; allowed: HOST:PORT, e.g. 127.0.0.1:9999")
+        raise LivoxVizError(f"address {quoted(text)}; allowed: HOST:PORT, e.g. 127.0.0.1:9999")
     if not port_text:
         if default_port is None:
-            raise LivoxVizError(f"address {text!r} has no port; allowed: HOST:PORT")
+            raise LivoxVizError(f"address {quoted(text)} has no port; allowed: HOST:PORT")
         return host, default_port
     try:
         port = int(port_text)
     except ValueError:
-        raise LivoxVizError(f"port {port_text!r}; allowed: a number 1-65535") from None
+        raise LivoxVizError(f"port {quoted(port_text)}; allowed: a number 1-65535") from None
     if not 1 <= port <= 65535:
         raise LivoxVizError(f"port {port}; allowed: 1-65535")
     return host, port

@@ -20,7 +20,7 @@ import numpy as np
 from livox_viz.casting.codec import encode_int16
 from livox_viz.casting.scan import ScanFrame
 from livox_viz.config.sensor import SensorConfig
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, quoted
 from livox_viz.wire.rflysim import (
     LivoxFrame,
     Reassembler,
@@ -93,7 +93,7 @@ class UdpSender:
         try:
             infos = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)
         except socket.gaierror as exc:
-            raise LivoxVizError(f"cannot resolve {host!r}: {exc.strerror}") from None
+            raise LivoxVizError(f"cannot resolve {quoted(host)}: {exc.strerror}") from None
         self.address = infos[0][4]
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 8 << 20)

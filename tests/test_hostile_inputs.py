@@ -1,0 +1,68 @@
+"""Issue 35: every input bounded, every message true. Each hostile input gets one line, exit status 2, no traceback
+and nothing left behind; where the input is large, its work is bounded (counted, or a CPU-time limit in a child)."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from livox_viz.cli import main
+from tests.conftest import SEED_JSON
+
+BOX = {"type": "box", "center": [5, 0, 0], "size": [1, 1, 1]}
+
+
+def scene(path: Path, *objects: dict, **fields: object) -> None:
+    """A scene JSON of ``objects`` (default one box) and any top-level ``fields``."""
+    path.write_text(json.dumps({**fields, "objects": list(objects) or [BOX]}))
+
+
+def write_inputs(folder: Path) -> None:
+    """The hostile files the table below names."""
+    (folder / "long_sigma.json").write_text(json.dumps(
+        {**SEED_JSON, "LivoxVizReturns": {"range_sigma_m": [[20, 0.02]] * 100_000}}))
+    scene(folder / "long_material.json", {**BOX, "material": "x" * 2_000_000})
+
+
+#: (argv, what the one line must say).
+HOSTILE: list[tuple[list[str], str]] = [
+    # 6: a long value is quoted in part, with its length
+    (["info", "--config", "long_sigma.json"], r"\[20, 0.02\], \.\.\.\) \(100,000 items\); allowed: 1 to 16 pairs"),
+    (["scan", "--scene", "long_material.json", "--seconds", "0.1", "--out", "s.ply"],
+     r"unknown material 'x{80}'\.\.\. \(2,000,000 characters\); allowed"),
+    (["scan", "--returns", "d" * 100_000, "--seconds", "0.1", "--out", "s.ply"], r"characters left out"),
+]
+
+
+@pytest.fixture
+def inputs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    write_inputs(tmp_path)
+    return tmp_path
+
+
+def assert_one_line_error(folder: Path, argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> str:
+    """Run ``livox-viz argv`` in ``folder``: exit 2, one short ``error:`` line matching ``message``, no traceback,
+    no file made or removed; returns the line."""
+    before = sorted(p.name for p in folder.iterdir())
+    code = main(argv)
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if not line.startswith(("publishing", "livox-viz: no display"))]
+    assert code == 2, err[:2000]
+    assert len(lines) == 1 and "Traceback" not in err, err[:2000]
+    assert re.match(r"livox-viz( [a-z]+)?: error: ", lines[0]), lines[0][:2000]
+    assert len(lines[0]) < 1000, lines[0][:2000]
+    assert re.search(message, lines[0]), lines[0]
+    assert sorted(p.name for p in folder.iterdir()) == before
+    return lines[0]
+
+
+@pytest.mark.parametrize(("argv", "message"), HOSTILE, ids=[" ".join(a)[:60] for a, _ in HOSTILE])
+def test_a_hostile_input_is_one_short_line_and_exit_2(inputs: Path, capsys: pytest.CaptureFixture[str],
+                                                     argv: list[str], message: str) -> None:
+    assert_one_line_error(inputs, argv, message, capsys)
