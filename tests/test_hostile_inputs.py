@@ -22,6 +22,10 @@ def scene(path: Path, *objects: dict, **fields: object) -> None:
 
 def write_inputs(folder: Path) -> None:
     """The hostile files the table below names."""
+    scene(folder / "pose_null.json", vehicle_pose=None)
+    scene(folder / "pose_five.json", vehicle_pose=5)
+    scene(folder / "pose_far.json", vehicle_pose=[0, 0, -1e300, 0, 0, 0])
+    scene(folder / "pose_text.json", vehicle_pose=[0, 0, -1, 0, 0, "up"])
     (folder / "long_sigma.json").write_text(json.dumps(
         {**SEED_JSON, "LivoxVizReturns": {"range_sigma_m": [[20, 0.02]] * 100_000}}))
     scene(folder / "long_material.json", {**BOX, "material": "x" * 2_000_000})
@@ -29,10 +33,20 @@ def write_inputs(folder: Path) -> None:
 
 #: (argv, what the one line must say).
 HOSTILE: list[tuple[list[str], str]] = [
+    # 1: a scene's vehicle pose that is not six numbers
+    (["scan", "--scene", "pose_null.json", "--seconds", "0.1", "--out", "s.ply"],
+     r"pose_null.json: 'vehicle_pose' = None: allowed: x, y, z \(m, NED"),
+    (["scan", "--scene", "pose_five.json", "--seconds", "0.1", "--out", "s.ply"], r"'vehicle_pose' = 5: allowed"),
+    (["render", "--scene", "pose_null.json", "--seconds", "0.1", "--out", "s.png"], r"'vehicle_pose' = None"),
+    (["gui", "--scene", "pose_five.json", "--seconds", "0.1"], r"'vehicle_pose' = 5"),
+    (["publish", "--scene", "pose_null.json", "--seconds", "0.1", "--to", "127.0.0.1:9"], r"'vehicle_pose' = None"),
+    (["scan", "--scene", "pose_far.json", "--seconds", "0.1", "--out", "s.ply"], r"a position beyond 1e\+07 m"),
+    (["scan", "--scene", "pose_text.json", "--seconds", "0.1", "--out", "s.ply"], r"'up'\]: allowed"),
     # 6: a long value is quoted in part, with its length
     (["info", "--config", "long_sigma.json"], r"\[20, 0.02\], \.\.\.\) \(100,000 items\); allowed: 1 to 16 pairs"),
     (["scan", "--scene", "long_material.json", "--seconds", "0.1", "--out", "s.ply"],
      r"unknown material 'x{80}'\.\.\. \(2,000,000 characters\); allowed"),
+    (["scan", "--pose", "1," * 60_000 + "1", "--seconds", "0.1", "--out", "s.ply"], r"\(120,001 characters\)"),
     (["scan", "--returns", "d" * 100_000, "--seconds", "0.1", "--out", "s.ply"], r"characters left out"),
 ]
 

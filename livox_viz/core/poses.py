@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, quoted
 from livox_viz.core.rotations import euler_matrix, matrix_to_euler, quat_from_matrix
 
 #: The farthest a ``--pose`` may place the vehicle from the world origin, metres (beyond the Earth's radius).
@@ -38,7 +38,7 @@ class Pose:
     def __post_init__(self) -> None:
         values = [*self.position, self.roll, self.pitch, self.yaw]
         if len(self.position) != 3 or not all(math.isfinite(v) for v in values):
-            raise LivoxVizError(f"pose {values!r}; allowed: 6 finite numbers x,y,z (m), roll,pitch,yaw (rad)")
+            raise LivoxVizError(f"pose {quoted(values)}; allowed: 6 finite numbers x,y,z (m), roll,pitch,yaw (rad)")
         object.__setattr__(self, "position", tuple(float(v) for v in self.position))
 
     @property
@@ -77,14 +77,36 @@ class Pose:
             values = [float(p) for p in parts]
         except ValueError:
             raise LivoxVizError(
-                f"pose {text!r} does not parse; allowed: x,y,z,roll,pitch,yaw (6 numbers, metres and radians)"
+                f"pose {quoted(text)} does not parse; allowed: x,y,z,roll,pitch,yaw (6 numbers, metres and radians)"
             ) from None
         if len(values) != 6:
-            raise LivoxVizError(f"pose {text!r} has {len(values)} numbers; allowed: x,y,z,roll,pitch,yaw (6)")
-        if not all(abs(v) <= MAX_POSITION_M for v in values[:3]):  # 1e300 would overflow the float32 ray casts
-            raise LivoxVizError(f"pose {text!r}: a position beyond {MAX_POSITION_M:g} m; allowed: |x|, |y|, |z| "
+            raise LivoxVizError(f"pose {quoted(text)} has {len(values)} numbers; allowed: x,y,z,roll,pitch,yaw (6)")
+        return cls.from_values(values, f"pose {quoted(text)}")
+
+    @classmethod
+    def from_values(cls, values: object, where: str) -> Pose:
+        """A pose from ``[x, y, z, roll, pitch, yaw]`` (metres, radians) as a user wrote them (``--pose``, a scene's
+        ``vehicle_pose``): six finite numbers, the position within :data:`MAX_POSITION_M` of the origin.
+
+        Parameters
+        ----------
+        values : object
+            What the user gave; anything but six such numbers is refused, naming ``where``.
+        where : str
+            The value in the user's terms, e.g. ``"scene.json: 'vehicle_pose' = [...]"``.
+        """
+        allowed = ("allowed: x, y, z (m, NED, each within "
+                   f"{MAX_POSITION_M:g} m of the origin) and roll, pitch, yaw (rad): 6 finite numbers")
+        if not isinstance(values, (list, tuple)) or len(values) != 6 or any(
+                isinstance(v, bool) or not isinstance(v, (int, float)) for v in values):
+            raise LivoxVizError(f"{where}: {allowed}")
+        numbers = [float(v) for v in values]
+        if not all(math.isfinite(v) for v in numbers):
+            raise LivoxVizError(f"{where}: NaN or infinite; {allowed}")
+        if not all(abs(v) <= MAX_POSITION_M for v in numbers[:3]):  # 1e300 would overflow the float32 ray casts
+            raise LivoxVizError(f"{where}: a position beyond {MAX_POSITION_M:g} m; allowed: |x|, |y|, |z| "
                                 f"<= {MAX_POSITION_M:g} m (a local NED frame)")
-        return cls(tuple(values[:3]), *values[3:])  # type: ignore[arg-type]
+        return cls(tuple(numbers[:3]), *numbers[3:])  # type: ignore[arg-type]
 
 
 

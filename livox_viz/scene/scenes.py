@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from livox_viz.config.presets import DESCRIPTION_KEY, shipped_preset_dir, user_config_dir
-from livox_viz.core.errors import LivoxVizError, require_file
+from livox_viz.core.errors import LivoxVizError, quoted, require_file
 from livox_viz.core.jsonfile import read_json_file
 from livox_viz.core.portable import path_in_file
 from livox_viz.core.poses import MAX_POSITION_M, Pose
@@ -52,6 +52,8 @@ UP_AXES = ("z", "y")
 #: A scene's largest extent in any axis, metres: Embree casts in float32 (a scene 100 km across casts within
 #: 3 mm; one reaching 1000 km out met wrong triangles near the sensor).
 MAX_SCENE_SPAN_M = 100_000.0
+#: Where a scene JSON without a ``vehicle_pose`` puts the vehicle: x, y, z (m, NED), roll, pitch, yaw (rad).
+DEFAULT_VEHICLE_POSE = (0.0, 0.0, -1.5, 0.0, 0.0, 0.0)
 #: A terrain's most cells a side (two million triangles).
 MAX_TERRAIN_CELLS = 1000
 _TO_NED = {
@@ -150,7 +152,7 @@ def open_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE, up: str = "
     if path.suffix.lower() == ".json":
         return _scene_from_json(path, reflectance)
     if not path.exists():
-        raise LivoxVizError(f"scene {text!r} is neither a scene preset ({', '.join(names)}) nor an existing file")
+        raise LivoxVizError(f"scene {quoted(text)} is neither a scene preset ({', '.join(names)}) nor an existing file")
     return Scene(path.name, load_mesh_file(path, up, reflectance), Pose((0.0, 0.0, -1.5)), f"mesh file {path}")
 
 
@@ -159,7 +161,7 @@ def load_scene_preset(name: str, reflectance: float = DEFAULT_REFLECTANCE) -> Sc
     path = scene_dir() / f"{name}.json"
     if not path.is_file():
         names = ", ".join(n for n, _ in list_scenes())
-        raise LivoxVizError(f"unknown scene {name!r}; allowed: {names}")
+        raise LivoxVizError(f"unknown scene {quoted(name)}; allowed: {names}")
     return _scene_from_json(path, reflectance)
 
 
@@ -187,7 +189,7 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: flo
 
     path = Path(path)
     if up not in UP_AXES:
-        raise LivoxVizError(f"up axis {up!r}; allowed: {' or '.join(UP_AXES)}")
+        raise LivoxVizError(f"up axis {quoted(up)}; allowed: {' or '.join(UP_AXES)}")
     require_file(path, "mesh file")
     # A scene JSON's map for this mesh first, then the sidecar beside the file for what the map does not name.
     table = MaterialMap.merged(materials, read_sidecar(path))
@@ -258,8 +260,8 @@ def _scene_from_json(path: Path, reflectance: float = DEFAULT_REFLECTANCE) -> Sc
              for index, obj in enumerate(data["objects"])]
     if not parts:
         raise LivoxVizError(f"{path}: the scene has no objects")
-    pose_values = data.get("vehicle_pose", [0, 0, -1.5, 0, 0, 0])
-    pose = Pose.parse(",".join(str(v) for v in pose_values))
+    pose_values = data.get("vehicle_pose", DEFAULT_VEHICLE_POSE)
+    pose = Pose.from_values(pose_values, f"{path}: 'vehicle_pose' = {quoted(pose_values)}")
     mesh = _join(parts)
     check_span(mesh, str(path))
     return Scene(path.stem, fill_reflectance(mesh, reflectance), pose, str(data.get(DESCRIPTION_KEY, "")))
@@ -286,7 +288,7 @@ def _numbers(obj: dict[str, Any], key: str, length: int, where: str, bound: floa
     if array.shape != (length,) or not np.all((np.abs(array) <= bound) & ((array > 0) | (not positive))):
         allowed = (f"numbers > 0 and at most {bound:g} m" if positive else
                    f"finite numbers within {bound:g} m of the origin")
-        raise LivoxVizError(f"{where}: '{key}' = {value!r}; allowed: {length} {allowed}")
+        raise LivoxVizError(f"{where}: '{key}' = {quoted(value)}; allowed: {length} {allowed}")
     return array
 
 
@@ -316,7 +318,7 @@ def check_span(mesh: trimesh.Trimesh, where: str) -> None:
 def _number(obj: dict[str, Any], key: str, where: str, default: float | None = None) -> float:
     value = obj.get(key, default)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise LivoxVizError(f"{where}: '{key}' = {value!r}; allowed: a number > 0")
+        raise LivoxVizError(f"{where}: '{key}' = {quoted(value)}; allowed: a number > 0")
     return float(value)
 
 
@@ -352,7 +354,7 @@ def _primitive(obj: Any, index: int, folder: Path) -> trimesh.Trimesh:
         size = _size(obj, 2, where)
         cells = obj.get("cells", 100)
         if isinstance(cells, bool) or not isinstance(cells, int) or not 1 <= cells <= MAX_TERRAIN_CELLS:
-            raise LivoxVizError(f"{where}: 'cells' = {cells!r}; allowed: a whole number from 1 to "
+            raise LivoxVizError(f"{where}: 'cells' = {quoted(cells)}; allowed: a whole number from 1 to "
                                 f"{MAX_TERRAIN_CELLS} (cells a side, two triangles each)")
         amplitude = _number(obj, "amplitude", where, 2.0)
         wavelength = _number(obj, "wavelength", where, 20.0)
@@ -372,7 +374,8 @@ def _primitive(obj: Any, index: int, folder: Path) -> trimesh.Trimesh:
         return mesh
     if kind == "roof":
         return _roof(center, _size(obj, 3, where))
-    raise LivoxVizError(f"{where}: unknown type {kind!r}; allowed: ground, terrain, box, cylinder, sphere, roof, mesh")
+    raise LivoxVizError(f"{where}: unknown type {quoted(kind)}; allowed: ground, terrain, box, cylinder, sphere, "
+                        "roof, mesh")
 
 
 def _grid(center: np.ndarray, size: np.ndarray, cells: int, height) -> trimesh.Trimesh:
