@@ -406,8 +406,8 @@ def _urban_with(extra: dict) -> dict:
      "'cells' = 100000; allowed: a whole number from 1 to 1000"),
     ({"objects": [{"type": "terrain", "center": [0, 0, 0], "size": [50, 50], "cells": 2.5}]},
      "'cells' = 2.5; allowed: a whole number"),
-    ({"objects": [{"type": "box", "center": [0, 0, 0], "size": [-1, 1, 1]}]}, "allowed: 3 numbers > 0"),
-    ({"objects": [{"type": "ground", "center": [0, 0, 0], "size": [1e308, 1]}]}, "allowed: 2 numbers > 0"),
+    ({"objects": [{"type": "box", "center": [0, 0, 0], "size": [-1, 1, 1]}]}, "allowed: 3 numbers from 0.001"),
+    ({"objects": [{"type": "ground", "center": [0, 0, 0], "size": [1e308, 1]}]}, "allowed: 2 numbers from 0.001"),
 ])
 def test_scene_objects_out_of_bounds_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], scene: dict,
                                                  words: str) -> None:

@@ -26,6 +26,11 @@ def write_inputs(folder: Path) -> None:
     scene(folder / "pose_five.json", vehicle_pose=5)
     scene(folder / "pose_far.json", vehicle_pose=[0, 0, -1e300, 0, 0, 0])
     scene(folder / "pose_text.json", vehicle_pose=[0, 0, -1, 0, 0, "up"])
+    scene(folder / "tiny_sphere.json", {"type": "sphere", "center": [5, 0, 0], "radius": 1e-300})
+    scene(folder / "huge_sphere.json", {"type": "sphere", "center": [5, 0, 0], "radius": 1e300})
+    scene(folder / "tall_post.json", {"type": "cylinder", "center": [5, 0, 0], "radius": 0.1, "height": 1e308})
+    scene(folder / "flat_box.json", {**BOX, "size": [1, 1e-300, 1]})
+    scene(folder / "fine_terrain.json", {"type": "terrain", "center": [5, 0, 0], "size": [9, 9], "wavelength": 1e-300})
     (folder / "long_sigma.json").write_text(json.dumps(
         {**SEED_JSON, "LivoxVizReturns": {"range_sigma_m": [[20, 0.02]] * 100_000}}))
     scene(folder / "long_material.json", {**BOX, "material": "x" * 2_000_000})
@@ -42,6 +47,13 @@ HOSTILE: list[tuple[list[str], str]] = [
     (["publish", "--scene", "pose_null.json", "--seconds", "0.1", "--to", "127.0.0.1:9"], r"'vehicle_pose' = None"),
     (["scan", "--scene", "pose_far.json", "--seconds", "0.1", "--out", "s.ply"], r"a position beyond 1e\+07 m"),
     (["scan", "--scene", "pose_text.json", "--seconds", "0.1", "--out", "s.ply"], r"'up'\]: allowed"),
+    # 7: sizes a float cannot make triangles of
+    (["scan", "--scene", "tiny_sphere.json", "--seconds", "0.1", "--out", "s.ply"],
+     r"object 0 \(sphere\): 'radius' = 1e-300; allowed: a number from 0.001 to 100000 m"),
+    (["scan", "--scene", "huge_sphere.json", "--seconds", "0.1", "--out", "s.ply"], r"'radius' = 1e\+300; allowed"),
+    (["scan", "--scene", "tall_post.json", "--seconds", "0.1", "--out", "s.ply"], r"'height' = 1e\+308; allowed"),
+    (["scan", "--scene", "flat_box.json", "--seconds", "0.1", "--out", "s.ply"], r"allowed: 3 numbers from 0.001"),
+    (["scan", "--scene", "fine_terrain.json", "--seconds", "0.1", "--out", "s.ply"], r"'wavelength' = 1e-300"),
     # 6: a long value is quoted in part, with its length
     (["info", "--config", "long_sigma.json"], r"\[20, 0.02\], \.\.\.\) \(100,000 items\); allowed: 1 to 16 pairs"),
     (["scan", "--scene", "long_material.json", "--seconds", "0.1", "--out", "s.ply"],

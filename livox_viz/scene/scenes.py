@@ -52,6 +52,9 @@ UP_AXES = ("z", "y")
 #: A scene's largest extent in any axis, metres: Embree casts in float32 (a scene 100 km across casts within
 #: 3 mm; one reaching 1000 km out met wrong triangles near the sensor).
 MAX_SCENE_SPAN_M = 100_000.0
+#: The smallest size, radius, height, amplitude or wavelength of a scene object, metres: a sphere of 1e-300 m
+#: made triangles of no area (NaN normals), and a millimetre is below every sensor's range noise.
+MIN_SIZE_M = 1e-3
 #: Where a scene JSON without a ``vehicle_pose`` puts the vehicle: x, y, z (m, NED), roll, pitch, yaw (rad).
 DEFAULT_VEHICLE_POSE = (0.0, 0.0, -1.5, 0.0, 0.0, 0.0)
 #: A terrain's most cells a side (two million triangles).
@@ -279,14 +282,15 @@ def _with_material(mesh: trimesh.Trimesh, obj: dict[str, Any], index: int) -> tr
 
 
 def _numbers(obj: dict[str, Any], key: str, length: int, where: str, bound: float, positive: bool) -> np.ndarray:
-    """``obj[key]``: ``length`` numbers of size at most ``bound`` (NaN and inf fail that), and > 0 if ``positive``."""
+    """``obj[key]``: ``length`` numbers of size at most ``bound`` (NaN and inf fail that), and at least
+    :data:`MIN_SIZE_M` if ``positive``."""
     value = obj.get(key)
     try:
         array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         array = np.zeros(0)
-    if array.shape != (length,) or not np.all((np.abs(array) <= bound) & ((array > 0) | (not positive))):
-        allowed = (f"numbers > 0 and at most {bound:g} m" if positive else
+    if array.shape != (length,) or not np.all((np.abs(array) <= bound) & ((array >= MIN_SIZE_M) | (not positive))):
+        allowed = (f"numbers from {MIN_SIZE_M:g} to {bound:g} m" if positive else
                    f"finite numbers within {bound:g} m of the origin")
         raise LivoxVizError(f"{where}: '{key}' = {quoted(value)}; allowed: {length} {allowed}")
     return array
@@ -298,7 +302,7 @@ def _vector(obj: dict[str, Any], key: str, length: int, where: str) -> np.ndarra
 
 
 def _size(obj: dict[str, Any], length: int, where: str) -> np.ndarray:
-    """An object's ``size``: ``length`` numbers > 0, each at most :data:`MAX_SCENE_SPAN_M`."""
+    """An object's ``size``: ``length`` numbers from :data:`MIN_SIZE_M` to :data:`MAX_SCENE_SPAN_M`."""
     return _numbers(obj, "size", length, where, MAX_SCENE_SPAN_M, positive=True)
 
 
@@ -316,9 +320,11 @@ def check_span(mesh: trimesh.Trimesh, where: str) -> None:
 
 
 def _number(obj: dict[str, Any], key: str, where: str, default: float | None = None) -> float:
+    """``obj[key]`` (or ``default``): a length from :data:`MIN_SIZE_M` to :data:`MAX_SCENE_SPAN_M` metres."""
     value = obj.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise LivoxVizError(f"{where}: '{key}' = {quoted(value)}; allowed: a number > 0")
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not MIN_SIZE_M <= value <= MAX_SCENE_SPAN_M:
+        raise LivoxVizError(f"{where}: '{key}' = {quoted(value)}; allowed: a number from {MIN_SIZE_M:g} to "
+                            f"{MAX_SCENE_SPAN_M:g} m")
     return float(value)
 
 
