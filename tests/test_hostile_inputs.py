@@ -31,6 +31,8 @@ def write_inputs(folder: Path) -> None:
     scene(folder / "tall_post.json", {"type": "cylinder", "center": [5, 0, 0], "radius": 0.1, "height": 1e308})
     scene(folder / "flat_box.json", {**BOX, "size": [1, 1e-300, 1]})
     scene(folder / "fine_terrain.json", {"type": "terrain", "center": [5, 0, 0], "size": [9, 9], "wavelength": 1e-300})
+    (folder / "huge.tum").write_text("0 0 1e300 -1 0 0 0 1\n1 0 0 -1 0 0 0 1\n2 0 0 -1 0 0 0 1\n")
+    (folder / "far.tum").write_text("".join(f"{t} {150_000 + t} 0 -2 0 0 0 1\n" for t in range(3)))
     (folder / "long_sigma.json").write_text(json.dumps(
         {**SEED_JSON, "LivoxVizReturns": {"range_sigma_m": [[20, 0.02]] * 100_000}}))
     scene(folder / "long_material.json", {**BOX, "material": "x" * 2_000_000})
@@ -47,6 +49,14 @@ HOSTILE: list[tuple[list[str], str]] = [
     (["publish", "--scene", "pose_null.json", "--seconds", "0.1", "--to", "127.0.0.1:9"], r"'vehicle_pose' = None"),
     (["scan", "--scene", "pose_far.json", "--seconds", "0.1", "--out", "s.ply"], r"a position beyond 1e\+07 m"),
     (["scan", "--scene", "pose_text.json", "--seconds", "0.1", "--out", "s.ply"], r"'up'\]: allowed"),
+    # 5: every pose bounded as --pose is, and the sensor kept within the scene's 100 km span
+    (["publish", "--trajectory", "huge.tum", "--seconds", "0.5", "--to", "127.0.0.1:9"],
+     r"trajectory huge.tum: pose 1 \(t = 0 s\) is at 0, 1e\+300, -1 m; allowed: \|x\|, \|y\|, \|z\| <= 1e\+07 m"),
+    (["scan", "--trajectory", "huge.tum", "--seconds", "0.5", "--out", "s.las"], r"is at 0, 1e\+300, -1 m"),
+    (["scan", "--trajectory", "far.tum", "--seconds", "0.5", "--out", "s.las"],
+     r"trajectory far.tum takes the sensor to 1.5e\+05, 0, -2 m, and with the scene it spans 1.501e\+05 m; allowed"),
+    (["scan", "--pose=200000,0,-2,0,0,0", "--seconds", "0.1", "--out", "s.ply"], r"the vehicle's pose takes the sen"),
+    (["render", "--pose=200000,0,-2,0,0,0", "--seconds", "0.1", "--out", "s.png"], r"the vehicle's pose takes the"),
     # 7: sizes a float cannot make triangles of
     (["scan", "--scene", "tiny_sphere.json", "--seconds", "0.1", "--out", "s.ply"],
      r"object 0 \(sphere\): 'radius' = 1e-300; allowed: a number from 0.001 to 100000 m"),

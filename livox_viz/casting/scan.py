@@ -41,6 +41,7 @@ from livox_viz.motion.trajectory import Trajectory
 from livox_viz.patterns.factory import make_pattern
 from livox_viz.patterns.stream import PatternChunk, points_before
 from livox_viz.scene.raycast import EmbreeCaster, RayCaster, casting_in_this_thread
+from livox_viz.scene.scenes import check_reach
 
 if TYPE_CHECKING:
     import trimesh
@@ -218,6 +219,10 @@ class MountedCaster:
         self.trajectory = trajectory
         self.vehicle_pose = trajectory.pose_at(trajectory.span[0]) if trajectory is not None else (
             vehicle_pose or Pose())
+        mesh = getattr(self.caster, "mesh", None)
+        if mesh is not None:  # the float32 casts' span rule holds for where the rays start too
+            check_reach(mesh, self.vehicle_pose.origin if trajectory is None else trajectory.position,
+                        "the vehicle's pose" if trajectory is None else f"trajectory {trajectory.name}")
         self.mount_pose = sensor_mount(config)
         self.sensor_pose = sensor_world_pose(config, self.vehicle_pose)
         #: The sensor's track: the vehicle's motion model with the mount applied, evaluated exactly per ray.

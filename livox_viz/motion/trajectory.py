@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from livox_viz.core.errors import LivoxVizError
-from livox_viz.core.poses import Pose, pose_from_quaternion
+from livox_viz.core.poses import MAX_POSITION_M, Pose, pose_from_quaternion
 from livox_viz.core.rotations import quat_conjugate_product_vector
 
 #: Neighbouring orientations at most this far apart, degrees (beyond it the turn's direction is a guess).
@@ -115,6 +115,12 @@ class Trajectory:
                                 "qx, qy, qz, qw")
         if not (np.all(np.isfinite(t)) and np.all(np.isfinite(position)) and np.all(np.isfinite(quaternion))):
             raise LivoxVizError(f"trajectory {self.name}: NaN or infinite values; allowed: finite numbers")
+        far = np.abs(position).max(axis=1) > MAX_POSITION_M
+        if far.any():
+            row = int(np.argmax(far))
+            raise LivoxVizError(f"trajectory {self.name}: pose {row + 1} (t = {t[row]:g} s) is at "
+                                f"{', '.join(f'{v:.4g}' for v in position[row])} m; allowed: |x|, |y|, |z| <= "
+                                f"{MAX_POSITION_M:g} m (a local NED frame), as --pose")
         if np.any(np.diff(t) <= 0):
             row = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
             raise LivoxVizError(f"trajectory {self.name}: time goes back or repeats at pose {row + 1} "

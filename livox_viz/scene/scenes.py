@@ -319,6 +319,32 @@ def check_span(mesh: trimesh.Trimesh, where: str) -> None:
                             "(rays are cast in float32: move far parts nearer or leave them out)")
 
 
+def check_reach(mesh: trimesh.Trimesh, positions: np.ndarray, what: str) -> None:
+    """Refuse a sensor that goes so far from the scene that the two together span more than
+    :data:`MAX_SCENE_SPAN_M` in an axis: the rule of :func:`check_span` for where the rays start.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        The scene, world NED.
+    positions : (n, 3) float64
+        Where the sensor goes (the vehicle's poses), world NED, metres.
+    what : str
+        The poses in the user's words, e.g. ``"--pose"`` or ``"trajectory turns.txt"``.
+    """
+    bounds = np.asarray(mesh.bounds, dtype=np.float64)
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    low = np.minimum(bounds[0], positions.min(axis=0))
+    high = np.maximum(bounds[1], positions.max(axis=0))
+    span = float((high - low).max())
+    if not span <= MAX_SCENE_SPAN_M:
+        centre = bounds.mean(axis=0)
+        far = positions[np.argmax(np.abs(positions - centre).max(axis=1))]
+        raise LivoxVizError(f"{what} takes the sensor to {', '.join(f'{v:.4g}' for v in far)} m, and with the scene it "
+                            f"spans {span:.4g} m; allowed: the scene and the sensor's path within "
+                            f"{MAX_SCENE_SPAN_M:g} m across (rays are cast in float32 around the scene)")
+
+
 def _number(obj: dict[str, Any], key: str, where: str, default: float | None = None) -> float:
     """``obj[key]`` (or ``default``): a length from :data:`MIN_SIZE_M` to :data:`MAX_SCENE_SPAN_M` metres."""
     value = obj.get(key, default)
