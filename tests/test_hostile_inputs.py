@@ -5,10 +5,14 @@ from __future__ import annotations
 
 import json
 import re
+import resource
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
+from livox_viz import LivoxVizError
 from livox_viz.cli import main
 from tests.conftest import SEED_JSON
 
@@ -102,3 +106,90 @@ def assert_one_line_error(folder: Path, argv: list[str], message: str, capsys: p
 def test_a_hostile_input_is_one_short_line_and_exit_2(inputs: Path, capsys: pytest.CaptureFixture[str],
                                                      argv: list[str], message: str) -> None:
     assert_one_line_error(inputs, argv, message, capsys)
+
+
+def run_limited(argv: list[str], folder: Path, cpu_seconds: int, memory_bytes: int | None = None
+                ) -> subprocess.CompletedProcess[str]:
+    """``livox-viz argv`` in a child held to ``cpu_seconds`` of CPU time (SIGXCPU past it) and, if given,
+    ``memory_bytes`` of address space: a bound on its work, whatever the machine's load."""
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_CPU, (cpu_seconds, cpu_seconds))
+        if memory_bytes is not None:
+            resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
+
+    return subprocess.run([sys.executable, "-m", "livox_viz", *argv], cwd=folder, capture_output=True, text=True,
+                          preexec_fn=limit, timeout=20 * cpu_seconds)
+
+
+def assert_refused_in_child(result: subprocess.CompletedProcess[str], message: str) -> None:
+    assert result.returncode == 2, (result.returncode, result.stderr[-2000:])
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and "Traceback" not in result.stderr and len(lines[0]) < 1000, result.stderr[-2000:]
+    assert re.search(message, lines[0]), lines[0]
+
+
+# 2: material names and patterns are matched in time linear in the names and keys ------------------------------
+def test_a_glob_of_100_000_brackets_is_refused_at_once(tmp_path: Path) -> None:
+    """fnmatch translated ``[[[[...`` in time quadratic in its length (100 000 took past 120 s): a key is at most
+    256 characters, refused before any translation (the child has 60 s of CPU; this takes about one)."""
+    (tmp_path / "wall.obj").write_text("o wall\nv 5 -1 -1\nv 5 1 -1\nv 5 0 1\nf 1 2 3\n")
+    scene(tmp_path / "globs.json", {"type": "mesh", "path": "wall.obj", "materials": {"[" * 100_000: 0.5}})
+    result = run_limited(["scan", "--scene", "globs.json", "--seconds", "0.1", "--out", "s.ply"], tmp_path, 60)
+    assert_refused_in_child(result, r"the key '\[{80}'\.\.\. \(100,000 characters\) is longer than 256 characters")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["globs.json", "wall.obj"]
+
+
+def test_a_sidecar_of_400_000_names_is_read_in_one_pass(tmp_path: Path) -> None:
+    """A sidecar of 400 000 names (7 MB), none of them the mesh's: every key was tried as a pattern on every part
+    (300 000 took 35 s; 3 million, 50 MB, inside the 64 MiB cap, past 120 s); now each name is one table lookup
+    and the misspelt first name is reported. The child has 30 s of CPU; it needs 2-3 (the JSON parse and the
+    imports are most of it)."""
+    (tmp_path / "wall.obj").write_text("o wall\nv 5 -1 -1\nv 5 1 -1\nv 5 0 1\nf 1 2 3\n")
+    (tmp_path / "wall.materials.json").write_text(json.dumps({f"part_{k}": 0.5 for k in range(400_000)}))
+    result = run_limited(["scan", "--scene", "wall.obj", "--seconds", "0.1", "--out", "s.ply"], tmp_path, 30)
+    assert_refused_in_child(result, r"wall.materials.json: 'part_0' names nothing in .*wall.obj; allowed: its part")
+
+
+def test_more_glob_patterns_than_the_limit_are_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "wall.obj").write_text("o wall\nv 5 -1 -1\nv 5 1 -1\nv 5 0 1\nf 1 2 3\n")
+    (tmp_path / "wall.materials.json").write_text(json.dumps({f"w*{k}": 0.5 for k in range(1001)}))
+    monkeypatch.chdir(tmp_path)
+    assert_one_line_error(tmp_path, ["scan", "--scene", "wall.obj", "--seconds", "0.1", "--out", "s.ply"],
+                          r"more than 1000 glob patterns \(keys with \*, \? or \[\); allowed: at most 1000", capsys)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_glob_matcher_matches_as_fnmatch_does(seed: int) -> None:
+    """The linear translation against fnmatch's own, on random patterns of the characters that matter."""
+    import fnmatch
+    import random
+
+    from livox_viz.scene.materials import glob_regex
+
+    rng = random.Random(seed)
+    for _ in range(3000):
+        pattern = "".join(rng.choice("ab*?[]!-^\\&") for _ in range(rng.randint(0, 9)))
+        compiled = re.compile(glob_regex(pattern))
+        for _ in range(4):
+            name = "".join(rng.choice("ab[]!-^\\&*?\n") for _ in range(rng.randint(0, 7)))
+            assert bool(compiled.fullmatch(name)) == fnmatch.fnmatchcase(name, pattern), (pattern, name)
+
+
+def test_the_first_entry_still_wins() -> None:
+    """A name given exactly wins over any pattern; among patterns the first in the file wins; a merged map's
+    first half wins over its second."""
+    from livox_viz.scene.materials import MaterialMap
+
+    table = MaterialMap.from_json({"w*": 0.1, "wall*": 0.2, "wall_2": 0.3, "*": 0.4}, "a")
+    assert table.lookup(["wall_2"]).reflectance == 0.3
+    assert table.lookup(["wall_1"]).reflectance == 0.1
+    assert table.lookup(["", "glass", "wall_1"]).reflectance == 0.1
+    assert table.lookup(["glass"]).reflectance == 0.4
+    assert MaterialMap.from_json({"x": 0.5}, "b").lookup(["y"]) is None
+    merged = MaterialMap.merged(MaterialMap.from_json({"wall_2": 0.6}, "b"), table)
+    assert merged.lookup(["wall_2"]).reflectance == 0.6
+    table.require_matches(["wall_2", "glass"], "m")
+    with pytest.raises(LivoxVizError, match="'w\\*' names nothing"):
+        MaterialMap.from_json({"w*": 0.1}, "a").require_matches(["glass"], "m")

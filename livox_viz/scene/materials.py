@@ -23,10 +23,11 @@ Where the materials come from:
 
 from __future__ import annotations
 
-import fnmatch
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -212,9 +213,95 @@ def face_parts(mesh: trimesh.Trimesh) -> np.ndarray:
 
 
 # Sidecar files -------------------------------------------------------------------------------------
+#: Characters of one key of a material map (a name or a glob pattern) at most.
+MAX_KEY_CHARS = 256
+#: Glob patterns (keys with ``*``, ``?`` or ``[``) in one material map at most: each is tried on every name.
+MAX_PATTERNS = 1000
+_STAR = object()
+
+
+def is_pattern(key: str) -> bool:
+    """Whether a material map's key is a glob pattern (holds ``*``, ``?`` or ``[``) rather than a plain name."""
+    return "*" in key or "?" in key or "[" in key
+
+
+def glob_regex(pattern: str) -> str:
+    """The regular expression (for ``fullmatch``) of a shell glob: ``*``, ``?``, ``[seq]``, ``[!seq]``, ``[a-z]``.
+
+    The same matches as :func:`fnmatch.fnmatchcase`, made in time linear in the pattern's length: fnmatch
+    searches for a closing ``]`` afresh from every ``[`` (100 000 of them took minutes); here once no ``]``
+    follows, every later ``[`` is a literal without a search. Stars become atomic lazy groups, as in fnmatch, so
+    matching never backtracks through them.
+    """
+    pieces: list[object] = []
+    i, n = 0, len(pattern)
+    closing = True  # whether a ']' may still follow
+    while i < n:
+        c = pattern[i]
+        i += 1
+        if c == "*":
+            if not pieces or pieces[-1] is not _STAR:
+                pieces.append(_STAR)
+        elif c == "?":
+            pieces.append(".")
+        elif c == "[" and closing:
+            j = i + (i < n and pattern[i] == "!")
+            j += j < n and pattern[j] == "]"
+            j = pattern.find("]", j)
+            if j < 0:
+                closing = False
+                pieces.append(re.escape(c))
+            else:
+                pieces.append(_char_class(pattern[i:j]))
+                i = j + 1
+        else:
+            pieces.append(re.escape(c))
+    text: list[str] = []
+    k = 0
+    while k < len(pieces) and pieces[k] is not _STAR:
+        text.append(str(pieces[k]))
+        k += 1
+    while k < len(pieces):  # a star, then the fixed run up to the next star (or the end)
+        k += 1
+        fixed = []
+        while k < len(pieces) and pieces[k] is not _STAR:
+            fixed.append(str(pieces[k]))
+            k += 1
+        text.append(f".*{''.join(fixed)}" if k == len(pieces) else f"(?>.*?{''.join(fixed)})")
+    return f"(?s:{''.join(text)})"
+
+
+def _char_class(body: str) -> str:
+    """A ``[...]`` of a glob (without its brackets) as a regular expression's set; ranges that run backwards
+    match nothing, as in fnmatch."""
+    negate = body.startswith("!")
+    body = body[1:] if negate else body
+    items = []
+    k = 0
+    while k < len(body):
+        if k + 2 < len(body) and body[k + 1] == "-":
+            if body[k] <= body[k + 2]:
+                items.append(f"{_set_escape(body[k])}-{_set_escape(body[k + 2])}")
+            k += 3
+        else:
+            items.append(_set_escape(body[k]))
+            k += 1
+    if not items:
+        return "." if negate else "(?!)"
+    return f"[{'^' if negate else ''}{''.join(items)}]"
+
+
+def _set_escape(char: str) -> str:
+    return "\\" + char if char in "\\]^-[&~|" else char
+
+
 @dataclass(frozen=True)
 class MaterialMap:
     """A sidecar's mapping from mesh or material names (or glob patterns) to materials, in file order.
+
+    A name is looked up in a table and the patterns are one regular expression, so a map of any size is read
+    and used in one pass over its keys (at most :data:`MAX_PATTERNS` patterns, each at most
+    :data:`MAX_KEY_CHARS` long, are tried on each name).
 
     Parameters
     ----------
@@ -226,26 +313,57 @@ class MaterialMap:
     entries: tuple[tuple[str, Material], ...]
     source: str = ""
 
+    @cached_property
+    def _names(self) -> dict[str, int]:
+        """Each key (a pattern too: a name may hold ``*``) to the number of its first entry."""
+        keys = [key for key, _ in self.entries]
+        return dict(zip(reversed(keys), range(len(keys) - 1, -1, -1), strict=True))  # the first of a repeated key
+
+    @cached_property
+    def _patterns(self) -> list[int]:
+        """The numbers of the entries whose keys are glob patterns, in order."""
+        return [index for index, (key, _) in enumerate(self.entries) if "*" in key or "?" in key or "[" in key]
+
+    @cached_property
+    def _first_pattern(self) -> re.Pattern[str] | None:
+        """All patterns as one alternation: ``fullmatch`` tries them in order, and its ``lastindex`` is the first
+        that matches (each pattern is group k + 1; their own groups capture nothing)."""
+        if not self._patterns:
+            return None
+        return re.compile("|".join(f"({glob_regex(self.entries[i][0])})" for i in self._patterns))
+
+    def _first_pattern_matching(self, names: Sequence[str]) -> int | None:
+        """The number of the first pattern entry that matches any of ``names``, or None."""
+        matcher = self._first_pattern
+        if matcher is None:
+            return None
+        found = [m.lastindex for m in map(matcher.fullmatch, names) if m is not None and m.lastindex]
+        return self._patterns[min(found) - 1] if found else None
+
     def lookup(self, names: Sequence[str]) -> Material | None:
         """The material of the first entry matching any of ``names`` exactly, else by pattern; None if none does."""
         present = [n for n in names if n]
-        for key, material in self.entries:
-            if key in present:
-                return material
-        for key, material in self.entries:
-            if any(fnmatch.fnmatchcase(n, key) for n in present):
-                return material
-        return None
+        exact = [self._names[n] for n in present if n in self._names]
+        index = min(exact) if exact else self._first_pattern_matching(present)
+        return None if index is None else self.entries[index][1]
 
     def require_matches(self, names: Sequence[str], where: str) -> None:
         """Raise :class:`LivoxVizError` naming the first entry that matches none of ``names`` (a mesh's part,
         geometry and material names), and the names there are."""
         present = sorted({n for n in names if n})
-        for key, _ in self.entries:
-            if key not in present and not any(fnmatch.fnmatchcase(n, key) for n in present):
-                shown = ", ".join(repr(n) for n in present[:12]) + (", ..." if len(present) > 12 else "")
-                raise LivoxVizError(f"{self.source}: {quoted(key)} names nothing in {where}; allowed: its part, "
-                                    f"geometry and material names ({shown}) or glob patterns of them")
+        matcher = self._first_pattern
+        matched = set() if matcher is None else {
+            self._patterns[m.lastindex - 1] for m in map(matcher.fullmatch, present) if m is not None and m.lastindex}
+        for index, (key, _) in enumerate(self.entries):
+            if key in present or index in matched:
+                continue
+            if is_pattern(key):
+                single = re.compile(glob_regex(key))
+                if any(single.fullmatch(n) for n in present):
+                    continue
+            shown = ", ".join(repr(n) for n in present[:12]) + (", ..." if len(present) > 12 else "")
+            raise LivoxVizError(f"{self.source}: {quoted(key)} names nothing in {where}; allowed: its part, "
+                                f"geometry and material names ({shown}) or glob patterns of them")
 
     @classmethod
     def merged(cls, first: MaterialMap | None, then: MaterialMap | None) -> MaterialMap | None:
@@ -256,11 +374,34 @@ class MaterialMap:
 
     @classmethod
     def from_json(cls, data: Any, source: str) -> MaterialMap:
-        """Read ``{"name or pattern": material, ...}`` (see :func:`parse_material`)."""
+        """Read ``{"name or pattern": material, ...}`` (see :func:`parse_material`).
+
+        Keys are at most :data:`MAX_KEY_CHARS` long, at most :data:`MAX_PATTERNS` of them patterns. A material
+        given as a name or a number is read once however many keys give it.
+        """
         if not isinstance(data, Mapping) or not data:
             raise LivoxVizError(f"{source}: a material sidecar must be a JSON object mapping mesh or material "
                                 "names (or glob patterns) to materials")
-        return cls(tuple((str(k), parse_material(v, f"{source}: {quoted(k)}")) for k, v in data.items()), source)
+        read: dict[tuple[type, Any], Material] = {}
+        entries = []
+        patterns = 0
+        for key, value in data.items():
+            if len(key) > MAX_KEY_CHARS:
+                raise LivoxVizError(f"{source}: the key {quoted(key)} is longer than {MAX_KEY_CHARS} characters; "
+                                    f"allowed: a mesh or material name, or a glob pattern, of at most "
+                                    f"{MAX_KEY_CHARS}")
+            patterns += is_pattern(key)
+            if patterns > MAX_PATTERNS:
+                raise LivoxVizError(f"{source}: more than {MAX_PATTERNS} glob patterns (keys with *, ? or [); "
+                                    f"allowed: at most {MAX_PATTERNS}, and any number of plain names")
+            plain = isinstance(value, (str, int, float)) and not isinstance(value, bool)
+            material = read.get((type(value), value)) if plain else None
+            if material is None:
+                material = parse_material(value, f"{source}: {quoted(key)}")
+                if plain:
+                    read[(type(value), value)] = material
+            entries.append((key, material))
+        return cls(tuple(entries), source)
 
 
 def material_colour(material: Any) -> np.ndarray | None:
