@@ -4,6 +4,7 @@ and nothing left behind; where the input is large, its work is bounded (counted,
 from __future__ import annotations
 
 import json
+import os
 import re
 import resource
 import subprocess
@@ -193,3 +194,26 @@ def test_the_first_entry_still_wins() -> None:
     table.require_matches(["wall_2", "glass"], "m")
     with pytest.raises(LivoxVizError, match="'w\\*' names nothing"):
         MaterialMap.from_json({"w*": 0.1}, "a").require_matches(["glass"], "m")
+
+
+# 9: a material sidecar that is no file ----------------------------------------------------------------------------
+SIDECARS = {
+    "fifo": (lambda path: os.mkfifo(path), "a named pipe \\(FIFO\\)"),
+    "folder": (lambda path: path.mkdir(), "a folder"),
+    "loop": (lambda path: path.symlink_to(path.name), "a loop of symbolic links"),
+    "dangling": (lambda path: path.symlink_to("nowhere.json"), "a symbolic link to nothing \\(dangling\\)"),
+    "dev_zero": (lambda path: path.symlink_to("/dev/zero"), "a device"),
+}
+
+
+@pytest.mark.parametrize("kind", SIDECARS)
+def test_a_sidecar_that_is_no_file_is_refused_never_read(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                        capsys: pytest.CaptureFixture[str], kind: str) -> None:
+    """It was skipped silently (the mesh took its colours); a named pipe is never opened (it would block)."""
+    make, what = SIDECARS[kind]
+    (tmp_path / "wall.obj").write_text("o wall\nv 5 -1 -1\nv 5 1 -1\nv 5 0 1\nf 1 2 3\n")
+    make(tmp_path / "wall.materials.json")
+    monkeypatch.chdir(tmp_path)
+    assert_one_line_error(tmp_path, ["scan", "--scene", "wall.obj", "--seconds", "0.1", "--out", "s.ply"],
+                          f"wall.materials.json: the material sidecar of wall.obj is {what}; allowed: a JSON file",
+                          capsys)

@@ -10,7 +10,10 @@ no error line is ever longer than a few hundred characters.
 
 from __future__ import annotations
 
+import errno
+import os
 import reprlib
+import stat
 from typing import Any
 
 #: Characters of a value an error line quotes at most.
@@ -109,6 +112,35 @@ def require_file(path, what: str = "file") -> None:
         raise LivoxVizError(f"{path}: is not a regular file; allowed: a {what}")
     if path.stat().st_size == 0:
         raise LivoxVizError(f"{path}: is empty; allowed: a {what}")
+
+
+def not_a_file(path: str | os.PathLike[str]) -> str | None:
+    """What ``path`` is when it is there but is no regular file (nor a link to one), in words; None otherwise.
+
+    Asks ``stat`` only: it never opens the path (a named pipe would block until a writer came).
+
+    Examples
+    --------
+    >>> not_a_file("/dev/zero")
+    'a device'
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            return "a loop of symbolic links"
+        if os.path.islink(path):
+            return "a symbolic link to nothing (dangling)"
+        return None if exc.errno == errno.ENOENT else f"unreadable ({exc.strerror})"
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a named pipe (FIFO)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    return "a socket" if stat.S_ISSOCK(mode) else "not a regular file"
 
 
 def os_error_reason(exc: OSError) -> str:

@@ -24,6 +24,7 @@ Where the materials come from:
 from __future__ import annotations
 
 import math
+import os
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -33,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from livox_viz.core.errors import LivoxVizError, quoted
+from livox_viz.core.errors import LivoxVizError, not_a_file, quoted
 from livox_viz.core.jsonfile import read_json_file
 
 if TYPE_CHECKING:
@@ -448,10 +449,18 @@ def sidecar_path(mesh_path: Path) -> Path:
 
 
 def read_sidecar(mesh_path: Path) -> MaterialMap | None:
-    """The material sidecar of a mesh file, or None when there is none."""
+    """The material sidecar of a mesh file, or None when there is none.
+
+    Something under the sidecar's name that is no file (a folder, a named pipe, a device, a dangling link or a
+    loop of links) is refused, not skipped: the user meant it to give the materials.
+    """
     path = sidecar_path(mesh_path)
-    if not path.is_file():
+    if not os.path.lexists(path):
         return None
+    kind = not_a_file(path)
+    if kind is not None:
+        raise LivoxVizError(f"{path}: the material sidecar of {mesh_path.name} is {kind}; allowed: a JSON file of "
+                            "materials (or nothing by that name)")
     return MaterialMap.from_json(read_json_file(path, "material sidecar"), str(path))
 
 
