@@ -217,3 +217,65 @@ def test_a_sidecar_that_is_no_file_is_refused_never_read(tmp_path: Path, monkeyp
     assert_one_line_error(tmp_path, ["scan", "--scene", "wall.obj", "--seconds", "0.1", "--out", "s.ply"],
                           f"wall.materials.json: the material sidecar of wall.obj is {what}; allowed: a JSON file",
                           capsys)
+
+
+# 3: a scene's triangles budgeted before it is built ----------------------------------------------------------------
+@pytest.mark.parametrize("scene_file", ["forty_terrains.json", "sparse.stl"])
+def test_a_scene_past_the_triangle_budget_is_refused_before_it_is_built(tmp_path: Path, scene_file: str) -> None:
+    """40 terrains of 1000 cells a side (80 million triangles in 3 KB) and a binary STL whose header says 5
+    million (a sparse file: no disk) ended in a MemoryError traceback; now one line with the figure, in a child
+    held to 2 GiB of address space."""
+    scene(tmp_path / "forty_terrains.json",
+          *[{"type": "terrain", "center": [0, 0, 0], "size": [100, 100], "cells": 1000}] * 40)
+    with open(tmp_path / "sparse.stl", "wb") as handle:
+        handle.write(bytes(80) + (5_000_000).to_bytes(4, "little"))
+        handle.truncate(84 + 50 * 5_000_000)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    result = run_limited(["scan", "--scene", scene_file, "--seconds", "0.1", "--out", "s.ply"], tmp_path, 60, 2 << 30)
+    count = "80,000,000" if scene_file.endswith(".json") else "5,000,000"
+    assert_refused_in_child(result, f"{re.escape(scene_file)} holds {count} triangles, about [0-9.]+ GiB to cast into; "
+                                    "allowed: at most 4,000,000 in a scene; pass --force to go on anyway")
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def mesh_files(folder: Path) -> list[Path]:
+    """One icosphere of 320 triangles in each format trimesh writes, and a scene JSON holding two of them."""
+    import trimesh
+
+    sphere = trimesh.creation.icosphere(2).apply_translation((20, 0, -2))
+    paths = []
+    for suffix in (".stl", ".ply", ".off", ".obj", ".glb"):
+        sphere.export(folder / f"ball{suffix}")
+        paths.append(folder / f"ball{suffix}")
+    (folder / "ascii.stl").write_text(trimesh.exchange.stl.export_stl_ascii(sphere))
+    scene(folder / "two_balls.json", {"type": "mesh", "path": "ball.ply"}, {"type": "mesh", "path": "ball.glb"}, BOX)
+    return [*paths, folder / "ascii.stl", folder / "two_balls.json"]
+
+
+def test_every_mesh_format_counts_against_the_triangle_budget(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """With the budget at 600 triangles: one ball (320) is scanned, two (652 with the box) are refused, whether
+    the header says it (STL, PLY, OFF, OBJ) or only trimesh's parse does (glTF); --force lifts it; render, which
+    has no --force, does not offer it."""
+    from livox_viz.core import workload
+    from livox_viz.scene.meshcount import triangles_at_least
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(workload, "TRIANGLE_BUDGET", 600)
+    paths = mesh_files(tmp_path)
+    assert [triangles_at_least(p) for p in paths[:4]] == [320] * 4
+    assert triangles_at_least(tmp_path / "ascii.stl") == 320 and triangles_at_least(tmp_path / "ball.glb") is None
+    for path in paths[:-1]:
+        assert main(["scan", "--scene", path.name, "--seconds", "0.05", "--out", "one.ply"]) == 0, path
+    capsys.readouterr()
+    monkeypatch.setattr(workload, "TRIANGLE_BUDGET", 300)
+    for path in paths[:-1]:
+        assert_one_line_error(tmp_path, ["scan", "--scene", path.name, "--seconds", "0.05", "--out", "s.ply"],
+                              f"{re.escape(path.name)} holds 320 triangles.*at most 300 in a scene; pass --force",
+                              capsys)
+    monkeypatch.setattr(workload, "TRIANGLE_BUDGET", 600)
+    assert_one_line_error(tmp_path, ["scan", "--scene", "two_balls.json", "--seconds", "0.05", "--out", "s.ply"],
+                          r"ball.glb holds 320 triangles \(with the 332 before it\).*at most 600", capsys)
+    assert_one_line_error(tmp_path, ["render", "--scene", "two_balls.json", "--seconds", "0.05", "--out", "s.png"],
+                          r"at most 600 in a scene$", capsys)
+    assert main(["scan", "--scene", "two_balls.json", "--seconds", "0.05", "--out", "two.ply", "--force"]) == 0

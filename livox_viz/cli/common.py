@@ -22,6 +22,7 @@ from livox_viz.core.atomic import resolve_destination, write_text_atomic
 from livox_viz.core.errors import LivoxVizError, quoted
 from livox_viz.core.jsonfile import dumps_readable
 from livox_viz.core.poses import Pose
+from livox_viz.core.workload import TriangleBudget
 from livox_viz.scene.materials import DEFAULT_REFLECTANCE
 
 PROG = "livox-viz"
@@ -184,7 +185,10 @@ def scene_from_args(args: argparse.Namespace):
     from livox_viz.scene.raycast import EmbreeCaster
     from livox_viz.scene.scenes import open_scene
 
-    scene = open_scene(args.scene, up=args.up, reflectance=getattr(args, "reflectance", DEFAULT_REFLECTANCE))
+    # The scene's triangles are budgeted as it is read (--force lifts it where the command has --force).
+    budget = TriangleBudget(force=getattr(args, "force", False), can_force=hasattr(args, "force"))
+    scene = open_scene(args.scene, up=args.up, reflectance=getattr(args, "reflectance", DEFAULT_REFLECTANCE),
+                       triangles=budget)
     pose = Pose.parse(args.pose) if args.pose else scene.vehicle_pose
     return scene, pose, EmbreeCaster(scene.mesh, exact=getattr(args, "exact", False))
 

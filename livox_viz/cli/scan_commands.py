@@ -220,7 +220,8 @@ def _scan_arguments(parser: argparse.ArgumentParser) -> None:
                              "IMU; lever-arm effects included); needs --rosbag")
     parser.add_argument("--ros-names", help="topic/frame names, e.g. lidar=/livox/lidar,imu=/livox/imu,"
                                             "lidar_frame=livox_frame (defaults: the Livox ROS driver 2's)")
-    parser.add_argument("--force", action="store_true", help="allow more points than the documented budget")
+    parser.add_argument("--force", action="store_true",
+                        help="allow more points, or a scene of more triangles, than the documented budgets")
 
 
 def cmd_scenes(args: argparse.Namespace) -> int:

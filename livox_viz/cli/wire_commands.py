@@ -190,7 +190,8 @@ def _publish_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--unpaced", action="store_true", help="send as fast as possible")
     parser.add_argument("--shm-dir", help="folder of the shared memory block's file (default /dev/shm, the "
                                           "temporary folder on macOS; Windows uses RflySim's named mapping)")
-    parser.add_argument("--force", action="store_true", help="allow more points than the documented budget")
+    parser.add_argument("--force", action="store_true",
+                        help="allow more points, or a scene of more triangles, than the documented budgets")
 
 
 # listen --------------------------------------------------------------------------------------

@@ -32,6 +32,7 @@ from livox_viz.core.errors import LivoxVizError, quoted, require_file
 from livox_viz.core.jsonfile import read_json_file
 from livox_viz.core.portable import path_in_file
 from livox_viz.core.poses import MAX_POSITION_M, Pose
+from livox_viz.core.workload import TriangleBudget
 from livox_viz.scene.materials import (
     DEFAULT_REFLECTANCE,
     SIDECAR_SUFFIX,
@@ -43,6 +44,7 @@ from livox_viz.scene.materials import (
     read_sidecar,
     set_face_materials,
 )
+from livox_viz.scene.meshcount import triangles_at_least
 
 if TYPE_CHECKING:
     import trimesh
@@ -145,31 +147,38 @@ def load_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE, up: str = "
 
 
 def open_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE, up: str = "z",
-               reflectance: float = DEFAULT_REFLECTANCE) -> Scene:
-    """Like :func:`load_scene`, with the scene's name, description and default vehicle pose."""
+               reflectance: float = DEFAULT_REFLECTANCE, triangles: TriangleBudget | None = None) -> Scene:
+    """Like :func:`load_scene`, with the scene's name, description and default vehicle pose.
+
+    ``triangles`` counts the scene's triangles against the budget as they are read, before anything is built
+    (default: :data:`~livox_viz.core.workload.TRIANGLE_BUDGET`, not forced).
+    """
+    triangles = TriangleBudget() if triangles is None else triangles
     text = os.fspath(name_or_path)
     names = [name for name, _ in list_scenes()]
     if text in names:
-        return load_scene_preset(text, reflectance)
+        return load_scene_preset(text, reflectance, triangles)
     path = Path(text)
     if path.suffix.lower() == ".json":
-        return _scene_from_json(path, reflectance)
+        return _scene_from_json(path, reflectance, triangles)
     if not path.exists():
         raise LivoxVizError(f"scene {quoted(text)} is neither a scene preset ({', '.join(names)}) nor an existing file")
-    return Scene(path.name, load_mesh_file(path, up, reflectance), Pose((0.0, 0.0, -1.5)), f"mesh file {path}")
+    return Scene(path.name, load_mesh_file(path, up, reflectance, triangles=triangles), Pose((0.0, 0.0, -1.5)),
+                 f"mesh file {path}")
 
 
-def load_scene_preset(name: str, reflectance: float = DEFAULT_REFLECTANCE) -> Scene:
+def load_scene_preset(name: str, reflectance: float = DEFAULT_REFLECTANCE,
+                      triangles: TriangleBudget | None = None) -> Scene:
     """A shipped scene preset by name."""
     path = scene_dir() / f"{name}.json"
     if not path.is_file():
         names = ", ".join(n for n, _ in list_scenes())
         raise LivoxVizError(f"unknown scene {quoted(name)}; allowed: {names}")
-    return _scene_from_json(path, reflectance)
+    return _scene_from_json(path, reflectance, triangles)
 
 
 def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: float | None = DEFAULT_REFLECTANCE,
-                   materials: MaterialMap | None = None) -> trimesh.Trimesh:
+                   materials: MaterialMap | None = None, triangles: TriangleBudget | None = None) -> trimesh.Trimesh:
     """Read a mesh file (metres) and turn it into world NED, each part with its material.
 
     Parameters
@@ -181,6 +190,9 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: flo
     materials : MaterialMap, optional
         Names to materials (a scene JSON's map for this mesh), before the sidecar ``<stem>.materials.json``
         beside the file, if any: what the map does not name, the sidecar may.
+    triangles : TriangleBudget, optional
+        The scene's triangles so far: the file's are checked against the budget from what its header says before
+        trimesh parses it, then counted (default: a budget of its own).
 
     Raises
     ------
@@ -194,6 +206,8 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: flo
     if up not in UP_AXES:
         raise LivoxVizError(f"up axis {quoted(up)}; allowed: {' or '.join(UP_AXES)}")
     require_file(path, "mesh file")
+    triangles = TriangleBudget() if triangles is None else triangles
+    triangles.check(triangles_at_least(path) or 0, str(path))
     # A scene JSON's map for this mesh first, then the sidecar beside the file for what the map does not name.
     table = MaterialMap.merged(materials, read_sidecar(path))
     # Where names choose materials, an OBJ's objects ("o") stay parts of their own, named as the file names them:
@@ -209,6 +223,8 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: flo
         raise LivoxVizError(f"{path}: not a mesh trimesh can read ({type(exc).__name__}: {exc})") from None
     parts = []
     names_seen: list[str] = []
+    triangles.add(sum(len(getattr(loaded.geometry.get(loaded.graph[node][1]), "faces", ()))
+                      for node in loaded.graph.nodes_geometry), str(path))
     for node in loaded.graph.nodes_geometry:
         transform, geometry_name = loaded.graph[node]
         geometry = loaded.geometry.get(geometry_name)
@@ -254,12 +270,17 @@ def _join(parts: list[trimesh.Trimesh]) -> trimesh.Trimesh:
 
 
 # Scene descriptions ------------------------------------------------------------------
-def _scene_from_json(path: Path, reflectance: float = DEFAULT_REFLECTANCE) -> Scene:
-
+def _scene_from_json(path: Path, reflectance: float, triangles: TriangleBudget | None) -> Scene:
+    triangles = TriangleBudget() if triangles is None else triangles
     data = read_json_file(path, "scene JSON")
     if not isinstance(data, dict) or not isinstance(data.get("objects"), list):
         raise LivoxVizError(f"{path}: a scene JSON needs an 'objects' list")
-    parts = [_with_material(_primitive(obj, index, path.parent), obj, index)
+    # The whole scene's triangles from its description and its mesh files' headers before anything is built;
+    # then each mesh file's are counted as trimesh reads it.
+    primitives = sum(_primitive_triangles(obj) for obj in data["objects"])
+    triangles.check(primitives + sum(_mesh_triangles(obj, path.parent) for obj in data["objects"]), str(path))
+    triangles.add(primitives, str(path))
+    parts = [_with_material(_primitive(obj, index, path.parent, triangles), obj, index)
              for index, obj in enumerate(data["objects"])]
     if not parts:
         raise LivoxVizError(f"{path}: the scene has no objects")
@@ -362,7 +383,34 @@ def _mesh_path(obj: dict[str, Any], folder: Path, where: str) -> Path:
         raise LivoxVizError(f"{where} path: {exc}") from None
 
 
-def _primitive(obj: Any, index: int, folder: Path) -> trimesh.Trimesh:
+#: Triangles of each primitive (a terrain's are 2 x cells^2): the sections of a cylinder, the subdivisions of a sphere.
+PRIMITIVE_TRIANGLES = {"ground": 2, "box": 12, "roof": 8, "cylinder": 96, "sphere": 1280}
+
+
+def _primitive_triangles(obj: Any) -> int:
+    """The triangles a scene object will make, counted from its description (0 for a mesh file, counted as it is
+    read, and for what is not an object: refused when it is built)."""
+    if not isinstance(obj, dict):
+        return 0
+    kind = obj.get("type")
+    if kind == "terrain":
+        cells = obj.get("cells", 100)
+        return 2 * cells * cells if isinstance(cells, int) and 1 <= cells <= MAX_TERRAIN_CELLS else 0
+    return PRIMITIVE_TRIANGLES.get(kind, 0) if isinstance(kind, str) else 0
+
+
+def _mesh_triangles(obj: Any, folder: Path) -> int:
+    """At least the triangles of a scene object's mesh file, from its header (0 for anything else)."""
+    if not isinstance(obj, dict) or obj.get("type") != "mesh":
+        return 0
+    try:
+        path = path_in_file(str(obj.get("path", "")), folder)
+    except LivoxVizError:
+        return 0  # refused with its object's name when it is built
+    return (triangles_at_least(path) or 0) if path.is_file() else 0
+
+
+def _primitive(obj: Any, index: int, folder: Path, triangles: TriangleBudget) -> trimesh.Trimesh:
     import trimesh
 
     where = f"object {index}"
@@ -373,7 +421,8 @@ def _primitive(obj: Any, index: int, folder: Path) -> trimesh.Trimesh:
     if kind == "mesh":
         names = obj.get("materials")
         mesh = load_mesh_file(_mesh_path(obj, folder, where), str(obj.get("up", "z")), None,
-                              None if names is None else MaterialMap.from_json(names, f"{where} materials"))
+                              None if names is None else MaterialMap.from_json(names, f"{where} materials"),
+                              triangles)
         mesh.apply_translation(_vector(obj, "center", 3, where) if "center" in obj else np.zeros(3))
         return mesh
     center = _vector(obj, "center", 3, where)
