@@ -11,10 +11,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from livox_viz import LivoxVizError
 from livox_viz.cli import main
+from livox_viz.fitting.reference import shipped_table_dir
 from tests.conftest import SEED_JSON
 
 BOX = {"type": "box", "center": [5, 0, 0], "size": [1, 1, 1]}
@@ -38,6 +40,11 @@ def write_inputs(folder: Path) -> None:
     scene(folder / "fine_terrain.json", {"type": "terrain", "center": [5, 0, 0], "size": [9, 9], "wavelength": 1e-300})
     (folder / "huge.tum").write_text("0 0 1e300 -1 0 0 0 1\n1 0 0 -1 0 0 0 1\n2 0 0 -1 0 0 0 1\n")
     (folder / "far.tum").write_text("".join(f"{t} {150_000 + t} 0 -2 0 0 0 1\n" for t in range(3)))
+    (folder / "huge.json").write_text(json.dumps({**SEED_JSON, "DataWidth": 5000, "DataHeight": 2000,
+                                                  "DataCheckFreq": 1000}))
+    table = np.load(shipped_table_dir() / "mid40.npy")
+    np.save(folder / "ref.npy", table)
+    np.save(folder / "short.npy", table[:50_000])
     (folder / "long_sigma.json").write_text(json.dumps(
         {**SEED_JSON, "LivoxVizReturns": {"range_sigma_m": [[20, 0.02]] * 100_000}}))
     scene(folder / "long_material.json", {**BOX, "material": "x" * 2_000_000})
@@ -54,6 +61,21 @@ HOSTILE: list[tuple[list[str], str]] = [
     (["publish", "--scene", "pose_null.json", "--seconds", "0.1", "--to", "127.0.0.1:9"], r"'vehicle_pose' = None"),
     (["scan", "--scene", "pose_far.json", "--seconds", "0.1", "--out", "s.ply"], r"a position beyond 1e\+07 m"),
     (["scan", "--scene", "pose_text.json", "--seconds", "0.1", "--out", "s.ply"], r"'up'\]: allowed"),
+    # 4: the reference overlay's rate checked as compare checks it, and its windows against the window's budget
+    (["render", "--reference", "short.npy", "--reference-rate", "1e12", "--seconds", "0.1", "--out", "r.png"],
+     r"--reference short.npy: the table holds 5e-08 s at 1e\+12 rows/s \(--reference-rate\); allowed: at least 0.05 s"),
+    (["gui", "--reference", "short.npy", "--reference-rate", "1e9", "--seconds", "0.1"], r"holds 5e-05 s at 1e\+09"),
+    (["render", "--reference", "ref.npy", "--reference-rate", "3e6", "--seconds", "0.1", "--out", "r.png"],
+     r"--reference ref.npy at 3e\+06 rows/s \(--reference-rate\): the overlay's 2 s window asks for 6,000,000 "
+     r"points; allowed: at most 4,000,000$"),
+    (["render", "--reference", "ref.npy", "--reference-rate", "1e8", "--seconds", "0.1", "--out", "r.png"],
+     r"the table holds 0.004 s at 1e\+08 rows/s"),
+    (["render", "--reference", "huge.json", "--seconds", "0.1", "--out", "r.png"],
+     r"--reference huge.json at 1e\+10 rows/s: the overlay's 0.1 s window asks for 1,000,000,000 points"),
+    # 15: --reference-rate alone, or with a preset (which plays at its own rate)
+    (["render", "--reference-rate", "5", "--seconds", "0.1", "--out", "r.png"], r"--reference-rate without --ref"),
+    (["gui", "--reference", "livox_mid70_risley", "--reference-rate", "5", "--seconds", "0.1"],
+     r"--reference-rate with the preset livox_mid70_risley; allowed: with a table"),
     # 5: every pose bounded as --pose is, and the sensor kept within the scene's 100 km span
     (["publish", "--trajectory", "huge.tum", "--seconds", "0.5", "--to", "127.0.0.1:9"],
      r"trajectory huge.tum: pose 1 \(t = 0 s\) is at 0, 1e\+300, -1 m; allowed: \|x\|, \|y\|, \|z\| <= 1e\+07 m"),

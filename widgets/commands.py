@@ -29,7 +29,7 @@ from livox_viz.cli.common import (
 from livox_viz.cli.signals import StopRequests, signal_name, signal_status
 from livox_viz.cli.wire_commands import add_receiver_arguments, open_receiver
 from livox_viz.core.errors import LivoxVizError, quoted
-from livox_viz.core.workload import check_points
+from livox_viz.core.workload import WINDOW_BUDGET, check_points
 from livox_viz.patterns.stream import points_before
 
 
@@ -53,8 +53,12 @@ def _session(args: argparse.Namespace, command: str):
                        "reference": getattr(args, "reference", None),
                        "reference_rate": getattr(args, "reference_rate", None)}
     session.display.scene_colour = args.scene_colour
-    if getattr(args, "reference", None):
+    if args.reference is None and args.reference_rate is not None:
+        raise UsageError("--reference-rate without --reference; allowed: with --reference TABLE (its rows per "
+                         "second)")
+    if args.reference is not None:
         source = reference_source(args.reference, args.reference_rate, args.seed)
+        _check_reference(source, args)
         if source.plane != config.pattern_plane:
             raise LivoxVizError(f"--reference {args.reference} is a {source.plane} pattern and "
                                 f"{config_label(args)} a {config.pattern_plane} one; allowed: a reference in the "
@@ -64,6 +68,27 @@ def _session(args: argparse.Namespace, command: str):
 
 
 GUI_FLIGHT_SECONDS = 120.0
+
+
+def _check_reference(source, args: argparse.Namespace) -> None:
+    """Refuse a reference the overlay cannot play, as ``compare`` does: a table shorter than compare's shortest
+    window, a rate given to a preset (which plays at its own), or one whose integration windows would hold more
+    than the window's budget (1e12 rows/s asked for 5.46 TiB)."""
+    from livox_viz.fitting.compare import COMPARE_TIMES
+
+    from .overlay import WINDOWS, TableSource, window_capacity, window_label
+
+    rate = f" at {source.rate:g} rows/s" + (" (--reference-rate)" if args.reference_rate is not None else "")
+    if isinstance(source, TableSource):
+        if source.table.seconds < min(COMPARE_TIMES):
+            raise UsageError(f"--reference {args.reference}: the table holds {source.table.seconds:.3g} s{rate}; "
+                             f"allowed: at least {min(COMPARE_TIMES):g} s")
+    elif args.reference_rate is not None:
+        raise UsageError(f"--reference-rate with the preset {args.reference}; allowed: with a table (a preset plays "
+                         "at its own point rate)")
+    for window in WINDOWS:
+        check_points(window_capacity(window, source.rate), f"--reference {args.reference}{rate}: the overlay's "
+                     f"{window_label(window)} window", WINDOW_BUDGET, can_force=False)
 
 
 def reference_source(text: str, rate: float, seed: int = 0):
