@@ -45,6 +45,10 @@ def write_inputs(folder: Path) -> None:
     table = np.load(shipped_table_dir() / "mid40.npy")
     np.save(folder / "ref.npy", table)
     np.save(folder / "short.npy", table[:50_000])
+    (folder / "blind.json").write_text(json.dumps(
+        {**SEED_JSON, "LivoxVizReturns": {"model": "datasheet", "blind_zone_m": 95}}))
+    (folder / "short_range.json").write_text(json.dumps(
+        {**SEED_JSON, "otherParams": [0.5, *SEED_JSON["otherParams"][1:]], "LivoxVizReturns": {"blind_zone_m": 1}}))
     (folder / "long_sigma.json").write_text(json.dumps(
         {**SEED_JSON, "LivoxVizReturns": {"range_sigma_m": [[20, 0.02]] * 100_000}}))
     scene(folder / "long_material.json", {**BOX, "material": "x" * 2_000_000})
@@ -76,6 +80,14 @@ HOSTILE: list[tuple[list[str], str]] = [
     (["render", "--reference-rate", "5", "--seconds", "0.1", "--out", "r.png"], r"--reference-rate without --ref"),
     (["gui", "--reference", "livox_mid70_risley", "--reference-rate", "5", "--seconds", "0.1"],
      r"--reference-rate with the preset livox_mid70_risley; allowed: with a table"),
+    # 12: a sheet whose blind zone hides everything it could detect
+    (["info", "--config", "blind.json"],
+     r"blind.json: LivoxVizReturns.blind_zone_m = 95 m is beyond the sheet's detection range of 90 m "
+     r"\(detection_range_m\); allowed: a blind zone nearer"),
+    (["scan", "--config", "blind.json", "--seconds", "0.1", "--out", "s.ply"], r"blind_zone_m = 95 m is beyond"),
+    (["scan", "--config", "short_range.json", "--returns", "datasheet", "--seconds", "0.1", "--out", "s.ply"],
+     r"LivoxVizReturns.blind_zone_m = 1 m reaches the range otherParams\[0\] = 0.5 m: a datasheet scan would "
+     r"return nothing; allowed"),
     # 5: every pose bounded as --pose is, and the sensor kept within the scene's 100 km span
     (["publish", "--trajectory", "huge.tum", "--seconds", "0.5", "--to", "127.0.0.1:9"],
      r"trajectory huge.tum: pose 1 \(t = 0 s\) is at 0, 1e\+300, -1 m; allowed: \|x\|, \|y\|, \|z\| <= 1e\+07 m"),

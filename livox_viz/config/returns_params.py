@@ -152,6 +152,11 @@ class ReturnParams:
         object.__setattr__(self, "return_separation_m",
                            _number("return_separation_m", self.return_separation_m, 0, 100, low_open=True))
         object.__setattr__(self, "detection_snr", _number("detection_snr", self.detection_snr, 1, 100))
+        nearest = min(r for _, r in detection)
+        if self.blind_zone_m > nearest:
+            raise ConfigError(f"{RETURNS_KEY}.blind_zone_m = {self.blind_zone_m:g} m is beyond the sheet's detection "
+                              f"range of {nearest:g} m (detection_range_m); allowed: a blind zone nearer than the "
+                              "nearest detection range (the sheet's dimmest target would never be seen)")
         if len(detection) == 2:
             # First: two figures at one range would divide the loss's log-ratio by zero.
             if (detection[1][0] - detection[0][0]) * (detection[1][1] - detection[0][1]) <= 0:

@@ -394,6 +394,11 @@ class SensorConfig:
         if self.track is not None and self.track.form == "spin" and (self.fov is None or self.fov.plane != "panorama"):
             raise ConfigError(f"a spin track ({TRACK_KEY}.form 'spin') turns all the way round; it needs a "
                               f'{FOV_KEY} band (e.g. {{"shape": "band", "elevation_deg": [-7, 52]}})')
+        if self.returns is not None and self.returns.model == "datasheet" and (
+                self.returns.blind_zone_m >= self.other_params[0]):
+            raise ConfigError(f"{RETURNS_KEY}.blind_zone_m = {self.returns.blind_zone_m:g} m reaches the range "
+                              f"otherParams[0] = {self.other_params[0]:g} m: a datasheet scan would return nothing; "
+                              "allowed: a blind zone nearer than the range")
         if self.euler_key not in (EULER_KEY_RFLYSIM, EULER_KEY_DOCUMENT):
             raise ConfigError(
                 f"euler_key = {quoted(self.euler_key)}; allowed: {EULER_KEY_RFLYSIM} or {EULER_KEY_DOCUMENT}"
