@@ -313,3 +313,37 @@ def test_every_mesh_format_counts_against_the_triangle_budget(tmp_path: Path, mo
     assert_one_line_error(tmp_path, ["render", "--scene", "two_balls.json", "--seconds", "0.05", "--out", "s.png"],
                           r"at most 600 in a scene$", capsys)
     assert main(["scan", "--scene", "two_balls.json", "--seconds", "0.05", "--out", "two.ply", "--force"]) == 0
+
+
+# 13: a stop signal while the program loads ----------------------------------------------------------------------
+SIGNAL_WHILE_IMPORTING = """
+import os, signal, sys
+
+class Trip:
+    '''Sends the signal to this process when {module} is first imported: the user's Ctrl-C in the start-up.'''
+
+    def find_spec(self, name, path=None, target=None):
+        if name == {module!r}:
+            sys.meta_path.remove(self)
+            os.kill(os.getpid(), signal.{signal})
+        return None
+
+sys.meta_path.insert(0, Trip())
+from livox_viz.cli import main  # as the console script livox-viz does
+sys.exit(main(["info"]))
+"""
+
+
+@pytest.mark.parametrize(("module", "signum", "status"), [
+    ("numpy", "SIGINT", 130), ("livox_viz.fitting.risley_fit", "SIGINT", 130),
+    ("livox_viz.cli.wire_commands", "SIGINT", 130),
+    ("livox_viz.config.sensor", "SIGTERM", 143), ("livox_viz.cli.program", "SIGHUP", 129)])
+def test_a_signal_while_the_program_loads_ends_it_quietly(tmp_path: Path, module: str, signum: str,
+                                                         status: int) -> None:
+    """Ctrl-C in the first 0.3 s (the imports) printed a KeyboardInterrupt traceback: the signals are now taken
+    before anything heavy is imported. Delivered by an import hook, exactly while the module loads."""
+    code = SIGNAL_WHILE_IMPORTING.format(module=module, signal=signum)
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert result.returncode == status, result.stderr[-2000:]
+    assert "Traceback" not in result.stderr and result.stdout == "", result.stderr[-2000:]
+    assert result.stderr.strip() in ("livox-viz: interrupted", f"livox-viz: stopped by {signum}"), result.stderr

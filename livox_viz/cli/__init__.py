@@ -5,123 +5,58 @@ theirs through the ``livox_viz.commands`` entry-point group: each entry point
 names a sequence of :class:`~livox_viz.cli.common.Command` rows (the model
 never names those packages). Every command exits 0 on success and 2 with a
 one-line ``livox-viz: error:`` message on bad input.
+
+This module imports nothing heavy: :func:`main` takes Ctrl-C, SIGTERM and SIGHUP
+first and only then loads the commands (:mod:`~livox_viz.cli.program`: numpy and
+the model), so a signal while they load ends the program quietly with 130 (143,
+129) instead of a traceback. The table's names are loaded on first use.
 """
 
 from __future__ import annotations
 
-import argparse
-import os
+import importlib
 import signal
 import sys
-from collections.abc import Iterable, Sequence
-from importlib.metadata import entry_points
+from collections.abc import Sequence
+from typing import Any
 
-from livox_viz.core.atomic import remove_unfinished
-from livox_viz.core.errors import LivoxVizError, bounded_message
-
-from . import fit_commands, pattern_commands, scan_commands, wire_commands
-from .common import PROG, Command, UsageError
 from .signals import Terminated, raise_stop, signal_name, signal_status, take_raised, take_signals
 
-ENTRY_POINT_GROUP = "livox_viz.commands"
-MODEL_COMMANDS: tuple[Command, ...] = (
-    *pattern_commands.COMMANDS, *scan_commands.COMMANDS, *fit_commands.COMMANDS, *wire_commands.COMMANDS,
-)
+PROG = "livox-viz"  # common.PROG, not imported from there: common loads the model
+#: Names of this package loaded on first use, and the module that holds each.
+_LAZY = {"ENTRY_POINT_GROUP": "program", "MODEL_COMMANDS": "program", "build_parser": "program",
+         "installed_commands": "program", "Command": "common", "UsageError": "common"}
 
 __all__ = ["ENTRY_POINT_GROUP", "MODEL_COMMANDS", "Command", "Terminated", "UsageError", "build_parser", "main"]
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse that exits 2 with a one-line message (argparse's own usage dump is long)."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {bounded_message(message)}\n")
-
-
-def installed_commands() -> list[Command]:
-    """The commands other installed packages register under :data:`ENTRY_POINT_GROUP`."""
-    found: list[Command] = []
-    for entry in entry_points(group=ENTRY_POINT_GROUP):
-        found.extend(entry.load())
-    return found
-
-
-def build_parser(commands: Iterable[Command]) -> argparse.ArgumentParser:
-    """The whole command line; each subcommand has ``--help`` with an example."""
-    parser = _Parser(
-        prog=PROG,
-        description="Visualise and tune the simulated Livox lidar of RflySim (TypeID 6).",
-        epilog="Run 'livox-viz COMMAND --help' for a command's options.",
-    )
-    parser.add_argument("--version", action="version", version=f"{PROG} {_version()}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    for command in commands:
-        child = sub.add_parser(
-            command.name, help=command.help, description=f"{command.help}\n\nexample:\n  {command.example}",
-            formatter_class=argparse.RawDescriptionHelpFormatter,
-        )
-        command.arguments(child)
-        child.set_defaults(handler=command.handler)
-    return parser
-
-
-def _version() -> str:
-    from .. import __version__
-
-    return __version__
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status.
 
     With no command (or only options), the installed default command runs
-    (the GUI's window, when the GUI package is installed).
+    (the GUI's window, when the GUI package is installed). Ctrl-C, SIGTERM and
+    SIGHUP unwind the command (a command that must keep what it has takes them
+    itself for a while, :class:`~livox_viz.cli.signals.StopRequests`); they are
+    taken before the commands are even loaded.
     """
-    argv = list(sys.argv[1:] if argv is None else argv)
-    commands = [*MODEL_COMMANDS, *installed_commands()]
-    parser = build_parser(commands)
-    default = next((c.name for c in commands if c.default), None)
-    names = {c.name for c in commands}
-    if default and not any(a in names or a in ("-h", "--help", "--version") for a in argv):
-        argv = [default, *argv]
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # argparse: --help, --version, or a usage error (status 2)
-        return int(exc.code or 0)
-    if args.command is None:
-        parser.print_help()
-        return 0
-    # A command that must keep what it has (listen --record, publish, the window) takes the signals
-    # itself for a while (signals.StopRequests); everything else unwinds and removes its temporaries.
+    take_raised()  # a signal an earlier run in this process noted is not this run's
     previous = take_signals(raise_stop)
-    take_raised()
     try:
-        status = int(args.handler(args) or 0)
-        swallowed = take_raised()
-        if swallowed is not None and status == 0:
-            # Raised during the start-up and swallowed by a library on its way: the command ran to its end.
-            print(f"{PROG}: {signal_name(swallowed)} arrived while starting and was lost in a library's import; "
-                  "the command had finished", file=sys.stderr)
-            return signal_status(swallowed)
-        return status
-    except LivoxVizError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
-    except BrokenPipeError:
-        # The reader of our output went away (``livox-viz info | head -3``): stop quietly, as a pipe's writer does.
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing left to flush at exit
-        return 128 + int(getattr(signal, "SIGPIPE", 13))  # Windows has no SIGPIPE: the shell's number all the same
-    except OSError as exc:
-        where = f"{exc.filename}: " if exc.filename else ""
-        print(f"{PROG}: error: {where}{exc.strerror or exc}", file=sys.stderr)
-        return 2
+        from .program import run
+
+        return run(argv)
     except KeyboardInterrupt:
-        remove_unfinished()  # what a signal between a temporary's creation and its writer's knowing of it left
+        # Ctrl-C while the program loaded or parsed its arguments (the command's own handling is in run()).
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
     except Terminated as exc:
-        remove_unfinished()
-        print(f"{PROG}: stopped by {exc}; unfinished files were removed", file=sys.stderr)
+        print(f"{PROG}: stopped by {signal_name(exc.signum)}", file=sys.stderr)
         return signal_status(exc.signum)
     finally:
         take_raised()

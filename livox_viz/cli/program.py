@@ -1,0 +1,122 @@
+"""The program behind ``livox-viz``: the command table, its parser and one run of a command.
+
+Imported by :func:`livox_viz.cli.main` once it has taken Ctrl-C, SIGTERM and SIGHUP: loading the commands
+loads numpy and the model (a few tenths of a second), and a signal in that time must end the program
+quietly, not with a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+from collections.abc import Iterable, Sequence
+from importlib.metadata import entry_points
+
+from livox_viz.core.atomic import remove_unfinished
+from livox_viz.core.errors import LivoxVizError, bounded_message
+
+from . import fit_commands, pattern_commands, scan_commands, wire_commands
+from .common import PROG, Command
+from .signals import Terminated, signal_name, signal_status, take_raised
+
+ENTRY_POINT_GROUP = "livox_viz.commands"
+MODEL_COMMANDS: tuple[Command, ...] = (
+    *pattern_commands.COMMANDS, *scan_commands.COMMANDS, *fit_commands.COMMANDS, *wire_commands.COMMANDS,
+)
+
+__all__ = ["ENTRY_POINT_GROUP", "MODEL_COMMANDS", "build_parser", "installed_commands", "run"]
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that exits 2 with a one-line message (argparse's own usage dump is long)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {bounded_message(message)}\n")
+
+
+def installed_commands() -> list[Command]:
+    """The commands other installed packages register under :data:`ENTRY_POINT_GROUP`."""
+    found: list[Command] = []
+    for entry in entry_points(group=ENTRY_POINT_GROUP):
+        found.extend(entry.load())
+    return found
+
+
+def build_parser(commands: Iterable[Command]) -> argparse.ArgumentParser:
+    """The whole command line; each subcommand has ``--help`` with an example."""
+    parser = _Parser(
+        prog=PROG,
+        description="Visualise and tune the simulated Livox lidar of RflySim (TypeID 6).",
+        epilog="Run 'livox-viz COMMAND --help' for a command's options.",
+    )
+    parser.add_argument("--version", action="version", version=f"{PROG} {_version()}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for command in commands:
+        child = sub.add_parser(
+            command.name, help=command.help, description=f"{command.help}\n\nexample:\n  {command.example}",
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        command.arguments(child)
+        child.set_defaults(handler=command.handler)
+    return parser
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return __version__
+
+
+def run(argv: Sequence[str] | None = None) -> int:
+    """Parse ``argv`` and run the command it names; returns the exit status (see :func:`livox_viz.cli.main`,
+    which has taken the stop signals already).
+
+    With no command (or only options), the installed default command runs
+    (the GUI's window, when the GUI package is installed).
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    commands = [*MODEL_COMMANDS, *installed_commands()]
+    parser = build_parser(commands)
+    default = next((c.name for c in commands if c.default), None)
+    names = {c.name for c in commands}
+    if default and not any(a in names or a in ("-h", "--help", "--version") for a in argv):
+        argv = [default, *argv]
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help, --version, or a usage error (status 2)
+        return int(exc.code or 0)
+    if args.command is None:
+        parser.print_help()
+        return 0
+    try:
+        status = int(args.handler(args) or 0)
+        swallowed = take_raised()
+        if swallowed is not None and status == 0:
+            # Raised during the start-up and swallowed by a library on its way: the command ran to its end.
+            print(f"{PROG}: {signal_name(swallowed)} arrived while starting and was lost in a library's import; "
+                  "the command had finished", file=sys.stderr)
+            return signal_status(swallowed)
+        return status
+    except LivoxVizError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:
+        # The reader of our output went away (``livox-viz info | head -3``): stop quietly, as a pipe's writer does.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing left to flush at exit
+        return 128 + int(getattr(signal, "SIGPIPE", 13))  # Windows has no SIGPIPE: the shell's number all the same
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"{PROG}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        remove_unfinished()  # what a signal between a temporary's creation and its writer's knowing of it left
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+    except Terminated as exc:
+        remove_unfinished()
+        print(f"{PROG}: stopped by {exc}; unfinished files were removed", file=sys.stderr)
+        return signal_status(exc.signum)
+
+
