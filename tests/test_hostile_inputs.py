@@ -49,6 +49,7 @@ def write_inputs(folder: Path) -> None:
         {**SEED_JSON, "LivoxVizReturns": {"model": "datasheet", "blind_zone_m": 95}}))
     (folder / "short_range.json").write_text(json.dumps(
         {**SEED_JSON, "otherParams": [0.5, *SEED_JSON["otherParams"][1:]], "LivoxVizReturns": {"blind_zone_m": 1}}))
+    (folder / "underscore.tum").write_text("# t x y z qx qy qz qw\n0 0 0 -1 0 0 0 1\n1 0 0 -1_5 0 0 0 1\n")
     (folder / "long_sigma.json").write_text(json.dumps(
         {**SEED_JSON, "LivoxVizReturns": {"range_sigma_m": [[20, 0.02]] * 100_000}}))
     scene(folder / "long_material.json", {**BOX, "material": "x" * 2_000_000})
@@ -88,6 +89,9 @@ HOSTILE: list[tuple[list[str], str]] = [
     (["scan", "--config", "short_range.json", "--returns", "datasheet", "--seconds", "0.1", "--out", "s.ply"],
      r"LivoxVizReturns.blind_zone_m = 1 m reaches the range otherParams\[0\] = 0.5 m: a datasheet scan would "
      r"return nothing; allowed"),
+    # 14: the TUM line and word that do not parse
+    (["scan", "--trajectory", "underscore.tum", "--seconds", "0.5", "--out", "s.ply"],
+     r"underscore.tum: line 3: '-1_5' is not a number; allowed: 8 decimal numbers t x y z qx qy qz qw$"),
     # 5: every pose bounded as --pose is, and the sensor kept within the scene's 100 km span
     (["publish", "--trajectory", "huge.tum", "--seconds", "0.5", "--to", "127.0.0.1:9"],
      r"trajectory huge.tum: pose 1 \(t = 0 s\) is at 0, 1e\+300, -1 m; allowed: \|x\|, \|y\|, \|z\| <= 1e\+07 m"),
@@ -347,3 +351,18 @@ def test_a_signal_while_the_program_loads_ends_it_quietly(tmp_path: Path, module
     assert result.returncode == status, result.stderr[-2000:]
     assert "Traceback" not in result.stderr and result.stdout == "", result.stderr[-2000:]
     assert result.stderr.strip() in ("livox-viz: interrupted", f"livox-viz: stopped by {signum}"), result.stderr
+
+
+def test_a_tum_file_starting_with_a_byte_order_mark_is_read(tmp_path: Path) -> None:
+    """Windows' Notepad starts a UTF-8 file with a BOM; the CSV tables accepted one, the TUM reader did not."""
+    from livox_viz.motion.tum import load_tum
+
+    text = "# t x y z qx qy qz qw\n" + "".join(f"{t} {t} 0 -2 0 0 0 1\n" for t in range(5))
+    (tmp_path / "plain.tum").write_text(text)
+    (tmp_path / "bom.tum").write_bytes(b"\xef\xbb\xbf" + text.encode())
+    (tmp_path / "bom_pose.tum").write_bytes(b"\xef\xbb\xbf" + text.split("\n", 1)[1].encode())
+    plain = load_tum(tmp_path / "plain.tum")
+    for name in ("bom.tum", "bom_pose.tum"):
+        read = load_tum(tmp_path / name, start=0.0, stop=2.0)
+        np.testing.assert_array_equal(read.t, plain.t)
+        np.testing.assert_array_equal(read.position, plain.position)

@@ -148,7 +148,7 @@ def test_tum_round_trip_and_errors(tmp_path: Path) -> None:
     for text, message in [("0 0 0 0 0 0 0 1\n", "at least 2"), ("# c\n0 0 0 0 0 0 0 1\n1 0 0\n", "line 3 has 3"),
                           ("0 0 0 0 0 0 0 1\n0 1 0 0 0 0 0 1\n", "time goes back"),
                           ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 0\n", "unit quaternion"),
-                          ("0 0 0 0 0 0 0 1\n1 x 0 0 0 0 0 1\n", "line 2 is not numeric"),
+                          ("0 0 0 0 0 0 0 1\n1 x 0 0 0 0 0 1\n", "line 2: 'x' is not a number"),
                           ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 1 0\n", "turns 180 degrees between poses 1 and 2"),
                           ("0 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1\n" + "x" * 1200 + "\n", "line 3 is longer than 1000")]:
         path.write_text(text)

@@ -14,8 +14,10 @@ and a line may be at most :data:`MAX_LINE_CHARS` characters.
 
 from __future__ import annotations
 
+import codecs
 import io
 import os
+import re
 import warnings
 from pathlib import Path
 
@@ -31,6 +33,8 @@ MARGIN_POSES = 64
 #: Characters in one line, at most.
 MAX_LINE_CHARS = 1000
 _BLOCK_BYTES = 1 << 20
+#: A number as numpy's text parser reads it (no digit separators, no hexadecimal).
+_NUMBER = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf(?:inity)?|nan)", re.IGNORECASE)
 
 
 def load_tum(path: str | os.PathLike[str], start: float | None = None, stop: float | None = None) -> Trajectory:
@@ -61,6 +65,8 @@ def load_tum(path: str | os.PathLike[str], start: float | None = None, stop: flo
     with open(path, "rb") as handle:
         while after < MARGIN_POSES:
             block = handle.read(_BLOCK_BYTES)
+            if handle.tell() == len(block):  # the first block: a UTF-8 byte-order mark (Windows' Notepad) goes
+                block = block.removeprefix(codecs.BOM_UTF8)
             if not block and not rest:
                 break
             lines = (rest + block).split(b"\n")
@@ -123,11 +129,12 @@ def _parse_lines(path: Path, lines: list[bytes], first_line: int) -> np.ndarray:
         number = first_line + offset + 1
         if len(words) != 8:
             raise LivoxVizError(f"{path}: line {number} has {len(words)} values; allowed: 8 (t x y z qx qy qz qw)")
-        try:
-            [float(w) for w in words]
-        except ValueError:
-            raise LivoxVizError(f"{path}: line {number} is not numeric: {quoted(line.strip()[:60])}") from None
-    raise LivoxVizError(f"{path}: lines {first_line + 1} to {first_line + len(lines)} do not parse as TUM poses")
+        bad = next((word for word in words if not _NUMBER.fullmatch(word)), None)
+        if bad is not None:  # Python's float() takes "1_5" and " 1e5 ", numpy's parser neither: say which word
+            raise LivoxVizError(f"{path}: line {number}: {quoted(bad)} is not a number; allowed: 8 decimal numbers "
+                                "t x y z qx qy qz qw")
+    raise LivoxVizError(f"{path}: lines {first_line + 1} to {first_line + len(lines)} do not parse as TUM poses "
+                        "(t x y z qx qy qz qw per line)")
 
 
 def save_tum(trajectory: Trajectory, path: str | os.PathLike[str]) -> None:
