@@ -223,12 +223,12 @@ import os, signal, sys
 import livox_viz.cli.scan_commands as commands
 from livox_viz.cli import main
 real = commands.scene_from_args
-def swallowing(args):
+def swallowing(args, *rest):
     try:  # as trimesh imports its optional dependencies: under except BaseException
         os.kill(os.getpid(), signal.SIGTERM)
     except BaseException:
         pass
-    return real(args)
+    return real(args, *rest)
 commands.scene_from_args = swallowing
 sys.exit(main(sys.argv[1:]))
 """

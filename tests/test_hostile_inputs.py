@@ -92,6 +92,21 @@ HOSTILE: list[tuple[list[str], str]] = [
     # 14: the TUM line and word that do not parse
     (["scan", "--trajectory", "underscore.tum", "--seconds", "0.5", "--out", "s.ply"],
      r"underscore.tum: line 3: '-1_5' is not a number; allowed: 8 decimal numbers t x y z qx qy qz qw$"),
+    # 15: options that were accepted and did nothing
+    (["scan", "--reflectance", "0.5", "--seconds", "0.1", "--out", "s.ply"],
+     r"--reflectance with ideal returns \(the configuration's own, or --returns ideal\); allowed: with --returns "
+     r"datasheet"),
+    (["render", "--reflectance", "0.5", "--returns", "ideal", "--seconds", "0.1", "--out", "s.png"],
+     r"--reflectance with ideal returns"),
+    (["publish", "--reflectance", "0.5", "--seconds", "0.1", "--to", "127.0.0.1:9"], r"--reflectance with ideal"),
+    (["scan", "--trajectory", "", "--seconds", "0.1", "--out", "s.ply"],
+     r"--trajectory '': empty; allowed: a value, or leave the option out for its default$"),
+    (["compare", "mid70", "--plot", ""], r"--plot '': empty"),
+    (["compare", " "], r"REFERENCE ' ': empty; allowed: a value$"),
+    (["info", "--config", ""], r"--config '': empty"),
+    (["scan", "--seconds", "0.1", "--rosbag", "bag", "--ros-names", "lidar=/a,imu=/i,lidar=/b"],
+     r"--ros-names gives lidar twice \('/a' and '/b'\); allowed: each name once"),
+    (["scan", "--seconds", "0.1", "--out", "s.ply", "--ros-names", "lidar=/a"], r"--ros-names without --rosbag"),
     # 5: every pose bounded as --pose is, and the sensor kept within the scene's 100 km span
     (["publish", "--trajectory", "huge.tum", "--seconds", "0.5", "--to", "127.0.0.1:9"],
      r"trajectory huge.tum: pose 1 \(t = 0 s\) is at 0, 1e\+300, -1 m; allowed: \|x\|, \|y\|, \|z\| <= 1e\+07 m"),

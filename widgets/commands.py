@@ -24,6 +24,7 @@ from livox_viz.cli.common import (
     config_label,
     positive_float,
     scene_from_args,
+    scene_reflectance,
     trajectory_from_args,
 )
 from livox_viz.cli.signals import StopRequests, signal_name, signal_status
@@ -42,13 +43,13 @@ def _session(args: argparse.Namespace, command: str):
     # them: the scan's budget, checked before any of it.
     check_points(points_before(args.seconds, config.point_rate), f"{command} --seconds {args.seconds:g}",
                  can_force=False)
-    scene, pose, caster = scene_from_args(args)
+    scene, pose, caster = scene_from_args(args, config if command == "render" else None)  # gui: `d` switches
     # The window plays on: a built-in flight lasts two minutes, or the render's seconds.
     trajectory = trajectory_from_args(args, pose, max(args.seconds, GUI_FLIGHT_SECONDS), whole_file=True)
     session = Session(config, scene, seed=args.seed, preset_name=config_label(args), vehicle_pose=pose,
                       caster=caster, trajectory=trajectory)
-    session.scene_options = {"up": args.up, "reflectance": args.reflectance}
-    session.sources = {"scene": args.scene, "up": args.up, "reflectance": args.reflectance, "pose": args.pose,
+    session.scene_options = {"up": args.up, "reflectance": scene_reflectance(args)}
+    session.sources = {"scene": args.scene, "up": args.up, "reflectance": scene_reflectance(args), "pose": args.pose,
                        "exact": args.exact, "trajectory": args.trajectory, "trajectory_speed": args.trajectory_speed,
                        "reference": getattr(args, "reference", None),
                        "reference_rate": getattr(args, "reference_rate", None)}

@@ -174,21 +174,35 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--exact", action="store_true",
                         help="recompute every range in float64 from its triangle's plane (about 10 %% slower; "
                              "the default float32 ranges are good to 1e-7 of the scene's size)")
-    parser.add_argument("--reflectance", type=reflectance_value, default=DEFAULT_REFLECTANCE,
+    parser.add_argument("--reflectance", type=reflectance_value,
                         help="Lambertian reflectance 0-1 of surfaces without a material of their own (mesh files "
                              "without a sidecar or colours, scene objects without one); default "
-                             f"{DEFAULT_REFLECTANCE:g}, about dry concrete at 905 nm")
+                             f"{DEFAULT_REFLECTANCE:g}, about dry concrete at 905 nm; with datasheet returns only "
+                             "(ideal points carry no reflectivity)")
 
 
-def scene_from_args(args: argparse.Namespace):
-    """The :class:`~livox_viz.scene.scenes.Scene`, vehicle :class:`~livox_viz.core.poses.Pose` and ray caster named."""
+def scene_reflectance(args: argparse.Namespace) -> float:
+    """``--reflectance``, or the default for surfaces without a material of their own."""
+    value = getattr(args, "reflectance", None)
+    return DEFAULT_REFLECTANCE if value is None else value
+
+
+def scene_from_args(args: argparse.Namespace, config: SensorConfig | None = None):
+    """The :class:`~livox_viz.scene.scenes.Scene`, vehicle :class:`~livox_viz.core.poses.Pose` and ray caster named.
+
+    With the ``config`` the command scans with, ``--reflectance`` is refused where its returns are ideal (its
+    points carry no reflectivity: the value would be ignored); the window, which switches models, passes none.
+    """
     from livox_viz.scene.raycast import EmbreeCaster
     from livox_viz.scene.scenes import open_scene
 
+    if config is not None and getattr(args, "reflectance", None) is not None and config.returns_model == "ideal":
+        raise UsageError("--reflectance with ideal returns (the configuration's own, or --returns ideal); allowed: "
+                         "with --returns datasheet (ideal points carry no reflectivity, so it would change nothing)")
+
     # The scene's triangles are budgeted as it is read (--force lifts it where the command has --force).
     budget = TriangleBudget(force=getattr(args, "force", False), can_force=hasattr(args, "force"))
-    scene = open_scene(args.scene, up=args.up, reflectance=getattr(args, "reflectance", DEFAULT_REFLECTANCE),
-                       triangles=budget)
+    scene = open_scene(args.scene, up=args.up, reflectance=scene_reflectance(args), triangles=budget)
     pose = Pose.parse(args.pose) if args.pose else scene.vehicle_pose
     return scene, pose, EmbreeCaster(scene.mesh, exact=getattr(args, "exact", False))
 

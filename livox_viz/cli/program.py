@@ -18,7 +18,7 @@ from livox_viz.core.atomic import remove_unfinished
 from livox_viz.core.errors import LivoxVizError, bounded_message
 
 from . import fit_commands, pattern_commands, scan_commands, wire_commands
-from .common import PROG, Command
+from .common import PROG, Command, UsageError
 from .signals import Terminated, signal_name, signal_status, take_raised
 
 ENTRY_POINT_GROUP = "livox_viz.commands"
@@ -59,7 +59,9 @@ def build_parser(commands: Iterable[Command]) -> argparse.ArgumentParser:
             formatter_class=argparse.RawDescriptionHelpFormatter,
         )
         command.arguments(child)
-        child.set_defaults(handler=command.handler)
+        # Which of the namespace's names are positional arguments, for messages (argparse keeps no public list).
+        child.set_defaults(handler=command.handler,
+                           positionals=tuple(action.dest for action in child._actions if not action.option_strings))
     return parser
 
 
@@ -67,6 +69,17 @@ def _version() -> str:
     from .. import __version__
 
     return __version__
+
+
+def _refuse_empty_values(args: argparse.Namespace) -> None:
+    """An option given an empty text was taken for one left out (``--trajectory ""`` scanned standing still,
+    ``compare --plot ""`` drew nothing, ``--config ""`` read the default preset): refuse it instead."""
+    for name, value in vars(args).items():
+        if isinstance(value, str) and not value.strip() and name != "command":
+            if name in args.positionals:
+                raise UsageError(f"{name.upper()} {value!r}: empty; allowed: a value")
+            raise UsageError(f"--{name.replace('_', '-')} {value!r}: empty; allowed: a value, or leave the option "
+                             "out for its default")
 
 
 def run(argv: Sequence[str] | None = None) -> int:
@@ -91,6 +104,7 @@ def run(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 0
     try:
+        _refuse_empty_values(args)
         status = int(args.handler(args) or 0)
         swallowed = take_raised()
         if swallowed is not None and status == 0:

@@ -49,8 +49,10 @@ def cmd_scan(args: argparse.Namespace) -> int:
 
         check_bag_path(args.rosbag, out)
         RosNames.parse(args.ros_names or "")
+    elif args.ros_names is not None:
+        raise UsageError("--ros-names without --rosbag; allowed: with --rosbag DIR (the names are the bag's)")
     check_points(points_before(args.seconds, cfg.point_rate), f"scan --seconds {args.seconds:g}", force=args.force)
-    scene, pose, caster = scene_from_args(args)
+    scene, pose, caster = scene_from_args(args, cfg)
     trajectory = trajectory_from_args(args, pose, args.seconds)
     if trajectory is not None:
         trajectory.check_covers(0.0, args.seconds)

@@ -120,7 +120,7 @@ def cmd_publish(args: argparse.Namespace) -> int:
     seconds = _publish_seconds(args)
     if seconds is not None:
         check_points(seconds * cfg.point_rate, f"publish --seconds {seconds:g}", force=args.force)
-    _, pose, caster = scene_from_args(args)
+    _, pose, caster = scene_from_args(args, cfg)
     trajectory = trajectory_from_args(args, pose, seconds)
     if trajectory is not None and seconds is not None:
         trajectory.check_covers(0.0, seconds)

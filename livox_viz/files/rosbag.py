@@ -128,6 +128,9 @@ class RosNames:
             if key not in cls.__dataclass_fields__ or not value:
                 raise LivoxVizError(f"--ros-names {quoted(part)}; allowed: NAME=VALUE with NAME one of "
                                     f"{', '.join(cls.__dataclass_fields__)}")
+            if key in values:
+                raise LivoxVizError(f"--ros-names gives {key} twice ({quoted(values[key])} and {quoted(value)}); "
+                                    "allowed: each name once")
             values[key] = value
         return cls(**values)
 
