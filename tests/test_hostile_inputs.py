@@ -50,6 +50,8 @@ def write_inputs(folder: Path) -> None:
     (folder / "short_range.json").write_text(json.dumps(
         {**SEED_JSON, "otherParams": [0.5, *SEED_JSON["otherParams"][1:]], "LivoxVizReturns": {"blind_zone_m": 1}}))
     (folder / "underscore.tum").write_text("# t x y z qx qy qz qw\n0 0 0 -1 0 0 0 1\n1 0 0 -1_5 0 0 0 1\n")
+    (folder / "wall.obj").write_text("o wall\nv 5 -1 -1\nv 5 1 -1\nv 5 0 1\nf 1 2 3\n")
+    scene(folder / "up_list.json", {"type": "mesh", "path": "wall.obj", "up": ["z"]})
     (folder / "long_sigma.json").write_text(json.dumps(
         {**SEED_JSON, "LivoxVizReturns": {"range_sigma_m": [[20, 0.02]] * 100_000}}))
     scene(folder / "long_material.json", {**BOX, "material": "x" * 2_000_000})
@@ -107,6 +109,10 @@ HOSTILE: list[tuple[list[str], str]] = [
     (["scan", "--seconds", "0.1", "--rosbag", "bag", "--ros-names", "lidar=/a,imu=/i,lidar=/b"],
      r"--ros-names gives lidar twice \('/a' and '/b'\); allowed: each name once"),
     (["scan", "--seconds", "0.1", "--out", "s.ply", "--ros-names", "lidar=/a"], r"--ros-names without --rosbag"),
+    # 18: messages that named the wrong thing
+    (["render", "--out", "", "--seconds", "0.1"], r"--out '': empty; allowed: a value"),
+    (["scan", "--scene", "up_list.json", "--seconds", "0.1", "--out", "s.ply"],
+     r"object 0 \(mesh\): 'up' = \['z'\]; allowed: 'z' or 'y'$"),
     # 5: every pose bounded as --pose is, and the sensor kept within the scene's 100 km span
     (["publish", "--trajectory", "huge.tum", "--seconds", "0.5", "--to", "127.0.0.1:9"],
      r"trajectory huge.tum: pose 1 \(t = 0 s\) is at 0, 1e\+300, -1 m; allowed: \|x\|, \|y\|, \|z\| <= 1e\+07 m"),
@@ -381,3 +387,11 @@ def test_a_tum_file_starting_with_a_byte_order_mark_is_read(tmp_path: Path) -> N
         read = load_tum(tmp_path / name, start=0.0, stop=2.0)
         np.testing.assert_array_equal(read.t, plain.t)
         np.testing.assert_array_equal(read.position, plain.position)
+
+
+def test_an_empty_output_path_is_named_as_such() -> None:
+    """``Path("")`` is ``.``: the check said "'.': is a folder"."""
+    from livox_viz.cli.common import UsageError, check_output_path
+
+    with pytest.raises(UsageError, match=r"^an empty file name; allowed: a file name ending in .png$"):
+        check_output_path("", (".png",))

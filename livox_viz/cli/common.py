@@ -272,6 +272,8 @@ def check_output_path(path: str | Path, suffixes: tuple[str, ...]) -> Path:
     suffixes : tuple of str
         The allowed endings, e.g. ``(".ply", ".npz")``.
     """
+    if not str(path).strip():  # Path("") is ".", a folder: the message would name the current folder
+        raise UsageError(f"an empty file name; allowed: a file name ending in {', '.join(suffixes)}")
     out = Path(path)
     if out.is_dir():
         raise UsageError(f"{out}: is a folder; allowed: a file name ending in {', '.join(suffixes)}")

@@ -420,7 +420,10 @@ def _primitive(obj: Any, index: int, folder: Path, triangles: TriangleBudget) ->
     where = f"object {index} ({kind})"
     if kind == "mesh":
         names = obj.get("materials")
-        mesh = load_mesh_file(_mesh_path(obj, folder, where), str(obj.get("up", "z")), None,
+        up = obj.get("up", "z")
+        if not isinstance(up, str) or up not in UP_AXES:
+            raise LivoxVizError(f"{where}: 'up' = {quoted(up)}; allowed: {' or '.join(map(repr, UP_AXES))}")
+        mesh = load_mesh_file(_mesh_path(obj, folder, where), up, None,
                               None if names is None else MaterialMap.from_json(names, f"{where} materials"),
                               triangles)
         mesh.apply_translation(_vector(obj, "center", 3, where) if "center" in obj else np.zeros(3))
