@@ -113,6 +113,14 @@ HOSTILE: list[tuple[list[str], str]] = [
     (["render", "--out", "", "--seconds", "0.1"], r"--out '': empty; allowed: a value"),
     (["scan", "--scene", "up_list.json", "--seconds", "0.1", "--out", "s.ply"],
      r"object 0 \(mesh\): 'up' = \['z'\]; allowed: 'z' or 'y'$"),
+    # 16: a count that saturated is no count; coverage refuses a time with no point, as scan does
+    (["scan", "--seconds", "1e308", "--out", "s.ply", "--force"],
+     r"scan --seconds 1e\+308 asks for more points than any run could make \(2\*\*62 or more\); allowed: at most "
+     r"100,000,000$"),
+    (["coverage", "--seconds", "0.1,1e-300"],
+     r"an integration time of 1e-300 s holds no point; allowed: at least one point's time"),
+    (["coverage", "--seconds", "1e308"], r"1e\+308 s asks for more points than any run could make"),
+    (["coverage", "--seconds", "1e5"], r"of 100000 s asks for 10,000,000,000 points; allowed: at most 200,000,000$"),
     # 5: every pose bounded as --pose is, and the sensor kept within the scene's 100 km span
     (["publish", "--trajectory", "huge.tum", "--seconds", "0.5", "--to", "127.0.0.1:9"],
      r"trajectory huge.tum: pose 1 \(t = 0 s\) is at 0, 1e\+300, -1 m; allowed: \|x\|, \|y\|, \|z\| <= 1e\+07 m"),

@@ -23,6 +23,9 @@ from livox_viz.core.errors import LivoxVizError
 POINT_BUDGET = 100_000_000
 #: Points the GUI's integration window may hold (about 256 MiB of point rings).
 WINDOW_BUDGET = 4_000_000
+#: The largest count of points anything here computes (``points_before`` saturates there: ``--seconds 1e308`` is
+#: this many points, far past every budget, not an integer that overflows). Never a real count.
+MOST_POINTS = 2**62
 #: Triangles a scene may hold without ``--force`` (about 4 GiB to cast into with the datasheet returns).
 TRIANGLE_BUDGET = 4_000_000
 #: Memory a triangle of the scene costs a scan, bytes, about: the mesh, Embree's float32 copy and BVH, the
@@ -50,6 +53,9 @@ def check_points(points: float, what: str, budget: int = POINT_BUDGET, force: bo
     """
     if not points >= 1:
         raise LivoxVizError(f"{what} holds no point; allowed: at least one point's time (1 / the point rate)")
+    if points >= MOST_POINTS:  # a saturated count is no count: say what it means, even with --force
+        raise LivoxVizError(f"{what} asks for more points than any run could make (2**62 or more); allowed: at "
+                            f"most {budget:,}")
     if points > budget and not force:
         hint = "; pass --force to go on anyway" if budget == POINT_BUDGET and can_force else ""
         raise LivoxVizError(f"{what} asks for {points:,.0f} points; allowed: at most {budget:,}{hint}")

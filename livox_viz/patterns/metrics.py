@@ -27,10 +27,13 @@ import numpy as np
 from livox_viz.config.fov import FieldOfView
 from livox_viz.config.sensor import SensorConfig
 from livox_viz.core.errors import LivoxVizError, quoted
+from livox_viz.core.workload import check_points
 from livox_viz.patterns.factory import make_pattern
 from livox_viz.patterns.stream import points_before
 
 LIVOX_CELL_DEG = math.degrees(0.005)
+#: Points :func:`pattern_coverage` draws at most (the pattern is streamed; only its time is bounded).
+COVERAGE_BUDGET = 200_000_000
 #: Points whose cells :meth:`CoverageGrid.cell_index` finds at once.
 _CELL_BLOCK = 65_536
 
@@ -242,8 +245,9 @@ def pattern_coverage(
     if times.size == 0 or not np.all(np.isfinite(times)) or np.any(times <= 0):
         raise LivoxVizError(f"integration times {quoted(list(seconds))}; allowed: numbers > 0 seconds")
     counts = points_before(times, config.point_rate)
-    if counts.max() > 200_000_000:
-        raise LivoxVizError(f"{times.max():g} s is {counts.max():,} points; allowed: at most 200 million")
+    # As the scan refuses them: a time that holds no point (1e-300 s printed 0.00 %), or too many.
+    for count, seconds_asked in ((counts.min(), times.min()), (counts.max(), times.max())):
+        check_points(int(count), f"an integration time of {seconds_asked:g} s", COVERAGE_BUDGET, can_force=False)
     grid = _grid(config.field_of_view, cell_deg)
     pattern = make_pattern(config, seed)
     seen = np.zeros(grid.inside_mask.size, dtype=bool)

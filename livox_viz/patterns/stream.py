@@ -19,10 +19,11 @@ import numpy as np
 
 from livox_viz.config.sensor import SERIES_MODELS, SensorConfig
 from livox_viz.core.buffers import RecycledBlocks
+from livox_viz.core.workload import MOST_POINTS as WORKLOAD_MOST_POINTS
 
 #: The largest count :func:`points_before` gives: a longer time is that many points (far past any budget), not an
-#: integer that overflows (``--seconds 1e308``).
-MOST_POINTS = 2**62
+#: integer that overflows (``--seconds 1e308``); :func:`~livox_viz.core.workload.check_points` refuses it as such.
+MOST_POINTS = WORKLOAD_MOST_POINTS
 
 
 def points_before(seconds, rate: float):
