@@ -284,18 +284,30 @@ def test_a_built_in_flight_cruises_at_the_speed_asked(name: str) -> None:
     assert speed.sum() * 0.01 == pytest.approx(6.0 * (20.0 - RAMP_SECONDS), rel=0.001)
 
 
-def test_the_figure8_is_flown_by_arc_length_along_gerono_lemniscate() -> None:
-    """The lemniscate's parameter after s metres, checked against its arc length integrated independently."""
+def test_the_figure8_is_flown_by_arc_length_along_bernoulli_lemniscate() -> None:
+    """The lemniscate's parameter after s metres, checked against its arc length integrated independently from
+    its points' derivatives (finite differences of figure8_point, not the analytic speed the code integrates);
+    its heading is the direction of those differences."""
     from scipy.integrate import quad
 
-    from livox_viz.motion.flights import figure8_parameter
+    from livox_viz.motion.flights import figure8_parameter, figure8_point
 
-    a = 10.0
+    a = 16.0
     s = np.array([0.0, 3.7, 21.0, 48.5, 130.0])
     u = figure8_parameter(s, a)
-    flown = [quad(lambda v: a * np.hypot(np.cos(v), np.cos(2.0 * v)), 0.0, end, limit=200)[0] for end in u]
-    np.testing.assert_allclose(flown, s, rtol=1e-9, atol=1e-9)
+
+    def speed(v: float, h: float = 1e-6) -> float:
+        ahead, behind = figure8_point(np.array([v + h]), a), figure8_point(np.array([v - h]), a)
+        return float(np.hypot(ahead[0] - behind[0], ahead[1] - behind[1])[0] / (2 * h))
+
+    flown = [quad(speed, 0.0, end, limit=200)[0] for end in u]
+    np.testing.assert_allclose(flown, s, rtol=1e-7, atol=1e-7)
     assert np.all(np.diff(u) > 0)
+    v = np.linspace(0.0, 2 * np.pi, 2001)
+    x, y, heading = figure8_point(v, a)
+    np.testing.assert_allclose(np.cos(heading[1:-1]), np.gradient(x, v)[1:-1] / np.hypot(np.gradient(x, v),
+                                                                                          np.gradient(y, v))[1:-1],
+                               atol=1e-4)
 
 
 # Reference tables and the pattern factory -------------------------------------------------------------------

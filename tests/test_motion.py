@@ -314,8 +314,8 @@ def test_a_pose_looking_straight_up_or_down_survives_rounding(sign: float) -> No
 
 
 def test_the_built_in_circle_and_figure8_have_the_sizes_the_readme_gives() -> None:
-    """README: `circle` (15 m) and `figure8` (20 m): the circle's points lie 15 m from one centre, the figure-8
-    spans 20 m along its axis."""
+    """README: `circle` (15 m) and `figure8` (32 m): the circle's points lie 15 m from one centre, the figure-8
+    spans 32 m along its axis and 11.3 m across."""
     from livox_viz.core.poses import Pose
     from livox_viz.motion.flights import builtin_trajectory
 
@@ -329,7 +329,24 @@ def test_the_built_in_circle_and_figure8_have_the_sizes_the_readme_gives() -> No
         (a @ a * (c[0] - b[0]) + b @ b * (a[0] - c[0]) + c @ c * (b[0] - a[0])) / d])
     np.testing.assert_allclose(np.linalg.norm(circle - centre, axis=1), 15.0, atol=1e-3)
     eight = builtin_trajectory("figure8", 6.0, Pose((0.0, 0.0, -10.0)), 60.0).position_at(np.linspace(0, 60, 6001))
-    assert np.ptp(eight[:, 0]) == pytest.approx(20.0, abs=0.05)
+    assert np.ptp(eight[:, 0]) == pytest.approx(32.0, abs=0.05)
+    assert np.ptp(eight[:, 1]) == pytest.approx(32.0 / 2 / math.sqrt(2), abs=0.05)
+
+
+@pytest.mark.parametrize("speed", [5.0, 2.0, 12.0])
+def test_the_built_in_flights_turn_as_a_real_drone_does(speed: float) -> None:
+    """At the default 5 m/s no built-in flight yaws faster than 1 rad/s (Gerono's 20 m figure-8 turned at
+    2.4 rad/s: 13.7 degrees a frame, which no lidar odometry follows); the peak rates --help states are the
+    flights' own, measured on the motion model (the spline's angular rate), and scale with the speed."""
+    from livox_viz.motion.flights import peak_yaw_rate
+
+    t = np.linspace(0.0, 60.0, 30001)
+    for name in ("line", "circle", "figure8"):
+        flight = builtin_trajectory(name, speed, Pose((0.0, 0.0, -10.0), 0.0, 0.0, 0.3), 60.0)
+        peak = float(np.abs(flight.angular_velocity_at(t)).max())
+        assert peak == pytest.approx(peak_yaw_rate(name, speed), rel=1e-3, abs=1e-6), name
+        if speed <= 5.0:
+            assert peak <= 1.0, name
 
 
 @pytest.mark.parametrize("scene_name", ["urban", "open_field", "dense_terrain"])

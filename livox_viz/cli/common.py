@@ -209,11 +209,23 @@ def scene_from_args(args: argparse.Namespace, config: SensorConfig | None = None
 
 def add_trajectory_arguments(parser: argparse.ArgumentParser) -> None:
     """``--trajectory FILE|hover|line|circle|figure8 [--trajectory-speed V]``."""
-    from livox_viz.motion.flights import BUILTIN_TRAJECTORIES, MAX_SPEED, RAMP_SECONDS
+    from livox_viz.motion.flights import (
+        BUILTIN_TRAJECTORIES,
+        CIRCLE_RADIUS,
+        FIGURE8_SIZE,
+        MAX_SPEED,
+        RAMP_SECONDS,
+        peak_yaw_rate,
+    )
     from livox_viz.motion.tum import MAX_LINE_CHARS, MAX_POSES
 
+    speed = DEFAULT_TRAJECTORY_SPEED
     parser.add_argument("--trajectory", help=f"a moving vehicle: a built-in flight ({', '.join(BUILTIN_TRAJECTORIES)}; "
-                                             f"from rest to rest, {RAMP_SECONDS:g} s ramps) or a TUM file (t x y z qx "
+                                             f"from rest to rest, {RAMP_SECONDS:g} s ramps; circle {CIRCLE_RADIUS:g} m "
+                                             f"radius, figure8 {FIGURE8_SIZE:g} m long; at {speed:g} m/s they yaw at "
+                                             f"most {peak_yaw_rate('circle', speed):.2f} and "
+                                             f"{peak_yaw_rate('figure8', speed):.2f} rad/s, in proportion to the "
+                                             "speed) or a TUM file (t x y z qx "
                                              "qy qz qw, world NED, t from the scan start; read only as far as the "
                                              f"scan needs, at most {MAX_POSES:,} poses, lines of at most "
                                              f"{MAX_LINE_CHARS} characters)")

@@ -8,6 +8,13 @@ so a lidar-inertial initialiser sees a vehicle at rest (the IMU reads gravity
 only) at the start. The heading follows the path's tangent (a function of the
 path parameter, so it is defined at rest too).
 
+The turns are sized for a rate a real multicopter flies and a lidar odometry
+follows: at the default 5 m/s the ``circle`` (15 m radius) yaws at 0.33 rad/s and
+the ``figure8`` (Bernoulli's lemniscate, 32 m long, whose sharpest turn is 3 / a
+with a its half length) at most 0.94 rad/s (:func:`peak_yaw_rate`; both grow with
+the speed). Gerono's 20 m lemniscate, flown before, turned at 2.4 rad/s there
+(13.7 degrees a frame).
+
 The analytic flight is sampled at :data:`BUILTIN_RATE` into a
 :class:`~livox_viz.motion.trajectory.Trajectory`, whose C2 spline is the motion
 every consumer uses (between 100 Hz samples it is within micrometres of the
@@ -28,9 +35,11 @@ BUILTIN_TRAJECTORIES: tuple[str, ...] = ("hover", "line", "circle", "figure8")
 
 BUILTIN_RATE = 100.0
 
+#: The circle's radius, metres.
 CIRCLE_RADIUS = 15.0
 
-FIGURE8_SIZE = 20.0
+#: The figure-8's length tip to tip, metres (Bernoulli's lemniscate: 2 a long, a / sqrt(2) wide).
+FIGURE8_SIZE = 32.0
 
 #: Seconds from rest to cruising speed (and back at the end).
 RAMP_SECONDS = 2.0
@@ -67,14 +76,32 @@ def path_length(t: np.ndarray, speed: float, seconds: float) -> np.ndarray:
 FIGURE8_NODES = 1024
 
 
-def figure8_parameter(s: np.ndarray, a: float) -> np.ndarray:
-    """``(n,)`` the parameter u of Gerono's lemniscate ``(a sin u, a sin u cos u)`` after ``s`` metres along it.
+def peak_yaw_rate(name: str, speed: float) -> float:
+    """The fastest a built-in flight turns while cruising at ``speed`` m/s, rad/s: speed x its sharpest curvature."""
+    curvature = {"circle": 1.0 / CIRCLE_RADIUS, "figure8": 3.0 / (FIGURE8_SIZE / 2)}.get(name, 0.0)
+    return speed * curvature
 
-    Its speed ``|dr/du| = a sqrt(cos^2 u + cos^2 2u)`` is never zero (between 0.66 a
-    and 1.41 a), so the arc length L(u) is smooth and increasing: it is
+
+def figure8_point(u: np.ndarray, a: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bernoulli's lemniscate ``(a sin u, a sin u cos u) / (1 + cos^2 u)`` at parameter ``u``: x, y (m) and the
+    heading of its tangent (rad, unwrapped). It crosses itself at u = 0 heading 45 degrees to the right and turns
+    sharpest at its tips (curvature 3 / a)."""
+    u = np.asarray(u, dtype=np.float64)
+    cos, sin = np.cos(u), np.sin(u)
+    scale = a / (1.0 + cos * cos)
+    # dx/du = a cos u (3 - cos^2 u) / D^2 and dy/du = a (3 cos^2 u - 1) / D^2, D = 1 + cos^2 u.
+    heading = np.unwrap(np.arctan2(3.0 * cos * cos - 1.0, cos * (3.0 - cos * cos)))
+    return scale * sin, scale * sin * cos, heading
+
+
+def figure8_parameter(s: np.ndarray, a: float) -> np.ndarray:
+    """``(n,)`` the parameter u of Bernoulli's lemniscate (:func:`figure8_point`) after ``s`` metres along it.
+
+    Its speed ``|dr/du| = a / sqrt(1 + cos^2 u)`` is never zero (between 0.71 a
+    and a), so the arc length L(u) is smooth and increasing: it is
     integrated once as a periodic spline of the speed, and ``L(u) = s`` is solved by
     Newton steps from a table lookup. A constant parameter rate would fly the
-    curve's loops and crossing at different speeds (and its mean is not ``a du/dt``).
+    curve's loops and crossing at different speeds.
 
     Parameters
     ----------
@@ -86,7 +113,7 @@ def figure8_parameter(s: np.ndarray, a: float) -> np.ndarray:
     from scipy.interpolate import CubicSpline
 
     def speed(u: np.ndarray) -> np.ndarray:
-        return a * np.hypot(np.cos(u), np.cos(2.0 * u))
+        return a / np.sqrt(1.0 + np.cos(u) ** 2)
 
     nodes = np.linspace(0.0, 2.0 * np.pi, FIGURE8_NODES + 1)
     length = CubicSpline(nodes, speed(nodes), bc_type="periodic").antiderivative()
@@ -106,8 +133,8 @@ def builtin_trajectory(name: str, speed: float, start: Pose, seconds: float) -> 
     ----------
     name : {"hover", "line", "circle", "figure8"}
         ``hover`` stays; ``line`` flies straight ahead; ``circle`` turns right on a
-        15 m circle facing along the path; ``figure8`` flies a 20 m lemniscate
-        (Gerono's, by arc length: at ``speed`` all along it while cruising).
+        15 m circle facing along the path; ``figure8`` flies a 32 m lemniscate
+        (Bernoulli's, by arc length: at ``speed`` all along it while cruising).
     speed : float
         Cruising speed, m/s.
     start : Pose
@@ -136,11 +163,10 @@ def builtin_trajectory(name: str, speed: float, start: Pose, seconds: float) -> 
         local = CIRCLE_RADIUS * np.column_stack([np.sin(angle), 1.0 - np.cos(angle)])
         yaw = heading + angle
     else:
-        # Gerono's lemniscate x = a sin(u), y = a sin(u) cos(u), at the parameter u whose arc length is s.
-        a = FIGURE8_SIZE / 2
-        u = figure8_parameter(s, a)
-        local = np.column_stack([a * np.sin(u), a * np.sin(u) * np.cos(u)])
-        yaw = heading + np.unwrap(np.arctan2(np.cos(2 * u), np.cos(u)))
+        # Bernoulli's lemniscate at the parameter u whose arc length is s.
+        x, y, tangent = figure8_point(figure8_parameter(s, FIGURE8_SIZE / 2), FIGURE8_SIZE / 2)
+        local = np.column_stack([x, y])
+        yaw = heading + tangent
     position = start.origin + local[:, :1] * forward + local[:, 1:] * right
     from scipy.spatial.transform import Rotation
 
