@@ -52,6 +52,8 @@ def write_inputs(folder: Path) -> None:
     (folder / "underscore.tum").write_text("# t x y z qx qy qz qw\n0 0 0 -1 0 0 0 1\n1 0 0 -1_5 0 0 0 1\n")
     (folder / "wall.obj").write_text("o wall\nv 5 -1 -1\nv 5 1 -1\nv 5 0 1\nf 1 2 3\n")
     scene(folder / "up_list.json", {"type": "mesh", "path": "wall.obj", "up": ["z"]})
+    (folder / "close.tum").write_text("0 0 0 -2 0 0 0 1\n1e-300 1 0 -2 0 0 0 1\n1 2 0 -2 0 0 0 1\n")
+    (folder / "ages.tum").write_text("-1e308 0 0 -2 0 0 0 1\n1e308 1 0 -2 0 0 0 1\n")
     (folder / "long_sigma.json").write_text(json.dumps(
         {**SEED_JSON, "LivoxVizReturns": {"range_sigma_m": [[20, 0.02]] * 100_000}}))
     scene(folder / "long_material.json", {**BOX, "material": "x" * 2_000_000})
@@ -128,6 +130,10 @@ HOSTILE: list[tuple[list[str], str]] = [
     (["scan", "--trajectory", "far.tum", "--seconds", "0.5", "--out", "s.las"],
      r"trajectory far.tum takes the sensor to 1.5e\+05, 0, -2 m, and with the scene it spans 1.501e\+05 m; allowed"),
     (["scan", "--pose=200000,0,-2,0,0,0", "--seconds", "0.1", "--out", "s.ply"], r"the vehicle's pose takes the sen"),
+    (["scan", "--trajectory", "close.tum", "--seconds", "0.5", "--out", "s.npz"],
+     r"trajectory close.tum: poses 1 and 2 are 1e-300 s apart \(t = 0 s\); allowed: at least 1e-06 s between poses$"),
+    (["publish", "--trajectory", "ages.tum", "--to", "127.0.0.1:9"],
+     r"trajectory ages.tum: pose 1 is at t = -1e\+308 s; allowed: times within 1e\+10 s of the scan start"),
     (["render", "--pose=200000,0,-2,0,0,0", "--seconds", "0.1", "--out", "s.png"], r"the vehicle's pose takes the"),
     # 7: sizes a float cannot make triangles of
     (["scan", "--scene", "tiny_sphere.json", "--seconds", "0.1", "--out", "s.ply"],

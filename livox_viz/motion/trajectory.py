@@ -47,6 +47,12 @@ from livox_viz.core.rotations import quat_conjugate_product_vector
 MAX_TURN_DEG = 120.0
 #: The orientation spline ``p`` must keep at least this length between poses (normalising divides by it).
 MIN_QUATERNION_LENGTH = 0.5
+#: Poses at least this far apart, seconds: with positions within 1e7 m, the spline's slopes stay far from overflow
+#: (1e-300 s apart gave NaN poses and numpy's overflow warnings).
+MIN_POSE_STEP_S = 1e-6
+#: Times within this of the scan start, seconds (about 300 years: a Unix date is read, then refused as outside the
+#: scan, by :meth:`Trajectory.check_covers`).
+MAX_TIME_S = 1e10
 #: Rows evaluated at once by the numpy evaluation (bounds its temporaries).
 _EVALUATION_BLOCK = 1 << 16
 
@@ -121,10 +127,18 @@ class Trajectory:
             raise LivoxVizError(f"trajectory {self.name}: pose {row + 1} (t = {t[row]:g} s) is at "
                                 f"{', '.join(f'{v:.4g}' for v in position[row])} m; allowed: |x|, |y|, |z| <= "
                                 f"{MAX_POSITION_M:g} m (a local NED frame), as --pose")
+        if not np.all(np.abs(t) <= MAX_TIME_S):
+            row = int(np.argmax(np.abs(t) > MAX_TIME_S))
+            raise LivoxVizError(f"trajectory {self.name}: pose {row + 1} is at t = {t[row]:g} s; allowed: times within "
+                                f"{MAX_TIME_S:g} s of the scan start (seconds from it, not dates)")
         if np.any(np.diff(t) <= 0):
             row = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
             raise LivoxVizError(f"trajectory {self.name}: time goes back or repeats at pose {row + 1} "
                                 f"(t = {t[row]:g} s); allowed: strictly increasing times")
+        if np.any(np.diff(t) < MIN_POSE_STEP_S):  # closer poses made the spline's slopes overflow (NaN poses)
+            row = int(np.argmax(np.diff(t) < MIN_POSE_STEP_S))
+            raise LivoxVizError(f"trajectory {self.name}: poses {row + 1} and {row + 2} are {t[row + 1] - t[row]:.3g} "
+                                f"s apart (t = {t[row]:.9g} s); allowed: at least {MIN_POSE_STEP_S:g} s between poses")
         norm = np.linalg.norm(quaternion, axis=1)
         if np.any(np.abs(norm - 1.0) > 0.1):
             row = int(np.flatnonzero(np.abs(norm - 1.0) > 0.1)[0])
