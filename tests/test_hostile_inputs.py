@@ -54,6 +54,7 @@ def write_inputs(folder: Path) -> None:
     scene(folder / "up_list.json", {"type": "mesh", "path": "wall.obj", "up": ["z"]})
     (folder / "close.tum").write_text("0 0 0 -2 0 0 0 1\n1e-300 1 0 -2 0 0 0 1\n1 2 0 -2 0 0 0 1\n")
     (folder / "ages.tum").write_text("-1e308 0 0 -2 0 0 0 1\n1e308 1 0 -2 0 0 0 1\n")
+    scene(folder / "crowd.json", *[BOX] * 10_001)
     (folder / "long_sigma.json").write_text(json.dumps(
         {**SEED_JSON, "LivoxVizReturns": {"range_sigma_m": [[20, 0.02]] * 100_000}}))
     scene(folder / "long_material.json", {**BOX, "material": "x" * 2_000_000})
@@ -142,6 +143,8 @@ HOSTILE: list[tuple[list[str], str]] = [
     (["scan", "--scene", "tall_post.json", "--seconds", "0.1", "--out", "s.ply"], r"'height' = 1e\+308; allowed"),
     (["scan", "--scene", "flat_box.json", "--seconds", "0.1", "--out", "s.ply"], r"allowed: 3 numbers from 0.001"),
     (["scan", "--scene", "fine_terrain.json", "--seconds", "0.1", "--out", "s.ply"], r"'wavelength' = 1e-300"),
+    (["scan", "--scene", "crowd.json", "--seconds", "0.1", "--out", "s.ply"],
+     r"crowd.json: 10,001 objects; allowed: at most 10,000"),
     # 6: a long value is quoted in part, with its length
     (["info", "--config", "long_sigma.json"], r"\[20, 0.02\], \.\.\.\) \(100,000 items\); allowed: 1 to 16 pairs"),
     (["scan", "--scene", "long_material.json", "--seconds", "0.1", "--out", "s.ply"],

@@ -59,6 +59,8 @@ MAX_SCENE_SPAN_M = 100_000.0
 MIN_SIZE_M = 1e-3
 #: Where a scene JSON without a ``vehicle_pose`` puts the vehicle: x, y, z (m, NED), roll, pitch, yaw (rad).
 DEFAULT_VEHICLE_POSE = (0.0, 0.0, -1.5, 0.0, 0.0, 0.0)
+#: A scene JSON's most objects.
+MAX_SCENE_OBJECTS = 10_000
 #: A terrain's most cells a side (two million triangles).
 MAX_TERRAIN_CELLS = 1000
 _TO_NED = {
@@ -275,6 +277,9 @@ def _scene_from_json(path: Path, reflectance: float, triangles: TriangleBudget |
     data = read_json_file(path, "scene JSON")
     if not isinstance(data, dict) or not isinstance(data.get("objects"), list):
         raise LivoxVizError(f"{path}: a scene JSON needs an 'objects' list")
+    if len(data["objects"]) > MAX_SCENE_OBJECTS:  # each is built on its own: 10 000 boxes take about 5 s
+        raise LivoxVizError(f"{path}: {len(data['objects']):,} objects; allowed: at most {MAX_SCENE_OBJECTS:,} (put "
+                            "a city of parts in a mesh file)")
     # The whole scene's triangles from its description and its mesh files' headers before anything is built;
     # then each mesh file's are counted as trimesh reads it.
     primitives = sum(_primitive_triangles(obj) for obj in data["objects"])
