@@ -419,3 +419,24 @@ def test_an_empty_output_path_is_named_as_such() -> None:
 
     with pytest.raises(UsageError, match=r"^an empty file name; allowed: a file name ending in .png$"):
         check_output_path("", (".png",))
+
+
+@pytest.mark.parametrize(("rate", "message"), [
+    (1e12, r"--reference ref.npy at 1e\+12 rows/s \(--reference-rate\)|the table holds 4e-07 s at 1e\+12"),
+    ("fast", r"reference_rate = 'fast'; allowed: rows per second > 0")])
+def test_a_sidecar_s_reference_rate_is_checked_as_the_command_line_s(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], rate: object,
+        message: str) -> None:
+    """render --sidecar plays the reference its sidecar names at its rate: 1e12 rows/s asked the overlay for
+    terabytes, and a rate that is no number was a TypeError."""
+    from livox_viz.widgets.files import SIDECAR_VERSION
+
+    from livox_viz import load_preset
+
+    np.save(tmp_path / "ref.npy", np.load(shipped_table_dir() / "mid40.npy"))
+    (tmp_path / "shot.json").write_text(json.dumps({
+        "livox_viz_sidecar": SIDECAR_VERSION, "config": load_preset("livox_mid70").to_json_dict(),
+        "scan_time_s": 0.1, "view_sizes": {}, "scene": "open_field",
+        "sources": {"reference": "ref.npy", "reference_rate": rate}}))
+    monkeypatch.chdir(tmp_path)
+    assert_one_line_error(tmp_path, ["render", "--sidecar", "shot.json", "--out", "r.png"], message, capsys)

@@ -234,7 +234,12 @@ def _render_sidecar(args: argparse.Namespace, out: Path) -> int:
     display.cloud_frame = data.get("cloud_frame", display.cloud_frame)
     reference = sources.get("reference") or data.get("reference")
     if reference:
-        session.overlay.set_source(reference_source(str(reference), sources.get("reference_rate"), session.seed), 0.0)
+        rate = sources.get("reference_rate")
+        if rate is not None and (isinstance(rate, bool) or not isinstance(rate, (int, float)) or not rate > 0):
+            raise UsageError(f"--sidecar {path}: reference_rate = {quoted(rate)}; allowed: rows per second > 0")
+        source = reference_source(str(reference), rate, session.seed)
+        _check_reference(source, argparse.Namespace(reference=str(reference), reference_rate=rate))
+        session.overlay.set_source(source, 0.0)
         session.overlay.visible = bool(data.get("reference_visible", True))
         window = data.get("reference_window_s")
         if window in WINDOWS:
