@@ -32,6 +32,7 @@ from livox_viz.cli.wire_commands import add_receiver_arguments, open_receiver
 from livox_viz.core.errors import LivoxVizError, quoted
 from livox_viz.core.workload import WINDOW_BUDGET, check_points
 from livox_viz.patterns.stream import points_before
+from livox_viz.scene.materials import DEFAULT_REFLECTANCE
 
 
 def _session(args: argparse.Namespace, command: str):
@@ -218,7 +219,7 @@ def _render_sidecar(args: argparse.Namespace, out: Path) -> int:
     scene_args = argparse.Namespace(
         scene=sources.get("scene") or data.get("scene") or "urban", up=sources.get("up") or "z",
         pose=sources.get("pose"), exact=bool(sources.get("exact")),
-        reflectance=sources.get("reflectance") if sources.get("reflectance") is not None else 0.5,
+        reflectance=sources.get("reflectance") if sources.get("reflectance") is not None else DEFAULT_REFLECTANCE,
         trajectory=sources.get("trajectory"), trajectory_speed=sources.get("trajectory_speed"))
     check_points(points_before(seconds, config.point_rate), f"render --sidecar at {seconds:g} s", can_force=False)
     scene, pose, caster = scene_from_args(scene_args)

@@ -733,7 +733,17 @@ class MainWindow(QtWidgets.QMainWindow):
             self.controller.set_reference(source)
             self.controller.session.sources["reference"] = text
 
-        self._background(f"reading {Path(text).name}", lambda: reference_source(text, None, seed), done)
+        def work() -> TableSource | PresetSource:
+            import argparse
+
+            from .commands import _check_reference
+
+            source = reference_source(text, None, seed)
+            # As --reference is checked: a table too short to compare, or one whose windows outgrow the budget.
+            _check_reference(source, argparse.Namespace(reference=text, reference_rate=None))
+            return source
+
+        self._background(f"reading {Path(text).name}", work, done)
 
     def export_cloud(self, suffix: str, path: str | None = None) -> None:
         """File > Export: the window's cloud, cast again from its stream on a worker into the file by the writers
