@@ -37,6 +37,35 @@ def test_one_blas_thread_pins_nests_and_gives_the_users_count_back() -> None:
         assert set(blas_threads()) == {2}
 
 
+def test_scipys_own_blas_is_pinned_once_it_is_loaded() -> None:
+    """scipy.linalg brings its own OpenBLAS, loaded after numpy's: a pin taken after its import holds it too (the
+    fits' small Cholesky factors ran on two spinning threads, 10 x slower on the loaded machine). In a fresh
+    process, so that numpy's library is looked up first, as a command that pins a stream before it fits does."""
+    import json
+    import subprocess
+    import sys
+
+    probe = (
+        "from threadpoolctl import threadpool_info, threadpool_limits\n"
+        "from livox_viz.core.blas import one_blas_thread\n"
+        "with threadpool_limits(limits=2, user_api='blas'):\n"
+        "    with one_blas_thread():\n"
+        "        pass\n"
+        "    import scipy.linalg\n"
+        "    threadpool_limits(limits=2, user_api='blas')\n"
+        "    with one_blas_thread():\n"
+        "        inside = sorted((i['filepath'], i['num_threads']) for i in threadpool_info()"
+        " if i['user_api'] == 'blas')\n"
+        "    after = sorted(i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas')\n"
+        "import json\n"
+        "print(json.dumps([len(inside), sorted({n for _, n in inside}), sorted(set(after))]))\n"
+    )
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    libraries, inside, after = json.loads(result.stdout)
+    assert libraries >= 2 and inside == [1] and after == [2], result.stdout  # numpy's and scipy's, both pinned
+
+
 def test_one_blas_thread_from_many_threads_gives_the_count_back() -> None:
     """Holders in several threads at once share one pin; the user's count is back when the last one leaves.
 

@@ -26,6 +26,7 @@ it; any other library, or another thread, goes through threadpoolctl.
 
 from __future__ import annotations
 
+import sys
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -38,14 +39,26 @@ _libraries: list[Any] | None = None
 _handles: list[tuple[Any, Callable[[], int], Callable[[int], Any], bool]] | None = None
 
 
+#: Whether scipy.linalg (which brings its own OpenBLAS) was loaded when the libraries were looked up.
+_saw_scipy = False
+
+
 def _blas_libraries() -> list[Any]:
-    """threadpoolctl's controllers of the BLAS libraries loaded now (looked up once; numpy's is loaded)."""
-    global _libraries
-    if _libraries is None:
+    """threadpoolctl's controllers of the BLAS libraries loaded now (numpy's is loaded).
+
+    Looked up once, and once more when scipy.linalg has been imported since: scipy's wheels carry their own
+    OpenBLAS, loaded only with it, whose two spinning threads made each small Cholesky of a fit take 90 ms
+    instead of microseconds on the loaded 2-core machine.
+    """
+    global _libraries, _handles, _saw_scipy
+    scipy_loaded = "scipy.linalg" in sys.modules
+    if _libraries is None or (scipy_loaded and not _saw_scipy):
         import numpy  # noqa: F401  (its BLAS must be loaded before the lookup)
         from threadpoolctl import ThreadpoolController
 
         _libraries = list(ThreadpoolController().select(user_api="blas").lib_controllers)
+        _handles = None
+        _saw_scipy = scipy_loaded
     return _libraries
 
 
@@ -57,9 +70,10 @@ def _library_handles() -> list[tuple[Any, Callable[[], int], Callable[[int], Any
     unexpected falls back to its public calls.
     """
     global _handles
+    libraries = _blas_libraries()  # first: a new lookup drops the handles
     if _handles is None:
         handles = []
-        for library in _blas_libraries():
+        for library in libraries:
             getter = setter = None
             if getattr(library, "internal_api", "") == "openblas" and getattr(library, "threading_layer",
                                                                               "") == "pthreads":
@@ -124,5 +138,5 @@ def one_blas_thread() -> _OneBlasThread:
 
 
 def blas_threads() -> list[int]:
-    """The thread count of each BLAS library numpy loaded, as it stands now (for tests and benchmarks)."""
+    """Each BLAS library's thread count as it stands now: numpy's, and scipy's once scipy.linalg is imported."""
     return [library.get_num_threads() for library in _blas_libraries()]

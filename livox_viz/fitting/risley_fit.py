@@ -139,6 +139,8 @@ def fit_risley(table: ReferencePattern, beams: int | None = None) -> RisleyFit:
     LivoxVizError
         For a table too short to tell the prisms apart, or a bad ``beams``.
     """
+    import scipy.linalg  # noqa: F401  (loaded before the pin: its own OpenBLAS is pinned with numpy's)
+
     with one_blas_thread():  # many small products: one thread is several times faster than OpenBLAS's spinning
         return _fit_risley(table, beams)
 

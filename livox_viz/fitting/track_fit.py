@@ -335,6 +335,8 @@ def fit_track(table: ReferencePattern, beams: int | None = None,
     LivoxVizError
         A table too short, a bad ``beams``, or a table with no periodic track in it.
     """
+    import scipy.linalg  # noqa: F401  (loaded before the pin: its own OpenBLAS is pinned with numpy's)
+
     with one_blas_thread():
         return _fit_track(table, beams, tolerance_deg)
 
