@@ -182,6 +182,7 @@ def _track_report(reference: ReferencePattern, fit: TrackFit, forced: bool) -> s
         lines.append("  per laser rms    " + " ".join(f"{v:.6f}" for v in fit.rms_per_laser_deg) + " deg")
     lines += [f"  field of view    {fit.field_of_view.describe()}",
               f"  fitted in        {fit.seconds:.1f} s"]
+    lines += [f"  budget           {note}" for note in fit.budget_notes]
     return "\n".join(lines)
 
 

@@ -24,6 +24,11 @@ Nothing here knows a sensor by name; every step reads the table:
    while its outer layer still holds energy, until the residual is under the
    tolerance; then the weakest terms are pruned as long as the residual they
    leave stays within the tolerance, and the rest solved again on every row.
+   Every budget is a count (orders :data:`MAX_BOX`, terms :data:`MAX_BOX_TERMS`
+   and the preset's :data:`~livox_viz.config.track_params.MAX_TERMS`, the
+   refinement's evaluations), never a time: the same table and options give
+   the same track bit for bit whatever the machine's load, and a budget that
+   stops the fit short of its tolerance is named in :attr:`TrackFit.budget_notes`.
 6. **Report.** The residual is the angle between each row's ray and the
    model's ray at the same time (rms, p95, max, per laser). A table the model
    cannot follow (a residual over 5 % of how far the table moves: noise, or
@@ -65,8 +70,10 @@ GROWTH_ROWS = 240_000
 NO_TRACK_FRACTION = 0.05
 #: Growing the box stops when it no longer cuts the residual by 15 %.
 FLOOR_GAIN = 0.85
-#: Seconds after which the box stops growing (the fit's budget is 30 s per table).
-GROWTH_BUDGET_S = 18.0
+#: Most terms the growing box may hold (its solves stay within the fit's 30 s on 2 cores).
+MAX_BOX_TERMS = 4 * MAX_TERMS
+#: Residual evaluations the frequency refinement may spend.
+REFINE_EVALUATIONS = 60
 
 
 @dataclass(frozen=True)
@@ -86,7 +93,9 @@ class TrackFit:
     spread_deg : float
         How far the table's rows move: rms distance from each laser's mean, degrees of the plane.
     seconds : float
-        Time the fit took.
+        Time the fit took (reported only: nothing in the fit reads the clock).
+    budget_notes : tuple of str
+        Each budget that stopped the fit short of its tolerance, and by how much (empty when none did).
     """
 
     params: TrackParams
@@ -98,6 +107,7 @@ class TrackFit:
     rms_per_laser_deg: np.ndarray
     spread_deg: float
     seconds: float
+    budget_notes: tuple[str, ...] = ()
 
 
 # Lasers and lines -------------------------------------------------------------------------------------------
@@ -296,8 +306,12 @@ def _solve_all(lasers: list[LaserRows], hz: np.ndarray, residual: bool = True
 
 
 def _refine(make_lasers: Callable[[float], list[LaserRows]], hz: tuple[float, float],
-            terms: list[tuple[int, int]], span: float, spin: bool) -> tuple[float, float]:
-    """Variable projection over the base frequencies (f_B held at 0 for one frequency)."""
+            terms: list[tuple[int, int]], span: float, spin: bool) -> tuple[tuple[float, float], str | None]:
+    """Variable projection over the base frequencies (f_B held at 0 for one frequency).
+
+    Returns the frequencies and, when the evaluation budget ran out before the steps converged, a note that
+    says how far the last step still moved them.
+    """
     from scipy.optimize import least_squares
 
     one = hz[1] == 0.0
@@ -310,8 +324,13 @@ def _refine(make_lasers: Callable[[float], list[LaserRows]], hz: tuple[float, fl
 
     start = np.array(hz[:1] if one else hz)
     result = least_squares(residual, start, x_scale=np.full(start.size, 0.05 / span), method="lm",
-                           diff_step=np.full(start.size, 1e-9), xtol=1e-14, ftol=1e-14, max_nfev=60)
-    return float(result.x[0]), 0.0 if one else float(result.x[1])
+                           diff_step=np.full(start.size, 1e-9), xtol=1e-14, ftol=1e-14,
+                           max_nfev=REFINE_EVALUATIONS)
+    note = None
+    if result.status == 0:  # the evaluation budget, not a convergence test, ended it
+        note = (f"the frequency refinement used its {REFINE_EVALUATIONS} evaluations before converging "
+                f"(its residual {rms(result.fun):.3g} deg on the refinement's rows)")
+    return (float(result.x[0]), 0.0 if one else float(result.x[1])), note
 
 
 def fit_track(table: ReferencePattern, beams: int | None = None,
@@ -391,7 +410,8 @@ def _fit_track(table: ReferencePattern, beams: int | None, tolerance_deg: float)
     separation = 1.0 / span
     refine_stride = _stride(per_laser * lasers, REFINE_ROWS, dt, _term_hz(_terms_box(reach_a, reach_b), hz))
     terms = _resolvable_box(reach_a, reach_b, hz, separation)
-    hz = _refine(lambda s: signals.lasers(s, refine_stride), hz, terms, span, spin)
+    hz, refine_note = _refine(lambda s: signals.lasers(s, refine_stride), hz, terms, span, spin)
+    notes = [refine_note] if refine_note else []
     spin_hz = hz[0] if spin else 0.0
 
     # Grow the box on more rows until the residual is within the tolerance, or growing stops paying (the
@@ -405,22 +425,26 @@ def _fit_track(table: ReferencePattern, beams: int | None, tolerance_deg: float)
         error = rms(np.concatenate(residuals))
         if error > 0.3 * spread:
             _no_track(table, error, spread)
-        out_of_time = time.perf_counter() - started > GROWTH_BUDGET_S
-        if error <= tolerance_deg / 2 or error > FLOOR_GAIN * previous or out_of_time:
+        if error <= tolerance_deg / 2 or error > FLOOR_GAIN * previous:
             break
         previous = error
         energy = np.mean(np.abs(coefficients) ** 2, axis=0)
         edge_a = math.sqrt(sum(e for (m, _), e in zip(terms, energy, strict=True) if abs(m) == reach_a))
         edge_b = math.sqrt(sum(e for (_, n), e in zip(terms, energy, strict=True) if abs(n) == reach_b))
-        grown = False
-        if edge_a > tolerance_deg / 8 and reach_a < MAX_BOX:
-            reach_a += 2
-            grown = True
-        if hz[1] != 0 and edge_b > tolerance_deg / 8 and reach_b < MAX_BOX:
-            reach_b += 2
-            grown = True
-        if not grown or (2 * reach_a + 1) * (2 * reach_b + 1) > 4 * MAX_TERMS:
+        grow_a = edge_a > tolerance_deg / 8
+        grow_b = hz[1] != 0 and edge_b > tolerance_deg / 8
+        next_a = reach_a + 2 if grow_a and reach_a < MAX_BOX else reach_a
+        next_b = reach_b + 2 if grow_b and reach_b < MAX_BOX else reach_b
+        capped = (grow_a and reach_a >= MAX_BOX) or (grow_b and reach_b >= MAX_BOX)
+        if (2 * next_a + 1) * (2 * next_b + 1) > MAX_BOX_TERMS:
+            next_a, next_b, capped = reach_a, reach_b, True
+        if (next_a, next_b) == (reach_a, reach_b) and capped and error > tolerance_deg:
+            notes.append(f"the term box stopped at |m| <= {reach_a}, |l| <= {reach_b} ({len(terms)} terms; budget: "
+                         f"orders up to {MAX_BOX}, {MAX_BOX_TERMS} terms) with {error:.3g} deg rms on the growth's "
+                         f"rows, {error / tolerance_deg:.3g} x the tolerance {tolerance_deg:g} deg")
+        if (next_a, next_b) == (reach_a, reach_b):
             break
+        reach_a, reach_b = next_a, next_b
 
     # Prune the weakest terms while the residual they leave stays within the tolerance (or within 10 % of
     # the noise floor, when the table does not allow the tolerance).
@@ -431,6 +455,9 @@ def _fit_track(table: ReferencePattern, beams: int | None, tolerance_deg: float)
     keep = np.ones(len(terms), dtype=bool)
     keep[order[dropped]] = False
     if keep.sum() > MAX_TERMS:
+        left_out = math.sqrt(error**2 + float(np.sum(energy[order[:-MAX_TERMS]])))
+        notes.append(f"kept the {MAX_TERMS} strongest of {int(keep.sum())} terms (a preset's limit): about "
+                     f"{left_out:.3g} deg rms where the tolerance asked {tolerance_deg:g} deg")
         keep[:] = False
         keep[order[-MAX_TERMS:]] = True
     terms = [term for term, kept in zip(terms, keep, strict=True) if kept]
@@ -451,7 +478,7 @@ def _fit_track(table: ReferencePattern, beams: int | None, tolerance_deg: float)
     if total > NO_TRACK_FRACTION * spread:
         _no_track(table, total, spread)
     return TrackFit(params, FieldOfView.of_points(xy, plane), found, total, float(np.percentile(distance, 95)),
-                    float(distance.max()), per, spread, time.perf_counter() - started)
+                    float(distance.max()), per, spread, time.perf_counter() - started, tuple(notes))
 
 
 def _no_track(table: ReferencePattern, error: float, spread: float) -> None:
