@@ -21,16 +21,14 @@ import json
 import math
 import os
 import re
-from dataclasses import dataclass
-from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from livox_viz.config.fov import FieldOfView
 from livox_viz.config.presets import shipped_preset_dir
 from livox_viz.core.errors import LivoxVizError, require_file
+from livox_viz.fitting.table import ReferencePattern
 from livox_viz.patterns.planes import frd_from_zup, xy_from_directions
 
 DEFAULT_RATE = 100_000.0
@@ -40,56 +38,6 @@ MAX_TABLE_ROWS = 10_000_000
 MAX_CSV_BYTES = 256 * 1024 * 1024
 #: A table is in the panorama plane when more than this fraction of its rays point behind the sensor.
 PANORAMA_FRACTION = 0.01
-
-
-#: A table whose rows all lie within this many degrees of one direction does not scan.
-STILL_DEG = 1e-3
-
-
-@dataclass(frozen=True)
-class ReferencePattern:
-    """A measured pattern.
-
-    Parameters
-    ----------
-    name : str
-    xy_deg : (n, 2) float64
-        Pattern x (right), y (up), degrees.
-    t : (n,) float64
-        Firing time of each row, seconds (row / rate).
-    rate : float
-        Points per second.
-    plane : {"boresight", "panorama"}
-        The pattern plane of ``xy_deg``.
-    """
-
-    name: str
-    xy_deg: np.ndarray
-    t: np.ndarray
-    rate: float
-    plane: str = "boresight"
-
-    @property
-    def alpha_deg(self) -> np.ndarray:
-        """``(n,)`` angle off the boresight, degrees."""
-        return np.hypot(self.xy_deg[:, 0], self.xy_deg[:, 1])
-
-    @property
-    def seconds(self) -> float:
-        """Duration of the table."""
-        return len(self.t) / self.rate
-
-    @cached_property
-    def field_of_view(self) -> FieldOfView:
-        """What the table's rays fill: a cone when round, else their outline; a band in the panorama plane."""
-        return FieldOfView.of_points(self.xy_deg, self.plane)
-
-    def require_a_scan(self) -> None:
-        """Refuse a table whose rows all point one way (within :data:`STILL_DEG`): there is no track to fit."""
-        extent = float(np.ptp(self.xy_deg, axis=0).max()) if len(self.xy_deg) else 0.0
-        if not extent > STILL_DEG:
-            raise LivoxVizError(f"{self.name}: every row points within {extent:.3g} deg of one direction; allowed: a "
-                                "table whose rows trace the scan (the angles of consecutive firings)")
 
 
 def xy_from_zup(azimuth: np.ndarray, elevation: np.ndarray, plane: str | None = None) -> tuple[np.ndarray, str]:

@@ -2,10 +2,10 @@
 
 The steps (``risley.md``):
 
-1. **Lasers.** K lasers fire in turn, so the step from one row to the next
-   repeats with period K. For each candidate K the mean change between a step
-   and the step K rows later is small only at the true K (and its multiples):
-   the smallest K whose score is within 1.5 x the best wins. ``beams`` forces K.
+1. **Lasers.** Each row's laser from the rows' geometry
+   (:func:`~livox_viz.fitting.lasers.assign_lasers`: in one fixed order, row r
+   is laser r mod K, as the public tables have it; rows out of order, with
+   gaps or cut anywhere are followed laser by laser). ``beams`` forces K.
 2. **Frequencies.** The two prisms' own terms are the two strongest lines of
    laser 0's spectrum (Hann window, zero-padded FFT, parabolic peak). They are
    refined by variable projection: for trial frequencies the coefficients are
@@ -35,9 +35,11 @@ import numpy as np
 from livox_viz.config.risley_params import MAX_PRISM_HZ, RisleyParams
 from livox_viz.core.blas import one_blas_thread
 from livox_viz.core.errors import LivoxVizError
-from livox_viz.fitting.reference import ReferencePattern
-from livox_viz.fitting.series_lsq import LaserRows
-from livox_viz.fitting.track_fit import NO_TRACK_FRACTION, find_lasers, spectral_peaks
+from livox_viz.fitting.lasers import assign_lasers, even_series, find_lasers
+from livox_viz.fitting.series_lsq import LaserRows, TimedRows
+from livox_viz.fitting.spectrum import spectral_peaks
+from livox_viz.fitting.table import ReferencePattern
+from livox_viz.fitting.track_fit import NO_TRACK_FRACTION
 from livox_viz.patterns.planes import angle_between_deg
 
 __all__ = ["RisleyFit", "find_lasers", "fit_risley", "series_terms", "track_residual"]
@@ -94,18 +96,22 @@ def _solve(z: np.ndarray, t: np.ndarray, laser: np.ndarray, lasers: int, hz: tup
            terms: tuple[tuple[int, int], ...]) -> tuple[np.ndarray, np.ndarray]:
     """Coefficients ``(K, J)`` and residuals ``(n,)`` complex for given frequencies.
 
-    Each laser's rows are evenly spaced in time (every K-th row, or every K-th of evenly spaced firing
-    groups), which is what :class:`~livox_viz.fitting.series_lsq.LaserRows` needs: no ``(n, J)`` design
-    matrix is made, so memory does not grow with rows x terms.
+    A laser's rows evenly spaced in time (every K-th row, or every K-th of evenly spaced firing groups) are
+    solved with :class:`~livox_viz.fitting.series_lsq.LaserRows`, rows at any times with
+    :class:`~livox_viz.fitting.series_lsq.TimedRows`: no ``(n, J)`` design matrix is made, so memory does not
+    grow with rows x terms.
     """
-    omega = np.array([m * hz[0] + n * hz[1] for m, n in terms])
     coefficients = np.zeros((lasers, len(terms)), dtype=np.complex128)
     residual = np.empty_like(z)
     for k in range(lasers):
         rows = np.flatnonzero(laser == k)
         times = t[rows]
-        step = float(times[1] - times[0]) if times.size > 1 else 1.0
-        solution, part = LaserRows(z[rows], float(times[0]), step).solve(omega)
+        steps = np.diff(times)
+        if steps.size and np.all(np.abs(steps - steps[0]) <= 1e-9 * abs(steps[0])):
+            solver: LaserRows | TimedRows = LaserRows(z[rows], float(times[0]), float(steps[0]))
+        else:  # rows with gaps, or lasers out of order: each row at its own time
+            solver = TimedRows(z[rows], times)
+        solution, part = solver.solve_terms(hz, terms)
         coefficients[k] = solution
         residual[rows] = part
     return coefficients, residual
@@ -156,15 +162,15 @@ def _fit_risley(table: ReferencePattern, beams: int | None) -> RisleyFit:
     if not np.all(np.isfinite(z)):
         raise LivoxVizError(f"{table.name}: holds NaN or infinite angles; allowed: finite numbers")
     table.require_a_scan()
-    found = find_lasers(z)
     if beams is not None and not 1 <= beams <= MAX_LASERS:
         raise LivoxVizError(f"--beams {beams}; allowed: 1 to {MAX_LASERS}")
-    lasers = beams or found
+    slots = table.slots
+    assignment = assign_lasers(z, slots, beams)
+    found, lasers, laser = assignment.found, assignment.lasers, assignment.labels
     rate = table.rate
-    t = np.arange(z.size, dtype=np.float64) / rate
-    laser = np.arange(z.size) % lasers
-    first = z[laser == 0]
-    peaks = spectral_peaks(first, rate / lasers, 2)
+    t = np.asarray(table.t, dtype=np.float64)
+    first = laser == 0
+    peaks = spectral_peaks(even_series(z[first], slots[first], lasers), rate / lasers, 2)
     if len(peaks) < 2:
         raise LivoxVizError(f"{table.name}: found fewer than two rotating lines; is it a Risley scan?")
     (f1, a1), (f2, a2) = peaks
@@ -186,7 +192,7 @@ def _fit_risley(table: ReferencePattern, beams: int | None) -> RisleyFit:
     # Frequencies on whole firing groups spread over the table (the same precision per period, far less
     # time); the coefficients on every row.
     groups = max(1, z.size // (SUBSAMPLE_ROWS if lasers == 1 else SUBSAMPLE_ROWS // 2))
-    sub = np.flatnonzero((np.arange(z.size) // lasers) % groups == 0)
+    sub = np.flatnonzero((slots // lasers) % groups == 0)
     terms = series_terms(lasers)
     first_terms = terms[:2] + (((0, 0),) if lasers > 1 else ())
     hz = _refine(z[sub], t[sub], laser[sub], lasers, hz, first_terms)

@@ -91,6 +91,17 @@ class LaserRows:
         table, start_phasors = basis if basis is not None else self._basis(hz)
         return ((start_phasors * coefficients[None, :]) @ table).reshape(-1)[: self.n]
 
+    @property
+    def t(self) -> np.ndarray:
+        """``(N,)`` each row's time, seconds."""
+        return self.t0 + np.arange(self.n, dtype=np.float64) * self.dt
+
+    def solve_terms(self, base_hz: tuple[float, float], terms: list[tuple[int, int]] | tuple[tuple[int, int], ...],
+                    residual: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`solve` for the terms ``(m, l)`` at ``m f_A + l f_B`` (as :meth:`TimedRows.solve_terms`)."""
+        return self.solve(np.array([m * base_hz[0] + n * base_hz[1] for m, n in terms], dtype=np.float64),
+                          residual)
+
     def solve(self, hz: np.ndarray, residual: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
         """Least-squares coefficients ``(J,)`` for frequencies ``hz`` (cycles/s), and the ``(N,)`` residual."""
         hz = np.asarray(hz, dtype=np.float64)
@@ -99,6 +110,78 @@ class LaserRows:
         if not residual:
             return coefficients, None
         return coefficients, self.z - self.model(hz, coefficients, basis)
+
+
+class TimedRows:
+    """One laser's rows at any times (a recording's rows with gaps, or lasers out of order), for frequencies on
+    a lattice ``m f_A + l f_B``.
+
+    The lattice makes every sum separable: with ``A_n = exp(i 2 pi f_A t_n)`` and ``B_n`` alike, the Gram
+    matrix's entries are ``D[p, q] = sum_n A_n^p B_n^q`` for the differences (p, q) of two terms' orders (one
+    ``(4 M_A + 1) x (4 M_B + 1)`` matrix product over the rows, M the largest orders), the projections are
+    ``sum_n z_n A_n^-m B_n^-l`` and the model ``sum_m A_n^m (sum_l c_ml B_n^l)``, all matrix products over
+    blocks of rows: memory O(rows + block x orders), never rows x terms.
+
+    Parameters
+    ----------
+    z : (N,) complex128
+        Values, degrees.
+    t : (N,) float64
+        Each row's time, seconds.
+    """
+
+    def __init__(self, z: np.ndarray, t: np.ndarray) -> None:
+        self.z = np.asarray(z, dtype=np.complex128)
+        self.t = np.asarray(t, dtype=np.float64)
+        self.n = int(self.z.size)
+
+    @property
+    def span(self) -> float:
+        """Seconds from the first row to the last."""
+        return float(self.t[-1] - self.t[0]) if self.n > 1 else 0.0
+
+    def _powers(self, rows: slice, hz: float, reach: int) -> np.ndarray:
+        """``(rows, 2 reach + 1)`` ``exp(i 2 pi p hz t)`` for p = -reach .. reach."""
+        orders = np.arange(-reach, reach + 1, dtype=np.float64)
+        return np.exp(2j * np.pi * np.mod(np.outer(self.t[rows], hz) * orders[None, :], 1.0))
+
+    def solve_terms(self, base_hz: tuple[float, float], terms: list[tuple[int, int]] | tuple[tuple[int, int], ...],
+                    residual: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+        """Least-squares coefficients ``(J,)`` of the terms ``(m, l)`` at base frequencies ``base_hz`` (Hz), and
+        the ``(N,)`` residual."""
+        m = np.array([term[0] for term in terms], dtype=np.int64)
+        l_ = np.array([term[1] for term in terms], dtype=np.int64)
+        reach_a, reach_b = int(np.abs(m).max()), int(np.abs(l_).max())
+        differences = np.zeros((4 * reach_a + 1, 4 * reach_b + 1), dtype=np.complex128)
+        projections = np.zeros((2 * reach_a + 1, 2 * reach_b + 1), dtype=np.complex128)
+        for start in range(0, self.n, _BLOCK):
+            rows = slice(start, min(self.n, start + _BLOCK))
+            powers_a = self._powers(rows, base_hz[0], 2 * reach_a)
+            powers_b = self._powers(rows, base_hz[1], 2 * reach_b)
+            differences += powers_a.T @ powers_b
+            inner_a = powers_a[:, reach_a : 3 * reach_a + 1]
+            inner_b = powers_b[:, reach_b : 3 * reach_b + 1]
+            projections += (inner_a.conj() * self.z[rows, None]).T @ inner_b.conj()
+        gram = differences[m[None, :] - m[:, None] + 2 * reach_a, l_[None, :] - l_[:, None] + 2 * reach_b]
+        coefficients = solve_normal(gram, projections[m + reach_a, l_ + reach_b])
+        if not residual:
+            return coefficients, None
+        return coefficients, self.z - self.model(base_hz, terms, coefficients)
+
+    def model(self, base_hz: tuple[float, float], terms: list[tuple[int, int]] | tuple[tuple[int, int], ...],
+              coefficients: np.ndarray) -> np.ndarray:
+        """``(N,)`` complex128 the series at the rows' times."""
+        m = np.array([term[0] for term in terms], dtype=np.int64)
+        l_ = np.array([term[1] for term in terms], dtype=np.int64)
+        reach_a, reach_b = int(np.abs(m).max()), int(np.abs(l_).max())
+        table = np.zeros((2 * reach_a + 1, 2 * reach_b + 1), dtype=np.complex128)
+        table[m + reach_a, l_ + reach_b] = coefficients
+        out = np.empty(self.n, dtype=np.complex128)
+        for start in range(0, self.n, _BLOCK):
+            rows = slice(start, min(self.n, start + _BLOCK))
+            out[rows] = np.sum(self._powers(rows, base_hz[0], reach_a)
+                               * (self._powers(rows, base_hz[1], reach_b) @ table.T), axis=1)
+        return out
 
 
 def solve_normal(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:

@@ -7,17 +7,17 @@ Nothing here knows a sensor by name; every step reads the table:
    (two turns or more over the table) the track is a ``"spin"``: azimuth =
    degrees(A(t)) + a series, elevation = a series, with A's rate first read
    off the azimuth's slope. Otherwise the track is a ``"plane"`` series.
-2. **Lasers.** K lasers fire in turn, so the row-to-row step repeats with
-   period K (:func:`find_lasers`); ``beams`` forces K.
-3. **Base frequencies.** The strongest lines of laser 0's spectrum (Hann
-   window, zero-padded FFT, parabolic peaks) are explained as m f_A + l f_B
-   with small integers of either sign: of every pair of candidates (the lines
-   and their sums and differences), the one that explains the most line
-   amplitude with the lowest orders wins (:func:`choose_base`). One
-   frequency alone (f_B = 0) is tried too.
+2. **Lasers.** Each row's laser from the rows' geometry
+   (:func:`~livox_viz.fitting.lasers.assign_lasers`): the K lasers followed as
+   K tracks through the rows, which may be out of laser order, have gaps or
+   be cut anywhere (each row at its own time, ``table.t``); ``beams`` forces K.
+3. **Base frequencies.** The strongest lines of laser 0's spectrum are
+   explained as m f_A + l f_B with small integers of either sign
+   (:mod:`~livox_viz.fitting.spectrum`).
 4. **Refinement.** Variable projection: for trial frequencies the
-   coefficients are linear least squares (:mod:`~livox_viz.fitting.series_lsq`,
-   Gram matrix in closed form), and ``scipy.optimize.least_squares`` moves
+   coefficients are linear least squares (:mod:`~livox_viz.fitting.series_lsq`:
+   Gram matrix in closed form for every firing of a laser in order, separable
+   sums for rows at any times), and ``scipy.optimize.least_squares`` moves
    the frequencies to the smallest residual, on evenly strided rows.
 5. **Terms.** A box of orders |m| <= M_A, |l| <= M_B (terms the table cannot
    tell apart, closer than 1 / duration, dropped) grows along each axis
@@ -31,15 +31,19 @@ Nothing here knows a sensor by name; every step reads the table:
    stops the fit short of its tolerance is named in :attr:`TrackFit.budget_notes`.
 6. **Report.** The residual is the angle between each row's ray and the
    model's ray at the same time (rms, p95, max, per laser). A table the model
-   cannot follow (a residual over 5 % of how far the table moves: noise, or
-   rows in the wrong order) is refused rather than written as a preset.
+   cannot follow (a residual over 5 % of how far the table moves: noise, rows
+   of two heads, a wrong ``beams``) is refused in one line that says what the
+   fit found (lasers, frequencies, the residual reached, where it failed) and
+   what to try. Rows whose laser the geometry got wrong (a few in 10^5 out of
+   laser order) are given to the laser whose track passes nearest, and the
+   coefficients solved again.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,19 +52,17 @@ from livox_viz.config.fov import FieldOfView
 from livox_viz.config.track_params import MAX_TERMS, TrackParams
 from livox_viz.core.blas import one_blas_thread
 from livox_viz.core.errors import LivoxVizError
-from livox_viz.fitting.reference import ReferencePattern
-from livox_viz.fitting.series_lsq import LaserRows, resolvable, rms
-from livox_viz.patterns.planes import angle_between_deg
+from livox_viz.fitting.lasers import MAX_LASERS, LaserAssignment, assign_lasers, even_series, find_lasers
+from livox_viz.fitting.series_lsq import LaserRows, TimedRows, resolvable, rms
+from livox_viz.fitting.spectrum import PEAKS, BaseChoice, _normalise, choose_base, spectral_peaks
+from livox_viz.fitting.table import ReferencePattern
+from livox_viz.patterns.planes import angle_between_deg, directions_from_xy
 
-MAX_LASERS = 16
+__all__ = ["DEFAULT_TOLERANCE_DEG", "MAX_LASERS", "BaseChoice", "TrackFit", "_normalise", "choose_base",
+           "find_lasers", "fit_track", "spectral_peaks"]
+
 #: Residual the pruning keeps to by default, degrees rms (a tenth of the 0.01 deg goal).
 DEFAULT_TOLERANCE_DEG = 1e-3
-#: Spectral lines read off laser 0 for the base frequencies.
-PEAKS = 16
-#: Largest |m|, |l| a line may need to count as explained by a base pair.
-LINE_ORDER = 8
-#: Two candidate frequencies related by integers this small span a line rather than a lattice.
-DEGENERATE_ORDER = 4
 #: Largest order the term box grows to along each axis.
 MAX_BOX = 24
 #: Rows (all lasers) the refinement and the box growth use at most, evenly strided.
@@ -74,6 +76,12 @@ FLOOR_GAIN = 0.85
 MAX_BOX_TERMS = 4 * MAX_TERMS
 #: Residual evaluations the frequency refinement may spend.
 REFINE_EVALUATIONS = 60
+#: The smallest --tolerance (deg rms): a track is computed to about 1e-9 deg.
+MIN_TOLERANCE_DEG = 1e-6
+#: A row this many times the typical distance off its laser's track is offered to the other lasers.
+RELABEL_FACTOR = 8.0
+#: Rounds of moving rows to the laser whose track passes nearest.
+RELABEL_ROUNDS = 3
 
 
 @dataclass(frozen=True)
@@ -91,11 +99,15 @@ class TrackFit:
         Angle between every row's ray and the model's ray at the same time, degrees.
     rms_per_laser_deg : (K,) float64
     spread_deg : float
-        How far the table's rows move: rms distance from each laser's mean, degrees of the plane.
+        How far the table's rows move: rms angle between each row's ray and its laser's mean ray, degrees.
     seconds : float
         Time the fit took (reported only: nothing in the fit reads the clock).
     budget_notes : tuple of str
         Each budget that stopped the fit short of its tolerance, and by how much (empty when none did).
+    in_order : bool
+        Whether the lasers fired in one fixed order (row at slot s is laser s mod K).
+    relabelled : int
+        Rows the geometry had given to another laser, moved to the laser whose track passes nearest.
     """
 
     params: TrackParams
@@ -108,204 +120,110 @@ class TrackFit:
     spread_deg: float
     seconds: float
     budget_notes: tuple[str, ...] = ()
+    in_order: bool = True
+    relabelled: int = 0
 
 
-# Lasers and lines -------------------------------------------------------------------------------------------
-def find_lasers(z: np.ndarray, max_lasers: int = MAX_LASERS) -> int:
-    """K, the number of lasers firing in turn, from the period of the row-to-row steps.
 
-    For each candidate K the mean change between a step and the step K rows
-    later is small only at the true K (and its multiples): the smallest K whose
-    score is within 1.5 x the best wins.
-
-    Parameters
-    ----------
-    z : (n,) complex128
-        The table's points, degrees (x + iy).
-    """
-    steps = np.diff(z)
-    scores = []
-    for k in range(1, min(max_lasers, steps.size // 8) + 1):
-        scores.append(float(np.mean(np.abs(steps[k:] - steps[:-k]))))
-    if not scores:
-        return 1
-    best = min(scores)
-    return next(k for k, score in enumerate(scores, start=1) if score <= 1.5 * best)
-
-
-def spectral_peaks(z: np.ndarray, rate: float, count: int = 2) -> list[tuple[float, float]]:
-    """The ``count`` strongest lines of a signal's spectrum away from 0 Hz: (frequency Hz, amplitude)."""
-    n = z.size
-    window = np.hanning(n)
-    size = 1 << (math.ceil(math.log2(n)) + 2)
-    spectrum = np.abs(np.fft.fft((z - z.mean()) * window, size))
-    freqs = np.fft.fftfreq(size, 1.0 / rate)
-    resolution = rate / n
-    peaks: list[tuple[float, float]] = []
-    spectrum[np.abs(freqs) < 2 * resolution] = 0.0
-    for _ in range(count):
-        i = int(np.argmax(spectrum))
-        if spectrum[i] <= 0:
-            break
-        left, right = spectrum[i - 1], spectrum[(i + 1) % size]
-        denominator = left - 2 * spectrum[i] + right
-        shift = 0.5 * (left - right) / denominator if denominator != 0 else 0.0
-        peaks.append((float(freqs[i] + shift * rate / size), float(spectrum[i] * 2 / window.sum())))
-        spectrum[np.abs(freqs - freqs[i]) < 4 * resolution] = 0.0
-    return peaks
-
-
-@dataclass(frozen=True)
-class BaseChoice:
-    """Two base frequencies and how they explain the strongest lines.
-
-    Parameters
-    ----------
-    hz : tuple of 2 float
-        f_A, f_B (f_B = 0: one frequency).
-    orders : tuple of (int, int)
-        (m, l) of each explained line.
-    explained : float
-        Fraction of the lines' amplitude explained.
-    """
-
-    hz: tuple[float, float]
-    orders: tuple[tuple[int, int], ...]
-    explained: float
-
-
-def _explain(freqs: np.ndarray, a: float, b: float, tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For each line, the lattice point m a + l b (|m|, |l| <= LINE_ORDER) nearest it: (m, l, explained)."""
-    m = np.arange(-LINE_ORDER, LINE_ORDER + 1)
-    if b == 0:
-        l_best = np.zeros((freqs.size, m.size))
-    else:
-        l_best = np.clip(np.round((freqs[:, None] - m[None, :] * a) / b), -LINE_ORDER, LINE_ORDER)
-    error = np.abs(m[None, :] * a + l_best * b - freqs[:, None])
-    # Among equally good lattice points prefer the lowest order.
-    cost = error + 1e-9 * (np.abs(m)[None, :] + np.abs(l_best))
-    pick = np.argmin(cost, axis=1)
-    rows = np.arange(freqs.size)
-    return m[pick], l_best[rows, pick].astype(np.int64), error[rows, pick] <= tolerance
-
-
-def _degenerate(a: float, b: float, tolerance: float) -> bool:
-    """Whether p a + q b = 0 for small integers, |p|, |q| <= 4: the pair spans a line, not a lattice (f and 2f).
-
-    Relations of higher order (the Mid-360's 182.4 Hz is 18.24 x 10 Hz) leave a true lattice whose lines are
-    told apart by their lowest orders.
-    """
-    if b == 0:
-        return a == 0
-    p = np.arange(-DEGENERATE_ORDER, DEGENERATE_ORDER + 1)
-    q = np.round(-p * a / b)
-    close = (np.abs(p * a + q * b) <= 2 * tolerance) & (np.abs(q) <= DEGENERATE_ORDER) & ((p != 0) | (q != 0))
-    return bool(np.any(close))
-
-
-def choose_base(peaks: list[tuple[float, float]], resolution: float, spin_hz: float | None = None) -> BaseChoice:
-    """The two base frequencies that explain the strongest lines best (see the module notes).
-
-    Parameters
-    ----------
-    peaks : list of (Hz, amplitude)
-        Strongest first.
-    resolution : float
-        1 / duration, Hz.
-    spin_hz : float, optional
-        A spin track's turn rate: f_A is fixed to it.
-
-    Raises
-    ------
-    LivoxVizError
-        If no pair explains the lines (no periodic track).
-    """
-    if not peaks:
-        raise LivoxVizError("the spectrum holds no lines; is it a scan track?")
-    freqs = np.array([f for f, _ in peaks])
-    amps = np.array([a for _, a in peaks])
-    tolerance = 0.2 * resolution
-    floor = 2 * resolution
-    strong = freqs[:8]
-    pool = list(strong)
-    pool += [combined for i, f in enumerate(strong[:4]) for g in strong[i + 1 : 4] for combined in (f + g, f - g)]
-    pool += [f / n for f in strong[:2] for n in (2, 3)]
-    pool = [f for f in pool if abs(f) > floor]
-    if spin_hz is not None:
-        pairs = [(spin_hz, f - m * spin_hz) for f in strong for m in range(-2, 3)]
-        pairs = [(a, b) for a, b in pairs if abs(b) > floor] + [(spin_hz, 0.0)]
-    else:
-        pairs = [(a, b) for i, a in enumerate(pool) for b in pool[i + 1 :]] + [(a, 0.0) for a in pool]
-    best: tuple[float, float, BaseChoice] | None = None
-    total = float(amps.sum())
-    for a, b in pairs:
-        if _degenerate(a, b, tolerance):
-            continue
-        order_a, order_b, explained = _explain(freqs, a, b, tolerance)
-        share = float(amps[explained].sum()) / total
-        cost = float(np.sum(amps[explained] * (np.abs(order_a) + np.abs(order_b))[explained])) / total
-        choice = BaseChoice((float(a), float(b)), tuple(zip(order_a[explained].tolist(), order_b[explained].tolist(),
-                                                            strict=True)), share)
-        key = (share - 0.02 * cost, -cost)
-        if best is None or key > best[:2]:
-            best = (*key, choice)
-    if best is None or best[2].explained < 0.5:
-        share = 0.0 if best is None else best[2].explained
-        raise LivoxVizError(f"the strongest lines of the spectrum are not combinations of two frequencies (at most "
-                            f"{100 * share:.0f} % explained): no periodic scan track in this table")
-    return best[2] if spin_hz is not None else _normalise(best[2])
-
-
-def _normalise(choice: BaseChoice) -> BaseChoice:
-    """f_A the stronger-explained positive one where the orders allow: (1, 0) before (0, 1), both signs free."""
-    (a, b), orders = choice.hz, choice.orders
-    if b != 0 and not any(o == (1, 0) or o == (-1, 0) for o in orders) and any(abs(m) + abs(n) == 1 and n
-                                                                                 for m, n in orders):
-        a, b = b, a
-        orders = tuple((n, m) for m, n in orders)
-    return BaseChoice((a, b), orders, choice.explained)
-
-
-# The fit ------------------------------------------------------------------------------------------------------
+# The rows, laser by laser -----------------------------------------------------------------------------------
 @dataclass
 class _Signals:
-    """Each laser's rows as complex signals (x + iy, or for a spin the azimuth less the turn)."""
+    """Each laser's rows as complex signals (x + iy, or for a spin the azimuth less the turn) at their times.
+
+    ``regular``: every firing of each laser in one fixed order, so laser k's rows are ``dt`` apart (the Gram
+    matrix in closed form); otherwise each row is taken at its own time. ``index`` holds each laser's rows'
+    places in the table.
+    """
 
     x: list[np.ndarray]
     y: list[np.ndarray]
-    t0: list[float]
+    t: list[np.ndarray]
+    index: list[np.ndarray]
     dt: float
+    regular: bool
 
-    def lasers(self, spin_hz: float, stride: int = 1) -> list[LaserRows]:
-        out = []
-        for x, y, t0 in zip(self.x, self.y, self.t0, strict=True):
-            xs, ys = x[::stride], y[::stride]
+    def lasers(self, spin_hz: float, stride: int = 1) -> list[LaserRows | TimedRows]:
+        out: list[LaserRows | TimedRows] = []
+        for x, y, t in zip(self.x, self.y, self.t, strict=True):
+            xs, ys, ts = x[::stride], y[::stride], t[::stride]
             if spin_hz:
-                t = t0 + np.arange(xs.size) * (self.dt * stride)
-                xs = xs - 360.0 * spin_hz * t
-            out.append(LaserRows(xs + 1j * ys, t0, self.dt * stride))
+                xs = xs - 360.0 * spin_hz * ts
+            z = xs + 1j * ys
+            out.append(LaserRows(z, float(ts[0]), self.dt * stride) if self.regular else TimedRows(z, ts))
         return out
+
+    @property
+    def rows(self) -> int:
+        return sum(x.size for x in self.x)
+
+    @property
+    def span(self) -> float:
+        """Seconds from the first row to the last, of the laser with the shortest span."""
+        return min(float(t[-1] - t[0]) for t in self.t)
+
+
+def _signals(table: ReferencePattern, assignment: LaserAssignment, panorama: bool) -> _Signals:
+    """The table's rows split by laser (every firing in order: K evenly spaced series of equal length)."""
+    xy = np.asarray(table.xy_deg, dtype=np.float64)
+    lasers = assignment.lasers
+    regular = assignment.in_order and table.consecutive
+    if regular:
+        per_laser = xy.shape[0] // lasers
+        places = [np.arange(k, k + lasers * per_laser, lasers) for k in range(lasers)]
+    else:
+        places = [np.flatnonzero(assignment.labels == k) for k in range(lasers)]
+    fewest = min(p.size for p in places)
+    if fewest < 16:
+        k = min(range(lasers), key=lambda k: places[k].size)
+        raise _Refusal(f"laser {k} of {lasers} has {fewest} rows", "the lasers")
+    x = [np.unwrap(xy[p, 0], period=360.0) if panorama else xy[p, 0].copy() for p in places]
+    y = [xy[p, 1].copy() for p in places]
+    if regular:
+        t = [(k + lasers * np.arange(p.size, dtype=np.float64)) / table.rate for k, p in enumerate(places)]
+        dt = lasers / table.rate
+    else:
+        t = [np.asarray(table.t, dtype=np.float64)[p] for p in places]
+        dt = float(np.median([(tk[-1] - tk[0]) / (tk.size - 1) for tk in t]))
+    return _Signals(x, y, t, places, dt, regular)
+
+
+def _even_signal(signals: _Signals, spin_hz: float, rate: float, lasers: int) -> tuple[np.ndarray, float]:
+    """Laser 0's rows as an evenly spaced series for its spectrum, and their spacing (seconds)."""
+    rows = signals.lasers(spin_hz)[0]
+    if signals.regular:
+        return rows.z, signals.dt
+    return even_series(rows.z, np.rint(signals.t[0] * rate).astype(np.int64), lasers), lasers / rate
+
+
+# The fit ------------------------------------------------------------------------------------------------------
+class _Refusal(Exception):
+    """A table with no track in it: what was found (``detail``) and at which step (``stage``)."""
+
+    def __init__(self, detail: str, stage: str) -> None:
+        super().__init__(detail)
+        self.detail = detail
+        self.stage = stage
 
 
 def _terms_box(reach_a: int, reach_b: int) -> list[tuple[int, int]]:
     return [(m, n) for m in range(-reach_a, reach_a + 1) for n in range(-reach_b, reach_b + 1)]
 
 
-def _term_hz(terms: list[tuple[int, int]], hz: tuple[float, float]) -> np.ndarray:
+def _term_hz(terms: Sequence[tuple[int, int]], hz: tuple[float, float]) -> np.ndarray:
     return np.array([m * hz[0] + n * hz[1] for m, n in terms], dtype=np.float64)
 
 
-def _solve_all(lasers: list[LaserRows], hz: np.ndarray, residual: bool = True
-               ) -> tuple[np.ndarray, list[np.ndarray]]:
+def _solve_all(lasers: list[LaserRows | TimedRows], hz: tuple[float, float], terms: Sequence[tuple[int, int]],
+               residual: bool = True) -> tuple[np.ndarray, list[np.ndarray]]:
     coefficients, residuals = [], []
     for laser in lasers:
-        c, r = laser.solve(hz, residual)
+        c, r = laser.solve_terms(hz, terms, residual)
         coefficients.append(c)
         residuals.append(r)
     return np.array(coefficients), residuals
 
 
-def _refine(make_lasers: Callable[[float], list[LaserRows]], hz: tuple[float, float],
+def _refine(make_lasers: Callable[[float], list[LaserRows | TimedRows]], hz: tuple[float, float],
             terms: list[tuple[int, int]], span: float, spin: bool) -> tuple[tuple[float, float], str | None]:
     """Variable projection over the base frequencies (f_B held at 0 for one frequency).
 
@@ -318,7 +236,7 @@ def _refine(make_lasers: Callable[[float], list[LaserRows]], hz: tuple[float, fl
 
     def residual(values: np.ndarray) -> np.ndarray:
         trial = (float(values[0]), 0.0 if one else float(values[1]))
-        _, parts = _solve_all(make_lasers(trial[0] if spin else 0.0), _term_hz(terms, trial))
+        _, parts = _solve_all(make_lasers(trial[0] if spin else 0.0), trial, terms)
         joined = np.concatenate(parts)
         return np.concatenate([joined.real, joined.imag])
 
@@ -335,7 +253,7 @@ def _refine(make_lasers: Callable[[float], list[LaserRows]], hz: tuple[float, fl
 
 def fit_track(table: ReferencePattern, beams: int | None = None,
               tolerance_deg: float = DEFAULT_TOLERANCE_DEG) -> TrackFit:
-    """Fit the general track model to a scan table (row r fires at r / rate and is laser r mod K).
+    """Fit the general track model to a scan table (each row at its time ``table.t``, its laser from the geometry).
 
     Its products are many and small (Gram matrices of a few hundred terms, blocks of 2048 rows): they run on
     one BLAS thread (:func:`~livox_viz.core.blas.one_blas_thread`), 10 x faster on the 2-core machine than
@@ -352,7 +270,8 @@ def fit_track(table: ReferencePattern, beams: int | None = None,
     Raises
     ------
     LivoxVizError
-        A table too short, a bad ``beams``, or a table with no periodic track in it.
+        A table too short, a bad ``beams``, or a table with no periodic track in it (the message says what the
+        fit found and what to try).
     """
     import scipy.linalg  # noqa: F401  (loaded before the pin: its own OpenBLAS is pinned with numpy's)
 
@@ -371,60 +290,76 @@ def _fit_track(table: ReferencePattern, beams: int | None, tolerance_deg: float)
     table.require_a_scan()
     if beams is not None and not 1 <= beams <= MAX_LASERS:
         raise LivoxVizError(f"--beams {beams}; allowed: 1 to {MAX_LASERS}")
-    if not 1e-12 < tolerance_deg <= 1.0:
-        raise LivoxVizError(f"tolerance {tolerance_deg!r} deg; allowed: (0, 1]")
+    if not MIN_TOLERANCE_DEG <= tolerance_deg <= 1.0:
+        raise LivoxVizError(f"--tolerance {tolerance_deg:g} deg; allowed: {MIN_TOLERANCE_DEG:g} to 1 deg rms")
     plane = table.plane
-    rate = table.rate
     panorama = plane == "panorama"
     order_x = np.unwrap(xy[:, 0], period=360.0) if panorama else xy[:, 0]
-    found = find_lasers((order_x + 1j * xy[:, 1])[:200_000])
-    lasers = beams or found
-    dt = lasers / rate
-    signals = _Signals([], [], [], dt)
-    for k in range(lasers):
-        x = xy[k::lasers, 0]
-        signals.x.append(np.unwrap(x, period=360.0) if panorama else x.copy())
-        signals.y.append(xy[k::lasers, 1].copy())
-        signals.t0.append(k / rate)
-    per_laser = min(x.size for x in signals.x)
-    signals.x = [x[:per_laser] for x in signals.x]
-    signals.y = [y[:per_laser] for y in signals.y]
-    span = (per_laser - 1) * dt
+    assignment = assign_lasers(order_x + 1j * xy[:, 1], table.slots, beams)
+    found: dict[str, object] = {"assignment": assignment}
+    try:
+        return _fit_assigned(table, assignment, tolerance_deg, started, found)
+    except _Refusal as refusal:
+        raise LivoxVizError(_refusal_message(table, beams, found, refusal)) from None
+
+
+def _fit_assigned(table: ReferencePattern, assignment: LaserAssignment, tolerance_deg: float, started: float,
+                  found: dict[str, object]) -> TrackFit:
+    """The fit once each row has its laser; ``found`` collects what the steps find, for a refusal's message."""
+    plane = table.plane
+    panorama = plane == "panorama"
+    lasers = assignment.lasers
+    signals = _signals(table, assignment, panorama)
+    span = signals.span
     spin_hz = _spin_rate(signals) if panorama else 0.0
     spin = spin_hz != 0.0
+    spread = _spread(signals, spin_hz)
+    spread_deg = _spread_deg(signals, plane)
+    found["spread_deg"] = spread_deg
 
     # Base frequencies from laser 0's spectrum.
-    first = signals.lasers(spin_hz)[0].z
-    peaks = spectral_peaks(first, 1.0 / dt, PEAKS)
-    choice = choose_base(peaks, 1.0 / span, spin_hz if spin else None)
+    even, spacing = _even_signal(signals, spin_hz, table.rate, lasers)
+    peaks = spectral_peaks(even, 1.0 / spacing, PEAKS)
+    found["peaks"] = [f for f, _ in peaks[:3]]
+    try:
+        choice = choose_base(peaks, 1.0 / span, spin_hz if spin else None)
+    except LivoxVizError as exc:
+        raise _Refusal(str(exc), "the base frequencies") from None
     hz = choice.hz
+    found["hz"] = hz
     slowest = min(abs(f) for f in hz if f != 0)
     if span < 2.0 / slowest:
         raise LivoxVizError(f"{table.name}: {table.seconds:.4g} s of data; allowed: at least two periods of the "
                             f"slowest base frequency ({2.0 / slowest:.4g} s at {slowest:.4g} Hz)")
-    spread = rms(np.concatenate([(lr.z - lr.z.mean()) for lr in signals.lasers(spin_hz, max(1, per_laser // 20_000))]))
 
     # Refine the frequencies on a few rows with the terms the lines asked for.
     reach_a = max(2, max(abs(m) for m, _ in choice.orders) + 1)
     reach_b = 0 if hz[1] == 0 else max(2, max(abs(n) for _, n in choice.orders) + 1)
     separation = 1.0 / span
-    refine_stride = _stride(per_laser * lasers, REFINE_ROWS, dt, _term_hz(_terms_box(reach_a, reach_b), hz))
+    refine_stride = _stride(signals.rows, REFINE_ROWS, signals.dt, _term_hz(_terms_box(reach_a, reach_b), hz))
     terms = _resolvable_box(reach_a, reach_b, hz, separation)
     hz, refine_note = _refine(lambda s: signals.lasers(s, refine_stride), hz, terms, span, spin)
+    found["hz"] = hz
     notes = [refine_note] if refine_note else []
     spin_hz = hz[0] if spin else 0.0
+    moved = 0
+    if not signals.regular:  # rows the geometry gave to the wrong laser would hold the growth at their distance
+        signals, assignment, moved, _ = _settle(table, signals, assignment, hz, terms, spin_hz)
 
     # Grow the box on more rows until the residual is within the tolerance, or growing stops paying (the
     # table's own noise floor: a table printed to 0.01 deg cannot be followed closer than about 0.003 deg).
     previous = math.inf
     while True:
         box_hz = _term_hz(_terms_box(reach_a, reach_b), hz)
-        stride = _stride(per_laser * lasers, GROWTH_ROWS, dt, box_hz)
+        stride = _stride(signals.rows, GROWTH_ROWS, signals.dt, box_hz)
         terms = _resolvable_box(reach_a, reach_b, hz, separation)
-        coefficients, residuals = _solve_all(signals.lasers(spin_hz, stride), _term_hz(terms, hz))
+        strided = signals.lasers(spin_hz, stride)
+        coefficients, residuals = _solve_all(strided, hz, terms)
         error = rms(np.concatenate(residuals))
         if error > 0.3 * spread:
-            _no_track(table, error, spread)
+            found["error_deg"] = _angle_rms(strided, residuals, plane)
+            found["terms"] = len(terms)
+            raise _Refusal("", "the terms")
         if error <= tolerance_deg / 2 or error > FLOOR_GAIN * previous:
             break
         previous = error
@@ -461,30 +396,143 @@ def _fit_track(table: ReferencePattern, beams: int | None, tolerance_deg: float)
         keep[:] = False
         keep[order[-MAX_TERMS:]] = True
     terms = [term for term, kept in zip(terms, keep, strict=True) if kept]
-    every_row = signals.lasers(spin_hz)
-    coefficients, residuals = _solve_all(every_row, _term_hz(terms, hz))
+    found["terms"] = len(terms)
+    if signals.regular:
+        every_row = signals.lasers(spin_hz)
+        coefficients, residuals = _solve_all(every_row, hz, terms)
+    else:
+        signals, assignment, more, (every_row, coefficients, residuals) = _settle(table, signals, assignment, hz,
+                                                                                  terms, spin_hz)
+        moved += more
     params = TrackParams(form="spin" if spin else "plane", base_hz=hz, phase_rad=(0.0, 0.0), terms=tuple(terms),
                          coefficients=coefficients)
 
     # The residual as the angle between each row's ray and the model's, laser by laser.
-    distances = []
-    for rows_k, residual in zip(every_row, residuals, strict=True):
-        measured = np.column_stack([rows_k.z.real, rows_k.z.imag])
-        model = measured - np.column_stack([residual.real, residual.imag])
-        distances.append(angle_between_deg(model, measured, plane))
+    distances = _angles(every_row, residuals, plane)
     per = np.array([math.sqrt(float(np.mean(d**2))) for d in distances])
     distance = np.concatenate(distances)
     total = math.sqrt(float(np.mean(distance**2)))
-    if total > NO_TRACK_FRACTION * spread:
-        _no_track(table, total, spread)
-    return TrackFit(params, FieldOfView.of_points(xy, plane), found, total, float(np.percentile(distance, 95)),
-                    float(distance.max()), per, spread, time.perf_counter() - started, tuple(notes))
+    if total > NO_TRACK_FRACTION * spread_deg:
+        found["error_deg"] = total
+        raise _Refusal("", "the last solve")
+    return TrackFit(params, FieldOfView.of_points(table.xy_deg, plane), assignment.found, total,
+                    float(np.percentile(distance, 95)), float(distance.max()), per, spread_deg,
+                    time.perf_counter() - started, tuple(notes), assignment.in_order, moved)
 
 
-def _no_track(table: ReferencePattern, error: float, spread: float) -> None:
-    raise LivoxVizError(f"{table.name}: the best track leaves {error:.3g} deg rms of the table's {spread:.3g} deg "
-                        f"spread ({100 * error / max(spread, 1e-300):.0f} %): there is no periodic scan track in it "
-                        "(noise, or rows not in firing order?)")
+def _settle(table: ReferencePattern, signals: _Signals, assignment: LaserAssignment, hz: tuple[float, float],
+            terms: Sequence[tuple[int, int]], spin_hz: float) -> tuple[_Signals, LaserAssignment, int, tuple]:
+    """Solve on every row and move rows far off their laser's track to the nearest laser, until none moves (at
+    most :data:`RELABEL_ROUNDS` rounds); returns the signals, the assignment, the rows moved and the last solve
+    (rows, coefficients, residuals)."""
+    moved = 0
+    for round_ in range(RELABEL_ROUNDS + 1):
+        every_row = signals.lasers(spin_hz)
+        coefficients, residuals = _solve_all(every_row, hz, terms)
+        if round_ == RELABEL_ROUNDS:
+            break
+        labels, count = _relabel(signals, assignment.labels, every_row, residuals, coefficients, hz, terms)
+        if not count:
+            break
+        moved += count
+        assignment = LaserAssignment(assignment.lasers, assignment.found, labels, False,
+                                     assignment.prediction_error_deg)
+        signals = _signals(table, assignment, table.plane == "panorama")
+    return signals, assignment, moved, (every_row, coefficients, residuals)
+
+
+def _relabel(signals: _Signals, labels: np.ndarray, every_row: list[LaserRows | TimedRows],
+             residuals: list[np.ndarray], coefficients: np.ndarray, hz: tuple[float, float],
+             terms: Sequence[tuple[int, int]]) -> tuple[np.ndarray, int]:
+    """Rows far off their laser's track given to the laser whose track passes nearest; (labels, rows moved)."""
+    distance = [np.abs(r) for r in residuals]
+    joined = np.concatenate(distance)
+    typical = math.sqrt(float(np.mean(np.minimum(joined, np.percentile(joined, 99.9)) ** 2)))
+    suspects = [np.flatnonzero(d > RELABEL_FACTOR * typical) for d in distance]
+    if not any(s.size for s in suspects):
+        return labels, 0
+    z = np.concatenate([rows.z[s] for rows, s in zip(every_row, suspects, strict=True)])
+    t = np.concatenate([signals.t[k][s] for k, s in enumerate(suspects)])
+    places = np.concatenate([signals.index[k][s] for k, s in enumerate(suspects)])
+    current = np.concatenate([np.full(s.size, k) for k, s in enumerate(suspects)])
+    timed = TimedRows(z, t)
+    # Every laser's model at the suspects' times (a spin's turn is the same for every laser, already taken out).
+    off = np.array([np.abs(z - timed.model(hz, terms, c)) for c in coefficients])
+    nearest = off.argmin(axis=0)
+    move = nearest != current
+    labels = labels.copy()
+    labels[places[move]] = nearest[move]
+    return labels, int(move.sum())
+
+
+def _angles(lasers: list[LaserRows | TimedRows], residuals: list[np.ndarray], plane: str) -> list[np.ndarray]:
+    """Per laser, the angle between each row's ray and the model's ray (degrees).
+
+    A spin's turn was taken out of both alike, which leaves the angle between them as it is.
+    """
+    out = []
+    for rows, residual in zip(lasers, residuals, strict=True):
+        measured = np.column_stack([rows.z.real, rows.z.imag])
+        model = measured - np.column_stack([residual.real, residual.imag])
+        out.append(angle_between_deg(model, measured, plane))
+    return out
+
+
+def _angle_rms(lasers: list[LaserRows | TimedRows], residuals: list[np.ndarray], plane: str) -> float:
+    return math.sqrt(float(np.mean(np.concatenate(_angles(lasers, residuals, plane)) ** 2)))
+
+
+def _spread(signals: _Signals, spin_hz: float) -> float:
+    """Rms distance of the rows from their laser's mean, degrees of the plane (a spin's turn taken out)."""
+    stride = max(1, min(x.size for x in signals.x) // 20_000)
+    return rms(np.concatenate([(rows.z - rows.z.mean()) for rows in signals.lasers(spin_hz, stride)]))
+
+
+def _spread_deg(signals: _Signals, plane: str) -> float:
+    """Rms angle between each row's ray and its laser's mean ray, degrees: how far the table moves."""
+    stride = max(1, min(x.size for x in signals.x) // 20_000)
+    angles = []
+    for x, y in zip(signals.x, signals.y, strict=True):
+        rays = directions_from_xy(np.column_stack([x[::stride], y[::stride]]), plane)
+        mean = rays.mean(axis=0)
+        norm = float(np.linalg.norm(mean))
+        if norm < 1e-9:
+            angles.append(np.full(rays.shape[0], 90.0))
+            continue
+        angles.append(np.degrees(np.arccos(np.clip(rays @ (mean / norm), -1.0, 1.0))))
+    return math.sqrt(float(np.mean(np.concatenate(angles) ** 2)))
+
+
+def _refusal_message(table: ReferencePattern, beams: int | None, found: dict[str, object],
+                     refusal: _Refusal) -> str:
+    """One line: what the fit found, where it failed, what to try."""
+    assignment = found["assignment"]
+    assert isinstance(assignment, LaserAssignment)
+    parts = [f"{assignment.lasers} laser{'s' if assignment.lasers > 1 else ''}"
+             + (f" (--beams {beams}; the rows' geometry says {assignment.found})"
+                if beams is not None and beams != assignment.found else "")]
+    hz = found.get("hz")
+    if isinstance(hz, tuple):
+        parts.append(f"base {hz[0]:+.5g} and {hz[1]:+.5g} Hz" if hz[1] else f"base {hz[0]:+.5g} Hz")
+    elif found.get("peaks"):
+        peaks = found["peaks"]
+        assert isinstance(peaks, list)
+        parts.append("strongest lines " + ", ".join(f"{f:+.4g}" for f in peaks) + " Hz")
+    error, spread = found.get("error_deg"), found.get("spread_deg")
+    if isinstance(error, float) and isinstance(spread, float):
+        terms = found.get("terms")
+        parts.append(f"{'with ' + str(terms) + ' terms ' if terms else ''}the best track leaves {error:.3g} deg rms "
+                     f"between rays of the rows' {spread:.3g} deg ({100 * error / max(spread, 1e-300):.0f} %)")
+    if refusal.detail:
+        parts.append(refusal.detail)
+    if beams is not None and beams != assignment.found:
+        plural = "s" if assignment.found > 1 else ""
+        advice = f"leave out --beams (the rows' geometry says {assignment.found} laser{plural})"
+    else:
+        advice = ("check that each row is one firing's angles, in time order ([theta, phi] in radians in a .npy), "
+                  "from one head")
+    return (f"{table.name}: no periodic scan track found: {'; '.join(parts)} (failed at {refusal.stage}); "
+            f"noise, rows of two heads or rows that are not one firing each have none: {advice}")
 
 
 def _spin_rate(signals: _Signals) -> float:
@@ -492,10 +540,7 @@ def _spin_rate(signals: _Signals) -> float:
     x = signals.x[0]
     if abs(x[-1] - x[0]) < 720.0:
         return 0.0
-    slopes = []
-    for x, t0 in zip(signals.x, signals.t0, strict=True):
-        t = t0 + np.arange(x.size) * signals.dt
-        slopes.append(np.polyfit(t, x, 1)[0])
+    slopes = [np.polyfit(t, x, 1)[0] for x, t in zip(signals.x, signals.t, strict=True)]
     return float(np.mean(slopes)) / 360.0
 
 
