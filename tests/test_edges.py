@@ -88,7 +88,7 @@ def test_fit_risley_command_replays_the_preset_it_was_fitted_to(tmp_path, capsys
     assert main(["fit", "--to", "livox_mid70_risley", "--model", "risley", "--seconds", "0.5", "--beams", "1",
                  "--out", str(out)]) == 0
     printed = capsys.readouterr().out
-    assert "lasers           1 (forced; the step pattern says 1)" in printed
+    assert "lasers           1 (forced; the rows' geometry says 1)" in printed
     fitted, source = load_config(out), load_preset("livox_mid70_risley")
     assert fitted.pattern_model == "risley" and fitted.risley.lasers == 1
     ours = make_pattern(fitted, seed=0).take(20_000).xy_deg

@@ -8,15 +8,16 @@ from dataclasses import replace
 import numpy as np
 
 from livox_viz.config.fov import FieldOfView
-from livox_viz.config.presets import DESCRIPTION_KEY
+from livox_viz.config.presets import DEFAULT_PRESET, DESCRIPTION_KEY, load_preset
 from livox_viz.config.sensor import SensorConfig, frame_layout
 from livox_viz.config.track_params import TrackParams
+from livox_viz.core.errors import ConfigError
 from livox_viz.fitting.compare import compare
 from livox_viz.fitting.plot import plot_comparison
-from livox_viz.fitting.reference import ReferencePattern, is_table, load_table_or_preset
+from livox_viz.fitting.reference import ReferencePattern, is_table, load_table_or_preset, shipped_tables
 from livox_viz.fitting.risley_fit import fit_risley
 from livox_viz.fitting.rosette_fit import fit_reference
-from livox_viz.fitting.track_fit import DEFAULT_TOLERANCE_DEG, TrackFit, fit_track
+from livox_viz.fitting.track_fit import DEFAULT_TOLERANCE_DEG, MIN_TOLERANCE_DEG, TrackFit, fit_track
 
 from .common import (
     Command,
@@ -31,6 +32,10 @@ from .common import (
     whole_number,
     write_config_json,
 )
+
+RATE_HELP = ("firings per second of a table (default: a shipped table's own, the rows' times in a CSV's Time/s "
+             "or an .npz's t, else read off the spectrum: the rate at which the head's parts turn at whole rpm; "
+             "the output says which)")
 
 
 def _reference(args: argparse.Namespace) -> ReferencePattern:
@@ -55,16 +60,24 @@ def cmd_fit(args: argparse.Namespace) -> int:
         raise UsageError("--sdk says which RflySim SDK the preset of --out is for; give --out too")
     if args.tolerance is not None and args.model != "track":
         raise UsageError("--tolerance goes with --model track")
+    if args.tolerance is not None and not MIN_TOLERANCE_DEG <= args.tolerance <= 1.0:
+        raise UsageError(f"--tolerance {args.tolerance:g}; allowed: {MIN_TOLERANCE_DEG:g} to 1 deg rms (a track is "
+                         "computed to about 1e-9 deg)")
     if args.beams is not None and args.model == "rflysim":
         raise UsageError("--beams goes with --model risley or track (the rosette has one laser)")
     reference = _reference(args)
+    if args.beams is not None:
+        _check_groups(reference, args.beams)
+    base, base_said = _base(args, reference)
     if args.model == "risley":
-        return _fit_risley(args, reference)
+        return _fit_risley(args, reference, base, base_said)
     if args.model == "track":
-        return _fit_track(args, reference)
-    result = fit_reference(reference, base=_base(args).with_pattern_model("rflysim"))
+        return _fit_track(args, reference, base, base_said)
+    result = fit_reference(reference, base=base.with_pattern_model("rflysim"))
     cfg, shape, structure = result.config, result.shape, result.structure
     print(f"{reference.name}: {len(reference.t):,} points, {reference.seconds:g} s, {shape.petals} petals")
+    print(_rate_line(reference))
+    print(f"  base             {base_said}")
     print(f"  CameraFOV        {cfg.camera_fov:10.4f} deg")
     print(f"  otherParams[1] h {cfg.petal_height:10.4f} deg")
     print(f"  otherParams[2] p {cfg.spacing_exponent:10.4f}")
@@ -87,19 +100,71 @@ def cmd_fit(args: argparse.Namespace) -> int:
     return 0
 
 
-def _base(args: argparse.Namespace) -> SensorConfig:
-    """The configuration whose RflySim fields a fitted preset keeps (``--preset``/``--config``)."""
-    return config_from_args(args)
+def _base(args: argparse.Namespace, reference: ReferencePattern) -> tuple[SensorConfig, str]:
+    """The configuration whose RflySim fields a fitted preset keeps, and where it came from in words.
+
+    ``--preset``/``--config`` when given; else the default preset's RflySim fields with the range and return
+    sheet of the table's own sensor when the table is (or begins as) a shipped one; else the default preset,
+    said plainly (its range and return sheet are the Mid-70's).
+    """
+    if getattr(args, "preset", None) or getattr(args, "config", None):
+        return config_from_args(args), f"{config_label(args)} (its RflySim fields, range and return model)"
+    default = config_from_args(args)
+    entry = shipped_tables().get(reference.shipped) if reference.shipped else None
+    if entry is not None and entry.get("preset"):
+        sensor = load_preset(entry["preset"])
+        returns = sensor.returns
+        if returns is not None and args.model == "rflysim":  # RflySim's rosette presets stay ideal by default
+            returns = replace(returns, model="ideal")
+        base = replace(default, other_params=(sensor.range_max, *default.other_params[1:]), returns=returns)
+        return base, (f"{DEFAULT_PRESET}'s RflySim fields with the range ({sensor.range_max:g} m) and return model of "
+                      f"{entry['preset']}, the {entry.get('sensor', 'table')}'s (--preset NAME to take another's)")
+    return default, (f"{DEFAULT_PRESET}, the default (its RflySim fields, its {default.range_max:g} m range and the "
+                     "Mid-70's return sheet): --preset NAME takes your sensor's")
 
 
-def _at_table_rate(base: SensorConfig, reference: ReferencePattern, lasers: int) -> SensorConfig:
-    """The base configuration with W x H x F equal to the table's rows per second (about 10 frames/s).
+def _check_groups(reference: ReferencePattern, lasers: int) -> None:
+    """Refuse, before the fit, a laser count whose firing groups no frame at the table's rate holds whole."""
+    def whole(count: int) -> bool:
+        try:
+            width, height, _ = frame_layout(reference.rate, count)
+        except ConfigError:
+            return False
+        return (width * height) % count == 0
+
+    if not whole(lasers):
+        allowed = ", ".join(str(k) for k in range(1, 17) if whole(k))
+        raise UsageError(f"--beams {lasers}: at {reference.rate:,.6g} rows/s no frame (DataWidth x DataHeight, "
+                         f"DataCheckFreq 1 to 1000 a second) holds whole groups of {lasers} lasers; allowed here: "
+                         f"{allowed or 'none'}")
+
+
+def _rate_line(reference: ReferencePattern) -> str:
+    """Where the table's rate came from, and how many rows it missed."""
+    missing = reference.firings - len(reference.t)
+    gaps = f", {missing:,} firings without a row" if missing else ""
+    return f"  rate             {reference.rate:,.6g} rows/s: {reference.rate_source}{gaps}"
+
+
+def _at_table_rate(base: SensorConfig, reference: ReferencePattern, lasers: int, found: int) -> SensorConfig:
+    """The base configuration with W x H x F equal to the table's rows per second (about 10 frames/s), each frame
+    whole firing groups of ``lasers``.
 
     The base's own layout is kept when it already makes the rate; otherwise W stays nearest the base's.
+
+    Raises
+    ------
+    UsageError
+        When no frame of whole groups makes the rate (a forced ``--beams`` the rows do not show is named).
     """
     if base.point_rate == reference.rate and base.points_per_frame % lasers == 0:
         return base
     width, height, freq = frame_layout(reference.rate, lasers, width=base.data_width)
+    if (width * height) % lasers:
+        blame = (f"; --beams {lasers} where the rows' geometry says {found}: leave --beams out" if lasers != found
+                 else "")
+        raise UsageError(f"{reference.name}: at {reference.rate:,.6g} rows/s no frame (DataWidth x DataHeight, "
+                         f"DataCheckFreq 1 to 1000 a second) holds whole groups of {lasers} lasers{blame}")
     return replace(base, data_width=width, data_height=height, data_check_freq=freq)
 
 
@@ -111,15 +176,19 @@ def _with_track(config: SensorConfig, track: TrackParams, fov: FieldOfView) -> S
     return replace(config, track=track, pattern_model="track", fov=fov)
 
 
-def _fit_risley(args: argparse.Namespace, reference: ReferencePattern) -> int:
+def _fit_risley(args: argparse.Namespace, reference: ReferencePattern, base: SensorConfig, base_said: str) -> int:
     fit = fit_risley(reference, beams=args.beams)
     params = fit.params
     half_fov = float(np.hypot(reference.xy_deg[:, 0], reference.xy_deg[:, 1]).max())
-    base = _at_table_rate(_base(args), reference, params.lasers)
-    config = replace(base, risley=params, pattern_model="risley", camera_fov=round(2 * half_fov, 4))
+    base = _at_table_rate(base, reference, params.lasers, fit.lasers_found)
+    # The field of view the table covers (six offset circles make no cone: a cone would cap coverage).
+    config = replace(base, risley=params, pattern_model="risley", camera_fov=round(2 * half_fov, 4),
+                     fov=reference.field_of_view)
     rate = config.point_rate
-    forced = "" if args.beams is None else f" (forced; the step pattern says {fit.lasers_found})"
+    forced = "" if args.beams is None else f" (forced; the rows' geometry says {fit.lasers_found})"
     print(f"{reference.name}: {len(reference.t):,} rows, {reference.seconds:g} s at {reference.rate:g} rows/s")
+    print(_rate_line(reference))
+    print(f"  base             {base_said}")
     print(f"  lasers           {params.lasers}{forced}")
     print(f"  prism A          {params.prism_hz[0]:+.6f} Hz = {params.prism_rpm[0]:+.3f} rpm, "
           f"deflection {params.deflection_deg[0]:.5f} deg, phase {params.phase_rad[0]:+.6f} rad")
@@ -130,9 +199,11 @@ def _fit_risley(args: argparse.Namespace, reference: ReferencePattern) -> int:
           f"(sample for sample)")
     if params.lasers > 1:
         print("  per laser rms    " + " ".join(f"{v:.6f}" for v in fit.rms_per_laser_deg) + " deg")
+    print(f"  field of view    {config.field_of_view.describe()}")
     print(f"  fitted in        {fit.seconds:.1f} s")
     print(f"  plays at         {config.data_width} x {config.data_height} x {config.data_check_freq} = {rate:,} "
           "pts/s, the table's rate")
+    _warn_forced(args, fit.lasers_found)
     if args.out:
         _write_preset(args, config, f"Risley track fitted to {reference.name} ({reference.seconds:g} s, "
                                     f"{params.lasers} laser{'s' if params.lasers > 1 else ''}): track residual rms "
@@ -141,15 +212,23 @@ def _fit_risley(args: argparse.Namespace, reference: ReferencePattern) -> int:
     return 0
 
 
-def _fit_track(args: argparse.Namespace, reference: ReferencePattern) -> int:
+def _warn_forced(args: argparse.Namespace, found: int) -> None:
+    if args.beams is not None and args.beams != found:
+        print(f"  warning: --beams {args.beams} where the rows' geometry says {found}: the preset plays "
+              f"{args.beams} lasers' tracks in turn; leave --beams out unless you know the head has {args.beams}")
+
+
+def _fit_track(args: argparse.Namespace, reference: ReferencePattern, base: SensorConfig, base_said: str) -> int:
     tolerance = DEFAULT_TOLERANCE_DEG if args.tolerance is None else args.tolerance
     fit = fit_track(reference, beams=args.beams, tolerance_deg=tolerance)
     params = fit.params
-    base = _at_table_rate(_base(args), reference, params.lasers)
+    base = _at_table_rate(base, reference, params.lasers, fit.lasers_found)
     config = _with_track(base, params, fit.field_of_view)
     print(_track_report(reference, fit, args.beams is not None))
+    print(f"  base             {base_said}")
     print(f"  plays at         {config.data_width} x {config.data_height} x {config.data_check_freq} = "
           f"{config.point_rate:,} pts/s, the table's rate")
+    _warn_forced(args, fit.lasers_found)
     if fit.rms_deg > 0.01:
         print(f"  warning: the track follows the table only to {fit.rms_deg:.3g} deg rms (more than 0.01 deg): "
               "is the table noisy, or its rows out of order?")
@@ -167,10 +246,13 @@ def _track_report(reference: ReferencePattern, fit: TrackFit, forced: bool) -> s
     params = fit.params
     orders_a = max(abs(m) for m, _ in params.terms)
     orders_b = max(abs(n) for _, n in params.terms)
+    order = "in one fixed order" if fit.in_order else "out of order, each row's laser from the geometry"
+    moved = f"; {fit.relabelled} rows moved to the laser whose track passes nearest" if fit.relabelled else ""
     lines = [f"{reference.name}: {len(reference.t):,} rows, {reference.seconds:g} s at {reference.rate:g} rows/s, "
              f"{reference.plane} plane",
-             f"  lasers           {params.lasers}" + (f" (forced; the step pattern says {fit.lasers_found})"
-                                                    if forced else ""),
+             _rate_line(reference),
+             f"  lasers           {params.lasers}" + (f" (forced; the rows' geometry says {fit.lasers_found})"
+                                                    if forced else "") + f", {order}{moved}",
              f"  form             {params.form}" + (" (azimuth = A(t) + series, elevation = series)"
                                                     if params.form == "spin" else ""),
              f"  base A           {params.base_hz[0]:+.6f} Hz = {params.base_rpm[0]:+.3f} rpm",
@@ -188,8 +270,9 @@ def _track_report(reference: ReferencePattern, fit: TrackFit, forced: bool) -> s
 
 def _fit_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("reference", nargs="?", help="scan table: a shipped one by name (mid40, mid70, horizon, "
-                                                     "mid360), a .npy [theta, phi] in radians or a Livox CSV "
-                                                     "(degrees)")
+                                                     "mid360, avia, tele15), a .npy [theta, phi] in radians, an "
+                                                     ".npz of theta, phi and t (seconds) or a Livox CSV (degrees); "
+                                                     "rows may be out of laser order, with gaps, cut anywhere")
     parser.add_argument("--to", help="fit to a preset's own track instead of a table, e.g. livox_mid70_risley")
     parser.add_argument("--model", choices=("rflysim", "risley", "track"), default="rflysim",
                         help="rflysim: RflySim's rosette parameters (default); risley: the two-prism track; "
@@ -199,10 +282,9 @@ def _fit_arguments(parser: argparse.ArgumentParser) -> None:
                                                                   "pattern)")
     parser.add_argument("--tolerance", type=positive_float,
                         help=f"with --model track: the residual, deg rms, the series may leave when it prunes its "
-                             f"terms (default {DEFAULT_TOLERANCE_DEG:g}; fewer terms stream faster)")
-    parser.add_argument("--rate", type=positive_float,
-                        help="rows per second of a table (default: a shipped table's own rate, a CSV's Time/s "
-                             "column, else 100000)")
+                             f"terms ({MIN_TOLERANCE_DEG:g} to 1, default {DEFAULT_TOLERANCE_DEG:g}; fewer terms "
+                             "stream faster)")
+    parser.add_argument("--rate", type=positive_float, help=RATE_HELP)
     parser.add_argument("--seconds", type=positive_float, default=4.0,
                         help="with --to: how much of the preset's track to fit (default 4)")
     add_seed_argument(parser)
@@ -232,6 +314,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         rms, p95, worst = result.track_residual
         print(f"  track residual   rms {rms:.6f} deg, p95 {p95:.6f} deg, max {worst:.6f} deg (angle between rays, "
               "sample for sample)")
+    else:
+        print(f"  track residual   none: {result.no_residual_because}")
     if args.plot:
         plot_comparison(result, args.plot, f"{config_label(args)} vs {reference.name}")
         print(f"wrote {args.plot}")
@@ -240,10 +324,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def _compare_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_arguments(parser)
-    parser.add_argument("reference", help="a scan table (mid40, mid70, a .npy or a Livox CSV) or a preset (name or "
-                                          "JSON)")
-    parser.add_argument("--rate", type=positive_float,
-                        help="rows per second of a table (default: a shipped table's own rate, else 100000)")
+    parser.add_argument("reference", help="a scan table (a shipped one by name, a .npy, an .npz or a Livox CSV) or a "
+                                          "preset (name or JSON)")
+    parser.add_argument("--rate", type=positive_float, help=RATE_HELP)
     parser.add_argument("--seconds", type=positive_float, default=4.0,
                         help="how much of a preset reference to replay (default 4)")
     add_seed_argument(parser)

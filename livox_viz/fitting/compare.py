@@ -42,6 +42,8 @@ class Comparison:
     span_seconds: float = 0.0
     #: What the density runs along ("angle off the boresight, deg" or "elevation, deg").
     profile_label: str = "angle off the boresight, deg"
+    #: Why there is no track residual, in words ("" when there is one).
+    no_residual_because: str = ""
 
 
 def compare(config: SensorConfig, reference: ReferencePattern, seed: int = 0,
@@ -51,7 +53,8 @@ def compare(config: SensorConfig, reference: ReferencePattern, seed: int = 0,
         raise LivoxVizError(f"{reference.name} is a {reference.plane} pattern and the configuration a "
                             f"{config.pattern_plane} one; allowed: two patterns in the same plane")
     duration = min(reference.seconds, COMPARE_MAX_SECONDS)
-    rows = min(len(reference.t), points_before(duration, reference.rate))
+    # The rows of the compared span (a table with gaps has fewer rows than firings).
+    rows = int(np.searchsorted(reference.slots, points_before(duration, reference.rate)))
     usable = tuple(t for t in seconds if points_before(t, reference.rate) <= rows
                    and points_before(t, config.point_rate) <= points_before(duration, config.point_rate))
     if not usable or rows < 2:
@@ -67,10 +70,17 @@ def compare(config: SensorConfig, reference: ReferencePattern, seed: int = 0,
     high = max(ours_fov.profile_range[1], reference_fov.profile_range[1])
     edges, ours_density = radial_density(ours, ours_fov, bins, (low, high))
     _, ref_density = radial_density(reference_xy, reference_fov, bins, (low, high))
-    residual = None
-    if config.pattern_model in SERIES_MODELS and config.point_rate == reference.rate and len(ours) == rows:
+    residual, because = None, ""
+    if config.pattern_model not in SERIES_MODELS:
+        because = (f"ours is RflySim's rosette ({config.pattern_model} model), whose seeded petals follow no track "
+                   "sample for sample")
+    elif config.point_rate != reference.rate:
+        because = (f"the rates differ (ours {config.point_rate:,} pts/s, the reference's {reference.rate:,.6g} "
+                   "rows/s): sample k is not the same moment in both")
+    else:
         from livox_viz.fitting.risley_fit import track_residual
 
-        residual = track_residual(ours, reference_xy, config.pattern_plane)
+        # Each row against our sample of the same firing (a table with gaps skips ours where it has no row).
+        residual = track_residual(ours[reference.slots[:rows]], reference_xy, config.pattern_plane)
     return Comparison(np.array(usable), ours_cov, ref_cov, edges, ours_density / duration,
-                      ref_density / duration, residual, duration, ours_fov.profile_label)
+                      ref_density / duration, residual, duration, ours_fov.profile_label, no_residual_because=because)

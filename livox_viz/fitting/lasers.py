@@ -54,7 +54,7 @@ class LaserAssignment:
         K, the lasers in use (``found`` unless forced).
     found : int
         K as the rows' geometry says it.
-    labels : (n,) int64
+    labels : (n,) int8
         Each row's laser, 0 .. K - 1.
     in_order : bool
         Whether ``labels`` is ``slot mod K`` (the lasers fire in one fixed order).
@@ -111,9 +111,9 @@ def assign_lasers(z: np.ndarray, slots: np.ndarray, beams: int | None = None) ->
     best = min(errors.values()) if errors else 0.0
     found = next((k for k, error in errors.items() if error <= COUNT_MARGIN * best), 1)
     lasers = beams or found
-    residue = np.mod(slots, lasers)
     if lasers == 1:
-        return LaserAssignment(1, found, np.zeros(z.size, dtype=np.int64), True, errors.get(1, 0.0))
+        return LaserAssignment(1, found, np.zeros(z.size, dtype=np.int8), True, errors.get(1, 0.0))
+    residue = np.mod(slots, lasers).astype(np.int8)
     if lasers != found:
         # A count the geometry does not see (K tracks on fewer lasers follow nothing in particular): the lasers
         # are taken to fire in turn in one fixed order, as a forced count says.
@@ -157,7 +157,7 @@ def _by_offset(z: np.ndarray, slots: np.ndarray, labels: np.ndarray, lasers: int
     local = _local_offsets(z, slots, lasers)
     means = np.array([local[labels == k].mean() if np.any(labels == k) else 0.0 for k in range(lasers)])
     order = np.lexsort((np.round(means.real, 6), -np.round(means.imag, 6)))
-    rename = np.empty(lasers, dtype=np.int64)
+    rename = np.empty(lasers, dtype=np.int8)
     rename[order] = np.arange(lasers)
     return rename[labels]
 

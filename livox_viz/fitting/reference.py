@@ -21,6 +21,8 @@ import json
 import math
 import os
 import re
+import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +33,15 @@ from livox_viz.core.errors import LivoxVizError, require_file
 from livox_viz.fitting.table import ReferencePattern
 from livox_viz.patterns.planes import frd_from_zup, xy_from_directions
 
-DEFAULT_RATE = 100_000.0
+#: The file forms a table may come in.
+TABLE_SUFFIXES = (".npy", ".npz", ".csv")
+#: Rates a table's times may say, rows per second.
+MIN_RATE = 1.0
+MAX_RATE = 10_000_000.0
+#: A table's times may leave at most this many firings per row (the rest missing).
+MAX_GAP_RATIO = 100
+#: Rows compared with the shipped tables to recognise a copy of one.
+MATCH_ROWS = 2000
 #: Most rows a table may hold (100 s at 100 000 rows/s; a fit of this many rows stays within about 2 GB).
 MAX_TABLE_ROWS = 10_000_000
 #: Largest Livox CSV read (a CSV row is about 30 bytes: some 8 million rows).
@@ -67,7 +77,8 @@ def shipped_table_dir() -> Path:
 
 
 def shipped_tables() -> dict[str, dict[str, Any]]:
-    """The shipped tables by name (``mid40``, ...): each with its ``rate`` (rows/s) and a ``description``."""
+    """The shipped tables by name (``mid40``, ...): each with its ``rate`` (rows/s), ``sensor``, ``preset`` (the
+    sensor's shipped preset) and a ``description``."""
     try:
         index = json.loads((shipped_table_dir() / "index.json").read_text(encoding="utf-8"))
     except (OSError, json.JSONDecodeError):
@@ -76,111 +87,209 @@ def shipped_tables() -> dict[str, dict[str, Any]]:
 
 
 def is_table(text: str | os.PathLike[str]) -> bool:
-    """Whether a reference names a scan table (a shipped table's name, or a .npy/.csv file) rather than a preset."""
-    return os.fspath(text) in shipped_tables() or Path(text).suffix.lower() in (".npy", ".csv")
+    """Whether a reference names a scan table (a shipped table's name, or a table file) rather than a preset."""
+    return os.fspath(text) in shipped_tables() or Path(text).suffix.lower() in TABLE_SUFFIXES
 
 
 def load_reference(source: str | os.PathLike[str], rate: float | None = None) -> ReferencePattern:
-    """Read a scan table: a shipped one by name (``"mid70"``), a ``.npy`` table (radians) or a Livox CSV (degrees).
+    """Read a scan table: a shipped one by name (``"mid70"``), a ``.npy`` (radians), an ``.npz`` with times or a
+    Livox CSV (degrees).
 
     Parameters
     ----------
     source : str or path-like
         A name from :func:`shipped_tables` or a file.
     rate : float, optional
-        Rows per second. Default: a shipped table's own rate, a CSV's ``Time/s`` column, else 100 000. A
-        rate that contradicts a shipped table's own or a CSV's time column is refused rather than replayed
-        at the wrong times.
+        Firings per second. Default, in this order: a shipped table's own rate (by name, or a file whose
+        first rows are a shipped table's), the rows' own times (a CSV's ``Time/s`` column, an ``.npz``'s
+        ``t``), else the spectrum's (:func:`~livox_viz.fitting.track_fit.rate_from_spectrum`: the rate at
+        which the head's parts turn at whole rpm). The table's ``rate_source`` says which. A rate that
+        contradicts a shipped table's own or the rows' times is refused rather than replayed at the wrong
+        times.
 
     Raises
     ------
     LivoxVizError
-        Wrong shape, NaN, degrees where radians are expected, too few rows, a contradicting rate.
+        Wrong shape or type, NaN, degrees where radians are expected, too few rows, a contradicting rate,
+        times that go back or say no rate a head fires at, a rate nothing gives.
     """
+    if rate is not None and (not math.isfinite(rate) or rate <= 0):
+        raise LivoxVizError(f"rate {rate!r}; allowed: points per second > 0")
     known = shipped_tables().get(os.fspath(source))
     if known is not None:
         own = float(known["rate"])
         if rate is not None and rate != own:
             raise LivoxVizError(f"{source} is a {own:g} rows/s table; --rate {rate:g} contradicts it "
                                 "(leave --rate out)")
-        return _load_file(shipped_table_dir() / f"{source}.npy", own, str(source))
-    return _load_file(Path(source), rate, Path(source).stem)
+        table = _read_file(shipped_table_dir() / f"{source}.npy")
+        return _as_pattern(table, str(source), own, "the shipped tables' index", shipped=str(source))
+    path = Path(source)
+    table = _read_file(path)
+    name = path.stem
+    slots, said, column = _slots(path, table)
+    match = _shipped_match(table)
+    if said is not None:
+        if rate is not None and abs(rate - said) > 1e-3 * said:
+            raise LivoxVizError(f"{path}: its {column} column says {said:,.6g} rows/s; --rate {rate:g} contradicts "
+                                "it (leave --rate out)")
+        return _as_pattern(table, name, rate or said, "given (--rate)" if rate else f"its {column} column", slots,
+                           match or "")
+    if rate is not None:
+        return _as_pattern(table, name, rate, "given (--rate)", slots, match or "")
+    if match is not None:
+        return _as_pattern(table, name, float(shipped_tables()[match]["rate"]),
+                           f"the shipped tables' index (its first rows are the shipped {match} table's)", slots, match)
+    from livox_viz.fitting.track_fit import rate_from_spectrum
+
+    xy, plane = xy_from_zup(table.azimuth, table.elevation)
+    said, how = rate_from_spectrum(name, xy, plane, slots)
+    return _as_pattern(table, name, said, how, slots)
 
 
-def _load_file(path: Path, rate: float | None, name: str) -> ReferencePattern:
-    """A table file at ``rate`` rows/s (default: a CSV's time column, else :data:`DEFAULT_RATE`), named ``name``."""
-    if rate is not None and (not math.isfinite(rate) or rate <= 0):
-        raise LivoxVizError(f"rate {rate!r}; allowed: points per second > 0")
-    require_file(path, "scan table (.npy or Livox CSV)")
-    if path.suffix.lower() == ".npy":
-        table = _read_npy(path)
-        xy, plane = xy_from_zup(table[:, 0], table[:, 1])
-    elif path.suffix.lower() == ".csv":
-        xy, plane, rate = _read_csv(path, rate)
+@dataclass(frozen=True)
+class _FileRows:
+    """A table file's rows: azimuth about +z and elevation (radians; x forward, y left, z up) and, when the file
+    has them, each row's time (seconds) or a column counting rows."""
+
+    azimuth: np.ndarray
+    elevation: np.ndarray
+    times: np.ndarray | None = None
+    column: str = ""
+    #: The first line of data in the file (a CSV's line numbers in messages), or None for a row index.
+    first_line: int | None = None
+
+
+def _as_pattern(table: _FileRows, name: str, rate: float, source: str, slots: np.ndarray | None = None,
+                shipped: str = "") -> ReferencePattern:
+    xy, plane = xy_from_zup(table.azimuth, table.elevation)
+    count = xy.shape[0]
+    t = (np.arange(count, dtype=np.float64) if slots is None else slots.astype(np.float64)) / rate
+    return ReferencePattern(name, xy, t, float(rate), plane, source, shipped)
+
+
+def _read_file(path: Path) -> _FileRows:
+    require_file(path, "scan table (.npy, .npz or Livox CSV)")
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        angles = _checked_angles(path, _checked_header(path, "the table"), "a .npy table")
+        table = _FileRows(angles[:, 0], angles[:, 1])
+    elif suffix == ".npz":
+        table = _read_npz(path)
+    elif suffix == ".csv":
+        table = _read_csv(path)
     else:
-        raise LivoxVizError(f"{path}: unknown format {path.suffix or '(none)'}; allowed: .npy or .csv")
-    if xy.shape[0] < 16:
-        raise LivoxVizError(f"{path}: {xy.shape[0]} rows; allowed: at least a petal's worth (16 rows)")
-    rate = DEFAULT_RATE if rate is None else rate
-    t = np.arange(xy.shape[0], dtype=np.float64) / rate
-    return ReferencePattern(name, xy, t, float(rate), plane)
+        raise LivoxVizError(f"{path}: unknown format {path.suffix or '(none)'}; allowed: .npy, .npz or .csv")
+    if table.azimuth.size < 16:
+        raise LivoxVizError(f"{path}: {table.azimuth.size} rows; allowed: at least a petal's worth (16 rows)")
+    return table
 
 
-def _read_npy(path: Path) -> np.ndarray:
-    """The ``(n, 2)`` float64 radians of a ``.npy`` table, its shape and size checked before its data is read."""
+def _checked_header(path: Path, what: str, source: Any = None) -> np.ndarray:
+    """A ``.npy`` array (``source``: an open member of an ``.npz``), its header checked before its data is read:
+    no Python objects, no complex numbers or text, at most :data:`MAX_TABLE_ROWS` rows."""
     allowed = "allowed: a NumPy .npy array of (n, 2) numbers, [theta, phi] in radians"
     # The header first: what it claims (a shape, Python objects) is named before any data is mapped.
     header = np.lib.format
     try:
-        with open(path, "rb") as handle:
+        handle = source if source is not None else open(path, "rb")
+        try:
             version = header.read_magic(handle)
             read = header.read_array_header_1_0 if version == (1, 0) else header.read_array_header_2_0
             shape, _, dtype = read(handle)
+        finally:
+            if source is None:
+                handle.close()
     except (ValueError, OSError, EOFError, SyntaxError) as exc:
-        raise LivoxVizError(f"{path}: not a NumPy .npy array ({exc}); {allowed}") from None
+        raise LivoxVizError(f"{path}: {what} is not a NumPy array ({exc}); {allowed}") from None
     if dtype.hasobject:
-        raise LivoxVizError(f"{path}: holds Python objects (pickled data, never loaded); {allowed}")
-    if len(shape) == 2 and shape[0] > MAX_TABLE_ROWS:
+        raise LivoxVizError(f"{path}: {what} holds Python objects (pickled data, never loaded); {allowed}")
+    if dtype.kind not in "fiu":
+        kind = {"c": "complex numbers", "b": "true/false values", "U": "text", "S": "bytes", "V": "records",
+                "M": "dates", "m": "time spans"}.get(dtype.kind, f"values of type {dtype}")
+        raise LivoxVizError(f"{path}: {what} holds {kind}; allowed: real numbers (radians, seconds)")
+    if len(shape) >= 1 and shape[0] > MAX_TABLE_ROWS:
         raise LivoxVizError(f"{path}: {shape[0]:,} rows; allowed: at most {MAX_TABLE_ROWS:,} (cut the table: "
                             "a few seconds are enough to fit a track)")
+    return shape
+
+
+def _checked_angles(path: Path, shape: tuple[int, ...], what: str, member: str | None = None) -> np.ndarray:
+    """The ``(n, 2)`` float64 [theta, phi] radians of a ``.npy`` file (or of ``member`` of an ``.npz``)."""
+    if len(shape) != 2 or shape[1] != 2:
+        raise LivoxVizError(f"{path}: shape {shape}; allowed: (n, 2) columns [theta, phi] in radians")
+    if shape[0] < 16:
+        raise LivoxVizError(f"{path}: {shape[0]} rows; allowed: at least a petal's worth (16 rows)")
     try:
-        mapped = np.load(path, allow_pickle=False, mmap_mode="r")
-    except (ValueError, OSError, EOFError) as exc:
-        raise LivoxVizError(f"{path}: not a whole NumPy .npy array ({exc}); {allowed}") from None
-    if mapped.ndim != 2 or mapped.shape[1] != 2:
-        raise LivoxVizError(f"{path}: shape {mapped.shape}; allowed: (n, 2) columns [theta, phi] in radians")
-    if mapped.shape[0] < 16:
-        raise LivoxVizError(f"{path}: {mapped.shape[0]} rows; allowed: at least a petal's worth (16 rows)")
-    if mapped.shape[0] > MAX_TABLE_ROWS:
-        raise LivoxVizError(f"{path}: {mapped.shape[0]:,} rows; allowed: at most {MAX_TABLE_ROWS:,} (cut the table: "
-                            "a few seconds are enough to fit a track)")
-    try:
-        table = np.array(mapped, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise LivoxVizError(f"{path}: not numeric angles ({exc})") from None
-    _check_finite(path, table)
-    if np.abs(table).max() > 2 * math.pi + 1e-6:
-        raise LivoxVizError(f"{path}: angles up to {np.abs(table).max():.4g} look like degrees; the .npy form is "
-                            "radians")
+        if member is None:
+            table = np.array(np.load(path, allow_pickle=False, mmap_mode="r"), dtype=np.float64)
+        else:
+            with np.load(path, allow_pickle=False) as archive:
+                table = np.array(archive[member], dtype=np.float64)
+    except (ValueError, OSError, EOFError, TypeError) as exc:
+        raise LivoxVizError(f"{path}: not a whole NumPy array ({exc}); allowed: {what} of (n, 2) numbers") from None
+    _check_radians(path, table, f"{what} holds")
     return table
 
 
-def _check_finite(path: Path, table: np.ndarray, first_line: int | None = None) -> None:
+def _check_radians(path: Path, angles: np.ndarray, holds: str) -> None:
+    """Refuse NaN, infinite values and degrees (angles past 2 pi) in angles that should be radians."""
+    _check_finite(path, angles)
+    if np.abs(angles).max() > 2 * math.pi + 1e-6:
+        raise LivoxVizError(f"{path}: angles up to {np.abs(angles).max():.4g} look like degrees; {holds} radians")
+
+
+def _read_npz(path: Path) -> _FileRows:
+    """An ``.npz`` of ``theta`` and ``phi`` (radians, or ``angles`` (n, 2)) and optionally ``t`` (seconds)."""
+    allowed = "allowed: an .npz of theta and phi (radians) or angles (n, 2), and t (seconds) for the rows' times"
+    try:
+        archive = zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise LivoxVizError(f"{path}: not an .npz archive ({exc}); {allowed}") from None
+    with archive:
+        members = {Path(info.filename).stem: info.filename for info in archive.infolist()
+                   if info.filename.endswith(".npy")}
+        shapes = {}
+        for key in ("theta", "phi", "angles", "t"):
+            if key in members:
+                with archive.open(members[key]) as handle:
+                    shapes[key] = _checked_header(path, f"its {key}", handle)
+    if "angles" in shapes:
+        angles = _checked_angles(path, shapes["angles"], "an .npz's angles", "angles")
+    elif "theta" in shapes and "phi" in shapes:
+        if shapes["theta"] != shapes["phi"] or len(shapes["theta"]) != 1:
+            raise LivoxVizError(f"{path}: theta {shapes['theta']} and phi {shapes['phi']}; allowed: two columns of "
+                                "one length")
+        with np.load(path, allow_pickle=False) as data:
+            angles = np.column_stack([np.asarray(data["theta"], dtype=np.float64),
+                                      np.asarray(data["phi"], dtype=np.float64)])
+        _check_radians(path, angles, "theta and phi hold")
+    else:
+        raise LivoxVizError(f"{path}: holds {', '.join(sorted(members)) or 'no arrays'}; {allowed}")
+    times = None
+    if "t" in shapes:
+        if shapes["t"] != (angles.shape[0],):
+            raise LivoxVizError(f"{path}: t has shape {shapes['t']} for {angles.shape[0]} rows; allowed: one time "
+                                "per row")
+        with np.load(path, allow_pickle=False) as data:
+            times = np.asarray(data["t"], dtype=np.float64)
+        _check_finite(path, times[:, None], column="t")
+    return _FileRows(angles[:, 0], angles[:, 1], times, "t", 0)
+
+
+def _check_finite(path: Path, table: np.ndarray, first_line: int | None = None, column: str = "") -> None:
     """Refuse NaN or infinite rows; ``first_line`` numbers CSV rows by their line in the file."""
     bad = ~np.isfinite(table).all(axis=1)
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
         where = f"line {row + first_line}" if first_line is not None else f"row {row}"
-        raise LivoxVizError(f"{path}: {int(bad.sum())} rows hold NaN or infinite values (first at {where}); "
-                            "allowed: finite angles")
+        what = f"values of {column}" if column else "values"
+        raise LivoxVizError(f"{path}: {int(bad.sum())} rows hold NaN or infinite {what} (first at {where}); "
+                            f"allowed: finite {'times' if column else 'angles'}")
 
 
-def _read_csv(path: Path, rate: float | None) -> tuple[np.ndarray, str, float | None]:
-    """Azimuth and zenith columns of a Livox CSV, degrees, as pattern x, y, their plane, and the rows' rate.
-
-    The rate is the one given, else the one the ``Time/s`` column says (when it holds times rather than a
-    row index), else None; a given rate that contradicts the time column is refused. Errors name the line.
-    """
+def _read_csv(path: Path) -> _FileRows:
+    """Azimuth and zenith columns of a Livox CSV (degrees) and its ``Time/s`` column, if any. Errors name the
+    line."""
     size = path.stat().st_size
     if size > MAX_CSV_BYTES:
         raise LivoxVizError(f"{path}: {size / 2**20:.0f} MiB; allowed: a CSV of at most {MAX_CSV_BYTES // 2**20} MiB "
@@ -215,35 +324,83 @@ def _read_csv(path: Path, rate: float | None) -> tuple[np.ndarray, str, float | 
         message = re.sub(r"at row (\d+)", lambda m: f"at line {int(m.group(1)) + 2}", str(exc).splitlines()[0])
         raise LivoxVizError(f"{path}: not numeric ({message})") from None
     _check_finite(path, table, first_line=2)
-    if time_col is not None:
-        rate = _rate_from_times(path, table[:, 2], rate)
-        table = table[:, :2]
-    if np.abs(table).max() <= 2 * math.pi and np.abs(table[:, 1]).max() < 3.2:
-        raise LivoxVizError(f"{path}: angles at most {np.abs(table).max():.3g} look like radians; "
+    angles = table[:, :2]
+    if np.abs(angles).max() <= 2 * math.pi and np.abs(angles[:, 1]).max() < 3.2:
+        raise LivoxVizError(f"{path}: angles at most {np.abs(angles).max():.3g} look like radians; "
                             "the CSV form is degrees (Azimuth/deg, Zenith/deg)")
-    azimuth = np.radians(table[:, 0])
-    elevation = np.radians(90.0 - table[:, 1])
-    xy, plane = xy_from_zup(azimuth, elevation)
-    return xy, plane, rate
+    times = table[:, 2] if time_col is not None else None
+    return _FileRows(np.radians(angles[:, 0]), np.radians(90.0 - angles[:, 1]), times,
+                     header[time_col].strip() if time_col is not None else "", 2)
 
 
-def _rate_from_times(path: Path, times: np.ndarray, rate: float | None) -> float | None:
-    """The rate a ``Time/s`` column says (rows per second), checked against a given ``rate``.
+def _slots(path: Path, table: _FileRows) -> tuple[np.ndarray | None, float | None, str]:
+    """Each row's firing slot from the file's time column, and the rate it says (None: it says none).
 
-    A column counting rows (0, 1, 2, ...) or holding one value says nothing. Times printed with few
-    decimals step unevenly, so the rate is the mean step over the whole column.
+    A column that counts rows (whole numbers stepping by 1 or more) gives the slots, gaps and all, but no rate;
+    one holding a single value says nothing. Times in seconds step by whole numbers of one firing period: the
+    period is the smallest common step (a low percentile of the steps, refined over the whole column), each
+    step a whole number of periods. Times printed too coarsely to place each row (steps that are no whole
+    number of periods, or rows sharing a time) give the mean step's rate, the rows taken as consecutive.
     """
+    times, column = table.times, table.column
+    if times is None or times.size < 2:
+        return None, None, column
+
+    def line(row: int) -> str:
+        return f"line {row + table.first_line}" if table.first_line else f"row {row}"
+
     steps = np.diff(times)
-    if times.size < 2 or np.all(steps == 0) or np.allclose(steps, 1.0):
-        return rate
     if np.any(steps < 0):
-        row = int(np.flatnonzero(steps < 0)[0]) + 3
-        raise LivoxVizError(f"{path}: Time/s goes back at line {row}; allowed: rows in firing order")
-    said = (times.size - 1) / float(times[-1] - times[0])
-    if rate is not None and abs(rate - said) > 1e-3 * said:
-        raise LivoxVizError(f"{path}: its Time/s column says {said:,.6g} rows/s; --rate {rate:g} contradicts it "
-                            "(leave --rate out)")
-    return said if rate is None else rate
+        row = int(np.flatnonzero(steps < 0)[0]) + 1
+        raise LivoxVizError(f"{path}: {column} goes back at {line(row)} ({times[row - 1]:.9g} then {times[row]:.9g} "
+                            "s); allowed: rows in firing order")
+    if np.all(steps == 0):
+        return None, None, column
+    if np.all(times == np.round(times)) and steps[steps > 0].min() == 1:
+        slots = (times - times[0]).astype(np.int64)
+        _check_gaps(path, slots, column, line, "counts rows")
+        return (None if np.all(steps == 1) else slots), None, column
+    period = float(np.percentile(steps[steps > 0], 5))
+    span = float(times[-1] - times[0])
+    whole = np.ones_like(steps)
+    for _ in range(4):  # times printed to a few decimals: the period from the span, the steps from the period
+        whole = np.maximum(1.0, np.round(steps / period))
+        period = span / float(whole.sum())
+    slots = np.concatenate([[0], np.cumsum(whole.astype(np.int64))])
+    placed = bool(np.all(steps > 0) and np.abs(times - times[0] - slots * period).max() <= 0.4 * period)
+    if placed:
+        _check_gaps(path, slots, column, line, "steps")
+        said = 1.0 / float(np.polyfit(slots.astype(np.float64), times - times[0], 1)[0])
+    else:
+        slots = None
+        said = (times.size - 1) / float(times[-1] - times[0])
+    if not MIN_RATE <= said <= MAX_RATE:
+        raise LivoxVizError(f"{path}: its {column} column steps {1 / said:.3g} s from firing to firing ({said:.3g} "
+                            f"rows/s); allowed: times in seconds, {MIN_RATE:g} to {MAX_RATE:,.0f} rows/s")
+    return slots, said, column
+
+
+def _check_gaps(path: Path, slots: np.ndarray, column: str, line: Any, what: str) -> None:
+    """Refuse a time column whose rows are mostly gaps (one wrong time far off the others)."""
+    firings = int(slots[-1]) + 1
+    if firings > MAX_GAP_RATIO * slots.size:
+        gaps = np.diff(slots)
+        row = int(np.argmax(gaps)) + 1
+        raise LivoxVizError(f"{path}: its {column} column {what} to {firings:,} firings for {slots.size:,} rows (the "
+                            f"largest jump, {int(gaps[row - 1]):,} firings, at {line(row)}); allowed: rows with at "
+                            f"most {MAX_GAP_RATIO - 1} firings missing per row")
+
+
+def _shipped_match(table: _FileRows) -> str | None:
+    """The shipped table whose first rows this file's first rows are (a copy or a longer export of it)."""
+    head = min(table.azimuth.size, MATCH_ROWS)
+    ours = np.column_stack([table.azimuth[:head], table.elevation[:head]])
+    for name in shipped_tables():
+        shipped = np.load(shipped_table_dir() / f"{name}.npy", mmap_mode="r")
+        if shipped.shape[0] >= head and np.allclose(np.asarray(shipped[:head], dtype=np.float64), ours,
+                                                    rtol=0, atol=1e-6):
+            return name
+    return None
 
 
 def pattern_table(config, name: str, seconds: float = 4.0, seed: int = 0) -> ReferencePattern:
@@ -264,7 +421,7 @@ def pattern_table(config, name: str, seconds: float = 4.0, seed: int = 0) -> Ref
     check_points(count, f"{seconds:g} s of {name}")
     chunk = make_pattern(config, seed).take(count)
     return ReferencePattern(name, chunk.xy_deg.copy(), chunk.t.copy(), float(config.point_rate),
-                            config.pattern_plane)
+                            config.pattern_plane, "the preset's point rate")
 
 
 def load_table_or_preset(text: str, rate: float | None = None, seconds: float = 4.0,

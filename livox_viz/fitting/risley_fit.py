@@ -93,11 +93,11 @@ def series_terms(lasers: int) -> tuple[tuple[int, int], ...]:
 
 
 def _solve(z: np.ndarray, t: np.ndarray, laser: np.ndarray, lasers: int, hz: tuple[float, float],
-           terms: tuple[tuple[int, int], ...]) -> tuple[np.ndarray, np.ndarray]:
+           terms: tuple[tuple[int, int], ...], regular: bool) -> tuple[np.ndarray, np.ndarray]:
     """Coefficients ``(K, J)`` and residuals ``(n,)`` complex for given frequencies.
 
-    A laser's rows evenly spaced in time (every K-th row, or every K-th of evenly spaced firing groups) are
-    solved with :class:`~livox_viz.fitting.series_lsq.LaserRows`, rows at any times with
+    ``regular``: each laser's rows are evenly spaced in time (every K-th row, or every K-th of evenly spaced
+    firing groups), solved with :class:`~livox_viz.fitting.series_lsq.LaserRows`, rows at any times with
     :class:`~livox_viz.fitting.series_lsq.TimedRows`: no ``(n, J)`` design matrix is made, so memory does not
     grow with rows x terms.
     """
@@ -106,9 +106,8 @@ def _solve(z: np.ndarray, t: np.ndarray, laser: np.ndarray, lasers: int, hz: tup
     for k in range(lasers):
         rows = np.flatnonzero(laser == k)
         times = t[rows]
-        steps = np.diff(times)
-        if steps.size and np.all(np.abs(steps - steps[0]) <= 1e-9 * abs(steps[0])):
-            solver: LaserRows | TimedRows = LaserRows(z[rows], float(times[0]), float(steps[0]))
+        if regular and times.size > 1:
+            solver: LaserRows | TimedRows = LaserRows(z[rows], float(times[0]), float(times[1] - times[0]))
         else:  # rows with gaps, or lasers out of order: each row at its own time
             solver = TimedRows(z[rows], times)
         solution, part = solver.solve_terms(hz, terms)
@@ -118,11 +117,11 @@ def _solve(z: np.ndarray, t: np.ndarray, laser: np.ndarray, lasers: int, hz: tup
 
 
 def _refine(z: np.ndarray, t: np.ndarray, laser: np.ndarray, lasers: int, hz: tuple[float, float],
-            terms: tuple[tuple[int, int], ...]) -> tuple[float, float]:
+            terms: tuple[tuple[int, int], ...], regular: bool) -> tuple[float, float]:
     from scipy.optimize import least_squares
 
     def residual(values: np.ndarray) -> np.ndarray:
-        _, r = _solve(z, t, laser, lasers, (values[0], values[1]), terms)
+        _, r = _solve(z, t, laser, lasers, (values[0], values[1]), terms, regular)
         return np.concatenate([r.real, r.imag])
 
     span = float(t[-1] - t[0]) if t.size > 1 else 1.0
@@ -195,21 +194,26 @@ def _fit_risley(table: ReferencePattern, beams: int | None) -> RisleyFit:
     sub = np.flatnonzero((slots // lasers) % groups == 0)
     terms = series_terms(lasers)
     first_terms = terms[:2] + (((0, 0),) if lasers > 1 else ())
-    hz = _refine(z[sub], t[sub], laser[sub], lasers, hz, first_terms)
-    hz = _refine(z[sub], t[sub], laser[sub], lasers, hz, terms)
-    coefficients, _ = _solve(z, t, laser, lasers, hz, terms)
+    regular = assignment.in_order and table.consecutive
+    hz = _refine(z[sub], t[sub], laser[sub], lasers, hz, first_terms, regular)
+    hz = _refine(z[sub], t[sub], laser[sub], lasers, hz, terms, regular)
+    coefficients, _ = _solve(z, t, laser, lasers, hz, terms, regular)
     keep = np.abs(coefficients).max(axis=0) >= PRUNE_DEG
     keep[:2] = True
     terms = tuple(term for term, kept in zip(terms, keep, strict=True) if kept)
-    coefficients, residual = _solve(z, t, laser, lasers, hz, terms)
+    coefficients, residual = _solve(z, t, laser, lasers, hz, terms, regular)
     distance = np.abs(residual)
     means = np.array([z[laser == k].mean() for k in range(lasers)])
     spread = math.sqrt(float(np.mean(np.abs(z - means[laser]) ** 2)))
     error = math.sqrt(float(np.mean(distance**2)))
     if error > NO_TRACK_FRACTION * spread or max(abs(hz[0]), abs(hz[1])) > MAX_PRISM_HZ:
-        raise LivoxVizError(f"{table.name}: the best two-prism track leaves {error:.3g} deg rms of the table's "
-                            f"{spread:.3g} deg spread: there is no periodic scan track of two prisms in it (noise, "
-                            "rows out of order, or another head: try --model track)")
+        forced = beams is not None and beams != found
+        told = f" (--beams {beams}; the rows' geometry says {found})" if forced else ""
+        advice = (f"leave out --beams (the rows' geometry says {found})" if forced
+                  else "noise, rows of two heads, or another head: try --model track")
+        raise LivoxVizError(f"{table.name}: no periodic scan track of two prisms in it: {lasers} "
+                            f"laser{'s' if lasers > 1 else ''}{told}, prisms at {hz[0]:+.5g} and {hz[1]:+.5g} Hz; "
+                            f"the best leaves {error:.3g} deg rms of the rows' {spread:.3g} deg spread; {advice}")
     # Phases that make laser 0's prism terms real and positive.
     a0, b0 = float(np.angle(coefficients[0, 0])), float(np.angle(coefficients[0, 1]))
     shift = np.exp(-1j * np.array([m * a0 + n * b0 for m, n in terms]))

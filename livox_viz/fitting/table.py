@@ -44,6 +44,8 @@ class ReferencePattern:
     rate_source : str
         Where the rate came from, in words ("given", "the shipped tables' index", "its Time/s column",
         "read off the spectrum: ...").
+    shipped : str
+        The shipped table this one is or begins as (its name in ``presets/tables/index.json``), else "".
     """
 
     name: str
@@ -52,6 +54,7 @@ class ReferencePattern:
     rate: float
     plane: str = "boresight"
     rate_source: str = "given"
+    shipped: str = ""
 
     @property
     def alpha_deg(self) -> np.ndarray:

@@ -82,6 +82,18 @@ MIN_TOLERANCE_DEG = 1e-6
 RELABEL_FACTOR = 8.0
 #: Rounds of moving rows to the laser whose track passes nearest.
 RELABEL_ROUNDS = 3
+#: The public exports' length, seconds: a table without a rate is taken as at most this long.
+EXPORT_SECONDS = 4.0
+#: Livox's published point rates (Mid-40/70, Mid-360, Horizon/Avia/Tele-15, HAP), rows per second: preferred
+#: among the rates a spectrum allows.
+LIVOX_RATES = (100_000.0, 200_000.0, 240_000.0, 452_000.0)
+#: Largest rate read off a spectrum, rows per second, and largest rpm a whole-rpm ratio may need.
+MAX_SPECTRUM_RATE = 2_000_000.0
+MAX_WHOLE_RPM = 20_000
+#: Relative closeness that counts as whole (rpm ratio, thousands of rows per second), at least and at most: a
+#: random pair of frequencies passes the loosest one in a few trials in a thousand.
+MIN_WHOLE_TOLERANCE = 1e-12
+MAX_WHOLE_TOLERANCE = 2e-6
 
 
 @dataclass(frozen=True)
@@ -224,11 +236,12 @@ def _solve_all(lasers: list[LaserRows | TimedRows], hz: tuple[float, float], ter
 
 
 def _refine(make_lasers: Callable[[float], list[LaserRows | TimedRows]], hz: tuple[float, float],
-            terms: list[tuple[int, int]], span: float, spin: bool) -> tuple[tuple[float, float], str | None]:
+            terms: list[tuple[int, int]], span: float, spin: bool
+            ) -> tuple[tuple[float, float], str | None, tuple[float, float]]:
     """Variable projection over the base frequencies (f_B held at 0 for one frequency).
 
-    Returns the frequencies and, when the evaluation budget ran out before the steps converged, a note that
-    says how far the last step still moved them.
+    Returns the frequencies, a note when the evaluation budget ran out before the steps converged (else None),
+    and each frequency's standard error (Hz) as the residual's scatter makes it.
     """
     from scipy.optimize import least_squares
 
@@ -248,7 +261,14 @@ def _refine(make_lasers: Callable[[float], list[LaserRows | TimedRows]], hz: tup
     if result.status == 0:  # the evaluation budget, not a convergence test, ended it
         note = (f"the frequency refinement used its {REFINE_EVALUATIONS} evaluations before converging "
                 f"(its residual {rms(result.fun):.3g} deg on the refinement's rows)")
-    return (float(result.x[0]), 0.0 if one else float(result.x[1])), note
+    jacobian = np.atleast_2d(result.jac)
+    scatter = float(np.sum(result.fun**2)) / max(1, result.fun.size - start.size)
+    try:
+        sigma = np.sqrt(np.abs(np.diag(np.linalg.inv(jacobian.T @ jacobian))) * scatter)
+    except np.linalg.LinAlgError:
+        sigma = np.full(start.size, np.inf)
+    errors = (float(sigma[0]), 0.0 if one else float(sigma[1]))
+    return (float(result.x[0]), 0.0 if one else float(result.x[1])), note, errors
 
 
 def fit_track(table: ReferencePattern, beams: int | None = None,
@@ -303,9 +323,27 @@ def _fit_track(table: ReferencePattern, beams: int | None, tolerance_deg: float)
         raise LivoxVizError(_refusal_message(table, beams, found, refusal)) from None
 
 
-def _fit_assigned(table: ReferencePattern, assignment: LaserAssignment, tolerance_deg: float, started: float,
-                  found: dict[str, object]) -> TrackFit:
-    """The fit once each row has its laser; ``found`` collects what the steps find, for a refusal's message."""
+@dataclass
+class _Bases:
+    """What the first steps find: the rows by laser, the base frequencies, the first box of terms."""
+
+    signals: _Signals
+    assignment: LaserAssignment
+    span: float
+    spin: bool
+    spin_hz: float
+    hz: tuple[float, float]
+    reach: tuple[int, int]
+    notes: list[str]
+    moved: int
+    spread: float
+    spread_deg: float
+    hz_error: tuple[float, float]
+
+
+def _bases(table: ReferencePattern, assignment: LaserAssignment, found: dict[str, object]) -> _Bases:
+    """Rows by laser, the base frequencies off laser 0's spectrum refined by variable projection, the first box;
+    ``found`` collects what the steps find, for a refusal's message."""
     plane = table.plane
     panorama = plane == "panorama"
     lasers = assignment.lasers
@@ -338,13 +376,33 @@ def _fit_assigned(table: ReferencePattern, assignment: LaserAssignment, toleranc
     separation = 1.0 / span
     refine_stride = _stride(signals.rows, REFINE_ROWS, signals.dt, _term_hz(_terms_box(reach_a, reach_b), hz))
     terms = _resolvable_box(reach_a, reach_b, hz, separation)
-    hz, refine_note = _refine(lambda s: signals.lasers(s, refine_stride), hz, terms, span, spin)
+    hz, refine_note, hz_error = _refine(lambda s: signals.lasers(s, refine_stride), hz, terms, span, spin)
     found["hz"] = hz
     notes = [refine_note] if refine_note else []
     spin_hz = hz[0] if spin else 0.0
+    # A track the first terms cannot begin to follow is no track: said now, before any work on every row.
+    strided = signals.lasers(spin_hz, refine_stride)
+    _, residuals = _solve_all(strided, hz, terms)
+    if rms(np.concatenate(residuals)) > 0.3 * spread:
+        found["error_deg"] = _angle_rms(strided, residuals, plane)
+        found["terms"] = len(terms)
+        raise _Refusal("", "the base frequencies' first terms")
     moved = 0
     if not signals.regular:  # rows the geometry gave to the wrong laser would hold the growth at their distance
         signals, assignment, moved, _ = _settle(table, signals, assignment, hz, terms, spin_hz)
+    return _Bases(signals, assignment, span, spin, spin_hz, hz, (reach_a, reach_b), notes, moved, spread, spread_deg,
+                  hz_error)
+
+
+def _fit_assigned(table: ReferencePattern, assignment: LaserAssignment, tolerance_deg: float, started: float,
+                  found: dict[str, object]) -> TrackFit:
+    """The fit once each row has its laser; ``found`` collects what the steps find, for a refusal's message."""
+    plane = table.plane
+    bases = _bases(table, assignment, found)
+    signals, assignment, span, spin, spin_hz = bases.signals, bases.assignment, bases.span, bases.spin, bases.spin_hz
+    hz, (reach_a, reach_b), notes, moved, spread = bases.hz, bases.reach, bases.notes, bases.moved, bases.spread
+    spread_deg = bases.spread_deg
+    separation = 1.0 / span
 
     # Grow the box on more rows until the residual is within the tolerance, or growing stops paying (the
     # table's own noise floor: a table printed to 0.01 deg cannot be followed closer than about 0.003 deg).
@@ -558,3 +616,115 @@ def _resolvable_box(reach_a: int, reach_b: int, hz: tuple[float, float], separat
     order = np.array([abs(m) + abs(n) for m, n in terms])
     keep = resolvable(frequencies, order, separation)
     return [term for term, kept in zip(terms, keep, strict=True) if kept]
+
+
+# A table's rate from its spectrum ----------------------------------------------------------------------------
+def rate_from_spectrum(name: str, xy_deg: np.ndarray, plane: str, slots: np.ndarray | None = None
+                       ) -> tuple[float, str]:
+    """The firing rate of a table that says none, from its base frequencies; and how it was found, in words.
+
+    A table without times gives its base frequencies in cycles per firing, nu_A and nu_B; at a rate r the parts
+    turn at 60 nu r rpm. Livox's public tables come from heads whose parts turn at whole rpm (Mid-40/70 4664
+    and 7294, Horizon 7352 and 619, Mid-360 10 945 and 600, Avia 2448 and 7893, Tele-15 3087 and 9837) and
+    fire a whole number of thousands of times a second, so the candidates are the rates of whole thousands
+    of rows per second at which both frequencies are whole rpm (nu_A / nu_B a fraction of denominator at
+    most :data:`MAX_WHOLE_RPM`, within ten standard errors of the fitted frequencies). These repeat at
+    multiples; the public exports last 4 s, so only candidates at least the firings over 4 s count, of which
+    a published Livox rate (:data:`LIVOX_RATES`) is taken first, else the lowest; the others are named in the
+    words returned.
+
+    Parameters
+    ----------
+    name : str
+    xy_deg : (n, 2) float64
+        Pattern angles in ``plane``.
+    plane : {"boresight", "panorama"}
+    slots : (n,) int64, optional
+        Each row's firing slot (default: consecutive rows).
+
+    Raises
+    ------
+    LivoxVizError
+        When no such rate exists (a track that is no whole rpm, or noise): the user is asked for ``--rate``.
+    """
+    import scipy.linalg  # noqa: F401  (loaded before the pin: its own OpenBLAS is pinned with numpy's)
+
+    xy = np.asarray(xy_deg, dtype=np.float64)
+    slots = np.arange(xy.shape[0], dtype=np.int64) if slots is None else np.asarray(slots, dtype=np.int64)
+    # At one firing a second the table's frequencies are cycles per firing.
+    per_firing = ReferencePattern(name, xy, (slots - slots[0]).astype(np.float64), 1.0, plane,
+                                  "one firing a second")
+    asked = "give --rate ROWS_PER_SECOND (a .npy says no rate; a CSV's Time/s or an .npz's t would)"
+    try:
+        with one_blas_thread():
+            if xy.shape[0] < 1000 or not np.all(np.isfinite(xy)):
+                raise LivoxVizError(f"{xy.shape[0]} rows; at least 1000 finite rows are needed to read it")
+            per_firing.require_a_scan()
+            order_x = np.unwrap(xy[:, 0], period=360.0) if plane == "panorama" else xy[:, 0]
+            assignment = assign_lasers(order_x + 1j * xy[:, 1], per_firing.slots)
+            found: dict[str, object] = {"assignment": assignment}
+            try:
+                bases = _bases(per_firing, assignment, found)
+            except _Refusal as refusal:
+                raise LivoxVizError(_refusal_message(per_firing, None, found, refusal)) from None
+    except LivoxVizError as exc:
+        raise LivoxVizError(f"{name}: no rate given, and none read off its spectrum ({exc}); {asked}") from None
+    nu = bases.hz
+    # Whole within what the frequencies are known to: ten standard errors (the residual is the model's, not
+    # white noise), relative, of the less certain one.
+    known = max(error / abs(f) for f, error in zip(nu, bases.hz_error, strict=True) if f)
+    candidates = _whole_rpm_rates(nu, min(MAX_WHOLE_TOLERANCE, max(MIN_WHOLE_TOLERANCE, 10 * known)))
+    least = per_firing.firings / EXPORT_SECONDS
+    chosen = [r for r in candidates if r >= least * (1 - 1e-9)]
+    if not chosen:
+        lines = ", ".join(f"{abs(f):.6g}" for f in nu if f)
+        raise LivoxVizError(f"{name}: no rate given, and its frequencies ({lines} cycles per firing) turn at whole rpm "
+                            f"at no rate of whole thousands of rows/s from {least:,.0f} (its firings over "
+                            f"{EXPORT_SECONDS:g} s) to {MAX_SPECTRUM_RATE:,.0f}; {asked}")
+    published = [r for r in chosen if r in LIVOX_RATES]
+    rate = (published or chosen)[0]
+    rpm = " and ".join(f"{60 * f * rate:+.0f}" for f in nu if f)
+    which = ("a published Livox rate" if published else "the lowest rate of whole thousands of rows/s")
+    others = [r for r in candidates if r != rate][:3]
+    also = f"; also whole at {', '.join(f'{r:,.0f}' for r in others)} rows/s (give --rate to choose)" if others else ""
+    return rate, (f"read off the spectrum: {which}, at least its firings over {EXPORT_SECONDS:g} s, at which its "
+                  f"parts turn at whole rpm ({rpm} rpm){also}")
+
+
+def _whole_rpm_rates(nu: tuple[float, float], tolerance: float) -> list[float]:
+    """Rates (whole thousands of rows/s, up to :data:`MAX_SPECTRUM_RATE`) at which every base frequency (cycles per
+    firing) is a whole number of rpm, within a relative ``tolerance``, lowest first."""
+    frequencies = [abs(f) for f in nu if f]
+    first = frequencies[0]
+    if len(frequencies) == 2:
+        # The rates at which the parts turn at p and q rpm, for each fraction p / q that explains the ratio.
+        units = [p / (60.0 * first) for p in _whole_ratios(first / frequencies[1], tolerance)]
+    else:
+        units = [1.0 / (60.0 * first)]
+    rates = set()
+    for unit in units:
+        for multiple in range(1, int(MAX_SPECTRUM_RATE / unit) + 1):
+            rate = multiple * unit
+            thousands = round(rate / 1000.0)
+            if thousands and abs(rate - 1000.0 * thousands) <= tolerance * rate:
+                rates.add(1000.0 * thousands)
+    return sorted(rates)
+
+
+def _whole_ratios(ratio: float, tolerance: float) -> list[int]:
+    """p of each convergent p / q of ``ratio``'s continued fraction within ``tolerance`` (relative) of it, with p
+    and q at most :data:`MAX_WHOLE_RPM` (the whole-rpm pairs that explain it, simplest first)."""
+    found = []
+    p0, q0, p1, q1 = 0, 1, 1, 0
+    rest = ratio
+    for _ in range(40):
+        whole = math.floor(rest)
+        p0, q0, p1, q1 = p1, q1, whole * p1 + p0, whole * q1 + q0
+        if p1 > MAX_WHOLE_RPM or q1 > MAX_WHOLE_RPM:
+            break
+        if abs(p1 / q1 - ratio) <= tolerance * ratio:
+            found.append(p1)
+        if rest == whole:
+            break
+        rest = 1.0 / (rest - whole)
+    return found
