@@ -1,26 +1,32 @@
-"""Make the shipped presets of the Livox sensors: livox_horizon, livox_mid360, livox_hap, livox_avia, livox_tele15.
+"""Make the shipped presets of the Livox sensors: livox_horizon, livox_mid360, livox_avia, livox_tele15, livox_hap.
 
     .venv/bin/python scripts/make_sensor_presets.py [--tables DIR] [--out presets]
 
-``--tables DIR`` names a folder holding the public 4 s ``horizon.npy`` and
-``mid360.npy`` (rates 240 000 and 200 000 rows/s); without it the shipped first
-seconds in ``presets/tables`` are used (the shipped presets were made from the
-4 s tables: their frequencies are pinned four times closer).
+``--tables DIR`` names a folder holding the public 4 s tables ``horizon.npy``,
+``mid360.npy``, ``avia.npy`` and ``tele15.npy`` (rates 240 000, 200 000, 240 000
+and 240 000 rows/s); without it the shipped first seconds in ``presets/tables``
+are used (the shipped presets were made from the 4 s tables: their frequencies
+are pinned four times closer).
 
-- **Horizon, Mid-360**: ``fit_track`` on the table; the RflySim fields carry the
-  best rosette ``fit_reference`` finds on the track (the Horizon) or a stand-in
-  where none fits (the Mid-360 looks all around; a rosette looks one way).
+- **Horizon, Mid-360, Avia**: ``fit_track`` on the table; the RflySim fields
+  carry the best rosette ``fit_reference`` finds on the track (Horizon, Avia)
+  or a stand-in where none fits (the Mid-360 looks all around; a rosette looks
+  one way). The Avia is fitted to 3e-4 deg (its track then replays the table
+  within 1e-3 deg over any second of it); ``fit_risley``'s fixed term families
+  leave 5e-3 deg on it.
+- **Tele-15**: ``fit_risley`` on the table (a two-prism head: 16 terms follow it
+  to 1e-5 deg, with the prism speed, deflection and spacing sliders); its
+  RflySim fields carry the best rosette fitted to its track.
 - **HAP** (no public table here): the Horizon's fitted track stretched in azimuth
   from its 81.7 deg to the HAP's 120 deg, at the HAP's 452 000 pts/s, fitted
-  again as a track; its rosette fitted like the Horizon's.
-- **Avia, Tele-15** (no public table here): two-prism heads (risley.md section 2)
-  built from the fitted Mid-70 / Mid-40 prism pairs: six lasers offset along y so
-  the union spans the published 70.4 x 77.2 / 14.5 x 16.2 deg, at 240 000 pts/s;
-  their rosettes are the fitted Mid-70 / Mid-40 rosettes at that rate.
+  again as a track; its rosette fitted like the Horizon's. A guess, said so in
+  its description.
 
 Ranges are the longest Livox publishes for each (80 % reflectivity; the HAP's
 manual gives 150 m at 10 %). Each carries its sheet's datasheet return model
 (``LivoxVizReturns``, :data:`~livox_viz.config.returns_params.DATASHEETS`).
+Every fit decides by counts, never by the clock: the same tables give the same
+presets, bit for bit.
 """
 
 from __future__ import annotations
@@ -35,15 +41,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from livox_viz.config.fov import FieldOfView  # noqa: E402
 from livox_viz.config.presets import DESCRIPTION_KEY, load_preset  # noqa: E402
 from livox_viz.config.returns_params import DATASHEETS, describe_sheet  # noqa: E402
-from livox_viz.config.risley_params import RisleyParams  # noqa: E402
 from livox_viz.config.sensor import SensorConfig, frame_layout  # noqa: E402
 from livox_viz.core.atomic import write_text_atomic  # noqa: E402
 from livox_viz.core.jsonfile import dumps_readable  # noqa: E402
 from livox_viz.fitting.reference import ReferencePattern, load_reference, pattern_table, xy_from_zup  # noqa: E402
-from livox_viz.fitting.risley_fit import track_residual  # noqa: E402
+from livox_viz.fitting.risley_fit import fit_risley, track_residual  # noqa: E402
 from livox_viz.fitting.rosette_fit import fit_reference  # noqa: E402
 from livox_viz.fitting.track_fit import fit_track  # noqa: E402
 from livox_viz.patterns.factory import make_pattern  # noqa: E402
@@ -119,53 +123,42 @@ def hap(horizon_config: SensorConfig, folder: Path) -> None:
                   f"terms, {fit.rms_deg:.2g} deg rms from the stretch); RflySim fields: {rosette}", folder, "livox_hap")
 
 
-def two_prism(base_preset: str, rosette_preset: str, width_deg: float, height_deg: float, range_m: float,
-              name: str, sensor: str, folder: Path) -> None:
-    """Six lasers on one prism pair, offset along y so that their union spans width x height."""
-    pair = {"livox_mid70_risley": "Mid-70", "livox_mid40_risley": "Mid-40"}[base_preset]
-    base = load_preset(base_preset).risley
-    rosette = load_preset(rosette_preset)
-    # The prism deflections that make one laser's track reach width / 2 (each term scales by its order).
-    scale = 1.0
-    for _ in range(4):
-        trial = replace(base, deflection_deg=tuple(scale * d for d in base.deflection_deg))
-        t = np.arange(100_000) / 100_000
-        reach = float(np.abs(sum(c * np.exp(1j * (2 * np.pi * f * t + p)) for c, f, p in
-                                 zip(trial.coefficients[0], trial.term_hz, trial.term_phase, strict=True))).max())
-        scale *= (width_deg / 2) / reach
-    scaled = replace(base, deflection_deg=tuple(scale * d for d in base.deflection_deg)).coefficients[0]
-    offsets = np.linspace(-(height_deg - width_deg) / 2, (height_deg - width_deg) / 2, 6)
-    terms = (*base.terms, (0, 0))
-    coefficients = np.array([[*scaled, 1j * offset] for offset in offsets])
-    params = RisleyParams(prism_hz=base.prism_hz, phase_rad=base.phase_rad, terms=terms,
-                          base_coefficients=coefficients)
-    ratio = width_deg / rosette.camera_fov
-    config = replace(rosette, data_width=600, data_height=40, data_check_freq=10, camera_fov=round(width_deg, 4),
-                     other_params=(range_m, round(rosette.petal_height * ratio, 4), *rosette.other_params[2:]),
-                     risley=params, pattern_model="risley")
-    xy = make_pattern(config).take(960_000).xy_deg
-    # The field of view is the track's own outline: six offset circles make no ellipse.
-    config = replace(config, fov=FieldOfView.of_points(xy))
-    span = (np.ptp(xy[:, 0]), np.ptp(xy[:, 1]))
-    write(config, f"Livox {sensor}: 6 lasers, 240 000 pts/s, {width_deg:g} x {height_deg:g} deg, {range_m:g} m; NOT "
-                  f"fitted to a table: the fitted {pair} prism pair scaled to "
-                  f"{width_deg:g} deg with six lasers {offsets[1] - offsets[0]:.2g} deg apart along y (the track spans "
-                  f"{span[0]:.1f} x {span[1]:.1f} deg; prism speeds unpublished, the "
-                  f"{pair}'s kept); RflySim fields: the "
-                  f"{rosette_preset} rosette at this rate", folder, name)
+def avia(tables: Path | None, folder: Path) -> None:
+    table = load_reference(tables / "avia.npy", rate=240_000) if tables else load_reference("avia")
+    fit, config = fitted(table, SensorConfig(), 450.0, 3e-4)
+    config, rosette = with_rosette(config, "livox_avia")
+    write(config, f"Livox Avia: 6 lasers, 240 000 pts/s, 70.4 x 77.2 deg, 450 m; track fitted to the public "
+                  f"{table.seconds:g} s table (prisms at {fit.params.base_rpm[0]:+.0f} and "
+                  f"{fit.params.base_rpm[1]:+.0f} rpm, {len(fit.params.terms)} terms, rms {fit.rms_deg:.2g} deg "
+                  f"between rays); RflySim fields: {rosette}", folder, "livox_avia")
+
+
+def tele15(tables: Path | None, folder: Path) -> None:
+    table = load_reference(tables / "tele15.npy", rate=240_000) if tables else load_reference("tele15")
+    fit = fit_risley(table)
+    width, height, freq = frame_layout(table.rate, fit.params.lasers)
+    config = replace(SensorConfig(), risley=fit.params, pattern_model="risley", fov=table.field_of_view,
+                     data_width=width, data_height=height, data_check_freq=freq,
+                     other_params=(500.0, *SensorConfig().other_params[1:]))
+    config, rosette = with_rosette(config, "livox_tele15")
+    write(config, f"Livox Tele-15: 6 lasers, 240 000 pts/s, 14.5 x 16.2 deg, 500 m; Risley track fitted to the "
+                  f"public {table.seconds:g} s table (prisms at {fit.params.prism_rpm[0]:+.0f} and "
+                  f"{fit.params.prism_rpm[1]:+.0f} rpm, {len(fit.params.terms)} terms, rms {fit.rms_deg:.2g} deg "
+                  f"between rays); RflySim fields: {rosette}", folder, "livox_tele15")
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tables", type=Path, help="folder of the public 4 s horizon.npy and mid360.npy")
+    parser.add_argument("--tables", type=Path,
+                        help="folder of the public 4 s horizon.npy, mid360.npy, avia.npy and tele15.npy")
     parser.add_argument("--out", type=Path, default=ROOT / "presets")
     args = parser.parse_args()
     horizon_config = horizon(args.tables, args.out)
     mid360(args.tables, args.out)
     hap(horizon_config, args.out)
-    two_prism("livox_mid70_risley", "livox_mid70_fitted", 70.4, 77.2, 450.0, "livox_avia", "Avia", args.out)
-    two_prism("livox_mid40_risley", "livox_mid40", 14.5, 16.2, 500.0, "livox_tele15", "Tele-15", args.out)
-    for name in ("livox_horizon", "livox_mid360"):
+    avia(args.tables, args.out)
+    tele15(args.tables, args.out)
+    for name in ("livox_horizon", "livox_mid360", "livox_avia", "livox_tele15"):
         config = load_preset(args.out / f"{name}.json")
         table = load_reference(name.split("_")[1])
         ours = make_pattern(config).take(len(table.t)).xy_deg
