@@ -1,7 +1,7 @@
 """The track model's figures (issue 18: every Livox sensor built in).
 
 1. Fit: ``fit_track`` on each table (the shipped ones; with ``--tables DIR`` also
-   the public 4 s Horizon and Mid-360 tables), its time (target <= 30 s) next to
+   the public 4 s Horizon, Mid-360, Avia and Tele-15 tables), its time (target <= 30 s) next to
    reading the table in the same run, and its residual (rms, p95, max of the angle
    between each row's ray and the model's; target rms <= 0.01 deg).
 2. Stream: every sensor preset frame by frame as a multiple of real time, against
@@ -25,7 +25,8 @@ from livox_viz import load_preset, make_pattern
 from livox_viz.fitting.reference import load_reference
 from livox_viz.fitting.track_fit import fit_track
 
-RATES = {"mid40": 100_000, "mid70": 100_000, "horizon": 240_000, "mid360": 200_000}
+RATES = {"mid40": 100_000, "mid70": 100_000, "horizon": 240_000, "mid360": 200_000, "avia": 240_000,
+         "tele15": 240_000}
 PRESETS = ("livox_mid40_risley", "livox_mid70_risley", "livox_avia", "livox_tele15", "livox_horizon", "livox_hap",
            "livox_mid360")
 
@@ -34,7 +35,7 @@ def fits(tables: Path | None) -> None:
     sources: list[tuple[str, str, float | None]] = [(name, name, None) for name in RATES]
     if tables is not None:
         sources += [(f"{name} (public 4 s)", str(tables / f"{name}.npy"), RATES[name])
-                    for name in ("horizon", "mid360") if (tables / f"{name}.npy").is_file()]
+                    for name in ("horizon", "mid360", "avia", "tele15") if (tables / f"{name}.npy").is_file()]
     print("fit_track, default tolerance 0.001 deg (angle between rays, every row):")
     for label, source, rate in sources:
         start = time.perf_counter()

@@ -46,7 +46,13 @@ from livox_viz.config.returns_params import DATASHEETS, describe_sheet  # noqa: 
 from livox_viz.config.sensor import SensorConfig, frame_layout  # noqa: E402
 from livox_viz.core.atomic import write_text_atomic  # noqa: E402
 from livox_viz.core.jsonfile import dumps_readable  # noqa: E402
-from livox_viz.fitting.reference import ReferencePattern, load_reference, pattern_table, xy_from_zup  # noqa: E402
+from livox_viz.fitting.reference import (  # noqa: E402
+    ReferencePattern,
+    load_reference,
+    pattern_table,
+    shipped_tables,
+    xy_from_zup,
+)
 from livox_viz.fitting.risley_fit import fit_risley, track_residual  # noqa: E402
 from livox_viz.fitting.rosette_fit import fit_reference  # noqa: E402
 from livox_viz.fitting.track_fit import fit_track  # noqa: E402
@@ -76,6 +82,13 @@ def with_rosette(track_config: SensorConfig, name: str) -> tuple[SensorConfig, s
     return config, f"the best rosette, {result.shape.rms_deg:.2g} deg rms off its petals"
 
 
+def public_table(tables: Path | None, name: str) -> ReferencePattern:
+    """The public 4 s table ``name`` from ``tables`` at its shipped rate, else the shipped first second."""
+    if tables is None:
+        return load_reference(name)
+    return load_reference(tables / f"{name}.npy", rate=float(shipped_tables()[name]["rate"]))
+
+
 def fitted(table: ReferencePattern, base: SensorConfig, range_m: float, tolerance: float) -> tuple:
     fit = fit_track(table, tolerance_deg=tolerance)
     width, height, freq = frame_layout(table.rate, fit.params.lasers)
@@ -86,7 +99,7 @@ def fitted(table: ReferencePattern, base: SensorConfig, range_m: float, toleranc
 
 
 def horizon(tables: Path | None, folder: Path) -> SensorConfig:
-    table = load_reference(tables / "horizon.npy", rate=240_000) if tables else load_reference("horizon")
+    table = public_table(tables, "horizon")
     fit, config = fitted(table, SensorConfig(), 260.0, 1e-3)
     config, rosette = with_rosette(config, "livox_horizon")
     write(config, f"Livox Horizon: 6 lasers, 240 000 pts/s, 81.7 x 25.1 deg, 260 m; track fitted to the public "
@@ -96,7 +109,7 @@ def horizon(tables: Path | None, folder: Path) -> SensorConfig:
 
 
 def mid360(tables: Path | None, folder: Path) -> None:
-    table = load_reference(tables / "mid360.npy", rate=200_000) if tables else load_reference("mid360")
+    table = public_table(tables, "mid360")
     fit, config = fitted(table, load_preset("livox_mid70"), 70.0, 3e-3)
     write(config, f"Livox Mid-360: 4 lasers, 200 000 pts/s, 360 x 59 deg (elevation -7 to 52), 70 m; spin track "
                   f"fitted to the public {table.seconds:g} s table ({len(fit.params.terms)} terms, rms "
@@ -124,7 +137,7 @@ def hap(horizon_config: SensorConfig, folder: Path) -> None:
 
 
 def avia(tables: Path | None, folder: Path) -> None:
-    table = load_reference(tables / "avia.npy", rate=240_000) if tables else load_reference("avia")
+    table = public_table(tables, "avia")
     fit, config = fitted(table, SensorConfig(), 450.0, 3e-4)
     config, rosette = with_rosette(config, "livox_avia")
     write(config, f"Livox Avia: 6 lasers, 240 000 pts/s, 70.4 x 77.2 deg, 450 m; track fitted to the public "
@@ -134,7 +147,7 @@ def avia(tables: Path | None, folder: Path) -> None:
 
 
 def tele15(tables: Path | None, folder: Path) -> None:
-    table = load_reference(tables / "tele15.npy", rate=240_000) if tables else load_reference("tele15")
+    table = public_table(tables, "tele15")
     fit = fit_risley(table)
     width, height, freq = frame_layout(table.rate, fit.params.lasers)
     config = replace(SensorConfig(), risley=fit.params, pattern_model="risley", fov=table.field_of_view,
