@@ -305,12 +305,12 @@ def test_noise_one_row_two_heads_and_nan_are_refused_in_one_line_within_memory(t
     import textwrap
 
     rng = np.random.default_rng(9)
-    horizon, avia = shipped_rows("horizon", 120_000), shipped_rows("avia", 120_000)
+    horizon, avia = shipped_rows("horizon", 60_000), shipped_rows("avia", 60_000)
     mixed = horizon.copy()
     mixed[1::2] = avia[1::2]
     nan = horizon.copy()
     nan[4321, 1] = np.nan
-    tables = {"noise": rng.uniform(-0.4, 0.4, (120_000, 2)), "still": np.tile([[0.2, 0.1]], (120_000, 1)),
+    tables = {"noise": rng.uniform(-0.4, 0.4, (60_000, 2)), "still": np.tile([[0.2, 0.1]], (60_000, 1)),
               "mixed": mixed, "nan": nan}
     for name, table in tables.items():
         np.save(tmp_path / f"{name}.npy", table)
