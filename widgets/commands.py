@@ -274,7 +274,8 @@ def _common_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--reference", help="overlay a reference in the pattern view: a scan table (mid40, mid70, "
                                             "a .npy in radians or a Livox CSV) or a preset (e.g. livox_mid70_risley)")
     parser.add_argument("--reference-rate", type=positive_float,
-                        help="rows per second of a reference table (default: a shipped table's own, else 100000)")
+                        help="rows per second of a reference table (default: the shipped index's rate, else the rows' "
+                             "own times, else the rate read from the spectrum, as fit does)")
 
 
 def _gui_arguments(parser: argparse.ArgumentParser) -> None:
