@@ -97,7 +97,7 @@ def test_gui_listen_with_an_unreachable_display_is_a_one_line_error(tmp_path: Pa
 
 def test_a_tcp_display_that_never_answers_is_given_up_quickly(tmp_path: Path) -> None:
     """A forwarded X display whose tunnel is gone: the port accepts nothing; the check must not hang."""
-    from livox_viz.widgets.app import display_problem
+    from livox_viz.widgets.display import display_problem
 
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as silent:
         silent.bind(("127.0.0.1", 0))

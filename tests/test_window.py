@@ -398,7 +398,7 @@ def test_the_first_datasheet_use_keeps_the_window_painting(tmp_path: Path, qapp)
         window = MainWindow(session, size=(1280, 720))
         window.show()
         start = time.monotonic()
-        while not window._playing_allowed and time.monotonic() - start < 120:
+        while not session.casting and time.monotonic() - start < 120:
             app.processEvents(); time.sleep(0.01)
         ticks, returns = [], []
         window.timer.timeout.connect(lambda: (ticks.append(time.monotonic()), returns.append(

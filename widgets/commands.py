@@ -126,13 +126,15 @@ def _check_covered(session, seconds: float) -> None:
 
 
 def cmd_gui(args: argparse.Namespace) -> int:
-    from .app import display_problem, render_offscreen
+    from .display import display_problem
 
     size = _size(args.size)
     problem = display_problem()
     if args.listen and problem:
         raise UsageError(f"gui --listen needs a display ({problem}); record with 'listen --record' instead")
     if problem:
+        from .app import render_offscreen
+
         session = _session(args, "gui")
         _check_covered(session, args.seconds)
         folder = Path(args.offscreen_dir)
@@ -149,6 +151,12 @@ def cmd_gui(args: argparse.Namespace) -> int:
             render_offscreen(session, args.seconds, path, views=views, size=size if views == "both" else square)
             print(f"  {path}")
         return 0
+    # The compiled loops the first frames need start loading now, beside the second or two of loading Qt and VTK.
+    from livox_viz.casting.warm import STAGES, stages_for
+
+    from .warmup import LoopWarmer
+
+    warmer = LoopWarmer(stages_for(config_from_args(args), bool(args.trajectory)), STAGES).start()
     session = _session(args, "gui")
     receiver = None
     if args.listen:
@@ -161,8 +169,9 @@ def cmd_gui(args: argparse.Namespace) -> int:
         try:
             from .mainwindow import run_window
 
-            run_window(session, size, stop=lambda: stop.requested)
+            run_window(session, size, stop=lambda: stop.requested, warmer=warmer)
         finally:
+            warmer.close()
             if receiver is not None:
                 receiver.close()
     if stop.signum is not None:

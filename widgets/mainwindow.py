@@ -89,10 +89,13 @@ class MainWindow(QtWidgets.QMainWindow):
     screenshot_dir : Path
     warm : bool
         Load the compiled loops in the background (tests that need none pass False).
+    warmer : LoopWarmer, optional
+        One already loading them (started before Qt and VTK were loaded).
     """
 
     def __init__(self, session: Session, size: tuple[int, int] = (1600, 900), stop: Callable[[], bool] | None = None,
-                 screenshot_dir: Path = files.SCREENSHOT_DIR, warm: bool = True) -> None:
+                 screenshot_dir: Path = files.SCREENSHOT_DIR, warm: bool = True,
+                 warmer: LoopWarmer | None = None) -> None:
         application()
         super().__init__()
         quiet_vtk()
@@ -154,10 +157,14 @@ class MainWindow(QtWidgets.QMainWindow):
 
         # The compiled loops: what the first frame needs now, the rest in the background.
         moving = session.trajectory is not None
-        self.warmer: LoopWarmer | None = None
-        if warm:
+        self.warmer: LoopWarmer | None = warmer
+        if warm and warmer is None:
             self.warmer = LoopWarmer(stages_for(session.config, moving), STAGES).start()
-        self._playing_allowed = not warm
+        # The pattern plays as soon as its own loops are there (none for the rosette); the scene's cloud joins when
+        # the caster's are (the window then casts its integration window again).
+        self._playing_allowed = self.warmer is None
+        if self.warmer is not None:
+            session.casting = False
         self._first_frame: float | None = None
         self.opened = time.perf_counter()
 
@@ -453,15 +460,18 @@ class MainWindow(QtWidgets.QMainWindow):
         if self._stop is not None and self._stop():
             self.close()
             return
-        if not self._playing_allowed:
-            ready = self.warmer is None or self.warmer.is_ready(self.warmer.now)
-            failed = self.warmer is not None and set(self.warmer.now) & set(self.warmer.failed)
-            if failed:
-                self.say(f"the ray caster could not be prepared: {next(iter(self.warmer.failed.values()))}",
-                         error=True)
-            if ready:
+        warmer = self.warmer
+        if warmer is not None and not self.controller.session.casting:
+            pattern = set(warmer.now) - {"ideal", "datasheet", "motion"}
+            if not self._playing_allowed and warmer.is_ready(pattern):
                 self._playing_allowed = True
                 self.controller.session.playback.restart()
+            failed = set(warmer.now) & set(warmer.failed)
+            if failed:
+                self.say(f"the ray caster could not be prepared: {next(iter(warmer.failed.values()))}", error=True)
+            elif warmer.is_ready(warmer.now):
+                self._playing_allowed = True
+                self.controller.session.start_casting()
         self._finish_jobs()
         self._run_deferred()
         session = self.controller.session
@@ -509,8 +519,8 @@ class MainWindow(QtWidgets.QMainWindow):
         busy = [job.what for job in self._jobs]
         if self.warmer is not None and self.warmer.working:
             busy.append(self.warmer.describe())
-        if not self._playing_allowed:
-            busy.append("starting the ray caster")
+        if not self.controller.session.casting:
+            busy.append("starting the ray caster (the pattern plays)")
         if self.controller.fitting:
             busy.append(f"fitting to {self.controller.fitting}")
         if session.filling is not None:
@@ -777,9 +787,13 @@ class MainWindow(QtWidgets.QMainWindow):
         event.accept()
 
 
-def run_window(session: Session, size: tuple[int, int], stop: Callable[[], bool] | None = None) -> int:
-    """Open the window and run until it is closed (or ``stop()`` is true); the Qt event loop's status."""
+def run_window(session: Session, size: tuple[int, int], stop: Callable[[], bool] | None = None,
+               warmer: LoopWarmer | None = None) -> int:
+    """Open the window and run until it is closed (or ``stop()`` is true); the Qt event loop's status.
+
+    ``warmer``: the compiled loops' loader, started early by the caller (else the window starts one).
+    """
     app = application()
-    window = MainWindow(session, size=size, stop=stop)
+    window = MainWindow(session, size=size, stop=stop, warmer=warmer)
     window.show()
     return int(app.exec())

@@ -165,6 +165,9 @@ class Session:
         #: Points a refilled window (a new integration window, a seek) casts per tick; 0 casts it all at once
         #: (renders, tests). The window sets it: a million points at once held its UI thread for seconds.
         self.fill_per_tick = 0
+        #: Whether the pattern's points are cast into the scene (the window plays the pattern alone until the
+        #: caster's compiled loops are loaded, then :meth:`start_casting`).
+        self.casting = True
         self._filling_to: float | None = None
         self._fill_from = 0
         #: Points of the model's stream skipped since the last restart because a tick fell too far behind
@@ -327,6 +330,13 @@ class Session:
         # The time the window was at, or being filled to (a window still filling has not reached it yet).
         self._refill(self._filling_to if self._filling_to is not None else self.scan_time)
 
+    def start_casting(self) -> None:
+        """Cast from now on, the window that ends now cast again first (the pattern played meanwhile)."""
+        self.casting = True
+        target = self._filling_to if self._filling_to is not None else self.scan_time
+        self._clear_rings()
+        self._refill(target)
+
     def seek(self, scan_time: float) -> None:
         """Show the integration window that ends at ``scan_time`` seconds (the time scrubber), cast afresh: the
         same points a scan played to that time holds. Playback pauses."""
@@ -454,8 +464,9 @@ class Session:
         self.scan_time = scan_time
         self.overlay.advance_to(scan_time)
         self._add_pattern(chunk)
-        frame = self.mounted.cast(chunk)
-        self._add_cloud(frame, frame.stream_index)
+        if self.casting:
+            frame = self.mounted.cast(chunk)
+            self._add_cloud(frame, frame.stream_index)
         self._drop_old()
         self.frame_index = (target - 1) // self.config.points_per_frame
         return missing
