@@ -157,6 +157,9 @@ def cmd_gui(args: argparse.Namespace) -> int:
     from .warmup import LoopWarmer
 
     warmer = LoopWarmer(stages_for(config_from_args(args), bool(args.trajectory)), STAGES).start()
+    # Qt and VTK load here while the warmer's thread loads numba and trimesh: on two cores much of it overlaps.
+    from .mainwindow import run_window
+
     session = _session(args, "gui")
     receiver = None
     if args.listen:
@@ -167,8 +170,6 @@ def cmd_gui(args: argparse.Namespace) -> int:
     # Ctrl-C, SIGTERM and SIGHUP close the window on its next tick (raised inside Qt's loop, they would be lost).
     with StopRequests() as stop:
         try:
-            from .mainwindow import run_window
-
             run_window(session, size, stop=lambda: stop.requested, warmer=warmer)
         finally:
             warmer.close()
