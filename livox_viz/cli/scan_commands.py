@@ -34,8 +34,12 @@ from .common import (
     positive_float,
     scene_from_args,
     trajectory_from_args,
+    whole_number,
 )
 from .signals import StopRequests, signal_name, signal_status
+
+#: The most frame workers ``--workers`` takes (each holds a batch of frames in flight).
+MAX_WORKERS = 1024
 
 
 def cmd_scan(args: argparse.Namespace) -> int:
@@ -57,7 +61,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
     # Imported here: the casting path (the return model's loops among it) is 60 ms of every command's start-up.
     from livox_viz.casting.scan import LidarScanner
 
-    scanner = LidarScanner(cfg, caster, pose, seed=args.seed, trajectory=trajectory)
+    scanner = LidarScanner(cfg, caster, pose, seed=args.seed, trajectory=trajectory, workers=args.workers)
     frames = points = 0
     progress = Progress(f"scan -> {(out or Path(args.rosbag)).name}", args.seconds, "s")
     with ExitStack() as files:
@@ -220,6 +224,9 @@ def _scan_arguments(parser: argparse.ArgumentParser) -> None:
                              "IMU; lever-arm effects included); needs --rosbag")
     parser.add_argument("--ros-names", help="topic/frame names, e.g. lidar=/livox/lidar,imu=/livox/imu,"
                                             "lidar_frame=livox_frame (defaults: the Livox ROS driver 2's)")
+    parser.add_argument("--workers", type=whole_number(1, MAX_WORKERS, f"1 to {MAX_WORKERS} threads"),
+                        help="frames cast side by side (default: one per core this process may use); the cloud is "
+                             "the same whatever the count")
     parser.add_argument("--force", action="store_true", help="allow more points than the documented budget")
 
 
