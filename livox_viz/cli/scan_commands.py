@@ -9,10 +9,11 @@ from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 from livox_viz import __version__
+from livox_viz.core.atomic import resolve_destination
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.progress import Progress
 from livox_viz.core.workload import check_points
-from livox_viz.files.export import FORMATS, PointCloudWriter
+from livox_viz.files.export import FORMATS, PointCloudWriter, sidecar_path
 from livox_viz.motion.flights import builtin_trajectory
 from livox_viz.motion.imu import IMU_FRAMES, MAX_RATE, MIN_RATE, ImuNoise, ImuStream
 from livox_viz.motion.trajectory import Trajectory
@@ -48,10 +49,13 @@ def cmd_scan(args: argparse.Namespace) -> int:
         raise UsageError("give --out FILE, --rosbag DIR, or both")
     _check_bag_options(args)
     out = check_output_path(args.out, FORMATS) if args.out else None
+    sidecar = sidecar_path(out) if out else None
+    if sidecar is not None:  # a CSV's JSON sidecar
+        resolve_destination(sidecar)
     if args.rosbag:  # every output and name is checked before any work
         from livox_viz.files.rosbag import RosNames
 
-        check_bag_path(args.rosbag, out)
+        check_bag_path(args.rosbag, out, sidecar)
         RosNames.parse(args.ros_names or "")
     check_points(points_before(args.seconds, cfg.point_rate), f"scan --seconds {args.seconds:g}", force=args.force)
     scene, pose, caster = scene_from_args(args)

@@ -39,6 +39,19 @@ up), said in a WKT coordinate system (a local one) and in a livox-viz record;
 its offset and scale are chosen from the data (0.1 mm wherever the cloud's
 extent allows).
 
+**What each file says of itself.** PLY and PCD in their header's comments, LAS
+in its WKT and livox-viz records, NPZ in its ``frame_of_reference``. A CSV holds
+only its column names and the values, so that ``pandas.read_csv(f)`` and
+``numpy.genfromtxt(f, delimiter=",", names=True)`` read it with no options (a
+``#`` line before the names was taken for the header by one and refused by the
+other); what it is goes in a JSON sidecar beside it, ``<name>.csv.json``
+(:func:`sidecar_path`), renamed into place just after the CSV.
+
+**Types every reader takes.** PLY properties are ``float``, ``double``, ``int``
+and ``uchar`` only: Open3D's tensor reader skips a ``uint`` property
+("unsupported datatype"), so the frame index (and a recording's unsigned
+numbers) are written as ``int``.
+
 **Livox fields.** Every format carries each point's ``reflectivity`` (uint8,
 0-150 Lambertian 0-100 %, 151-255 retroreflective), ``tag`` (SDK1: bits 0-1
 spatial noise, 2-3 intensity noise, 4-5 return number), ``return_number`` and
@@ -54,6 +67,7 @@ import json
 import os
 import shutil
 from collections.abc import Mapping, Sequence
+from contextlib import ExitStack
 from pathlib import Path
 from types import TracebackType
 from typing import BinaryIO
@@ -61,7 +75,7 @@ from typing import BinaryIO
 import numpy as np
 
 from livox_viz.casting.point_frame import PointFrame
-from livox_viz.core.atomic import WorkDir, atomic_path
+from livox_viz.core.atomic import WorkDir, atomic_path, resolve_destination
 from livox_viz.core.errors import LivoxVizError, os_error_reason
 from livox_viz.core.portable import free_disk_bytes, write_at
 from livox_viz.core.rotations import enu_from_ned, flu_from_frd
@@ -106,10 +120,29 @@ LIVOX_FIELDS: tuple[str, ...] = ("reflectivity", "tag", "return_number", "number
 
 
 def point_fields(coordinates: str, file_format: str = ".ply") -> tuple[tuple[str, str], ...]:
-    """Per-point fields of PLY, PCD and CSV with their numpy types; world x, y, z are float64 but in a PCD."""
+    """Per-point fields of PLY, PCD and CSV with their numpy types; world x, y, z are float64 but in a PCD; a PLY
+    has no unsigned 32-bit field (:func:`file_type`)."""
     xyz = "<f8" if coordinates == "world" and file_format != ".pcd" else "<f4"
-    return (("x", xyz), ("y", xyz), ("z", xyz), ("range", "<f4"), ("time", "<f8"), ("frame", "<u4"),
-            *((name, "u1") for name in LIVOX_FIELDS))
+    return (("x", xyz), ("y", xyz), ("z", xyz), ("range", "<f4"), ("time", "<f8"),
+            ("frame", file_type("<u4", file_format)), *((name, "u1") for name in LIVOX_FIELDS))
+
+
+#: The PLY property types every reader takes: Open3D's tensor reader (``t.io``) reads ``uint8``/``uchar``,
+#: ``uint16``, ``int32``/``int``, ``float32``/``float`` and ``float64``/``double``, and skips any other property.
+PLY_TYPES = {"<f4": "float", "<f8": "double", "<i4": "int", "u1": "uchar"}
+
+
+def file_type(numpy_type: str, file_format: str) -> str:
+    """The numpy type a field of ``numpy_type`` is written with in ``file_format``: a PLY's unsigned 32-bit field
+    is a signed one (frame numbers and sessions stay far below 2^31), everything else as given."""
+    return "<i4" if file_format == ".ply" and numpy_type == "<u4" else numpy_type
+
+
+def sidecar_path(path: str | os.PathLike[str]) -> Path | None:
+    """The JSON sidecar a :class:`PointCloudWriter` writes beside ``path``: ``<name>.csv.json`` for a CSV (which
+    holds only its column names and values), else None."""
+    path = Path(path)
+    return path.with_name(path.name + ".json") if path.suffix.lower() == ".csv" else None
 
 
 #: The sensor-frame fields (see :func:`point_fields`).
@@ -143,7 +176,8 @@ def frame_records(frame: PointFrame, coordinates: str, extra_fields: Sequence[tu
     """The frame's points as a structured array of :func:`point_fields` and ``extra_fields``, ``(M,)``;
     ``offset`` ``(3,)`` metres is taken off x, y, z."""
     xyz = frame_points(frame, coordinates) - (0.0 if offset is None else offset)
-    records = np.empty(len(frame), dtype=[*point_fields(coordinates, file_format), *extra_fields])
+    records = np.empty(len(frame), dtype=[*point_fields(coordinates, file_format),
+                                          *((name, file_type(t, file_format)) for name, t in extra_fields)])
     records["x"], records["y"], records["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
     records["range"] = np.linalg.norm(frame.xyz_decoded, axis=1)
     records["time"] = frame.t
@@ -182,7 +216,7 @@ class PointCloudWriter:
     source : str
         What made the cloud, one line (``scan`` writes e.g. ``"livox-viz 0.1.0 scan of livox_mid70 (datasheet
         returns, seed 0) in urban from t = 0, fixed"``),
-        stated in the header of every format (PLY and PCD comments, the CSV's first line, LAS's livox-viz
+        stated in the header of every format (PLY and PCD comments, the CSV's sidecar, LAS's livox-viz
         record, the NPZ's ``frame_of_reference``); none when empty.
     npz_rule : str
         What the NPZ's arrays are, stated in its ``frame_of_reference`` (default :data:`NPZ_RULE`, a scan's).
@@ -239,6 +273,9 @@ class PointCloudWriter:
         # Named (and the destination checked) before anything exists; made inside the try, so a signal
         # arriving at any moment leaves nothing behind.
         self._work = WorkDir(self.path)
+        sidecar = sidecar_path(self.path)
+        #: The CSV's sidecar (checked now, written by :meth:`close`), else None.
+        self.sidecar = None if sidecar is None else resolve_destination(sidecar)
         try:
             self._work.create()
             self._open()
@@ -253,10 +290,8 @@ class PointCloudWriter:
             return
         # Unbuffered: what a failed write left can be cut off (a buffer would still hold it and write it later).
         self._body = open(work / "body", "wb", buffering=0)
-        if self.format == ".csv":
-            made = f"source: {self.source}; " if self.source else ""
-            start = (f"# livox-viz scan; {made}coordinates: {FRAME_DESCRIPTION[self.coordinates]}; "
-                     f"{POINTS_RULE}\n" + ",".join(name for name, _ in self._fields) + "\n").encode()
+        if self.format == ".csv":  # the column names alone: what the file is goes in its sidecar
+            start = (",".join(name for name, _ in self._fields) + "\n").encode()
         elif self.format in IN_PLACE:
             self._header_room = len(self._header()) + HEADER_ROOM
             start = b" " * self._header_room
@@ -267,7 +302,8 @@ class PointCloudWriter:
 
     @property
     def _fields(self) -> tuple[tuple[str, str], ...]:
-        return (*point_fields(self.coordinates, self.format), *self.extra_fields)
+        return (*point_fields(self.coordinates, self.format),
+                *((name, file_type(t, self.format)) for name, t in self.extra_fields))
 
     def write(self, frame: PointFrame, extra: Mapping[str, np.ndarray | float] | None = None) -> None:
         """Append one frame's returns; ``extra`` holds the values of ``extra_fields`` (per point, or one per frame).
@@ -373,23 +409,38 @@ class PointCloudWriter:
             self.abort()
             raise LivoxVizError(f"{self.path}: {self.stopped}; the old file, if any, is kept")
         try:
-            with atomic_path(self.path) as tmp:
-                if self.format in IN_PLACE:
-                    self._finish_in_place(tmp)
-                elif self._npz is not None:
-                    poses = np.array(self._npz_poses).reshape(-1, 13)
-                    self._npz.finish(tmp, {**self.npz_arrays, "frame_pose": poses, "frame_of_reference": np.array(
-                        json.dumps({**FRAME_DESCRIPTION, "points": self.npz_rule,
-                                    **({"source": self.source} if self.source else {}),
-                                    "frame_pose": "index, then the sensor's pose at the frame's first ray and "
-                                    "just after its last: x y z (m, world NED) roll pitch yaw (rad) each"}))})
-                else:
-                    assert self._body is not None
-                    self._body.close()
-                    self._finish_las(tmp)
+            with ExitStack() as sidecar:
+                if self.sidecar is not None:  # written first, renamed into place just after the file
+                    self._write_sidecar(sidecar.enter_context(atomic_path(self.sidecar)))
+                self._finish()
         finally:
             self.abort()
         return self.path
+
+    def _write_sidecar(self, tmp: Path) -> None:
+        """What a CSV is (it holds only its column names and values), as JSON."""
+        about = {"file": self.path.name, "what": "livox-viz point cloud, one row per point",
+                 **({"source": self.source} if self.source else {}), "coordinates": self.coordinates,
+                 "frame": FRAME_DESCRIPTION[self.coordinates], "points": POINTS_RULE, "rows": self.count,
+                 "frames": self.frames, "columns": [name for name, _ in self._fields]}
+        tmp.write_text(json.dumps(about, indent=1) + "\n", encoding="utf-8")
+
+    def _finish(self) -> None:
+        """The file finished and renamed into place."""
+        with atomic_path(self.path) as tmp:
+            if self.format in IN_PLACE:
+                self._finish_in_place(tmp)
+            elif self._npz is not None:
+                poses = np.array(self._npz_poses).reshape(-1, 13)
+                self._npz.finish(tmp, {**self.npz_arrays, "frame_pose": poses, "frame_of_reference": np.array(
+                    json.dumps({**FRAME_DESCRIPTION, "points": self.npz_rule,
+                                **({"source": self.source} if self.source else {}),
+                                "frame_pose": "index, then the sensor's pose at the frame's first ray and "
+                                "just after its last: x y z (m, world NED) roll pitch yaw (rad) each"}))})
+            else:
+                assert self._body is not None
+                self._body.close()
+                self._finish_las(tmp)
 
     def _finish_in_place(self, tmp: Path) -> None:
         """A PLY, PCD or CSV: its header over the room kept for it, and the body renamed to ``tmp``."""
@@ -454,11 +505,10 @@ class PointCloudWriter:
         frame = f"frame {self.coordinates}: {FRAME_DESCRIPTION[self.coordinates]}"
         if self.format == ".ply":
             encoding = "ascii" if self.ascii else "binary_little_endian"
-            types = {"<f4": "float", "<f8": "double", "<u4": "uint", "<i4": "int", "u1": "uchar"}
             lines = ["ply", f"format {encoding} 1.0", "comment livox-viz scan",
                      *([f"comment source: {self.source}"] if self.source else []), f"comment {frame}",
                      f"comment {POINTS_RULE}", f"element vertex {self.count}"]
-            lines += [f"property {types[t]} {name}" for name, t in fields]
+            lines += [f"property {PLY_TYPES[t]} {name}" for name, t in fields]
             lines.append("end_header")
             return lines
         sizes = {"<f4": ("4", "F"), "<f8": ("8", "F"), "<u4": ("4", "U"), "<i4": ("4", "I"), "u1": ("1", "U")}
