@@ -62,7 +62,6 @@ own ``intensity`` (the byte x 256, LAS's 16-bit scale), ``return_number`` and
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import shutil
@@ -79,7 +78,9 @@ from livox_viz.core.atomic import WorkDir, atomic_path, resolve_destination
 from livox_viz.core.errors import LivoxVizError, os_error_reason
 from livox_viz.core.portable import free_disk_bytes, write_at
 from livox_viz.core.rotations import enu_from_ned, flu_from_frd
+from livox_viz.files.las_stream import LasStream, PackedFrame
 from livox_viz.files.npzstream import NpzColumns
+from livox_viz.files.text_rows import WHOLE, TextRows
 
 FORMATS = (".ply", ".pcd", ".las", ".npz", ".csv")
 #: Formats written in place: the points go straight into the file, after room kept for the header (PLY, PCD) or
@@ -261,6 +262,11 @@ class PointCloudWriter:
         #: A failed write could not be cut back to whole frames: closing keeps nothing.
         self._unusable = False
         self._body: BinaryIO | None = None
+        #: A LAS written in place; None for another format, or once a point did not fit its first offset and
+        #: scale (then its raw records are assembled at the end).
+        self._las: LasStream | None = None
+        #: The frame being written's LAS records as packed by :attr:`_las`.
+        self._packed: PackedFrame | None = None
         self._npz: NpzColumns | None = None
         self._npz_poses: list[np.ndarray] = []
         #: World PCD: metres taken off every point (whole kilometres, from the first points; stated in the header).
@@ -268,6 +274,12 @@ class PointCloudWriter:
         self._low = np.full(3, np.inf)
         self._high = np.full(3, -np.inf)
         self._closed = False
+        #: CSV and ASCII PLY/PCD: the text of the rows, as ``numpy.savetxt`` writes it.
+        self._text: TextRows | None = None
+        if self.format == ".csv" or (ascii and self.format in (".ply", ".pcd")):
+            decimals = [6] * 4 + [9, WHOLE] + [WHOLE] * len(LIVOX_FIELDS) + [
+                9 if t[1] == "f" else WHOLE for _, t in self.extra_fields]
+            self._text = TextRows(decimals, "," if self.format == ".csv" else " ")
         #: Why closing a part failed during an abort, if it did.
         self.abort_error = ""
         # Named (and the destination checked) before anything exists; made inside the try, so a signal
@@ -295,8 +307,11 @@ class PointCloudWriter:
         elif self.format in IN_PLACE:
             self._header_room = len(self._header()) + HEADER_ROOM
             start = b" " * self._header_room
-        else:
-            return
+        else:  # a LAS: its points packed as they come, after room for its header
+            self._las = LasStream(lambda offset, scale: _las_header(self.coordinates, offset, scale,
+                                                                    self.extra_fields, self.source),
+                                  las_offset_and_scale, tuple(name for name, _ in self.extra_fields))
+            start = bytes(self._las.header_size)
         self._put(start)
         self._written = len(start)
 
@@ -320,15 +335,16 @@ class PointCloudWriter:
         values = {name: np.broadcast_to(np.asarray((extra or {})[name], dtype=t), (len(frame),))
                   for name, t in self.extra_fields}
         if self._npz is not None:
-            payload: bytes | dict[str, np.ndarray] = {
+            payload: list[bytes | memoryview] | dict[str, np.ndarray] = {
                 "xyz_sensor": frame.xyz_decoded, "xyz_world": frame.xyz_world, "xyz_int16": frame.xyz_int16,
                 "range": frame.range_m, "t": frame.t, "frame": np.full(len(frame), frame.index),
                 **{name: getattr(frame, name) for name in LIVOX_FIELDS}, **values}
             size = self._npz.chunk_bytes(payload)
         else:
             payload = self._encode(frame, values)
-            size = len(payload)
+            size = sum(len(piece) for piece in payload)
         self._make_room(size)
+        packed = self._packed
         try:
             if isinstance(payload, dict):
                 assert self._npz is not None
@@ -336,7 +352,8 @@ class PointCloudWriter:
                 self._npz_poses.append(np.concatenate([[frame.index], frame.sensor_pose.as_array(),
                                                        frame.end_pose.as_array()]))
             else:
-                self._put(payload)
+                for piece in payload:
+                    self._put(piece)
         except OSError as exc:
             self._cut_back()
             self.stopped = f"cannot write ({os_error_reason(exc)})"
@@ -344,12 +361,14 @@ class PointCloudWriter:
         self._written += size
         self.count += len(frame)
         self.frames += 1
+        if packed is not None and self._las is not None:
+            self._las.commit(packed)
 
     def _make_room(self, size: int) -> None:
         """Stop writing (:class:`WritingStopped`, nothing of the frame written) unless the disk holds ``size`` more
         bytes, what finishing the file will then need, and :data:`FREE_MARGIN`."""
-        finish = 0 if self.format in IN_PLACE else (self._written + size + FINISH_FIXED
-                                                     + FINISH_PER_FRAME * (self.frames + 1))
+        in_place = self.format in IN_PLACE or self._las is not None
+        finish = 0 if in_place else (self._written + size + FINISH_FIXED + FINISH_PER_FRAME * (self.frames + 1))
         need = size + finish + FREE_MARGIN
         free = free_bytes(self._work.path)
         if free < need:
@@ -357,26 +376,57 @@ class PointCloudWriter:
                             f"need {need / 2**20:.1f} MiB)")
             raise WritingStopped(f"{self.path}: {self.stopped}; the old file, if any, is kept")
 
-    def _encode(self, frame: PointFrame, extra: dict[str, np.ndarray]) -> bytes:
-        """A frame's bytes in the body: LAS's raw records, or the points as the file holds them."""
+    def _encode(self, frame: PointFrame, extra: dict[str, np.ndarray]) -> list[bytes | memoryview]:
+        """A frame's bytes in the body, in pieces: LAS's raw records, or the points as the file holds them."""
+        self._packed = None
         if self.format == ".las":
             records = _las_records(frame, self.coordinates, self.extra_fields, extra)
+            if self._las is not None:
+                self._packed = self._las.pack(records)
+                if self._packed is not None:
+                    return [self._packed.data]
+                self._las_to_raw()  # wider than the first points' offset and scale hold: assembled at the end
             if len(records):
                 self._low = np.minimum(self._low, [records[axis].min() for axis in "xyz"])
                 self._high = np.maximum(self._high, [records[axis].max() for axis in "xyz"])
-            return records.tobytes()
+            return [records.tobytes()]
         if self.format == ".pcd" and self.coordinates == "world" and self.offset is None and len(frame):
             self.offset = np.round(np.median(frame_points(frame, "world"), axis=0) / 1000.0) * 1000.0 + 0.0  # no -0
         records = frame_records(frame, self.coordinates, self.extra_fields, extra, self.format, self.offset)
-        if self.format == ".csv" or self.ascii:
-            formats = ["%.6f"] * 4 + ["%.9f", "%d"] + ["%d"] * len(LIVOX_FIELDS) + [
-                "%.9f" if t[1] == "f" else "%d" for _, t in self.extra_fields]
-            text = io.BytesIO()
-            np.savetxt(text, _records_as_columns(records), fmt=formats, delimiter="," if self.format == ".csv" else " ")
-            return text.getvalue()
-        return records.tobytes()
+        if self._text is not None:
+            return self._text.format(_records_as_columns(records))
+        return [records.tobytes()]
 
-    def _put(self, data: bytes) -> None:
+    def _las_to_raw(self) -> None:
+        """A LAS whose points outgrew the offset and scale of its first: its points so far turned back into raw
+        records (each its 0.1 mm grid point), assembled with an offset and scale for all of them at the end."""
+        assert self._las is not None and self._body is not None
+        stream, self._las = self._las, None
+        body, raw = self._work.path / "body", self._work.path / "raw"
+        raw_dtype = np.dtype([*_LAS_BODY, *self.extra_fields])
+        rows = 1 << 16
+        with open(body, "rb") as packed, open(raw, "wb") as out:
+            packed.seek(stream.header_size)
+            while block := packed.read(rows * stream.dtype.itemsize):
+                points = np.frombuffer(block, dtype=stream.dtype)
+                records = np.zeros(len(points), dtype=raw_dtype)
+                for k, (axis, field) in enumerate(zip("xyz", "XYZ", strict=True)):
+                    records[axis] = points[field] * stream.scale[k] + stream.offset[k]
+                records["return_number"] = points["bit_fields"] & 0x0F
+                records["number_of_returns"] = points["bit_fields"] >> 4
+                for name in ("gps_time", "range", "frame", "intensity", "reflectivity", "tag",
+                             *(name for name, _ in self.extra_fields)):
+                    records[name] = points[name]
+                if len(records):
+                    self._low = np.minimum(self._low, [records[axis].min() for axis in "xyz"])
+                    self._high = np.maximum(self._high, [records[axis].max() for axis in "xyz"])
+                out.write(records.tobytes())
+        self._body.close()
+        os.replace(raw, body)
+        self._body = open(body, "ab", buffering=0)
+        self._written = body.stat().st_size
+
+    def _put(self, data: bytes | memoryview) -> None:
         """Append ``data`` to the body (an unbuffered file may take a write in pieces)."""
         assert self._body is not None
         view = memoryview(data)
@@ -428,7 +478,7 @@ class PointCloudWriter:
     def _finish(self) -> None:
         """The file finished and renamed into place."""
         with atomic_path(self.path) as tmp:
-            if self.format in IN_PLACE:
+            if self.format in IN_PLACE or self._las is not None:
                 self._finish_in_place(tmp)
             elif self._npz is not None:
                 poses = np.array(self._npz_poses).reshape(-1, 13)
@@ -443,10 +493,12 @@ class PointCloudWriter:
                 self._finish_las(tmp)
 
     def _finish_in_place(self, tmp: Path) -> None:
-        """A PLY, PCD or CSV: its header over the room kept for it, and the body renamed to ``tmp``."""
+        """A PLY, PCD, CSV or LAS: its header over the room kept for it, and the body renamed to ``tmp``."""
         assert self._body is not None
         body = self._work.path / "body"
-        if self.format != ".csv":
+        if self._las is not None:
+            os.pwrite(self._body.fileno(), self._las.header(), 0)
+        elif self.format != ".csv":
             header = self._header(self._header_room)
             if header is not None:
                 write_at(self._body, header, 0)
