@@ -14,6 +14,7 @@ from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.progress import Progress
 from livox_viz.core.workload import check_points
 from livox_viz.files.export import FORMATS, PointCloudWriter, sidecar_path
+from livox_viz.files.overlap import OverlappedWriting
 from livox_viz.motion.flights import builtin_trajectory
 from livox_viz.motion.imu import IMU_FRAMES, MAX_RATE, MIN_RATE, ImuNoise, ImuStream
 from livox_viz.motion.trajectory import Trajectory
@@ -80,18 +81,18 @@ def cmd_scan(args: argparse.Namespace) -> int:
         writer = files.enter_context(PointCloudWriter(out, coordinates=args.frame, ascii=args.ascii, source=made)
                                      ) if out else None
         bag = files.enter_context(_open_bag(args, cfg, scanner, trajectory, pose)) if args.rosbag else None
-        for frame in scanner.frames(args.seconds):
-            if writer is not None:
-                writer.write(frame)
-            if bag is not None:
-                bag.write(frame)
-            frames += 1
-            points += len(frame)
-            progress.update(scanner.time)
-            if stop.requested:
-                if bag is not None:
-                    bag.end = frame.end_time  # its IMU and ground truth end with the frames
-                break
+        # Each output is written on a thread of its own while the next frames are cast; leaving this block waits
+        # for every frame handed over (a failed writer's error is raised then, and every file is given up).
+        with OverlappedWriting([sink for sink in (writer, bag) if sink is not None]) as writing:
+            for frame in scanner.frames(args.seconds):
+                writing.write(frame)
+                frames += 1
+                points += len(frame)
+                progress.update(scanner.time)
+                if stop.requested:
+                    if bag is not None:
+                        bag.end = frame.end_time  # its IMU and ground truth end with the frames
+                    break
     progress.close()
     if points == 0:
         why = (f"no ray hit anything within {cfg.range_max:g} m" if cfg.returns_model == "ideal" else

@@ -6,10 +6,13 @@ finished file over it on :meth:`PointCloudWriter.close`; on any failure (a full
 disk included) the work folder is removed, the message names the file, and
 the old file, if any, is kept. An existing read-only file is refused.
 
-**A full disk.** PLY, PCD and CSV are written in place: their header goes over
-room kept for it at the start of the points, and that file is renamed into
-place, so finishing one needs no free space. LAS and NPZ are assembled from
-the points at the end, a second copy. Before each frame the writer checks that
+**A full disk.** PLY, PCD, CSV and LAS are written in place: their header goes
+over room kept for it at the start of the points (a LAS's points are packed as
+they come, :mod:`~livox_viz.files.las_stream`), and that file is renamed into
+place, so finishing one needs no free space. An NPZ's columns are put together
+at the end (:mod:`~livox_viz.files.npzstream`: by the kernel, a copy unless the
+file system shares extents), and a LAS whose points outgrow the offset of its
+first ones is assembled then too: the writer keeps room for that copy. Before each frame the writer checks that
 the disk holds the frame and what finishing needs; where it does not, or where
 a write fails all the same, nothing of that frame stays and the writer stops
 (:class:`WritingStopped`): :meth:`PointCloudWriter.close` still makes the file
