@@ -158,3 +158,39 @@ def test_npz_columns_start_on_a_block_boundary(tmp_path: Path, frames: list) -> 
             raw.seek(member + 8)
             header_length = int(np.frombuffer(raw.read(4), "<u4")[0])
             assert (member + 12 + header_length) % DATA_ALIGN == 0, info.filename
+
+
+def test_a_bag_written_in_batches_is_the_bag_written_message_by_message(tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """The IMU, odometry and /tf go into rosbags' MCAP chunks a batch at a time: the same bytes, chunks (about three
+    here) and indexes as its own writer makes one message at a time."""
+    from livox_viz.cli import main
+    from livox_viz.files import rosbag
+
+    for how in ("batch", "single"):
+        with monkeypatch.context() as patch:
+            if how == "single":
+                patch.setattr(rosbag, "append_mcap_messages", lambda bag, messages: False)
+            assert main(["scan", "--seconds", "1.2", "--trajectory", "circle", "--imu-noise", "0.01,0.001,0.1,0.01",
+                         "--rosbag", str(tmp_path / how)]) == 0
+    batch, single = (sorted(p for p in (tmp_path / how).iterdir()) for how in ("batch", "single"))
+    assert [p.name for p in batch] == [p.name for p in single]
+    assert [p.read_bytes() for p in batch] == [p.read_bytes() for p in single]
+    assert sum(p.stat().st_size for p in batch) > 3 * 2**20  # more than one chunk
+
+
+def test_a_trajectory_evaluates_the_same_whether_kept_or_not() -> None:
+    """A bag's frame asks for the same times' motion several times: the kept values are the values, and a copy."""
+    from livox_viz.motion.flights import builtin_trajectory
+
+    flight = builtin_trajectory("figure8", 5.0, Pose((0.0, 0.0, -10.0)), 20.0)
+    t = np.linspace(3.0, 3.1, 21)
+    first = (flight.position_at(t), flight.velocity_at(t), flight.angular_velocity_at(t), flight.orientation_at(t))
+    first[0][:] = 0.0  # a caller's array is its own
+    again = (flight.position_at(t), flight.velocity_at(t), flight.angular_velocity_at(t), flight.orientation_at(t))
+    fresh = builtin_trajectory("figure8", 5.0, Pose((0.0, 0.0, -10.0)), 20.0)
+    expected = (fresh._evaluate(t, 0)[:, :3], fresh._evaluate(t, 1)[:, :3], fresh.angular_velocity_at(t),
+                fresh.orientation_at(t))
+    for got, want in zip(again, expected, strict=True):
+        assert np.array_equal(got, want)
+    assert not np.array_equal(first[0], again[0])
