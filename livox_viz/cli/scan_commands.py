@@ -6,7 +6,9 @@ import argparse
 import os
 import sys
 from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO
 
 from livox_viz import __version__
 from livox_viz.core.atomic import resolve_destination
@@ -44,7 +46,59 @@ from .signals import StopRequests, signal_name, signal_status
 MAX_WORKERS = 1024
 
 
+@dataclass(frozen=True)
+class ScanReport:
+    """What :func:`run_scan` did.
+
+    Attributes
+    ----------
+    frames, points : int
+        Frames and points written.
+    seconds : float
+        Scan time written, seconds (less than asked when a signal stopped the scan).
+    returns_model : str
+        The return model used.
+    range_max : float
+        The configuration's range, metres.
+    outputs : tuple of Path
+        The file and the bag written.
+    motion : str
+        ``""`` for a fixed sensor, else how it moved (``", moving along line at 5 m/s"``).
+    stopped_by : int or None
+        The signal that stopped the scan early, if one did.
+    """
+
+    frames: int
+    points: int
+    seconds: float
+    returns_model: str
+    range_max: float
+    outputs: tuple[Path, ...]
+    motion: str
+    stopped_by: int | None
+
+
 def cmd_scan(args: argparse.Namespace) -> int:
+    report = run_scan(args)
+    if report.points == 0:
+        why = (f"no ray hit anything within {report.range_max:g} m" if report.returns_model == "ideal" else
+               f"no ray returned a point (nothing within {report.range_max:g} m, or nothing detected: the datasheet "
+               "model's detection range, blind zone and reflectances decide)")
+        print(f"{PROG}: warning: {why}; wrote an empty point cloud", file=sys.stderr)
+    where = " and ".join(str(p) for p in report.outputs)
+    if report.stopped_by is not None:
+        print(f"{PROG}: stopped by {signal_name(report.stopped_by)} after {report.seconds:g} of {args.seconds:g} s of "
+              f"scan: kept {report.points:,} points of {_frames(report.frames)} ({args.frame} frame{report.motion}) "
+              f"in {where}", file=sys.stderr)
+        return signal_status(report.stopped_by)
+    print(f"wrote {report.points:,} points of {_frames(report.frames)} ({args.seconds:g} s, {args.frame} "
+          f"frame{report.motion}) to {where}")
+    return 0
+
+
+def run_scan(args: argparse.Namespace, progress: TextIO | None = None) -> ScanReport:
+    """The scan ``args`` (``scan``'s options) asks for, into its files; ``progress``: where its progress line goes
+    (default stderr, when it is a terminal)."""
     cfg = config_from_args(args)
     if not args.out and not args.rosbag:
         raise UsageError("give --out FILE, --rosbag DIR, or both")
@@ -68,7 +122,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
 
     scanner = LidarScanner(cfg, caster, pose, seed=args.seed, trajectory=trajectory, workers=args.workers)
     frames = points = 0
-    progress = Progress(f"scan -> {(out or Path(args.rosbag)).name}", args.seconds, "s")
+    shown = Progress(f"scan -> {(out or Path(args.rosbag)).name}", args.seconds, "s", stream=progress)
     with ExitStack() as files:
         # What the files hold: the scan from t = 0 (its length is in its frames: a stopped scan is shorter).
         motion = "fixed" if trajectory is None else f"moving along {trajectory.name}"
@@ -88,27 +142,17 @@ def cmd_scan(args: argparse.Namespace) -> int:
                 writing.write(frame)
                 frames += 1
                 points += len(frame)
-                progress.update(scanner.time)
+                shown.update(scanner.time)
                 if stop.requested:
                     if bag is not None:
                         bag.end = frame.end_time  # its IMU and ground truth end with the frames
                     break
-    progress.close()
-    if points == 0:
-        why = (f"no ray hit anything within {cfg.range_max:g} m" if cfg.returns_model == "ideal" else
-               f"no ray returned a point (nothing within {cfg.range_max:g} m, or nothing detected: the datasheet "
-               "model's detection range, blind zone and reflectances decide)")
-        print(f"{PROG}: warning: {why}; wrote an empty point cloud", file=sys.stderr)
-    where = " and ".join(str(p) for p in (out, args.rosbag) if p)
+    shown.close()
     moving = "" if trajectory is None else (f", moving along {trajectory.name}" if trajectory.moves else
                                             f", not moving ({trajectory.name})")
-    if stop.signum is not None:
-        scanned = frames / cfg.data_check_freq
-        print(f"{PROG}: stopped by {signal_name(stop.signum)} after {scanned:g} of {args.seconds:g} s of scan: kept "
-              f"{points:,} points of {_frames(frames)} ({args.frame} frame{moving}) in {where}", file=sys.stderr)
-        return signal_status(stop.signum)
-    print(f"wrote {points:,} points of {_frames(frames)} ({args.seconds:g} s, {args.frame} frame{moving}) to {where}")
-    return 0
+    scanned = frames / cfg.data_check_freq if stop.signum is not None else args.seconds
+    return ScanReport(frames, points, scanned, cfg.returns_model, cfg.range_max,
+                      tuple(Path(p) for p in (out, args.rosbag) if p), moving, stop.signum)
 
 
 def _say_stopping(signum: int) -> None:
