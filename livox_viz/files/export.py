@@ -193,6 +193,25 @@ def frame_records(frame: PointFrame, coordinates: str, extra_fields: Sequence[tu
     return records
 
 
+def frame_columns(frame: PointFrame, coordinates: str, extra_fields: Sequence[tuple[str, str]] = (),
+                  extra: Mapping[str, np.ndarray | float] | None = None, file_format: str = ".csv",
+                  offset: np.ndarray | None = None) -> np.ndarray:
+    """``(M, k)`` float64: the values :func:`frame_records` holds, column by column (each rounded to its field's
+    type first), for the text formats, without the records in between."""
+    fields = (*point_fields(coordinates, file_format), *((name, file_type(t, file_format)) for name, t in extra_fields))
+    values = np.empty((len(frame), len(fields)))
+    xyz = frame_points(frame, coordinates) - (0.0 if offset is None else offset)
+    values[:, :3] = xyz.astype(np.float32) if fields[0][1] == "<f4" else xyz
+    values[:, 3] = np.linalg.norm(frame.xyz_decoded, axis=1).astype(np.float32)
+    values[:, 4] = frame.t
+    values[:, 5] = frame.index
+    for column, name in enumerate(LIVOX_FIELDS, start=6):
+        values[:, column] = getattr(frame, name)
+    for column, (name, kind) in enumerate(fields[6 + len(LIVOX_FIELDS):], start=6 + len(LIVOX_FIELDS)):
+        values[:, column] = np.asarray((extra or {})[name]).astype(kind)
+    return values
+
+
 class WritingStopped(LivoxVizError):
     """A frame could not be written (a full disk): the file holds the whole frames before it, and the writer takes
     no more; :meth:`PointCloudWriter.close` still finishes the file of those frames."""
@@ -395,10 +414,10 @@ class PointCloudWriter:
             return [records.tobytes()]
         if self.format == ".pcd" and self.coordinates == "world" and self.offset is None and len(frame):
             self.offset = np.round(np.median(frame_points(frame, "world"), axis=0) / 1000.0) * 1000.0 + 0.0  # no -0
-        records = frame_records(frame, self.coordinates, self.extra_fields, extra, self.format, self.offset)
         if self._text is not None:
-            return self._text.format(_records_as_columns(records))
-        return [records.tobytes()]
+            return self._text.format(frame_columns(frame, self.coordinates, self.extra_fields, extra, self.format,
+                                                   self.offset))
+        return [frame_records(frame, self.coordinates, self.extra_fields, extra, self.format, self.offset).tobytes()]
 
     def _las_to_raw(self) -> None:
         """A LAS whose points outgrew the offset and scale of its first: its points so far turned back into raw
@@ -606,10 +625,6 @@ class PointCloudWriter:
                              "reflectivity", "tag", *(name for name, _ in self.extra_fields)):
                     points[name] = records[name]
                 writer.write_points(points)
-
-
-def _records_as_columns(records: np.ndarray) -> np.ndarray:
-    return np.column_stack([records[name].astype(np.float64) for name in records.dtype.names])
 
 
 def las_offset_and_scale(low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

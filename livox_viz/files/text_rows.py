@@ -201,11 +201,24 @@ def _rows(values, places, delimiter, out, row_end, unsure):  # pragma: no cover 
             if negative:
                 out[at] = 45
                 at += 1
-            power = powers[column]
-            at = _put_whole(rounded // power, out, at, pairs)
-            if decimals > 0:
+            # The usual decimals by constants (a multiplication each, where a divisor read from an array is a
+            # division: a third of the loop's time).
+            if decimals == 6:
+                whole = rounded // 1000000
+                at = _put_whole(whole, out, at, pairs)
                 out[at] = 46
-                at = _put_decimals(rounded % power, decimals, out, at + 1, pairs)
+                at = _put_decimals(rounded - whole * 1000000, 6, out, at + 1, pairs)
+            elif decimals == 9:
+                whole = rounded // 1000000000
+                at = _put_whole(whole, out, at, pairs)
+                out[at] = 46
+                at = _put_decimals(rounded - whole * 1000000000, 9, out, at + 1, pairs)
+            else:
+                power = powers[column]
+                at = _put_whole(rounded // power, out, at, pairs)
+                if decimals > 0:
+                    out[at] = 46
+                    at = _put_decimals(rounded % power, decimals, out, at + 1, pairs)
         out[at] = 10
         at += 1
         row_end[row] = at
