@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 
 from livox_viz.cli.batch_spec import read_spec, scan_argv
-from livox_viz.core.cores import usable_cores
+from livox_viz.core.portable import usable_cores
 
 SPEC = """seconds = {seconds}
 [grid]

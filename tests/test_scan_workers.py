@@ -14,7 +14,7 @@ from livox_viz import load_preset
 from livox_viz.casting import scan
 from livox_viz.casting.scan import LidarScanner, frame_workers
 from livox_viz.cli import main
-from livox_viz.core.cores import usable_cores
+from livox_viz.core.portable import usable_cores
 from livox_viz.motion.flights import builtin_trajectory
 from livox_viz.scene.scenes import open_scene
 
@@ -63,7 +63,7 @@ def test_workers_default_to_the_cores_this_process_may_use(monkeypatch: pytest.M
 def test_usable_cores_follow_the_affinity_mask() -> None:
     """A process pinned to one CPU (taskset, a batch system's CPU set) counts one core, not the machine's."""
     code = ("import os; os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})\n"
-            "from livox_viz.core.cores import usable_cores; print(usable_cores())")
+            "from livox_viz.core.portable import usable_cores; print(usable_cores())")
     pinned = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert pinned.stdout.strip() == "1"
     assert usable_cores() == len(os.sched_getaffinity(0))

@@ -32,8 +32,7 @@ from livox_viz.casting.codec import decode_int16
 from livox_viz.casting.ray_kernels import ideal_points, scratch_rows, sensor_rays
 from livox_viz.config.mount import sensor_mount, sensor_world_pose
 from livox_viz.config.sensor import SensorConfig
-from livox_viz.core.cores import usable_cores
-from livox_viz.core.portable import at_fork_in_child
+from livox_viz.core.portable import at_fork_in_child, usable_cores
 from livox_viz.core.poses import Pose, pose_quaternion
 from livox_viz.core.rotations import quat_rotate
 from livox_viz.motion.track import SensorTrack

@@ -35,8 +35,8 @@ from pathlib import Path
 from typing import Any
 
 from livox_viz.core.atomic import write_text_atomic
-from livox_viz.core.cores import usable_cores
 from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.portable import usable_cores
 from livox_viz.files.export import sidecar_path
 
 from .batch_spec import EXAMPLE, Job, SpecError, read_spec, scan_argv

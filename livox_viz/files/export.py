@@ -526,7 +526,7 @@ class PointCloudWriter:
         assert self._body is not None
         body = self._work.path / "body"
         if self._las is not None:
-            os.pwrite(self._body.fileno(), self._las.header(), 0)
+            write_at(self._body, self._las.header(), 0)
         elif self.format != ".csv":
             header = self._header(self._header_room)
             if header is not None:

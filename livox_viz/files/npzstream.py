@@ -25,6 +25,7 @@ from typing import BinaryIO
 import numpy as np
 
 from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.portable import copy_in_kernel
 
 #: Where a column's data starts in the archive: a multiple of this many bytes (a file system's block, so the
 #: kernel can share the raw file's extents instead of copying them).
@@ -140,14 +141,11 @@ def _copy_in(source: BinaryIO, archive: BinaryIO, size: int) -> None:
     archive.flush()
     done = 0
     at = archive.tell()
-    try:
-        while done < size:
-            moved = os.copy_file_range(source.fileno(), archive.fileno(), size - done, done, at + done)
-            if moved == 0:
-                break
-            done += moved
-    except (AttributeError, OSError):  # no such call here, or not between these files: copy the rest ourselves
-        pass
+    while done < size:
+        moved = copy_in_kernel(source.fileno(), archive.fileno(), size - done, done, at + done)
+        if moved == 0:  # not here, or not between these files: the rest through a buffer
+            break
+        done += moved
     archive.seek(at + done)
     if done < size:
         source.seek(done)

@@ -25,8 +25,8 @@ from typing import TYPE_CHECKING, Protocol, TypeVar
 import numpy as np
 
 from livox_viz.core.compiled import LazyKernels
-from livox_viz.core.cores import usable_cores
 from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.portable import usable_cores
 
 if TYPE_CHECKING:
     import trimesh
