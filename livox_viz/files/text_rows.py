@@ -92,15 +92,11 @@ def _put_whole(number, out, at, pairs):  # pragma: no cover - compiled
         bound *= 10
     position = at + digits
     while number >= 100:
-        pair = (number % 100) * 2
+        position -= 2
+        _put_pair(number % 100, out, position, pairs)
         number //= 100
-        position -= 2
-        out[position] = pairs[pair]
-        out[position + 1] = pairs[pair + 1]
     if number >= 10:
-        position -= 2
-        out[position] = pairs[number * 2]
-        out[position + 1] = pairs[number * 2 + 1]
+        _put_pair(number, out, position - 2, pairs)
     else:
         out[position - 1] = 48 + number
     return at + digits
@@ -111,15 +107,19 @@ def _put_decimals(number, decimals, out, at, pairs):  # pragma: no cover - compi
     position = at + decimals
     left = decimals
     while left >= 2:
-        pair = (number % 100) * 2
-        number //= 100
         position -= 2
-        out[position] = pairs[pair]
-        out[position + 1] = pairs[pair + 1]
+        _put_pair(number % 100, out, position, pairs)
+        number //= 100
         left -= 2
     if left:
         out[position - 1] = 48 + number % 10
     return at + decimals
+
+
+def _put_pair(value, out, at, pairs):  # pragma: no cover - compiled
+    """Write the two digits of ``0 <= value < 100`` at ``out[at]`` (``pairs`` holds "00" to "99")."""
+    out[at] = pairs[2 * value]
+    out[at + 1] = pairs[2 * value + 1]
 
 
 def _side_of_half(magnitude, decimals):  # pragma: no cover - compiled
@@ -225,4 +225,4 @@ def _rows(values, places, delimiter, out, row_end, unsure):  # pragma: no cover 
     return at
 
 
-_KERNELS = LazyKernels(globals(), helpers=("_put_whole", "_put_decimals", "_side_of_half"))
+_KERNELS = LazyKernels(globals(), helpers=("_put_pair", "_put_whole", "_put_decimals", "_side_of_half"))
