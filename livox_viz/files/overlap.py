@@ -18,8 +18,9 @@ from collections.abc import Sequence
 from types import TracebackType
 from typing import Any, Protocol
 
-#: Points that may wait for a writer before the scan waits for it (with the frames' arrays: about 150 MB).
-WAITING_POINTS = 1_000_000
+#: Points that may wait for a writer before the scan waits for it (a few batches of frames; with their arrays about
+#: 40 MB): enough to smooth out a writer's uneven pace, and what a slower writer costs in memory at most.
+WAITING_POINTS = 250_000
 
 
 class FrameSink(Protocol):
