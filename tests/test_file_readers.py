@@ -34,7 +34,8 @@ def frames() -> list:
 def _write(path: Path, frames: list, coordinates: str = "sensor", **options) -> Path:
     with PointCloudWriter(path, coordinates, source="a test scan", **options) as writer:
         for frame in frames:
-            writer.write(frame, {"sender_frame": frame.index, "sender_time": frame.timestamp, "session": 1}
+            recorded = {"sender_frame": frame.index, "sender_time": frame.timestamp, "session": 1}
+            writer.write(frame, {name: recorded.get(name, 0) for name, _ in RECORDING_FIELDS}
                          if options.get("extra_fields") else None)
     return path
 
@@ -97,7 +98,7 @@ def test_a_recording_csv_reads_with_no_options_too(tmp_path: Path, frames: list)
 
     out = _write(tmp_path / "rec.csv", frames, extra_fields=RECORDING_FIELDS)
     table = pandas.read_csv(out)
-    assert list(table.columns) == [*COLUMNS, "sender_frame", "sender_time", "session"]
+    assert list(table.columns) == [*COLUMNS, *(name for name, _ in RECORDING_FIELDS)]
     assert table["session"].tolist() == [1] * len(table)
     assert list(np.genfromtxt(out, delimiter=",", names=True).dtype.names) == list(table.columns)
 
@@ -137,7 +138,8 @@ def test_open3d_tensor_reader_reads_every_ply_field(tmp_path: Path, frames: list
     expected = _expected(frames, coordinates)
     read = {"x": cloud.point.positions.numpy()[:, 0], "y": cloud.point.positions.numpy()[:, 1],
             "z": cloud.point.positions.numpy()[:, 2]}
-    for name in COLUMNS[3:] + (["sender_frame", "sender_time", "session"] if "extra_fields" in options else []):
+    recorded = [name for name, _ in RECORDING_FIELDS] if "extra_fields" in options else []
+    for name in COLUMNS[3:] + recorded:
         assert name in cloud.point, f"Open3D dropped {name}"
         read[name] = cloud.point[name].numpy().reshape(-1)
     _assert_columns(read, expected)
