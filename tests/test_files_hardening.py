@@ -178,7 +178,7 @@ def test_world_ply_pcd_csv_keep_far_coordinates_exact(tmp_path: Path, far_frames
         np.testing.assert_array_equal(offset, [FAR_NORTH, 0, 0])
         xyz = cloud.numpy(("x", "y", "z")).astype(np.float64) + offset
     else:
-        xyz = np.loadtxt(out, delimiter=",", comments="#", skiprows=2)[:, :3]
+        xyz = np.loadtxt(out, delimiter=",", skiprows=1)[:, :3]
     assert np.ptp(xyz[:, 0]) > 0.5
     np.testing.assert_allclose(xyz, expected, rtol=0, atol={".ply": 1e-9, ".pcd": 1e-5, ".csv": 1e-6}[suffix])
 
@@ -374,15 +374,19 @@ def test_a_disk_too_full_for_the_next_frame_stops_the_writing_and_close_keeps_th
     assert (writer.frames, writer.count) == (2, len(four_frames[0]) + len(four_frames[1]))
     assert writer.close() == out
     _assert_holds(out, four_frames[:2])
-    assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]
+    sidecar = export.sidecar_path(out)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([out.name, *([sidecar.name] if sidecar else [])])
+    if sidecar is not None:  # a CSV's sidecar counts the rows kept
+        assert json.loads(sidecar.read_text())["rows"] == writer.count
     assert all(Path(folder).parent == tmp_path for folder in asked)  # the disk of the destination
 
 
 @pytest.mark.parametrize("suffix", [".ply", ".pcd", ".csv", ".las", ".npz"])
-def test_only_las_and_npz_ask_room_for_a_second_copy_of_the_points(
+def test_only_npz_asks_room_for_a_second_copy_of_the_points(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, four_frames: list, suffix: str) -> None:
-    """PLY, PCD and CSV are finished in place (a rename): a disk that holds each frame takes them all. LAS and NPZ
-    are assembled from the points when closed: the writer stops while the disk still holds that copy."""
+    """PLY, PCD, CSV and LAS are finished in place (a header over the room kept for it, a rename): a disk that
+    holds each frame takes them all. An NPZ is assembled from its columns when closed: the writer stops while the
+    disk still holds that copy."""
     from livox_viz.files import export
 
     whole = tmp_path / "whole" / f"rec{suffix}"
@@ -401,7 +405,7 @@ def test_only_las_and_npz_ask_room_for_a_second_copy_of_the_points(
                 written += 1
             except export.WritingStopped:
                 break
-    if suffix in (".las", ".npz"):
+    if suffix == ".npz":
         assert 1 <= written < len(four_frames)  # the points and their copy outgrow the room before the end
         assert out.stat().st_size <= free - export.FREE_MARGIN  # what it kept free held the file it made
     else:
@@ -441,6 +445,7 @@ def test_a_write_that_fails_inside_a_frame_is_cut_back_to_the_frames_before(
     import subprocess
     import sys
 
+    from livox_viz.files import export
     from livox_viz.files.export import PointCloudWriter
 
     whole = tmp_path / f"whole{suffix}"
@@ -455,7 +460,8 @@ def test_a_write_that_fails_inside_a_frame_is_cut_back_to_the_frames_before(
     kept, stopped = json.loads(result.stdout.splitlines()[-1])
     assert kept == 2 and "cannot write" in stopped and str(out) in stopped
     _assert_holds(out, four_frames[:2])
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([out.name, whole.name])
+    written = [path for path in (out, whole) for path in (path, export.sidecar_path(path)) if path is not None]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(path.name for path in written)
 
 
 def test_npz_columns_cut_back_to_the_rows_appended_whole(tmp_path: Path) -> None:

@@ -293,7 +293,7 @@ def test_npz_and_csv_round_trip(tmp_path: Path, frames: list) -> None:
     np.testing.assert_array_equal(data["xyz_sensor"], expected_points(frames, "sensor"))
     np.testing.assert_array_equal(data["xyz_world"], np.concatenate([f.xyz_world for f in frames]))  # exact
     assert "sensor FRD" in str(data["frame_of_reference"])
-    table = np.loadtxt(csv, delimiter=",", comments="#", skiprows=2)
+    table = np.loadtxt(csv, delimiter=",", skiprows=1)
     np.testing.assert_allclose(table[:, :3], expected_points(frames, "sensor"), atol=1e-5)
 
 

@@ -383,7 +383,7 @@ def test_restart_columns_in_every_format(tmp_path: Path, suffix: str, capsys: py
         got["sender_time"] = np.asarray(las["sender_time"])
         times = np.asarray(las.gps_time)
     elif suffix == ".csv":
-        table = np.genfromtxt(out, delimiter=",", names=True, skip_header=1)
+        table = np.genfromtxt(out, delimiter=",", names=True)
         got = {name: table[name] for name in want}
         times = table["time"]
     elif suffix == ".pcd":

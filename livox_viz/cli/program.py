@@ -17,13 +17,14 @@ from importlib.metadata import entry_points
 from livox_viz.core.atomic import remove_unfinished
 from livox_viz.core.errors import LivoxVizError, bounded_message
 
-from . import fit_commands, pattern_commands, scan_commands, wire_commands
+from . import batch_commands, fit_commands, pattern_commands, scan_commands, wire_commands
 from .common import PROG, Command, UsageError
 from .signals import Terminated, signal_name, signal_status, take_raised
 
 ENTRY_POINT_GROUP = "livox_viz.commands"
 MODEL_COMMANDS: tuple[Command, ...] = (
-    *pattern_commands.COMMANDS, *scan_commands.COMMANDS, *fit_commands.COMMANDS, *wire_commands.COMMANDS,
+    *pattern_commands.COMMANDS, *scan_commands.COMMANDS, *batch_commands.COMMANDS, *fit_commands.COMMANDS,
+    *wire_commands.COMMANDS,
 )
 
 __all__ = ["ENTRY_POINT_GROUP", "MODEL_COMMANDS", "build_parser", "installed_commands", "run"]

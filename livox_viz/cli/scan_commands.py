@@ -6,13 +6,17 @@ import argparse
 import os
 import sys
 from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO
 
 from livox_viz import __version__
+from livox_viz.core.atomic import resolve_destination
 from livox_viz.core.errors import LivoxVizError, quoted
 from livox_viz.core.progress import Progress
 from livox_viz.core.workload import check_points
-from livox_viz.files.export import FORMATS, PointCloudWriter
+from livox_viz.files.export import FORMATS, PointCloudWriter, sidecar_path
+from livox_viz.files.overlap import OverlappedWriting
 from livox_viz.motion.flights import builtin_trajectory
 from livox_viz.motion.imu import IMU_FRAMES, MAX_RATE, MIN_RATE, ImuNoise, ImuStream
 from livox_viz.motion.trajectory import Trajectory
@@ -34,20 +38,79 @@ from .common import (
     positive_float,
     scene_from_args,
     trajectory_from_args,
+    whole_number,
 )
 from .signals import StopRequests, signal_name, signal_status
 
+#: The most frame workers ``--workers`` takes (each holds a batch of frames in flight).
+MAX_WORKERS = 1024
+
+
+@dataclass(frozen=True)
+class ScanReport:
+    """What :func:`run_scan` did.
+
+    Attributes
+    ----------
+    frames, points : int
+        Frames and points written.
+    seconds : float
+        Scan time written, seconds (less than asked when a signal stopped the scan).
+    returns_model : str
+        The return model used.
+    range_max : float
+        The configuration's range, metres.
+    outputs : tuple of Path
+        The file and the bag written.
+    motion : str
+        ``""`` for a fixed sensor, else how it moved (``", moving along line at 5 m/s"``).
+    stopped_by : int or None
+        The signal that stopped the scan early, if one did.
+    """
+
+    frames: int
+    points: int
+    seconds: float
+    returns_model: str
+    range_max: float
+    outputs: tuple[Path, ...]
+    motion: str
+    stopped_by: int | None
+
 
 def cmd_scan(args: argparse.Namespace) -> int:
+    report = run_scan(args)
+    if report.points == 0:
+        why = (f"no ray hit anything within {report.range_max:g} m" if report.returns_model == "ideal" else
+               f"no ray returned a point (nothing within {report.range_max:g} m, or nothing detected: the datasheet "
+               "model's detection range, blind zone and reflectances decide)")
+        print(f"{PROG}: warning: {why}; wrote an empty point cloud", file=sys.stderr)
+    where = " and ".join(str(p) for p in report.outputs)
+    if report.stopped_by is not None:
+        print(f"{PROG}: stopped by {signal_name(report.stopped_by)} after {report.seconds:g} of {args.seconds:g} s of "
+              f"scan: kept {report.points:,} points of {_frames(report.frames)} ({args.frame} frame{report.motion}) "
+              f"in {where}", file=sys.stderr)
+        return signal_status(report.stopped_by)
+    print(f"wrote {report.points:,} points of {_frames(report.frames)} ({args.seconds:g} s, {args.frame} "
+          f"frame{report.motion}) to {where}")
+    return 0
+
+
+def run_scan(args: argparse.Namespace, progress: TextIO | None = None) -> ScanReport:
+    """The scan ``args`` (``scan``'s options) asks for, into its files; ``progress``: where its progress line goes
+    (default stderr, when it is a terminal)."""
     cfg = config_from_args(args)
     if not args.out and not args.rosbag:
         raise UsageError("give --out FILE, --rosbag DIR, or both")
     _check_bag_options(args)
     out = check_output_path(args.out, FORMATS) if args.out else None
+    sidecar = sidecar_path(out) if out else None
+    if sidecar is not None:  # a CSV's JSON sidecar
+        resolve_destination(sidecar)
     if args.rosbag:  # every output and name is checked before any work
         from livox_viz.files.rosbag import RosNames
 
-        check_bag_path(args.rosbag, out)
+        check_bag_path(args.rosbag, out, sidecar)
         RosNames.parse(args.ros_names or "")
     elif args.ros_names is not None:
         raise UsageError("--ros-names without --rosbag; allowed: with --rosbag DIR (the names are the bag's)")
@@ -59,9 +122,9 @@ def cmd_scan(args: argparse.Namespace) -> int:
     # Imported here: the casting path (the return model's loops among it) is 60 ms of every command's start-up.
     from livox_viz.casting.scan import LidarScanner
 
-    scanner = LidarScanner(cfg, caster, pose, seed=args.seed, trajectory=trajectory)
+    scanner = LidarScanner(cfg, caster, pose, seed=args.seed, trajectory=trajectory, workers=args.workers)
     frames = points = 0
-    progress = Progress(f"scan -> {(out or Path(args.rosbag)).name}", args.seconds, "s")
+    shown = Progress(f"scan -> {(out or Path(args.rosbag)).name}", args.seconds, "s", stream=progress)
     with ExitStack() as files:
         # What the files hold: the scan from t = 0 (its length is in its frames: a stopped scan is shorter).
         motion = "fixed" if trajectory is None else f"moving along {trajectory.name}"
@@ -74,34 +137,24 @@ def cmd_scan(args: argparse.Namespace) -> int:
         writer = files.enter_context(PointCloudWriter(out, coordinates=args.frame, ascii=args.ascii, source=made)
                                      ) if out else None
         bag = files.enter_context(_open_bag(args, cfg, scanner, trajectory, pose)) if args.rosbag else None
-        for frame in scanner.frames(args.seconds):
-            if writer is not None:
-                writer.write(frame)
-            if bag is not None:
-                bag.write(frame)
-            frames += 1
-            points += len(frame)
-            progress.update(scanner.time)
-            if stop.requested:
-                if bag is not None:
-                    bag.end = frame.end_time  # its IMU and ground truth end with the frames
-                break
-    progress.close()
-    if points == 0:
-        why = (f"no ray hit anything within {cfg.range_max:g} m" if cfg.returns_model == "ideal" else
-               f"no ray returned a point (nothing within {cfg.range_max:g} m, or nothing detected: the datasheet "
-               "model's detection range, blind zone and reflectances decide)")
-        print(f"{PROG}: warning: {why}; wrote an empty point cloud", file=sys.stderr)
-    where = " and ".join(str(p) for p in (out, args.rosbag) if p)
+        # Each output is written on a thread of its own while the next frames are cast; leaving this block waits
+        # for every frame handed over (a failed writer's error is raised then, and every file is given up).
+        with OverlappedWriting([sink for sink in (writer, bag) if sink is not None]) as writing:
+            for frame in scanner.frames(args.seconds):
+                writing.write(frame)
+                frames += 1
+                points += len(frame)
+                shown.update(scanner.time)
+                if stop.requested:
+                    if bag is not None:
+                        bag.end = frame.end_time  # its IMU and ground truth end with the frames
+                    break
+    shown.close()
     moving = "" if trajectory is None else (f", moving along {trajectory.name}" if trajectory.moves else
                                             f", not moving ({trajectory.name})")
-    if stop.signum is not None:
-        scanned = frames / cfg.data_check_freq
-        print(f"{PROG}: stopped by {signal_name(stop.signum)} after {scanned:g} of {args.seconds:g} s of scan: kept "
-              f"{points:,} points of {_frames(frames)} ({args.frame} frame{moving}) in {where}", file=sys.stderr)
-        return signal_status(stop.signum)
-    print(f"wrote {points:,} points of {_frames(frames)} ({args.seconds:g} s, {args.frame} frame{moving}) to {where}")
-    return 0
+    scanned = frames / cfg.data_check_freq if stop.signum is not None else args.seconds
+    return ScanReport(frames, points, scanned, cfg.returns_model, cfg.range_max,
+                      tuple(Path(p) for p in (out, args.rosbag) if p), moving, stop.signum)
 
 
 def _say_stopping(signum: int) -> None:
@@ -222,6 +275,9 @@ def _scan_arguments(parser: argparse.ArgumentParser) -> None:
                              "IMU; lever-arm effects included); needs --rosbag")
     parser.add_argument("--ros-names", help="topic/frame names, e.g. lidar=/livox/lidar,imu=/livox/imu,"
                                             "lidar_frame=livox_frame (defaults: the Livox ROS driver 2's)")
+    parser.add_argument("--workers", type=whole_number(1, MAX_WORKERS, f"1 to {MAX_WORKERS} threads"),
+                        help="frames cast side by side (default: one per core this process may use); the cloud is "
+                             "the same whatever the count")
     parser.add_argument("--force", action="store_true",
                         help="allow more points, or a scene of more triangles, than the documented budgets")
 

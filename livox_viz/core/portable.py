@@ -17,6 +17,9 @@ where it does not:
   file object everywhere.
 * :func:`path_in_file`: a path written inside a file (a scene's mesh) may come from
   Windows (``meshes\\car.glb``, ``C:\\models\\car.glb``) or from Linux.
+* :func:`usable_cores`: ``os.process_cpu_count`` is Python 3.13's, ``os.sched_getaffinity`` Linux's; else every
+  CPU of the machine.
+* :func:`copy_in_kernel`: ``os.copy_file_range`` is Linux's; elsewhere the caller copies the bytes itself.
 """
 
 from __future__ import annotations
@@ -38,6 +41,39 @@ def at_fork_in_child(callback: Callable[[], None]) -> None:
     register = getattr(os, "register_at_fork", None)
     if register is not None:
         register(after_in_child=callback)
+
+
+def usable_cores() -> int:
+    """The CPUs this process may run on, at least 1: the one count every pool of the model starts from.
+
+    ``os.process_cpu_count()`` where Python has it (3.13: it honours ``-X cpu_count`` and ``PYTHON_CPU_COUNT``),
+    else the scheduler's affinity mask (``taskset``, a batch system's CPU set), else every CPU of the machine.
+    A container's CPU quota (``docker --cpus``) is not a mask and is not seen; ``--workers`` sets the count by
+    hand there.
+    """
+    counted = getattr(os, "process_cpu_count", None)
+    if counted is not None:
+        return max(1, counted() or 1)
+    affinity = getattr(os, "sched_getaffinity", None)
+    if affinity is not None:
+        try:
+            return max(1, len(affinity(0)))
+        except OSError:
+            pass
+    return max(1, os.cpu_count() or 1)
+
+
+def copy_in_kernel(source: int, destination: int, count: int, source_at: int, destination_at: int) -> int:
+    """Copy up to ``count`` bytes between two open files' descriptors at those offsets without passing them
+    through this process (``os.copy_file_range``: a reflink where the file system shares extents); returns the
+    bytes copied, 0 where the platform or the files cannot (the caller copies the rest itself)."""
+    copy = getattr(os, "copy_file_range", None)
+    if copy is None:
+        return 0
+    try:
+        return int(copy(source, destination, count, source_at, destination_at))
+    except OSError:  # not between these files (another file system, an old kernel): the caller copies
+        return 0
 
 
 def free_disk_bytes(folder: str | os.PathLike[str]) -> int:

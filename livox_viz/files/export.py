@@ -6,10 +6,13 @@ finished file over it on :meth:`PointCloudWriter.close`; on any failure (a full
 disk included) the work folder is removed, the message names the file, and
 the old file, if any, is kept. An existing read-only file is refused.
 
-**A full disk.** PLY, PCD and CSV are written in place: their header goes over
-room kept for it at the start of the points, and that file is renamed into
-place, so finishing one needs no free space. LAS and NPZ are assembled from
-the points at the end, a second copy. Before each frame the writer checks that
+**A full disk.** PLY, PCD, CSV and LAS are written in place: their header goes
+over room kept for it at the start of the points (a LAS's points are packed as
+they come, :mod:`~livox_viz.files.las_stream`), and that file is renamed into
+place, so finishing one needs no free space. An NPZ's columns are put together
+at the end (:mod:`~livox_viz.files.npzstream`: by the kernel, a copy unless the
+file system shares extents), and a LAS whose points outgrow the offset of its
+first ones is assembled then too: the writer keeps room for that copy. Before each frame the writer checks that
 the disk holds the frame and what finishing needs; where it does not, or where
 a write fails all the same, nothing of that frame stays and the writer stops
 (:class:`WritingStopped`): :meth:`PointCloudWriter.close` still makes the file
@@ -39,6 +42,19 @@ up), said in a WKT coordinate system (a local one) and in a livox-viz record;
 its offset and scale are chosen from the data (0.1 mm wherever the cloud's
 extent allows).
 
+**What each file says of itself.** PLY and PCD in their header's comments, LAS
+in its WKT and livox-viz records, NPZ in its ``frame_of_reference``. A CSV holds
+only its column names and the values, so that ``pandas.read_csv(f)`` and
+``numpy.genfromtxt(f, delimiter=",", names=True)`` read it with no options (a
+``#`` line before the names was taken for the header by one and refused by the
+other); what it is goes in a JSON sidecar beside it, ``<name>.csv.json``
+(:func:`sidecar_path`), renamed into place just after the CSV.
+
+**Types every reader takes.** PLY properties are ``float``, ``double``, ``int``
+and ``uchar`` only: Open3D's tensor reader skips a ``uint`` property
+("unsupported datatype"), so the frame index (and a recording's unsigned
+numbers) are written as ``int``.
+
 **Livox fields.** Every format carries each point's ``reflectivity`` (uint8,
 0-150 Lambertian 0-100 %, 151-255 retroreflective), ``tag`` (SDK1: bits 0-1
 spatial noise, 2-3 intensity noise, 4-5 return number), ``return_number`` and
@@ -49,11 +65,11 @@ own ``intensity`` (the byte x 256, LAS's 16-bit scale), ``return_number`` and
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import shutil
 from collections.abc import Mapping, Sequence
+from contextlib import ExitStack
 from pathlib import Path
 from types import TracebackType
 from typing import BinaryIO
@@ -61,11 +77,13 @@ from typing import BinaryIO
 import numpy as np
 
 from livox_viz.casting.point_frame import PointFrame
-from livox_viz.core.atomic import WorkDir, atomic_path
+from livox_viz.core.atomic import WorkDir, atomic_path, resolve_destination
 from livox_viz.core.errors import LivoxVizError, os_error_reason, quoted
 from livox_viz.core.portable import free_disk_bytes, write_at
 from livox_viz.core.rotations import enu_from_ned, flu_from_frd
+from livox_viz.files.las_stream import LasStream, PackedFrame
 from livox_viz.files.npzstream import NpzColumns
+from livox_viz.files.text_rows import WHOLE, TextRows
 
 FORMATS = (".ply", ".pcd", ".las", ".npz", ".csv")
 #: Formats written in place: the points go straight into the file, after room kept for the header (PLY, PCD) or
@@ -106,10 +124,29 @@ LIVOX_FIELDS: tuple[str, ...] = ("reflectivity", "tag", "return_number", "number
 
 
 def point_fields(coordinates: str, file_format: str = ".ply") -> tuple[tuple[str, str], ...]:
-    """Per-point fields of PLY, PCD and CSV with their numpy types; world x, y, z are float64 but in a PCD."""
+    """Per-point fields of PLY, PCD and CSV with their numpy types; world x, y, z are float64 but in a PCD; a PLY
+    has no unsigned 32-bit field (:func:`file_type`)."""
     xyz = "<f8" if coordinates == "world" and file_format != ".pcd" else "<f4"
-    return (("x", xyz), ("y", xyz), ("z", xyz), ("range", "<f4"), ("time", "<f8"), ("frame", "<u4"),
-            *((name, "u1") for name in LIVOX_FIELDS))
+    return (("x", xyz), ("y", xyz), ("z", xyz), ("range", "<f4"), ("time", "<f8"),
+            ("frame", file_type("<u4", file_format)), *((name, "u1") for name in LIVOX_FIELDS))
+
+
+#: The PLY property types every reader takes: Open3D's tensor reader (``t.io``) reads ``uint8``/``uchar``,
+#: ``uint16``, ``int32``/``int``, ``float32``/``float`` and ``float64``/``double``, and skips any other property.
+PLY_TYPES = {"<f4": "float", "<f8": "double", "<i4": "int", "u1": "uchar"}
+
+
+def file_type(numpy_type: str, file_format: str) -> str:
+    """The numpy type a field of ``numpy_type`` is written with in ``file_format``: a PLY's unsigned 32-bit field
+    is a signed one (frame numbers and sessions stay far below 2^31), everything else as given."""
+    return "<i4" if file_format == ".ply" and numpy_type == "<u4" else numpy_type
+
+
+def sidecar_path(path: str | os.PathLike[str]) -> Path | None:
+    """The JSON sidecar a :class:`PointCloudWriter` writes beside ``path``: ``<name>.csv.json`` for a CSV (which
+    holds only its column names and values), else None."""
+    path = Path(path)
+    return path.with_name(path.name + ".json") if path.suffix.lower() == ".csv" else None
 
 
 #: The sensor-frame fields (see :func:`point_fields`).
@@ -137,15 +174,23 @@ def frame_points(frame: PointFrame, coordinates: str) -> np.ndarray:
     return frame.xyz_decoded if coordinates == "sensor" else frame.xyz_world_decoded
 
 
+def decoded_range(frame: PointFrame) -> np.ndarray:
+    """``(M,)`` float64 the length of each decoded point, metres: ``numpy.linalg.norm(xyz, axis=1)`` bit for bit,
+    column by column (numpy's reduction across three columns cost six times as much, 45 ns a point)."""
+    xyz = frame.xyz_decoded
+    return np.sqrt(xyz[:, 0] * xyz[:, 0] + xyz[:, 1] * xyz[:, 1] + xyz[:, 2] * xyz[:, 2])
+
+
 def frame_records(frame: PointFrame, coordinates: str, extra_fields: Sequence[tuple[str, str]] = (),
                   extra: Mapping[str, np.ndarray | float] | None = None, file_format: str = ".ply",
                   offset: np.ndarray | None = None) -> np.ndarray:
     """The frame's points as a structured array of :func:`point_fields` and ``extra_fields``, ``(M,)``;
     ``offset`` ``(3,)`` metres is taken off x, y, z."""
     xyz = frame_points(frame, coordinates) - (0.0 if offset is None else offset)
-    records = np.empty(len(frame), dtype=[*point_fields(coordinates, file_format), *extra_fields])
+    records = np.empty(len(frame), dtype=[*point_fields(coordinates, file_format),
+                                          *((name, file_type(t, file_format)) for name, t in extra_fields)])
     records["x"], records["y"], records["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
-    records["range"] = np.linalg.norm(frame.xyz_decoded, axis=1)
+    records["range"] = decoded_range(frame)
     records["time"] = frame.t
     records["frame"] = frame.index
     for name in LIVOX_FIELDS:
@@ -153,6 +198,25 @@ def frame_records(frame: PointFrame, coordinates: str, extra_fields: Sequence[tu
     for name, _ in extra_fields:
         records[name] = (extra or {})[name]
     return records
+
+
+def frame_columns(frame: PointFrame, coordinates: str, extra_fields: Sequence[tuple[str, str]] = (),
+                  extra: Mapping[str, np.ndarray | float] | None = None, file_format: str = ".csv",
+                  offset: np.ndarray | None = None) -> np.ndarray:
+    """``(M, k)`` float64: the values :func:`frame_records` holds, column by column (each rounded to its field's
+    type first), for the text formats, without the records in between."""
+    fields = (*point_fields(coordinates, file_format), *((name, file_type(t, file_format)) for name, t in extra_fields))
+    values = np.empty((len(frame), len(fields)))
+    xyz = frame_points(frame, coordinates) - (0.0 if offset is None else offset)
+    values[:, :3] = xyz.astype(np.float32) if fields[0][1] == "<f4" else xyz
+    values[:, 3] = decoded_range(frame).astype(np.float32)
+    values[:, 4] = frame.t
+    values[:, 5] = frame.index
+    for column, name in enumerate(LIVOX_FIELDS, start=6):
+        values[:, column] = getattr(frame, name)
+    for column, (name, kind) in enumerate(fields[6 + len(LIVOX_FIELDS):], start=6 + len(LIVOX_FIELDS)):
+        values[:, column] = np.asarray((extra or {})[name]).astype(kind)
+    return values
 
 
 class WritingStopped(LivoxVizError):
@@ -182,7 +246,7 @@ class PointCloudWriter:
     source : str
         What made the cloud, one line (``scan`` writes e.g. ``"livox-viz 0.1.0 scan of livox_mid70 (datasheet
         returns, seed 0) in urban from t = 0, fixed"``),
-        stated in the header of every format (PLY and PCD comments, the CSV's first line, LAS's livox-viz
+        stated in the header of every format (PLY and PCD comments, the CSV's sidecar, LAS's livox-viz
         record, the NPZ's ``frame_of_reference``); none when empty.
     npz_rule : str
         What the NPZ's arrays are, stated in its ``frame_of_reference`` (default :data:`NPZ_RULE`, a scan's).
@@ -227,6 +291,11 @@ class PointCloudWriter:
         #: A failed write could not be cut back to whole frames: closing keeps nothing.
         self._unusable = False
         self._body: BinaryIO | None = None
+        #: A LAS written in place; None for another format, or once a point did not fit its first offset and
+        #: scale (then its raw records are assembled at the end).
+        self._las: LasStream | None = None
+        #: The frame being written's LAS records as packed by :attr:`_las`.
+        self._packed: PackedFrame | None = None
         self._npz: NpzColumns | None = None
         self._npz_poses: list[np.ndarray] = []
         #: World PCD: metres taken off every point (whole kilometres, from the first points; stated in the header).
@@ -234,11 +303,20 @@ class PointCloudWriter:
         self._low = np.full(3, np.inf)
         self._high = np.full(3, -np.inf)
         self._closed = False
+        #: CSV and ASCII PLY/PCD: the text of the rows, as ``numpy.savetxt`` writes it.
+        self._text: TextRows | None = None
+        if self.format == ".csv" or (ascii and self.format in (".ply", ".pcd")):
+            decimals = [6] * 4 + [9, WHOLE] + [WHOLE] * len(LIVOX_FIELDS) + [
+                9 if t[1] == "f" else WHOLE for _, t in self.extra_fields]
+            self._text = TextRows(decimals, "," if self.format == ".csv" else " ")
         #: Why closing a part failed during an abort, if it did.
         self.abort_error = ""
         # Named (and the destination checked) before anything exists; made inside the try, so a signal
         # arriving at any moment leaves nothing behind.
         self._work = WorkDir(self.path)
+        sidecar = sidecar_path(self.path)
+        #: The CSV's sidecar (checked now, written by :meth:`close`), else None.
+        self.sidecar = None if sidecar is None else resolve_destination(sidecar)
         try:
             self._work.create()
             self._open()
@@ -253,21 +331,23 @@ class PointCloudWriter:
             return
         # Unbuffered: what a failed write left can be cut off (a buffer would still hold it and write it later).
         self._body = open(work / "body", "wb", buffering=0)
-        if self.format == ".csv":
-            made = f"source: {self.source}; " if self.source else ""
-            start = (f"# livox-viz scan; {made}coordinates: {FRAME_DESCRIPTION[self.coordinates]}; "
-                     f"{POINTS_RULE}\n" + ",".join(name for name, _ in self._fields) + "\n").encode()
+        if self.format == ".csv":  # the column names alone: what the file is goes in its sidecar
+            start = (",".join(name for name, _ in self._fields) + "\n").encode()
         elif self.format in IN_PLACE:
             self._header_room = len(self._header()) + HEADER_ROOM
             start = b" " * self._header_room
-        else:
-            return
+        else:  # a LAS: its points packed as they come, after room for its header
+            self._las = LasStream(lambda offset, scale: _las_header(self.coordinates, offset, scale,
+                                                                    self.extra_fields, self.source),
+                                  las_offset_and_scale, tuple(name for name, _ in self.extra_fields))
+            start = bytes(self._las.header_size)
         self._put(start)
         self._written = len(start)
 
     @property
     def _fields(self) -> tuple[tuple[str, str], ...]:
-        return (*point_fields(self.coordinates, self.format), *self.extra_fields)
+        return (*point_fields(self.coordinates, self.format),
+                *((name, file_type(t, self.format)) for name, t in self.extra_fields))
 
     def write(self, frame: PointFrame, extra: Mapping[str, np.ndarray | float] | None = None) -> None:
         """Append one frame's returns; ``extra`` holds the values of ``extra_fields`` (per point, or one per frame).
@@ -284,15 +364,16 @@ class PointCloudWriter:
         values = {name: np.broadcast_to(np.asarray((extra or {})[name], dtype=t), (len(frame),))
                   for name, t in self.extra_fields}
         if self._npz is not None:
-            payload: bytes | dict[str, np.ndarray] = {
+            payload: list[bytes | memoryview] | dict[str, np.ndarray] = {
                 "xyz_sensor": frame.xyz_decoded, "xyz_world": frame.xyz_world, "xyz_int16": frame.xyz_int16,
                 "range": frame.range_m, "t": frame.t, "frame": np.full(len(frame), frame.index),
                 **{name: getattr(frame, name) for name in LIVOX_FIELDS}, **values}
             size = self._npz.chunk_bytes(payload)
         else:
             payload = self._encode(frame, values)
-            size = len(payload)
+            size = sum(len(piece) for piece in payload)
         self._make_room(size)
+        packed = self._packed
         try:
             if isinstance(payload, dict):
                 assert self._npz is not None
@@ -300,7 +381,8 @@ class PointCloudWriter:
                 self._npz_poses.append(np.concatenate([[frame.index], frame.sensor_pose.as_array(),
                                                        frame.end_pose.as_array()]))
             else:
-                self._put(payload)
+                for piece in payload:
+                    self._put(piece)
         except OSError as exc:
             self._cut_back()
             self.stopped = f"cannot write ({os_error_reason(exc)})"
@@ -308,12 +390,14 @@ class PointCloudWriter:
         self._written += size
         self.count += len(frame)
         self.frames += 1
+        if packed is not None and self._las is not None:
+            self._las.commit(packed)
 
     def _make_room(self, size: int) -> None:
         """Stop writing (:class:`WritingStopped`, nothing of the frame written) unless the disk holds ``size`` more
         bytes, what finishing the file will then need, and :data:`FREE_MARGIN`."""
-        finish = 0 if self.format in IN_PLACE else (self._written + size + FINISH_FIXED
-                                                     + FINISH_PER_FRAME * (self.frames + 1))
+        in_place = self.format in IN_PLACE or self._las is not None
+        finish = 0 if in_place else (self._written + size + FINISH_FIXED + FINISH_PER_FRAME * (self.frames + 1))
         need = size + finish + FREE_MARGIN
         free = free_bytes(self._work.path)
         if free < need:
@@ -321,26 +405,57 @@ class PointCloudWriter:
                             f"need {need / 2**20:.1f} MiB)")
             raise WritingStopped(f"{self.path}: {self.stopped}; the old file, if any, is kept")
 
-    def _encode(self, frame: PointFrame, extra: dict[str, np.ndarray]) -> bytes:
-        """A frame's bytes in the body: LAS's raw records, or the points as the file holds them."""
+    def _encode(self, frame: PointFrame, extra: dict[str, np.ndarray]) -> list[bytes | memoryview]:
+        """A frame's bytes in the body, in pieces: LAS's raw records, or the points as the file holds them."""
+        self._packed = None
         if self.format == ".las":
+            if self._las is not None:
+                self._packed = self._las.pack(*_las_columns(frame, self.coordinates, extra))
+                if self._packed is not None:
+                    return [self._packed.data]
+                self._las_to_raw()  # wider than the first points' offset and scale hold: assembled at the end
             records = _las_records(frame, self.coordinates, self.extra_fields, extra)
             if len(records):
                 self._low = np.minimum(self._low, [records[axis].min() for axis in "xyz"])
                 self._high = np.maximum(self._high, [records[axis].max() for axis in "xyz"])
-            return records.tobytes()
+            return [records.tobytes()]
         if self.format == ".pcd" and self.coordinates == "world" and self.offset is None and len(frame):
             self.offset = np.round(np.median(frame_points(frame, "world"), axis=0) / 1000.0) * 1000.0 + 0.0  # no -0
-        records = frame_records(frame, self.coordinates, self.extra_fields, extra, self.format, self.offset)
-        if self.format == ".csv" or self.ascii:
-            formats = ["%.6f"] * 4 + ["%.9f", "%d"] + ["%d"] * len(LIVOX_FIELDS) + [
-                "%.9f" if t[1] == "f" else "%d" for _, t in self.extra_fields]
-            text = io.BytesIO()
-            np.savetxt(text, _records_as_columns(records), fmt=formats, delimiter="," if self.format == ".csv" else " ")
-            return text.getvalue()
-        return records.tobytes()
+        if self._text is not None:
+            return self._text.format(frame_columns(frame, self.coordinates, self.extra_fields, extra, self.format,
+                                                   self.offset))
+        return [frame_records(frame, self.coordinates, self.extra_fields, extra, self.format, self.offset).tobytes()]
 
-    def _put(self, data: bytes) -> None:
+    def _las_to_raw(self) -> None:
+        """A LAS whose points outgrew the offset and scale of its first: its points so far turned back into raw
+        records (each its 0.1 mm grid point), assembled with an offset and scale for all of them at the end."""
+        assert self._las is not None and self._body is not None
+        stream, self._las = self._las, None
+        body, raw = self._work.path / "body", self._work.path / "raw"
+        raw_dtype = np.dtype([*_LAS_BODY, *self.extra_fields])
+        rows = 1 << 16
+        with open(body, "rb") as packed, open(raw, "wb") as out:
+            packed.seek(stream.header_size)
+            while block := packed.read(rows * stream.dtype.itemsize):
+                points = np.frombuffer(block, dtype=stream.dtype)
+                records = np.zeros(len(points), dtype=raw_dtype)
+                for k, (axis, field) in enumerate(zip("xyz", "XYZ", strict=True)):
+                    records[axis] = points[field] * stream.scale[k] + stream.offset[k]
+                records["return_number"] = points["bit_fields"] & 0x0F
+                records["number_of_returns"] = points["bit_fields"] >> 4
+                for name in ("gps_time", "range", "frame", "intensity", "reflectivity", "tag",
+                             *(name for name, _ in self.extra_fields)):
+                    records[name] = points[name]
+                if len(records):
+                    self._low = np.minimum(self._low, [records[axis].min() for axis in "xyz"])
+                    self._high = np.maximum(self._high, [records[axis].max() for axis in "xyz"])
+                out.write(records.tobytes())
+        self._body.close()
+        os.replace(raw, body)
+        self._body = open(body, "ab", buffering=0)
+        self._written = body.stat().st_size
+
+    def _put(self, data: bytes | memoryview) -> None:
         """Append ``data`` to the body (an unbuffered file may take a write in pieces)."""
         assert self._body is not None
         view = memoryview(data)
@@ -373,29 +488,46 @@ class PointCloudWriter:
             self.abort()
             raise LivoxVizError(f"{self.path}: {self.stopped}; the old file, if any, is kept")
         try:
-            with atomic_path(self.path) as tmp:
-                if self.format in IN_PLACE:
-                    self._finish_in_place(tmp)
-                elif self._npz is not None:
-                    poses = np.array(self._npz_poses).reshape(-1, 13)
-                    self._npz.finish(tmp, {**self.npz_arrays, "frame_pose": poses, "frame_of_reference": np.array(
-                        json.dumps({**FRAME_DESCRIPTION, "points": self.npz_rule,
-                                    **({"source": self.source} if self.source else {}),
-                                    "frame_pose": "index, then the sensor's pose at the frame's first ray and "
-                                    "just after its last: x y z (m, world NED) roll pitch yaw (rad) each"}))})
-                else:
-                    assert self._body is not None
-                    self._body.close()
-                    self._finish_las(tmp)
+            with ExitStack() as sidecar:
+                if self.sidecar is not None:  # written first, renamed into place just after the file
+                    self._write_sidecar(sidecar.enter_context(atomic_path(self.sidecar)))
+                self._finish()
         finally:
             self.abort()
         return self.path
 
+    def _write_sidecar(self, tmp: Path) -> None:
+        """What a CSV is (it holds only its column names and values), as JSON."""
+        about = {"file": self.path.name, "what": "livox-viz point cloud, one row per point",
+                 **({"source": self.source} if self.source else {}), "coordinates": self.coordinates,
+                 "frame": FRAME_DESCRIPTION[self.coordinates], "points": POINTS_RULE, "rows": self.count,
+                 "frames": self.frames, "columns": [name for name, _ in self._fields]}
+        tmp.write_text(json.dumps(about, indent=1) + "\n", encoding="utf-8")
+
+    def _finish(self) -> None:
+        """The file finished and renamed into place."""
+        with atomic_path(self.path) as tmp:
+            if self.format in IN_PLACE or self._las is not None:
+                self._finish_in_place(tmp)
+            elif self._npz is not None:
+                poses = np.array(self._npz_poses).reshape(-1, 13)
+                self._npz.finish(tmp, {**self.npz_arrays, "frame_pose": poses, "frame_of_reference": np.array(
+                    json.dumps({**FRAME_DESCRIPTION, "points": self.npz_rule,
+                                **({"source": self.source} if self.source else {}),
+                                "frame_pose": "index, then the sensor's pose at the frame's first ray and "
+                                "just after its last: x y z (m, world NED) roll pitch yaw (rad) each"}))})
+            else:
+                assert self._body is not None
+                self._body.close()
+                self._finish_las(tmp)
+
     def _finish_in_place(self, tmp: Path) -> None:
-        """A PLY, PCD or CSV: its header over the room kept for it, and the body renamed to ``tmp``."""
+        """A PLY, PCD, CSV or LAS: its header over the room kept for it, and the body renamed to ``tmp``."""
         assert self._body is not None
         body = self._work.path / "body"
-        if self.format != ".csv":
+        if self._las is not None:
+            write_at(self._body, self._las.header(), 0)
+        elif self.format != ".csv":
             header = self._header(self._header_room)
             if header is not None:
                 write_at(self._body, header, 0)
@@ -454,11 +586,10 @@ class PointCloudWriter:
         frame = f"frame {self.coordinates}: {FRAME_DESCRIPTION[self.coordinates]}"
         if self.format == ".ply":
             encoding = "ascii" if self.ascii else "binary_little_endian"
-            types = {"<f4": "float", "<f8": "double", "<u4": "uint", "<i4": "int", "u1": "uchar"}
             lines = ["ply", f"format {encoding} 1.0", "comment livox-viz scan",
                      *([f"comment source: {self.source}"] if self.source else []), f"comment {frame}",
                      f"comment {POINTS_RULE}", f"element vertex {self.count}"]
-            lines += [f"property {types[t]} {name}" for name, t in fields]
+            lines += [f"property {PLY_TYPES[t]} {name}" for name, t in fields]
             lines.append("end_header")
             return lines
         sizes = {"<f4": ("4", "F"), "<f8": ("8", "F"), "<u4": ("4", "U"), "<i4": ("4", "I"), "u1": ("1", "U")}
@@ -501,10 +632,6 @@ class PointCloudWriter:
                              "reflectivity", "tag", *(name for name, _ in self.extra_fields)):
                     points[name] = records[name]
                 writer.write_points(points)
-
-
-def _records_as_columns(records: np.ndarray) -> np.ndarray:
-    return np.column_stack([records[name].astype(np.float64) for name in records.dtype.names])
 
 
 def las_offset_and_scale(low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -556,22 +683,26 @@ def _las_header(coordinates: str, offset: np.ndarray, scale: np.ndarray,
     return header
 
 
-def _las_records(frame: PointFrame, coordinates: str, extra_fields: Sequence[tuple[str, str]] = (),
-                 extra: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
-    """The frame's LAS body records: decoded points turned z-up (world ENU, sensor FLU), then ``extra_fields``."""
+def _las_columns(frame: PointFrame, coordinates: str, extra: Mapping[str, np.ndarray] | None = None
+                 ) -> tuple[np.ndarray, dict[str, np.ndarray | float]]:
+    """The frame's decoded points turned z-up (world ENU, sensor FLU) ``(M, 3)`` and its LAS fields by name (the
+    extra ones from ``extra``)."""
     xyz = frame_points(frame, coordinates)
     xyz = enu_from_ned(xyz) if coordinates == "world" else flu_from_frd(xyz)
-    records = np.zeros(len(frame), dtype=[*_LAS_BODY, *extra_fields])
-    for name, _ in extra_fields:
-        records[name] = (extra or {})[name]
-    records["x"], records["y"], records["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
-    records["gps_time"] = frame.t
-    records["range"] = np.linalg.norm(frame.xyz_decoded, axis=1)
-    records["frame"] = frame.index
-    records["return_number"] = frame.return_number
-    records["number_of_returns"] = frame.number_of_returns
     # LAS keeps intensity on 16 bits: the byte times 256 (the LAS 1.4 normalisation of an 8-bit sensor).
-    records["intensity"] = frame.reflectivity.astype(np.uint16) * 256
-    records["reflectivity"] = frame.reflectivity
-    records["tag"] = frame.tag
+    return xyz, {"gps_time": frame.t, "range": decoded_range(frame), "frame": frame.index,
+                 "return_number": frame.return_number, "number_of_returns": frame.number_of_returns,
+                 "intensity": frame.reflectivity.astype(np.uint16) * 256, "reflectivity": frame.reflectivity,
+                 "tag": frame.tag, **(extra or {})}
+
+
+def _las_records(frame: PointFrame, coordinates: str, extra_fields: Sequence[tuple[str, str]] = (),
+                 extra: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
+    """The frame's LAS body records (:func:`_las_columns` as one record a point, x y z in the LAS frame), then
+    ``extra_fields``."""
+    xyz, columns = _las_columns(frame, coordinates, extra)
+    records = np.zeros(len(frame), dtype=[*_LAS_BODY, *extra_fields])
+    records["x"], records["y"], records["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    for name in records.dtype.names[3:]:
+        records[name] = columns[name]
     return records

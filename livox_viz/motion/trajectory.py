@@ -55,6 +55,8 @@ MIN_POSE_STEP_S = 1e-6
 MAX_TIME_S = 1e10
 #: Rows evaluated at once by the numpy evaluation (bounds its temporaries).
 _EVALUATION_BLOCK = 1 << 16
+#: Times whose last evaluation :meth:`Trajectory._components` keeps (a frame's IMU samples, at 10 kHz too).
+_KEPT_TIMES = 4096
 
 
 def natural_spline_coefficients(t: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -195,7 +197,22 @@ class Trajectory:
 
     # Evaluation -------------------------------------------------------------------------------
     def _components(self, t: np.ndarray, order: int) -> np.ndarray:
-        """``(m, 7)`` derivative ``order`` (0..2) of the seven spline components at ``t``."""
+        """``(m, 7)`` derivative ``order`` (0..2) of the seven spline components at ``t``.
+
+        A bag's frame asks for the same times several times (its IMU samples' rotation, acceleration and rate,
+        then their ground truth's position, rotation, velocity and rate: nine evaluations of three orders): the
+        last times' values are kept, a stretch at a time (at most :data:`_KEPT_TIMES` times).
+        """
+        times = t.tobytes() if t.size <= _KEPT_TIMES else None
+        kept = self.__dict__.get(f"_kept{order}")
+        if times is not None and kept is not None and kept[0] == times:
+            return kept[1].copy()
+        out = self._evaluate(t, order)
+        if times is not None:
+            self.__dict__[f"_kept{order}"] = (times, out.copy())  # one assignment: a thread reads old or new whole
+        return out
+
+    def _evaluate(self, t: np.ndarray, order: int) -> np.ndarray:
         out = np.empty((t.size, 7))
         for first in range(0, t.size, _EVALUATION_BLOCK):
             block = t[first : first + _EVALUATION_BLOCK]

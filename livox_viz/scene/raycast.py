@@ -16,7 +16,6 @@ triangle Embree found (about a tenth more time).
 
 from __future__ import annotations
 
-import os
 import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -27,6 +26,7 @@ import numpy as np
 
 from livox_viz.core.compiled import LazyKernels
 from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.portable import usable_cores
 
 if TYPE_CHECKING:
     import trimesh
@@ -104,7 +104,7 @@ class EmbreeCaster:
     mesh : trimesh.Trimesh
         The scene, metres.
     threads : int, optional
-        Worker threads (Embree releases the GIL); default the number of CPUs.
+        Worker threads (Embree releases the GIL); default the cores this process may use.
     exact : bool
         Recompute each hit's distance in float64 from its triangle's plane.
         The default (False) keeps Embree's float32 distance in the re-centred
@@ -140,7 +140,7 @@ class EmbreeCaster:
         # One row per triangle, [nx, ny, nz, n . v0], so a hit needs one gather.
         self._planes = np.column_stack([normals, np.einsum("ij,ij->i", normals, v0)])
         self._workspaces = threading.local()
-        self.threads = max(1, threads or os.cpu_count() or 1)
+        self.threads = max(1, threads or usable_cores())
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
         # Embree builds its BVH on the first query; do it now, not inside a timed frame.
         self._scene.run(np.zeros((1, 3), np.float32), np.full((1, 3), 0.57735, np.float32), query="INTERSECT")

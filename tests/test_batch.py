@@ -1,0 +1,192 @@
+"""``livox-viz batch``: a grid of scans as jobs, locally and on Dask, each output the scan run alone; resumable;
+a broken job fails alone; a bad spec is one line before any job starts."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from livox_viz.cli import batch_commands, main
+from livox_viz.cli.batch_spec import EXAMPLE, MAX_JOBS, read_spec, scan_argv
+
+SPEC = """seconds = 0.1
+[grid]
+sensors = ["livox_mid70"]
+scenes = ["urban"]
+trajectories = ["none", "line", "circle"]
+seeds = [3]
+returns = ["ideal"]
+outputs = ["npz", "las+rosbag"]
+"""
+
+
+def _manifest(folder: Path) -> list[dict[str, str]]:
+    with open(folder / "manifest.csv", newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file() and p.name != "job.json"}
+
+
+@pytest.fixture(scope="module")
+def local_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """The six-job spec run on the local pool of two processes."""
+    folder = tmp_path_factory.mktemp("batch")
+    spec = folder / "spec.toml"
+    spec.write_text(SPEC)
+    assert main(["batch", str(spec), "--out", str(folder / "local"), "--jobs", "2"]) == 0
+    return spec, folder / "local"
+
+
+def test_every_job_of_a_local_batch_writes_what_the_scan_alone_writes(local_run: tuple[Path, Path],
+                                                                      tmp_path: Path) -> None:
+    spec, out = local_run
+    jobs = read_spec(spec)
+    rows = _manifest(out)
+    assert len(jobs) == len(rows) == 6 and {row["status"] for row in rows} == {"done"}
+    for job, row in zip(jobs, rows, strict=True):
+        alone = tmp_path / job.name
+        alone.mkdir()
+        assert main(scan_argv(job, alone, None)) == 0
+        assert _files(out / "jobs" / job.name) == _files(alone), job.name
+        record = json.loads((out / "jobs" / job.name / "job.json").read_text())
+        assert row["job"] == record["job"] == job.name and int(row["points"]) == record["points"] > 5_000
+        assert record["frames"] == 1 and record["seed"] == 3 and float(row["duration_s"]) > 0
+        assert set(record["files"]) == {"cloud.npz"} or {"cloud.las", "bag/metadata.yaml"} <= set(record["files"])
+        for name, about in record["files"].items():
+            import hashlib
+
+            assert hashlib.sha256((out / "jobs" / job.name / name).read_bytes()).hexdigest() == about["sha256"]
+            assert f"{name}:{about['sha256']}" in row["files"]
+
+
+def test_the_same_batch_on_a_dask_local_cluster_writes_the_same_files(local_run: tuple[Path, Path],
+                                                                      tmp_path: Path) -> None:
+    pytest.importorskip("distributed")
+    spec, out = local_run
+    assert main(["batch", str(spec), "--out", str(tmp_path / "dask"), "--dask", "local:2"]) == 0
+    local, dask = _manifest(out), _manifest(tmp_path / "dask")
+    assert [(r["job"], r["status"], r["points"], r["files"]) for r in dask] == [
+        (r["job"], r["status"], r["points"], r["files"]) for r in local]
+    for row in local:
+        assert _files(tmp_path / "dask" / "jobs" / row["job"]) == _files(out / "jobs" / row["job"])
+
+
+def test_a_rerun_runs_nothing_finished_again(local_run: tuple[Path, Path], capsys: pytest.CaptureFixture[str]) -> None:
+    spec, out = local_run
+    before = {p: p.stat().st_mtime_ns for p in (out / "jobs").rglob("*")}
+    assert main(["batch", str(spec), "--out", str(out)]) == 0
+    assert "6 already finished; 0 to run" in capsys.readouterr().err
+    assert {p: p.stat().st_mtime_ns for p in (out / "jobs").rglob("*")} == before
+
+
+def test_a_batch_killed_half_way_is_finished_by_running_it_again(tmp_path: Path) -> None:
+    """Killed (the batch and its workers, SIGKILL) once two jobs are done: the rerun runs the four others only, and
+    leaves the two as they were."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC)
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "livox_viz", "batch", str(spec), "--out", str(out), "--jobs", "1"]
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and len(list(out.glob("jobs/*/job.json"))) < 2:
+        time.sleep(0.05)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.communicate()
+    finished = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("jobs/*/job.json")}
+    assert 2 <= len(finished) < 6
+    rerun = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+    assert rerun.returncode == 0, rerun.stderr
+    assert f"{len(finished)} already finished; {6 - len(finished)} to run" in rerun.stderr
+    assert {p.parent.name: p.stat().st_mtime_ns for p in out.glob("jobs/*/job.json")
+            if p.parent.name in finished} == finished
+    rows = _manifest(out)
+    assert len(rows) == 6 and {row["status"] for row in rows} == {"done"}
+    assert not [p for p in out.rglob("*") if ".livox-viz-" in p.name]  # the killed job's temporaries are gone
+
+
+def test_a_job_with_a_broken_scene_fails_alone_with_its_message(tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    broken = tmp_path / "broken.obj"
+    broken.write_text("v 0 0 0\nv 1 0 0\nf 1 2 3\n")
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.replace('scenes = ["urban"]', 'scenes = ["urban", "broken.obj"]').replace(
+        '"none", "line", "circle"', '"none"').replace('"npz", "las+rosbag"', '"npz"'))
+    out = tmp_path / "out"
+    assert main(["batch", str(spec), "--out", str(out), "--jobs", "1"]) == 1
+    err = capsys.readouterr().err
+    rows = {row["scene"]: row for row in _manifest(out)}
+    assert rows["urban"]["status"] == "done" and rows["urban"]["error"] == ""
+    assert rows[str(broken)]["status"] == "failed" and "broken.obj" in rows[str(broken)]["error"]
+    assert rows[str(broken)]["error"] in err and "1 failed" in err
+    # Not run again unless asked; --retry runs it again (the finished one stays as it was).
+    records = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("jobs/*/job.json")}
+    assert main(["batch", str(spec), "--out", str(out)]) == 1
+    assert "1 failed: --retry runs them again" in capsys.readouterr().err
+    assert {p.parent.name: p.stat().st_mtime_ns for p in out.glob("jobs/*/job.json")} == records
+    assert main(["batch", str(spec), "--out", str(out), "--retry"]) == 1
+    assert "1 failed ones again; 1 to run" in capsys.readouterr().err
+    again = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("jobs/*/job.json")}
+    assert [name for name in records if again[name] != records[name]] == [rows[str(broken)]["job"]]
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    (("[grid]", "seed = 4\n[grid]"), "unknown key 'seed'; allowed: grid, seconds"),
+    (("seeds = [3]", "seeds = [3]\nsensor = ['x']"), "unknown key 'grid.sensor'; allowed: sensors, scenes"),
+    (("seeds = [3]", f"seeds = {list(range(2000))}"), "the grid makes 12,000 jobs; allowed: at most 10,000"),
+    (('scenes = ["urban"]', 'scenes = ["nowhere.obj"]'), "grid.scenes: 'nowhere.obj' is neither a built-in scene"),
+    (('sensors = ["livox_mid70"]', 'sensors = ["livox_mid99"]'), "grid.sensors: unknown preset 'livox_mid99'"),
+    (('outputs = ["npz", "las+rosbag"]', 'outputs = ["npz+las"]'), "grid.outputs holds 'npz+las'; allowed"),
+    (("seconds = 0.1", "seconds = 1e9"), "asks 100,000,000,000,000 points"),
+    (("seeds = [3]", "seeds = [-1]"), "grid.seeds holds -1; allowed: whole numbers"),
+    (("seconds = 0.1", "seconds = 0.1\n[grid"), "not a readable TOML spec"),
+])
+def test_a_bad_spec_is_one_line_before_any_job(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                               change: tuple[str, str], message: str) -> None:
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.replace(*change))
+    assert main(["batch", str(spec), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err and err.startswith("livox-viz: error: "), err
+    assert "spec.toml: " in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_unreachable_scheduler_is_one_line_before_any_job(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("distributed")
+    import socket
+
+    monkeypatch.setattr(batch_commands, "CONNECT_SECONDS", 1.0)
+    with socket.socket() as probe:  # a port nothing listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC)
+    assert main(["batch", str(spec), "--out", str(tmp_path / "out"), "--dask", f"tcp://127.0.0.1:{port}"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--dask tcp://127.0.0.1:{port}: cannot reach the scheduler" in err
+    assert "allowed: a running Dask scheduler's address" in err
+    assert not (tmp_path / "out").exists()
+    assert main(["batch", str(spec), "--out", str(tmp_path / "out"), "--dask", "local:zero"]) == 2
+    assert "allowed: local:N with N from 1 to 1024" in capsys.readouterr().err
+
+
+def test_the_example_spec_is_a_valid_spec(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["batch", "--example"]) == 0
+    spec = tmp_path / "spec.toml"
+    spec.write_text(capsys.readouterr().out)
+    assert spec.read_text() == EXAMPLE
+    jobs = read_spec(spec)
+    assert len(jobs) == 8 and len({job.name for job in jobs}) == 8 and len(jobs) <= MAX_JOBS
+    assert {job.outputs for job in jobs} == {("npz",)} and {job.seed for job in jobs} == {0, 1}
