@@ -48,6 +48,8 @@ screenshots: venv
 	$(BIN)/livox-viz render --view both --seconds 1 --preset livox_mid70_fitted --reference livox_mid70_risley --out screenshots/both.png
 	$(BIN)/livox-viz render --view pattern --seconds 1 --size 900x900 --out screenshots/pattern.png
 	$(BIN)/livox-viz render --view scene --seconds 2 --trajectory line --trajectory-speed 6 --size 900x900 --out screenshots/scene.png
+	$(BIN)/livox-viz render --view scene --seconds 1 --preset livox_mid70_risley --returns datasheet --scene-colour reflectivity --size 900x600 --out screenshots/returns-reflectivity.png
+	$(BIN)/livox-viz render --view scene --seconds 1 --preset livox_mid70_risley --returns datasheet --scene-colour return/tag --size 900x600 --out screenshots/returns-tag.png
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache
