@@ -308,6 +308,41 @@ def test_a_click_on_a_point_of_the_cloud_says_what_it_is_in_the_status_bar(windo
     assert window.controller.picks and window.controller.picks[-1]["t_s"] in ring.times[ring.live_slots()]
 
 
+def test_a_slider_dragged_with_shift_moves_the_value_ten_times_slower(window, qtbot,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    from qtpy import QtCore, QtWidgets
+
+    from livox_viz.config.param_docs import slider_fraction, slider_value
+
+    session = window.controller.session
+    row = window.panel.rows["camera_fov"]
+    slider = row.slider
+
+    def drag(pixels: int) -> float:
+        start = slider.style().sliderPositionFromValue(0, 1000, slider.value(), slider.width() - 12) + 6
+        y = slider.height() // 2
+        qtbot.mousePress(slider, QtCore.Qt.MouseButton.LeftButton, pos=QtCore.QPoint(start, y))
+        for step in range(1, 6):
+            qtbot.mouseMove(slider, QtCore.QPoint(start + pixels * step // 5, y))
+            qtbot.wait(5)
+        qtbot.mouseRelease(slider, QtCore.Qt.MouseButton.LeftButton, pos=QtCore.QPoint(start + pixels, y))
+        window.tick()
+        return session.config.camera_fov
+
+    before = session.config.camera_fov
+    coarse = drag(40) - before
+    assert coarse > 5.0  # the handle's own pace over the whole (0, 180) range
+    session.set_param("camera_fov", before)
+    window.panel.sync()
+    monkeypatch.setattr(QtWidgets.QApplication, "keyboardModifiers",
+                        staticmethod(lambda: QtCore.Qt.KeyboardModifier.ShiftModifier))
+    fine = drag(40) - before
+    assert fine == pytest.approx(coarse / 10, rel=0.25)
+    assert row.box.value() == pytest.approx(session.config.camera_fov)
+    assert slider_value("camera_fov", slider_fraction("camera_fov", session.config.camera_fov)) == pytest.approx(
+        session.config.camera_fov, abs=0.01)
+
+
 def test_the_panel_picture_matches_its_baseline(window, qtbot, tmp_path: Path) -> None:
     """The panel as drawn (fonts, rows, ranges): compared with its baseline, a small tolerance for fonts."""
     from tests.baseline_images import BASELINES, changed_fraction, grab_panel, read_image

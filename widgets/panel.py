@@ -39,6 +39,8 @@ from .session import WINDOW_RANGE
 
 #: Slider positions across a parameter's range.
 SLIDER_STEPS = 1000
+#: A drag with Shift or Ctrl held moves the value this many times slower than the handle.
+FINE_DRAG = 10
 #: While a slider is dragged, the scan follows at most this often (ms): each change restarts the pattern.
 LIVE_DRAG_MS = 120
 _MODEL_TITLES = {"rflysim": "Pattern: RflySim rosette (otherParams)", "risley": "Pattern: Risley prisms",
@@ -196,6 +198,7 @@ class ParamRow(QtWidgets.QWidget):
         self._refused_timer.setInterval(1500)
         self._refused_timer.timeout.connect(lambda: self.box.setStyleSheet(""))
         self.show_value(value)
+        self.slider.sliderPressed.connect(self._slider_pressed)
         self.slider.sliderMoved.connect(self._slider_moved)
         self.slider.sliderReleased.connect(self._commit_slider)
         self.slider.valueChanged.connect(self._slider_stepped)
@@ -216,9 +219,21 @@ class ParamRow(QtWidgets.QWidget):
             self.slider.setValue(round(slider_fraction(self.name, value) * SLIDER_STEPS))
         self.box.setStyleSheet("")
 
+    def _slider_pressed(self) -> None:
+        self._drag_origin = (self.slider.value(), slider_fraction(self.name, self._shown))
+
     def _slider_moved(self, position: int) -> None:
+        """A drag: the value follows the handle, or, with Shift or Ctrl held, a tenth as fast (fine tuning: the
+        handle then stays where the value is)."""
+        origin = getattr(self, "_drag_origin", None)
+        if origin is not None and _fine(QtWidgets.QApplication.keyboardModifiers()):
+            fraction = origin[1] + (position - origin[0]) / SLIDER_STEPS / FINE_DRAG
+            self._dragged = slider_value(self.name, fraction)
+        else:
+            self._dragged = slider_value(self.name, position / SLIDER_STEPS)
+            self._drag_origin = (position, position / SLIDER_STEPS)
         with signals_blocked(self.box):
-            self.box.setValue(slider_value(self.name, position / SLIDER_STEPS))
+            self.box.setValue(self._dragged)
         if not self._drag_timer.isActive():
             self._drag_timer.start()
 
@@ -230,7 +245,13 @@ class ParamRow(QtWidgets.QWidget):
 
     def _commit_slider(self) -> None:
         self._drag_timer.stop()
-        self._ask(slider_value(self.name, self.slider.value() / SLIDER_STEPS))
+        dragged = getattr(self, "_dragged", None)
+        if dragged is None:
+            dragged = slider_value(self.name, self.slider.value() / SLIDER_STEPS)
+        if not self.slider.isSliderDown():
+            self._dragged = None
+            self._drag_origin = None
+        self._ask(dragged)
 
     def _commit_box(self) -> None:
         value = self.box.value()
