@@ -70,17 +70,22 @@ def rendering_inside(app: LivoxVizApp) -> _RenderClock:
     """Count the time the views' plotters spend rendering from now on (a key that renders, such as the
     screenshot)."""
     clock = _RenderClock()
-    for plotter in app.plotters.values():
-        plain = plotter.render
 
-        def render(*args, plain=plain, **kwargs):
+    def timed_by_clock(plain):
+        def call(*args, **kwargs):
             start = time.perf_counter()
             try:
                 return plain(*args, **kwargs)
             finally:
                 clock.seconds += time.perf_counter() - start
 
-        plotter.render = render
+        return call
+
+    # The views' renders and the pixels read back for a screenshot: GL's time, not ours.
+    app.render = timed_by_clock(app.render)
+    for plotter in app.plotters.values():
+        plotter.render = timed_by_clock(plotter.render)
+        plotter.screenshot = timed_by_clock(plotter.screenshot)
     return clock
 
 
