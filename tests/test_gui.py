@@ -539,6 +539,8 @@ def test_charts_follow_the_parameters_and_the_reference(app: LivoxVizApp) -> Non
     assert charts.reference_coverage.visible
     before = np.array(charts.ours_coverage.y)
     app.on_param("jitter_max_deg", 8.0)
+    assert np.array_equal(charts.ours_coverage.y, before)  # on the worker: the change did not wait for them
+    charts.finish()
     after = np.array(charts.ours_coverage.y)
     np.testing.assert_allclose(after, 100 * config_curves(session.config).coverage)
     assert not np.allclose(before, after)
@@ -751,6 +753,7 @@ def test_skipped_points_and_thinned_clouds_are_said(app: LivoxVizApp) -> None:
     scene = app.hud.scene_state.GetText(2)
     assert f"drawing {app.scene_view.drawn_count():,}" in scene or app.scene_view.stride() == 1
     # The coverage chart says where a curve stops when the point budget ends it before 4 s.
+    app.charts.finish()
     assert "(to 1 s" in app.charts.ours_coverage.label
 
 

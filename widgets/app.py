@@ -539,7 +539,10 @@ class LivoxVizApp:
     # Files ------------------------------------------------------------------------------
     def view_images(self) -> dict[str, np.ndarray]:
         """Each view's picture as it is now, brought up to date and rendered first (pyvista's screenshot renders
-        only on its first call, so keys pressed since the last tick were not in the picture)."""
+        only on its first call, so keys pressed since the last tick were not in the picture); the charts' curves
+        being computed are waited for."""
+        if self.charts is not None:
+            self.charts.finish()
         self.refresh()
         self.render(every=True)
         return {name: np.asarray(plotter.screenshot(None, return_img=True))

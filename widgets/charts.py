@@ -85,36 +85,50 @@ class CurveCharts:
         self._reference_source: object = _NOT_SHOWN
         self._worker: ThreadPoolExecutor | None = None
         self._pending: tuple[object, Future[PatternCurves]] | None = None
+        self._ours_pending: tuple[object, Future[PatternCurves]] | None = None
         session.subscribe(self._on_change)
         self.refresh_ours()
-        self.update()
+        self.finish()  # the first picture has them
 
     def _on_change(self, what: str) -> None:
         if what == "config":
             self.refresh_ours()
 
+    def _submit(self, work, *args) -> Future:
+        if self._worker is None:
+            self._worker = ThreadPoolExecutor(1, thread_name_prefix="livox-viz-curves")
+        return self._worker.submit(work, *args)
+
     def refresh_ours(self) -> None:
-        """Recompute and redraw our two curves from the session's configuration."""
-        self.density.x_label = self.session.config.field_of_view.profile_label
-        self.ours = config_curves(self.session.config, self.session.seed)
-        self.ours_coverage.update(self.ours.seconds, 100.0 * self.ours.coverage)
-        self.ours_density.update(self.ours.density_alpha_deg, self.ours.density / 1e6)
-        self.ours_coverage.label = curve_label("ours", self.ours)
+        """Recompute our two curves from the session's configuration on the worker (up to 2 M points of pattern:
+        80 ms for the HAP, which a parameter change would otherwise wait for); drawn when ready."""
+        config = self.session.config
+        self.density.x_label = config.field_of_view.profile_label
+        self._ours_pending = (config, self._submit(config_curves, config, self.session.seed))
+
+    def _show_ours(self, curves: PatternCurves) -> None:
+        self.ours = curves
+        self.ours_coverage.update(curves.seconds, 100.0 * curves.coverage)
+        self.ours_density.update(curves.density_alpha_deg, curves.density / 1e6)
+        self.ours_coverage.label = curve_label("ours", curves)
         self._fit_density_axes()
         self.dirty = True
 
     def update(self) -> None:
         """Follow the overlay: the reference's curves when its source changed (computed on the worker and drawn
         once ready), hidden without one."""
+        if self._ours_pending is not None and self._ours_pending[1].done():
+            config, future = self._ours_pending
+            self._ours_pending = None
+            if config is self.session.config:  # a newer change has its own on the way
+                self._show_ours(future.result())
         source = self.session.overlay.source
         if source is not self._reference_source:
             self._reference_source = source
             self.reference = None
             self._pending = None
             if source is not None:
-                if self._worker is None:
-                    self._worker = ThreadPoolExecutor(1, thread_name_prefix="livox-viz-curves")
-                self._pending = (source, self._worker.submit(reference_curves, source))
+                self._pending = (source, self._submit(reference_curves, source))
             self._show_reference()
         if self._pending is not None and self._pending[1].done():
             source, future = self._pending
@@ -124,9 +138,10 @@ class CurveCharts:
                 self._show_reference()
 
     def finish(self) -> None:
-        """Wait for the reference's curves being computed, and draw them."""
-        if self._pending is not None:
-            self._pending[1].result()
+        """Wait for the curves being computed (ours and the reference's), and draw them."""
+        for pending in (self._ours_pending, self._pending):
+            if pending is not None:
+                pending[1].result()
         self.update()
 
     def close(self) -> None:
