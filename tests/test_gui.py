@@ -25,7 +25,7 @@ from livox_viz.config.param_docs import value_bounds  # noqa: E402
 from livox_viz.scene.materials import face_materials  # noqa: E402
 from livox_viz.scene.scenes import open_scene  # noqa: E402
 
-from .xserver import private_display, x_tools  # noqa: E402
+from .xserver import find_window, private_display, x_tools  # noqa: E402
 
 ROSETTE_PARAMS = PATTERN_PARAMS["rflysim"]
 
@@ -344,37 +344,44 @@ def test_real_window_under_xvfb(tmp_path: Path) -> None:
 def _real_window(tmp_path: Path, xdotool: str, display: str) -> None:
     env = {**os.environ, "DISPLAY": display, "LIVOX_VIZ_PRESETS": str(tmp_path / "presets")}
     env.pop("WAYLAND_DISPLAY", None)
-    try:
-        gui = subprocess.Popen([sys.executable, "-m", "livox_viz", "gui", "--size", "1200x700"], cwd=tmp_path,
-                               env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        window = subprocess.run([xdotool, "search", "--sync", "--onlyvisible", "--name", "^livox-viz - "], env=env,
-                                capture_output=True, text=True, timeout=60).stdout.split()
-        assert window, "the livox-viz window did not appear"
-        title = subprocess.run([xdotool, "getwindowname", window[0]], env=env, capture_output=True, text=True,
-                               timeout=10).stdout.strip()
-        assert title == "livox-viz - livox_mid70"
-        # No window manager here: give the window the keyboard, then type as a user does (XTEST).
-        subprocess.run([xdotool, "windowfocus", "--sync", window[0]], env=env, check=True, timeout=10)
-        time.sleep(2.0)
-        # e and q are also VTK's own keys, 3 its stereo: the window stays (the screenshot after them proves it).
-        for key in ("space", "space", "3", "Right", "c", "e", "s", "p"):
-            subprocess.run([xdotool, "key", key], env=env, check=True, timeout=10)
-            time.sleep(0.5)
-        time.sleep(1.0)
-        subprocess.run([xdotool, "key", "q"], env=env, check=True, timeout=10)
-        out, err = gui.communicate(timeout=60)
-        assert gui.returncode == 0, err
-        shots = list((tmp_path / "screenshots").glob("livox-viz-*.png"))
-        assert len(shots) == 1 and shots[0].with_suffix(".json").exists()
-        sidecar = json.loads(shots[0].with_suffix(".json").read_text())
-        # Right paused the scan; c moved the colouring on from time.
-        assert sidecar["paused"] and sidecar["pattern_colour"] == "figure-8"
-        assert len(list((tmp_path / "presets").glob("*.json"))) == 1
-    finally:
-        gui = locals().get("gui")
-        if gui is not None and gui.poll() is None:
-            gui.kill()
-            gui.communicate()
+    # The window's output goes to files: a pipe nobody reads while we wait for the window stops the program at
+    # its 64 KiB-th byte, and a failure below then says what the program printed.
+    (tmp_path / "work").mkdir()
+    with open(tmp_path / "gui.out", "w+") as out, open(tmp_path / "gui.err", "w+") as err:
+        gui = subprocess.Popen([sys.executable, "-m", "livox_viz", "gui", "--size", "1200x700"], cwd=tmp_path / "work",
+                               env=env, stdout=out, stderr=err, text=True)
+
+        def printed() -> str:
+            err.seek(0)
+            return f"exit status {gui.poll()}; it printed: {err.read()[-3000:]!r}"
+
+        try:
+            window = find_window(xdotool, env, "^livox-viz - ", gui)
+            assert window, f"the livox-viz window did not appear: {printed()}"
+            title = subprocess.run([xdotool, "getwindowname", window[0]], env=env, capture_output=True, text=True,
+                                   timeout=10).stdout.strip()
+            assert title == "livox-viz - livox_mid70"
+            # No window manager here: give the window the keyboard, then type as a user does (XTEST).
+            subprocess.run([xdotool, "windowfocus", "--sync", window[0]], env=env, check=True, timeout=10)
+            time.sleep(2.0)
+            # e and q are also VTK's own keys, 3 its stereo: the window stays (the screenshot after them proves it).
+            for key in ("space", "space", "3", "Right", "c", "e", "s", "p"):
+                subprocess.run([xdotool, "key", key], env=env, check=True, timeout=10)
+                time.sleep(0.5)
+            time.sleep(1.0)
+            subprocess.run([xdotool, "key", "q"], env=env, check=True, timeout=10)
+            gui.wait(timeout=60)
+            assert gui.returncode == 0, printed()
+        finally:
+            if gui.poll() is None:
+                gui.kill()
+                gui.wait()
+    shots = list((tmp_path / "work" / "screenshots").glob("livox-viz-*.png"))
+    assert len(shots) == 1 and shots[0].with_suffix(".json").exists()
+    sidecar = json.loads(shots[0].with_suffix(".json").read_text())
+    # Right paused the scan; c moved the colouring on from time.
+    assert sidecar["paused"] and sidecar["pattern_colour"] == "figure-8"
+    assert len(list((tmp_path / "presets").glob("*.json"))) == 1
 
 
 def test_reference_overlay_plays_in_step(app: LivoxVizApp) -> None:

@@ -22,7 +22,7 @@ from livox_viz import load_preset  # noqa: E402
 from livox_viz.cli import main  # noqa: E402
 from livox_viz.scene.scenes import open_scene  # noqa: E402
 
-from .xserver import private_display, x_tools  # noqa: E402
+from .xserver import find_window, private_display, x_tools  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -41,8 +41,7 @@ def test_the_window_closes_on_a_signal(x_display: str, tmp_path: Path, signum: i
     gui = subprocess.Popen([sys.executable, "-m", "livox_viz", "gui", "--size", "640x400"], cwd=tmp_path,
                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        window = subprocess.run([xdotool, "search", "--sync", "--onlyvisible", "--name", "livox-viz"], env=env,
-                                capture_output=True, text=True, timeout=60).stdout.split()
+        window = find_window(xdotool, env, "livox-viz", gui)
         assert window, f"the livox-viz window did not appear (gui: {gui.poll()})"
         time.sleep(1.0)
         assert gui.poll() is None

@@ -57,3 +57,21 @@ def private_display(screen: str = "1280x800x24", timeout: float = 30.0) -> Itera
             except subprocess.TimeoutExpired:
                 server.kill()
                 server.wait()
+
+
+def find_window(xdotool: str, env: dict[str, str], name: str, program: subprocess.Popen,
+                timeout: float = 120.0) -> list[str]:
+    """The ids of the visible windows whose title matches ``name``, searched until one shows or ``program`` ends.
+
+    ``xdotool search --sync`` is not used: it ends at once, finding nothing, when a window it looks at is
+    destroyed under it (BadWindow), and Qt makes and destroys windows as it starts. One CI run lost the
+    real-window test to that race.
+    """
+    deadline = time.monotonic() + timeout
+    while program.poll() is None and time.monotonic() < deadline:
+        found = subprocess.run([xdotool, "search", "--onlyvisible", "--name", name], env=env, capture_output=True,
+                               text=True, timeout=30).stdout.split()
+        if found:
+            return found
+        time.sleep(0.3)
+    return []
