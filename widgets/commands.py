@@ -151,14 +151,13 @@ def cmd_gui(args: argparse.Namespace) -> int:
             render_offscreen(session, args.seconds, path, views=views, size=size if views == "both" else square)
             print(f"  {path}")
         return 0
-    # The compiled loops the first frames need start loading now, beside the second or two of loading Qt and VTK.
     from livox_viz.casting.warm import STAGES, stages_for
 
+    from .mainwindow import run_window
     from .warmup import LoopWarmer
 
-    warmer = LoopWarmer(stages_for(config_from_args(args), bool(args.trajectory)), STAGES).start()
-    # Qt and VTK load here while the warmer's thread loads numba and trimesh: on two cores much of it overlaps.
-    from .mainwindow import run_window
+    # The compiled loops start loading once the window has drawn its first frame (widgets/warmup.py says why).
+    warmer = LoopWarmer(stages_for(config_from_args(args), bool(args.trajectory)), STAGES)
 
     session = _session(args, "gui")
     receiver = None

@@ -90,7 +90,7 @@ class MainWindow(QtWidgets.QMainWindow):
     warm : bool
         Load the compiled loops in the background (tests that need none pass False).
     warmer : LoopWarmer, optional
-        One already loading them (started before Qt and VTK were loaded).
+        The loader to use (the window starts it after its first frame, unless it was started already).
     """
 
     def __init__(self, session: Session, size: tuple[int, int] = (1600, 900), stop: Callable[[], bool] | None = None,
@@ -159,7 +159,7 @@ class MainWindow(QtWidgets.QMainWindow):
         moving = session.trajectory is not None
         self.warmer: LoopWarmer | None = warmer
         if warm and warmer is None:
-            self.warmer = LoopWarmer(stages_for(session.config, moving), STAGES).start()
+            self.warmer = LoopWarmer(stages_for(session.config, moving), STAGES)
         # The pattern plays as soon as its own loops are there (none for the rosette); the scene's cloud joins when
         # the caster's are (the window then casts its integration window again).
         self._playing_allowed = self.warmer is None
@@ -487,6 +487,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self.controller.render(draw=QtWidgets.QWidget.update)
         if self._first_frame is None and self._playing_allowed:
             self._first_frame = time.perf_counter() - self.opened
+        if warmer is not None and not warmer.started:  # after the first frame: see widgets/warmup.py
+            warmer.start()
         self._update_status()
 
     def _follow_view_sizes(self) -> None:
@@ -791,7 +793,8 @@ def run_window(session: Session, size: tuple[int, int], stop: Callable[[], bool]
                warmer: LoopWarmer | None = None) -> int:
     """Open the window and run until it is closed (or ``stop()`` is true); the Qt event loop's status.
 
-    ``warmer``: the compiled loops' loader, started early by the caller (else the window starts one).
+    ``warmer``: the compiled loops' loader, made by the caller (else the window makes one); started after the
+    first frame.
     """
     app = application()
     window = MainWindow(session, size=size, stop=stop, warmer=warmer)

@@ -1,9 +1,12 @@
 """The window's compiled loops, made ready off the UI thread: the window plays on while they load.
 
 The stages a window needs now (the ideal caster, and what its first
-configuration uses) are loaded by a worker thread as the window opens: from
-numba's cache they take about a second, and the window starts playing when
-they are ready. The others (the Risley product, the datasheet return model,
+configuration uses) are loaded by a worker thread once the window has drawn its
+first frame: from numba's cache they take about a second, and the window starts
+playing (a Risley pattern) or casting (the scene) when they are ready. Started
+sooner, beside the imports of Qt and VTK, the thread only shared the GIL with
+them: the first frame came 0.6-1.0 s later on 2 cores and the cast cloud no
+sooner (bench_qt_window). The others (the Risley product, the datasheet return model,
 the moving sensor's poses) are compiled by a child process on the other core
 (``python -m livox_viz.casting.warm``): a first compile of the return model
 takes a minute or two on 2 cores, and in this process it would hold the GIL
@@ -56,9 +59,15 @@ class LoopWarmer:
         self._closed = False
         self._thread = threading.Thread(target=self._run, daemon=True, name="livox-viz-warm")
 
+    @property
+    def started(self) -> bool:
+        """Whether :meth:`start` was called."""
+        return self._thread.ident is not None
+
     def start(self) -> LoopWarmer:
-        """Start loading (returns at once)."""
-        self._thread.start()
+        """Start loading (returns at once; again: nothing more)."""
+        if not self.started:
+            self._thread.start()
         return self
 
     def is_ready(self, stages: Iterable[str]) -> bool:
