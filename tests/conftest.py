@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -23,6 +26,31 @@ SEED_JSON = {
     "SensorAngEular": [0, 0, 0],
     "otherParams": [600, 2.956, 1.4, 1.18, 10, 5, 1, 0],
 }
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Compile the return model's, the Risley product's and the moving sensor's loops into numba's cache on the
+    other core while the first tests run, as the window does (``python -m livox_viz.casting.warm``).
+
+    In a fresh clone (CI's every run) their first compile, about two minutes of one core, otherwise lands inside
+    whichever tests use them first, on the suite's one busy core. With a warm cache the child only loads them
+    (seconds). ``LIVOX_VIZ_TESTS_NO_WARM=1`` leaves it out.
+    """
+    if os.environ.get("LIVOX_VIZ_TESTS_NO_WARM"):
+        return
+    session.config.stash[_WARMER] = subprocess.Popen(
+        [sys.executable, "-m", "livox_viz.casting.warm", "--background", "datasheet", "risley", "motion"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    warmer = session.config.stash.get(_WARMER, None)
+    if warmer is not None and warmer.poll() is None:
+        warmer.terminate()
+        warmer.wait()
+
+
+_WARMER = pytest.StashKey[subprocess.Popen]()
 
 
 @pytest.fixture
