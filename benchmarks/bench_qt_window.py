@@ -46,10 +46,10 @@ FIRST_FRAME = textwrap.dedent("""
     sys.exit(main(["gui", "--size", "1600x900"]))
 """)
 
-MILLION = textwrap.dedent("""
+#: Opens the window on the default preset and waits until the scene is cast (the loops loaded).
+OPEN_WINDOW = """
     import json, time
     from livox_viz.widgets.mainwindow import MainWindow, application
-    from livox_viz.widgets.overlay import WINDOWS
     from livox_viz.widgets.session import Session
     from livox_viz import load_preset
     from livox_viz.scene.scenes import open_scene
@@ -59,6 +59,10 @@ MILLION = textwrap.dedent("""
     window.show()
     while not session.casting:
         app.processEvents(); time.sleep(0.01)
+"""
+
+MILLION = textwrap.dedent(OPEN_WINDOW + """
+    from livox_viz.widgets.overlay import WINDOWS
     session.fill_per_tick = 0  # filled at once here: the figure is the frame rate with it full
     session.set_window(WINDOWS.index(None))
     for second in range(1, 11):
@@ -83,18 +87,7 @@ MILLION = textwrap.dedent("""
     window.close()
 """)
 
-FIRST_DATASHEET = textwrap.dedent("""
-    import json, time
-    from livox_viz.widgets.mainwindow import MainWindow, application
-    from livox_viz.widgets.session import Session
-    from livox_viz import load_preset
-    from livox_viz.scene.scenes import open_scene
-    app = application()
-    session = Session(load_preset("livox_mid70"), open_scene("urban"), preset_name="livox_mid70")
-    window = MainWindow(session, size=(1600, 900))
-    window.show()
-    while not session.casting:
-        app.processEvents(); time.sleep(0.01)
+FIRST_DATASHEET = textwrap.dedent(OPEN_WINDOW + """
     works, ticks = [], []
     plain = window.controller.tick
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 import os
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from concurrent.futures import Future
 from dataclasses import dataclass
 from pathlib import Path
@@ -267,6 +267,15 @@ class MainWindow(QtWidgets.QMainWindow):
         menu.addAction(action)
         return action
 
+    def _choices(self, menu: QtWidgets.QMenu, title: str, choices: Iterable[Any], choose: Callable[[Any], Any],
+                 label: Callable[[Any], str] = str) -> dict[Any, QtGui.QAction]:
+        """A submenu ``title`` of ``menu`` holding one checkable action per choice, one checked at a time; its
+        actions by choice. Choosing calls ``choose(choice)``."""
+        submenu = menu.addMenu(title)
+        group = QtGui.QActionGroup(self)
+        return {choice: self._action(submenu, label(choice), lambda x=choice: choose(x), checkable=True, group=group)
+                for choice in choices}
+
     def _make_menus(self) -> None:
         c = self.controller
         bar = self.menuBar()
@@ -291,26 +300,11 @@ class MainWindow(QtWidgets.QMainWindow):
         view = bar.addMenu("&View")
         self.pattern_colour_menu = view.addMenu("Colour the pattern by")
         self.pattern_colour_menu.aboutToShow.connect(self._fill_pattern_colours)
-        scene_colours = view.addMenu("Colour the cloud by")
-        group = QtGui.QActionGroup(self)
-        self.scene_colour_actions = {mode: self._action(scene_colours, mode, lambda m=mode: c.set_scene_colour(m),
-                                                        checkable=True, group=group) for mode in SCENE_COLOURS}
-        maps = view.addMenu("Colour map (time, range, height)")
-        group = QtGui.QActionGroup(self)
-        for name in COLOUR_MAPS:
-            self._action(maps, name, lambda n=name: self.set_colour_map(n), checkable=True, group=group)
-        sizes = view.addMenu("Point size")
-        group = QtGui.QActionGroup(self)
-        for pixels in (1, 2, 3, 4, 6, 8):
-            self._action(sizes, f"{pixels} px", lambda p=pixels: self.set_point_size(p), checkable=True, group=group)
-        backgrounds = view.addMenu("Background")
-        group = QtGui.QActionGroup(self)
-        for name in BACKGROUNDS:
-            self._action(backgrounds, name, lambda n=name: self.set_background(n), checkable=True, group=group)
-        drawing = view.addMenu("Pattern drawing")
-        group = QtGui.QActionGroup(self)
-        self.drawing_actions = {mode: self._action(drawing, mode, lambda m=mode: self.set_drawing(m), checkable=True,
-                                                   group=group) for mode in DRAWINGS}
+        self.scene_colour_actions = self._choices(view, "Colour the cloud by", SCENE_COLOURS, c.set_scene_colour)
+        self._choices(view, "Colour map (time, range, height)", COLOUR_MAPS, self.set_colour_map)
+        self._choices(view, "Point size", (1, 2, 3, 4, 6, 8), self.set_point_size, label="{} px".format)
+        self._choices(view, "Background", BACKGROUNDS, self.set_background)
+        self.drawing_actions = self._choices(view, "Pattern drawing", DRAWINGS, self.set_drawing)
         view.addSeparator()
         self.grid_action = self._action(view, "Ground grid in the scene", self.toggle_grid, checkable=True)
         self.axes_action = self._action(view, "World axes in the scene", self.toggle_axes, checkable=True)
