@@ -779,12 +779,30 @@ def test_the_panorama_fills_the_view_at_a_readable_height_with_every_mark(urban,
         assert band_width > 0.6 * width and band_height > 0.3 * height  # it was 50 px of 600
         assert corners[0][0] > 0 and corners[1][0] < 0.85 * width  # whole, clear of the colour bar
         texts = view.guide_labels
-        assert {"-180°", "-90°", "0°", "90°", "180°"} <= set(texts)
+        assert {"-180°", "-135°", "-90°", "-45°", "0°", "45°", "90°", "135°", "180°"} <= set(texts)
         assert {"0°", "10°", "20°", "30°", "40°", "50°"} <= set(texts)
         # A click finds true degrees: the stretch is undone.
         session.advance_to(0.1)
         found = session.nearest_pattern_point(*view.plane_point((30.0, 20.0 * view.stretch, 0.0)))
         assert abs(found["y_deg"] - 20.0) < 3.0
+    finally:
+        app.close()
+
+
+@pytest.mark.parametrize("width", [330, 640])
+def test_the_panoramas_azimuth_marks_stand_clear_of_each_other_in_a_narrow_view(urban, width: int) -> None:
+    """At 1280x720 the pattern view is about 330 pixels wide: "-180°-135°-90°" ran into one another. Where 45
+    degrees are too few pixels the marks go every 90 degrees (the lines stay every 45)."""
+    session = Session(load_preset("livox_mid360"), urban, seed=0, preset_name="livox_mid360")
+    app = LivoxVizApp(session, off_screen=True, window_size=(width, 600), views="pattern")
+    try:
+        view = app.pattern_view
+        marks = sorted({int(t[:-1]) for t in view.guide_labels} & {-180, -135, -90, -45, 0, 45, 90, 135, 180})
+        assert {-180, -90, 0, 90, 180} <= set(marks)
+        pixels = [on_screen(view.renderer, (azimuth, 0.0, 0.0))[0] for azimuth in marks]
+        # "-135°" is about 36 pixels wide at the marks' 12 points.
+        assert min(np.diff(pixels)) >= 40, (marks, pixels)
+        assert (45 in marks) == (width >= 640)
     finally:
         app.close()
 

@@ -83,7 +83,9 @@ class HeadsUp:
         fov_text = f"FOV {cfg.camera_fov:g} deg" if fov.shape == "cone" else f"FOV {fov.describe()}"
         drawing = "density image" if density_shown else "points"
         return (
-            f"{session.preset_name or 'custom'}   {model}{lasers}   {cfg.point_rate:,} pts/s   {fov_text}\n"
+            # The field of view on a line of its own: after the rate, a band's "elevation -7.212 to 52.16 deg" ran
+            # past a narrow view's edge.
+            f"{session.preset_name or 'custom'}   {model}{lasers}   {cfg.point_rate:,} pts/s\n{fov_text}\n"
             f"t = {session.scan_time:8.3f} s   frame {max(session.frame_index, 0)}   {state}\n"
             f"{window_line(session)}, coverage {100 * session.visible_coverage():.1f} %"
             f"{reference}\n"

@@ -498,6 +498,7 @@ class MainWindow(QtWidgets.QMainWindow):
             if size != self._pattern_size:
                 self._pattern_size = size
                 view.reset_camera()
+                view.refit_guides()
 
     # Status, title, menus -------------------------------------------------------------------------
     def _update_title(self) -> None:

@@ -182,9 +182,10 @@ def _address(array: np.ndarray) -> int:
 
 
 def add_scalar_bar(plotter: pv.Plotter, title: str, mapper) -> object:
-    """The vertical colour bar both views show at their right edge."""
+    """The vertical colour bar both views show at their right edge (far enough in that a title such as
+    "range, m", centred on the bar, stays whole in a 280-pixel view)."""
     return plotter.add_scalar_bar(
-        title, mapper=mapper, vertical=True, position_x=0.9, position_y=0.2, width=0.05, height=0.6,
+        title, mapper=mapper, vertical=True, position_x=0.86, position_y=0.2, width=0.05, height=0.6,
         title_font_size=12, label_font_size=11, color="#dde3ea", n_labels=5, fmt="%.3g",
     )
 
@@ -356,7 +357,8 @@ class PatternView(_View):
         fov = self.session.config.field_of_view
         self._guides_fov = fov
         stretch = self.stretch
-        grid_lines, labels, positions = (_panorama_grid(fov, stretch) if fov.plane == "panorama"
+        self._azimuth_marks = self.azimuth_mark_step()
+        grid_lines, labels, positions = (_panorama_grid(fov, stretch, self._azimuth_marks) if fov.plane == "panorama"
                                          else _boresight_grid(fov))
         # The grid and the outline are one mesh each, handed to the same two actors on every change.
         grid = one_mesh(grid_lines)
@@ -393,6 +395,18 @@ class PatternView(_View):
                                  name="axis-labels", always_visible=True, reset_camera=False)
         self._guides.append("axis-labels")
 
+    def azimuth_mark_step(self) -> int:
+        """Degrees between the panorama's azimuth marks: 45, or 90 where the view is too narrow for "-135°" to
+        stand clear of its neighbours (a 330-pixel view at 1280x720 ran them into one another)."""
+        _, height = self.renderer.GetSize()
+        pixels_per_degree = height / (1.02 * self._fitted_height()[0])
+        return 45 if 45.0 * pixels_per_degree >= 40.0 else 90
+
+    def refit_guides(self) -> None:
+        """Draw the guides again when the view's new width changes which azimuth marks fit."""
+        if self.session.config.field_of_view.plane == "panorama" and self.azimuth_mark_step() != self._azimuth_marks:
+            self.draw_guides()
+
     def drawn_bounds(self) -> tuple[float, float, float, float]:
         """``(x0, x1, y0, y1)`` in the view's coordinates of what :meth:`reset_camera` fits: the field of view,
         the reference's when one is shown (a wide reference, the HAP's band against the Mid-70, ran past the view's
@@ -418,16 +432,24 @@ class PatternView(_View):
         aspect = max(width, 1) / max(height, 1)
         camera = self.renderer.camera
         camera.enable_parallel_projection()
-        # The colour bar and its marks take the view's right 22 %; the text's lines about 80 px at the top.
-        usable = 0.78
-        top = min(0.3, TEXT_BAND_PX / max(height, 1))
-        visible = max((y1 - y0) / (1 - top), (x1 - x0) / (aspect * usable))
+        visible, usable, top = self._fitted_height()
         centre = ((x0 + x1) / 2 + (0.5 - usable / 2) * visible * aspect, (y0 + y1) / 2 + top / 2 * visible)
         camera.focal_point = (*centre, 0)
         camera.position = (*centre, max(x1 - x0, y1 - y0) * 10)
         camera.up = (0, 1, 0)
         camera.parallel_scale = visible / 2 * 1.02
         self.renderer.ResetCameraClippingRange()
+
+    def _fitted_height(self) -> tuple[float, float, float]:
+        """``(visible, usable, top)``: the height of the plane :meth:`reset_camera` shows (degrees, before its 2 %
+        margin), and the shares of the view's width and height left for it by the colour bar's strip (the right
+        22 %) and the text's lines at the top (about 80 px)."""
+        x0, x1, y0, y1 = self.drawn_bounds()
+        width, height = self.renderer.GetSize()
+        aspect = max(width, 1) / max(height, 1)
+        usable = 0.78
+        top = min(0.3, TEXT_BAND_PX / max(height, 1))
+        return max((y1 - y0) / (1 - top), (x1 - x0) / (aspect * usable)), usable, top
 
     def set_colour_map(self, name: str) -> None:
         """The continuous (time) colouring's map, one of :data:`COLOUR_MAPS`."""
@@ -539,17 +561,19 @@ def _boresight_grid(fov) -> tuple[list[pv.PolyData], list[str], list[tuple[float
     return lines, labels, positions
 
 
-def _panorama_grid(fov, stretch: float = 1.0) -> tuple[list[pv.PolyData], list[str], list[tuple[float, float, float]]]:
-    """Lines of azimuth every 45 degrees and of elevation every 10 (or 5, 20) across the band, each marked: the
-    azimuths below the band, the elevations left of it, at the view's ``stretch`` of elevation (the lines are
-    stretched by their actor; the marks are placed here)."""
+def _panorama_grid(fov, stretch: float = 1.0, marked_every: int = 45
+                   ) -> tuple[list[pv.PolyData], list[str], list[tuple[float, float, float]]]:
+    """Lines of azimuth every 45 degrees and of elevation every 10 (or 5, 20) across the band, marked (the
+    azimuths every ``marked_every`` degrees, below the band; every elevation, left of it) at the view's
+    ``stretch`` of elevation (the lines are stretched by their actor; the marks are placed here)."""
     _, _, low, high = fov.bounds
     lines, labels, positions = [], [], []
     height = (high - low) * stretch
     for azimuth in range(-180, 181, 45):
         lines.append(pv.Line((azimuth, low, 0), (azimuth, high, 0)))
-        labels.append(f"{azimuth}°")
-        positions.append((azimuth - 6.0, low * stretch - 0.14 * height, 0.0))
+        if azimuth % marked_every == 0:
+            labels.append(f"{azimuth}°")
+            positions.append((azimuth - 6.0, low * stretch - 0.14 * height, 0.0))
     step = _ring_step((high - low) * 4 / 6)  # about six lines across the band: every 10 degrees for the Mid-360
     for elevation in np.arange(math.ceil(low / step) * step, high + 1e-9, step):
         lines.append(pv.Line((-180, elevation, 0), (180, elevation, 0)))
