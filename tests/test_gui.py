@@ -789,6 +789,25 @@ def test_the_panorama_fills_the_view_at_a_readable_height_with_every_mark(urban,
         app.close()
 
 
+def test_the_scene_views_text_stays_after_a_scene_change(app: LivoxVizApp) -> None:
+    """A first-use trial: after m the scene view's lines (triangles, returns, colouring) were gone for good."""
+    from livox_viz.scene.scenes import open_scene
+
+    session = app.session
+    session.advance_to(0.3)
+    app.refresh()
+    renderer, text = app.plotters["scene"].renderer, app.hud.scene_state
+    assert renderer.HasViewProp(text)
+    for name in ("open_field", "urban"):
+        session.set_scene(open_scene(name))
+        session.advance_to(session.scan_time + 0.1)
+        app.refresh()
+        app.render()
+        assert renderer.HasViewProp(text) and text.GetVisibility(), name
+        assert text.GetText(2).startswith(f"scene {name}:")
+        assert len([a for a in renderer.actors.values() if a is app.scene_view.scene_actor]) == 1
+
+
 @pytest.mark.parametrize("width", [330, 640])
 def test_the_panoramas_azimuth_marks_stand_clear_of_each_other_in_a_narrow_view(urban, width: int) -> None:
     """At 1280x720 the pattern view is about 330 pixels wide: "-180°-135°-90°" ran into one another. Where 45

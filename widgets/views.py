@@ -699,8 +699,10 @@ class SceneView(_View):
             return
         self._scene_shown = self.session.scene
         self.plotter.subplot(*self.subplot)
+        # Not named "scene": pyvista's remove_actor("scene") also removes every "scene-..." actor, and the next
+        # scene took the view's text ("scene-hud") with the old one.
         self.scene_actor = self.plotter.add_mesh(pv.wrap(self.session.scene.mesh), color="#717d90",
-                                                 smooth_shading=False, name="scene", reset_camera=False,
+                                                 smooth_shading=False, name="triangles", reset_camera=False,
                                                  pickable=False)
         self.scene_actor.user_matrix = NED_TO_DISPLAY
 
