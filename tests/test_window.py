@@ -263,6 +263,20 @@ def test_a_typed_value_outside_the_range_is_refused_in_the_control(window, qtbot
     assert session.config.camera_fov == 40.0 and session.scan_time == 0.0
 
 
+def test_a_value_in_range_refused_for_another_reason_says_that_reason(window, qtbot) -> None:
+    """DataCheckFreq 1000 with DataWidth 5000 is inside its own range but over the point budget: the control said
+    "1000 refused; allowed: an integer in [1, 1000] Hz" (a first-use trial); it now gives the budget's words."""
+    session = window.controller.session
+    assert window.panel.rows["data_width"]._commit("data_width", 5000.0) is None
+    row = window.panel.rows["data_check_freq"]
+    row._ask(1000.0)
+    assert session.config.data_check_freq == 10
+    assert row.refusal_text.startswith("1000 refused: ") and "allowed: an integer in [1, 1000]" not in row.refusal_text
+    assert row.refusal_text.endswith(session.message)
+    row._ask(5000.0)  # outside its own range: the range
+    assert "allowed: an integer in [1, 1000] Hz" in row.refusal_text
+
+
 def test_slider_steps_and_reset(window, qtbot) -> None:
     from qtpy import QtCore
 

@@ -142,16 +142,18 @@ class ParamRow(QtWidgets.QWidget):
     preset_value : float or None
         The preset's value (what reset gives back); None: no reset.
     commit : callable
-        ``commit(name, value) -> bool``: ask for the value; False when it was refused.
+        ``commit(name, value) -> str | None``: ask for the value; why it was refused, or None when it was taken.
     """
 
     def __init__(self, name: str, value: float, preset_value: float | None,
-                 commit: Callable[[str, float], bool], parent: QtWidgets.QWidget | None = None) -> None:
+                 commit: Callable[[str, float], str | None], parent: QtWidgets.QWidget | None = None) -> None:
         super().__init__(parent)
         self.name = name
         self.setObjectName(f"param-{name}")
         self._commit = commit
         self.preset_value = preset_value
+        #: What the control said of the last value it refused ("" before any).
+        self.refusal_text = ""
         doc = param_doc(name)
         spec = PARAM_RANGES[name]
         tip = describe(name)
@@ -266,7 +268,8 @@ class ParamRow(QtWidgets.QWidget):
     def _ask(self, value: float) -> None:
         if value == self._shown:
             return
-        if self._commit(self.name, value):
+        refusal = self._commit(self.name, value)
+        if refusal is None:
             self.show_value(value)
             return
         # Refused: the old value stays, and the control says what is allowed.
@@ -275,8 +278,12 @@ class ParamRow(QtWidgets.QWidget):
         self.box.setStyleSheet("background: #5c1f24;")
         spec = PARAM_RANGES[self.name]
         unit = param_doc(self.name).unit
-        QtWidgets.QToolTip.showText(self.box.mapToGlobal(QtCore.QPoint(0, self.box.height())),
-                                    f"{value:g} refused; allowed: {spec.describe()} {unit}".strip(), self.box)
+        # Inside the range, something else refused it (the point budget of DataWidth x DataHeight x DataCheckFreq,
+        # say): its own words, not a range the value is in.
+        text = (f"{value:g} refused: {refusal}" if spec.contains(value)
+                else f"{value:g} refused; allowed: {spec.describe()} {unit}".strip())
+        QtWidgets.QToolTip.showText(self.box.mapToGlobal(QtCore.QPoint(0, self.box.height())), text, self.box)
+        self.refusal_text = text
         # A timer of the row's own: it dies with the row, should the panel be rebuilt before it fires.
         self._refused_timer.start()
 
@@ -432,12 +439,12 @@ class ParameterPanel(QtWidgets.QWidget):
                 self.window_box.setValue(window)
 
     # Asking ----------------------------------------------------------------------------------------
-    def _commit(self, name: str, value: float) -> bool:
-        taken = self.controller.on_param(name, value)
-        message = self.controller.session.message
-        if not taken:
-            self.say(message or f"{name} = {value:g} refused")
-        return taken
+    def _commit(self, name: str, value: float) -> str | None:
+        if self.controller.on_param(name, value):
+            return None
+        refusal = self.controller.session.message or f"{name} = {value:g} refused"
+        self.say(refusal)
+        return refusal
 
     def _commit_speed(self) -> None:
         value = self.speed_box.value()
