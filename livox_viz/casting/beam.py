@@ -29,6 +29,10 @@ tests from cheapest to dearest:
    footprint's farthest reach says whether any box but the hit's own comes near the
    beam (a fixed sensor's beam tests only the boxes filed under its direction,
    :class:`DirectionGrid`; a moving one's walks down a tree of them, :class:`BoxTree`).
+   A tile of an object that is not convex (a terrain's) counts only where the beam
+   also passes one of its :data:`SUB_TILE` cells' boxes, grown as much: its own box
+   holds the air above the ground, which named 28 % of the dense terrain's pulses
+   (10 % by the cells).
 3. Probes (:data:`PROBE_UNIT`): for the pulses the broad phase names, four rays
    at the corners of the ellipse's bounding box ask (Embree's occlusion query)
    whether anything lies in front of the hit's plane along them. A straight
