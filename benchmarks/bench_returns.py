@@ -19,6 +19,9 @@ The same figures with numpy's BLAS on one thread are printed for reference
 (``OPENBLAS_NUM_THREADS=1`` in a child): the Risley stream's small matrix
 products are several times slower with BLAS's default threads on this shared
 2-core machine, which slows both scans alike.
+
+``--terrain`` alone: the dense terrain's datasheet scan against its ideal scan with the broad phase's tiles tested
+by their boxes only and by their cells' boxes too (issue 34, item 4: target >= 0.3 x), in turns, same run.
 """
 
 from __future__ import annotations
@@ -165,6 +168,47 @@ def report(preset: str, scene_name: str, figures: dict, note: str = "") -> None:
           f"({100 * counts.get('covered', 0) / pulses:.1f} %); {counts.get('points_per_s', 0):,} points/s")
 
 
+def terrain_broad_phase(runs: int = 3) -> None:
+    """Issue 34 item 4: the dense terrain's datasheet scan against its ideal scan with the broad phase's tiles tested
+    by their boxes only (as before) and by their sub-boxes too (``TileProxy.tight``), in turns, same run; and how
+    many pulses each names (target: datasheet >= 0.3 x the ideal's speed)."""
+    from livox_viz.casting.beam import TileProxy
+
+    figures: dict[bool, list] = {False: [], True: []}
+    for _ in range(runs):
+        for tight in (False, True):
+            TileProxy.tight = tight
+            figures[tight].append(scan_speed("livox_mid70_risley", "dense_terrain", runs=5))
+    TileProxy.tight = True
+    for tight in (False, True):
+        ratio = max(f["ideal"] / f["datasheet"] for f in figures[tight])
+        paired = float(np.median([f["paired"] for f in figures[tight]]))
+        best = min(f["datasheet"] for f in figures[tight])
+        TileProxy.tight = tight
+        counts = speed_counts("livox_mid70_risley", "dense_terrain")
+        print(f"dense_terrain, broad phase {'tight (sub-boxes)' if tight else 'boxes only'}: datasheet "
+              f"{best * 1e3:.0f} ms per second of scan ({1 / best:.0f} x real time), {ratio:.2f} x the ideal's speed "
+              f"(best pair), median paired ratio {paired:.2f}; pulses named by the broad phase "
+              f"{counts['near']:,} of {counts['pulses']:,} ({100 * counts['near'] / counts['pulses']:.1f} %), "
+              f"covered {counts['covered']:,}, footprint leaves {counts['leaves']:,} (one second of scan)")
+    TileProxy.tight = True
+
+
+def speed_counts(preset: str, scene_name: str) -> dict[str, int]:
+    """The footprint tests' counts summed over one second of scan's frames (datasheet model, frame by frame)."""
+    config = load_preset(preset).with_returns_model("datasheet")
+    scene = open_scene(scene_name)
+    mounted = MountedCaster(config, EmbreeCaster(scene.mesh), scene.vehicle_pose, seed=1)
+    pattern = make_pattern(config, seed=1)
+    per_frame = config.points_per_frame
+    total: dict[str, int] = {}
+    for k in range(round(SECONDS * config.data_check_freq)):
+        mounted.cast(pattern.points(k * per_frame, per_frame))
+        for name, value in mounted.returns.last_counts.items():
+            total[name] = total.get(name, 0) + value
+    return total
+
+
 def memory() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for model in ("ideal", "datasheet"):
@@ -181,6 +225,9 @@ def memory() -> None:
 def main() -> None:
     if "--memory" in sys.argv:
         memory()
+        return
+    if "--terrain" in sys.argv:
+        terrain_broad_phase()
         return
     if "--child" in sys.argv:
         print(json.dumps(speed(sys.argv[2], sys.argv[3])))

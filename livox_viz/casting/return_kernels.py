@@ -353,7 +353,8 @@ def _central(distance, triangle, directions, origins, xy_deg, panorama, rotation
 def _near(candidate, origins, directions, reach, triangle, directions_sensor, bounds, cell_start, cell_boxes, always,
           node_low, node_high, node_link, box_low, box_high, box_tile, tile_part, tile_convex, tile_triangle,
           triangle_tile, triangle_part, tile_low, part_sphere, hull_start, hull_planes, flat_low, flat_high, flat_part,
-          tan_half, near, crossed):  # pragma: no cover - compiled
+          row_start, row_low, row_high, sub_start, sub_low, sub_high, tan_half, near,
+          crossed):  # pragma: no cover - compiled
     """Per ``candidate`` beam: does it pass through a box, other than its hit's own, before ``reach``? And the
     tiles a ray of its footprint could meet something in (``crossed``).
 
@@ -375,6 +376,17 @@ def _near(candidate, origins, directions, reach, triangle, directions_sensor, bo
     hit an object that is not convex (its own tile is always crossed: it stops at the first other box, a
     terrain's cells hold dozens), or was not asked. Every ray of the footprint lies within the inflation of
     the box it meets, so these are all the boxes :func:`_rays_may_meet` needs to test for the beam.
+
+    A tile of an object that is not convex (a terrain's, a building's) has sub-boxes (its triangles filed by a finer
+    grid), in rows (rows ``row_start[tile]`` to ``row_start[tile + 1]`` of ``row_low``, ``row_high``, each the box of
+    its sub-boxes, rows ``sub_start[row]`` to ``sub_start[row + 1]`` of ``sub_low``, ``sub_high``); when it has them,
+    the beam must also pass one of them grown as much as the tile's box, or the tile does not count (a terrain
+    tile's box holds the air above its ground: the beam passing over it names it, its sub-boxes do not). The
+    guarantee is the box's: a ray of the footprint that meets a triangle of the tile at distance s from the sensor
+    (s at most the tile's farthest corner's distance, at most the reach) is within s tan_half of the beam's point
+    at s, less than the inflation ``grow``; the triangle lies in one sub-box, so the beam's point at s lies in that
+    sub-box grown by ``grow`` (a box grown by g holds every point within g of it), before ``reach``: the tile is
+    still named.
     """
     stride = 0 if origins.shape[0] == 1 else 1  # one origin for all, or one a pulse
     gridded = cell_start.shape[0] > 0
@@ -465,6 +477,23 @@ def _near(candidate, origins, directions, reach, triangle, directions_sensor, bo
             if inside and hull_start[hull] < hull_start[hull + 1]:
                 inside = _in_planes(ox, oy, oz, dx, dy, dz, enter, leave, grow, hull_planes, hull_start[hull],
                                     hull_start[hull + 1])
+            if inside and row_start[tile] < row_start[tile + 1]:
+                # The tile's rows of sub-boxes, then a row's sub-boxes, each grown as much as its box (the guarantee
+                # above: a row's box holds its sub-boxes).
+                inside = False
+                for w in range(row_start[tile], row_start[tile + 1]):
+                    if not _slab(ox, oy, oz, ix, iy, iz, leave, row_low[w, 0] - grow, row_low[w, 1] - grow,
+                                 row_low[w, 2] - grow, row_high[w, 0] + grow, row_high[w, 1] + grow,
+                                 row_high[w, 2] + grow):
+                        continue
+                    for s in range(sub_start[w], sub_start[w + 1]):
+                        if _slab(ox, oy, oz, ix, iy, iz, leave, sub_low[s, 0] - grow, sub_low[s, 1] - grow,
+                                 sub_low[s, 2] - grow, sub_high[s, 0] + grow, sub_high[s, 1] + grow,
+                                 sub_high[s, 2] + grow):
+                            inside = True
+                            break
+                    if inside:
+                        break
             if not inside:
                 continue
             found = found or tile != own_tile
