@@ -277,6 +277,26 @@ def test_a_value_in_range_refused_for_another_reason_says_that_reason(window, qt
     assert "allowed: an integer in [1, 1000] Hz" in row.refusal_text
 
 
+def test_the_scrubber_seeks_when_paused_and_forgets_the_picks(window) -> None:
+    session, controller = window.controller.session, window.controller
+    session.advance_to(1.0)
+    window.tick()
+    assert not window.scrubber.isEnabled() or not session.playback.paused  # playing: nothing to scrub
+    window.run(controller.toggle_pause)
+    assert session.playback.paused and window.scrubber.isEnabled()
+    played = window._played
+    controller.picks = [{"xyz_world": (1.0, 2.0, 3.0)}]
+    controller.pick_text = "range 12.000 m"
+    window.scrubber.setValue(400)  # as a click on the bar or a key does: it seeks at once
+    for _ in range(200):  # the window that ends there is cast again a share a tick
+        if session.filling is None:
+            break
+        window.tick()
+    assert session.filling is None and session.scan_time == pytest.approx(0.4 * played, abs=1e-6)
+    assert controller.picks == [] and controller.pick_text == ""
+    assert window.status_message.text() != "range 12.000 m"
+
+
 def test_slider_steps_and_reset(window, qtbot) -> None:
     from qtpy import QtCore
 

@@ -492,6 +492,13 @@ class LivoxVizApp:
         self.scene_view.reset_camera(preset)
 
     # Picking -------------------------------------------------------------------------------
+    def forget_picks(self) -> None:
+        """Drop the picks and their marks (the scan moved to another time: the points picked may not be there)."""
+        self.picks = []
+        self.pick_text = ""
+        if self.scene_view is not None:
+            self.scene_view.mark_picks([])
+
     def pick_scene(self, x_px: float, y_px: float) -> dict[str, Any] | None:
         """The cloud's point under the display position ``(x_px, y_px)`` of the scene view (VTK's pixels, origin
         bottom left), or None; a second pick also gives the distance between the two (:attr:`pick_text`)."""

@@ -669,7 +669,8 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _scrubbed(self) -> None:
         target = self.scrubber.value() / 1000 * self._played
-        self.run(lambda: self.controller.session.seek(target))
+        # The picks belonged to the time left behind (a trial found them floating over another time's cloud).
+        self.run(lambda: (self.controller.session.seek(target), self.controller.forget_picks()))
 
     # Files ---------------------------------------------------------------------------------------
     def _ask_open(self, title: str, filters: str) -> str | None:
