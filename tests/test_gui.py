@@ -903,3 +903,24 @@ def test_a_window_filled_over_ticks_holds_what_one_filled_at_once_holds(app: Liv
         ticks += 1
     assert ticks == -(-200_000 // 30_000) - 1 and session.scan_time == pytest.approx(3.0)
     np.testing.assert_array_equal(session.pattern_ring.ordered(session.pattern_ring.positions), whole)
+
+
+def test_the_views_text_keeps_its_lines_short_so_vtk_does_not_shrink_it(app: LivoxVizApp) -> None:
+    """VTK shrinks a corner text to fit its longest line: the unlimited window's note (110 characters) made the
+    whole text 6 px tall in a trial. Every line drawn is at most LINE_CHARS long, and nothing is lost."""
+    from livox_viz.widgets.hud import LINE_CHARS, wrapped
+    from livox_viz.widgets.overlay import WINDOWS
+
+    session = app.session
+    session.fill_per_tick = 0
+    session.set_window(WINDOWS.index(None))
+    session.advance_to(12.0)  # more fired than the unlimited window holds
+    app.refresh()
+    shown = app.hud.pattern_text(session, app.pattern_view.density_shown())
+    for actor, text in ((app.hud.state, shown), (app.hud.scene_state, None)):
+        drawn = actor.GetText(2)
+        assert max(len(line) for line in drawn.splitlines()) <= LINE_CHARS, drawn
+        if text is not None:
+            assert "fired" in text and max(len(line) for line in text.splitlines()) > LINE_CHARS  # the long line
+            assert " ".join(drawn.split()) == " ".join(text.split())
+    assert wrapped("a " * 50).count("\n") == 1 and wrapped("short\nlines") == "short\nlines"

@@ -9,6 +9,7 @@ window's status bar, menus and help live in Qt (:mod:`~livox_viz.widgets.mainwin
 
 from __future__ import annotations
 
+import textwrap
 import time
 
 import pyvista as pv
@@ -19,6 +20,15 @@ from .session import Session
 #: The views' text: large enough to read at 1280 x 720, light on a dark band so it reads over any point.
 FONT_SIZE = 11
 TEXT_COLOUR = "#e6ebf2"
+#: The longest line drawn: VTK's corner text shrinks every line to fit the longest in the view, and one line of
+#: 110 characters (the unlimited window's note) made the whole text 6 px tall.
+LINE_CHARS = 64
+
+
+def wrapped(text: str, width: int = LINE_CHARS) -> str:
+    """``text`` with each line longer than ``width`` broken at spaces, the rest of it indented."""
+    return "\n".join(textwrap.fill(line, width, subsequent_indent="  ", break_long_words=False) if len(line) > width
+                     else line for line in text.split("\n"))
 
 
 def _text(plotter: pv.Plotter, name: str) -> object:
@@ -110,6 +120,6 @@ class HeadsUp:
     def update(self, session: Session, density_shown: bool = False, drawn: int = 0) -> None:
         """All text from the session's state."""
         if self.state is not None:
-            self.state.SetText(2, self.pattern_text(session, density_shown))
+            self.state.SetText(2, wrapped(self.pattern_text(session, density_shown)))
         if self.scene_state is not None:
-            self.scene_state.SetText(2, self.scene_text(session, drawn))
+            self.scene_state.SetText(2, wrapped(self.scene_text(session, drawn)))
