@@ -297,6 +297,27 @@ def test_the_scrubber_seeks_when_paused_and_forgets_the_picks(window) -> None:
     assert window.status_message.text() != "range 12.000 m"
 
 
+def test_the_clock_shown_holds_while_a_window_fills(window) -> None:
+    """A trial saw the scan time run 24.0 -> 14.5 -> 20.9 -> 24.4 s as the unlimited window filled: the text and
+    the status bar showed how far the filling had come. They show the time the window is filled to."""
+    from livox_viz.widgets.overlay import WINDOWS
+
+    session = window.controller.session
+    session.advance_to(6.0)
+    window.run(window.controller.toggle_pause)
+    held = session.scan_time
+    session.set_window(WINDOWS.index(None))
+    shown = []
+    for _ in range(400):
+        window.tick()
+        shown.append((window.status_time.text(), window.controller.hud.state.GetText(2).splitlines()[2]))
+        if session.filling is None:
+            break
+    assert session.filling is None and len(shown) > 3  # it took several ticks
+    assert {status for status, _ in shown} == {f"t = {held:.3f} s (paused)"}
+    assert all(line.startswith(f"t = {held:8.3f} s") for _, line in shown), shown[:3]
+
+
 def test_slider_steps_and_reset(window, qtbot) -> None:
     from qtpy import QtCore
 

@@ -507,7 +507,7 @@ class MainWindow(QtWidgets.QMainWindow):
     def _update_status(self) -> None:
         session = self.controller.session
         state = "paused" if session.playback.paused else f"{session.playback.speed:g}x"
-        self.status_time.setText(f"t = {session.scan_time:.3f} s ({state})")
+        self.status_time.setText(f"t = {session.shown_time:.3f} s ({state})")
         held = session.pattern_ring.count
         fired = session.points_fired_in_window()
         self.status_points.setText(f"window {window_label(session.window)}: {held:,} of {fired:,} points")
@@ -533,8 +533,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self.scrubber.setEnabled(paused and self._played > 0)
         if paused and self._played > 0 and not self.scrubber.isSliderDown():
             with signals_blocked(self.scrubber):
-                self.scrubber.setValue(round(1000 * session.scan_time / self._played))
-        self.scrub_label.setText(f" scan time {session.scan_time:8.3f} s ")
+                self.scrubber.setValue(round(1000 * session.shown_time / self._played))
+        self.scrub_label.setText(f" scan time {session.shown_time:8.3f} s ")
 
     def _sync_menus(self) -> None:
         session = self.controller.session

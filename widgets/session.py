@@ -370,6 +370,19 @@ class Session:
         self.advance_to(target)
 
     @property
+    def shown_time(self) -> float:
+        """The scan time the window is at, seconds: the one it is being filled to while it fills (the points
+        filled so far are older; the clock shown ran backwards and forwards while a window filled)."""
+        return self._filling_to if self._filling_to is not None else self.scan_time
+
+    @property
+    def shown_frame(self) -> int:
+        """The frame of :attr:`shown_time` (-1 before the first)."""
+        if self._filling_to is None:
+            return self.frame_index
+        return (points_before(self._filling_to, self.config.point_rate) - 1) // self.config.points_per_frame
+
+    @property
     def filling(self) -> float | None:
         """How far a window being filled over several ticks has come, 0 to 1; None when none is."""
         if self._filling_to is None:
