@@ -553,6 +553,24 @@ def test_charts_follow_the_parameters_and_the_reference(app: LivoxVizApp) -> Non
     assert not np.allclose(before, after)
 
 
+def test_e_offers_the_reference_table_again_in_its_round(app: LivoxVizApp) -> None:
+    """With --reference mid70, e went through the presets to "no reference" and never back to the table."""
+    from livox_viz.widgets.overlay import TableSource
+
+    from livox_viz.fitting.reference import load_reference
+
+    session = app.session
+    table = TableSource(load_reference("mid70"))
+    app.set_reference(table)
+    seen = []
+    for _ in range(len(app.reference_choices()) + 2):
+        app.cycle_reference()
+        source = session.overlay.source
+        seen.append(None if source is None else source.name)
+    assert seen[-2] is None and session.overlay.source is table  # round: presets, none, the table again
+    assert seen[:-2] == app.reference_choices()
+
+
 def test_fit_key_moves_the_parameters_to_the_reference(app: LivoxVizApp) -> None:
     from livox_viz import ScanPattern
     from livox_viz.fitting.reference import ReferencePattern

@@ -131,6 +131,8 @@ class LivoxVizApp:
         blas_threads()
         self._preset_cursor = -1
         self._scene_cursor = -1
+        #: The last table shown as the reference (``--reference`` or File > Open): ``e`` offers it again in turn.
+        self._table_reference: TableSource | None = None
         self._ready = True
         self.refresh()
 
@@ -391,15 +393,23 @@ class LivoxVizApp:
         return list(choices)
 
     def cycle_reference(self) -> None:
-        """The next reference: each preset with a Risley track in turn, then none."""
+        """The next reference: the table last shown (if any), each preset with a track in turn, then none."""
         from livox_viz import load_preset
 
-        choices = [*self.reference_choices(), None]
         current = self.session.overlay.source
-        name = current.name if isinstance(current, PresetSource) else None
+        if isinstance(current, TableSource):
+            self._table_reference = current
+        table = self._table_reference
+        # A trial found the table of --reference gone for good after one e: it is the first choice of the round.
+        table_key = f"table {table.name}" if table is not None else None
+        choices = [*([table_key] if table_key else []), *self.reference_choices(), None]
+        name = table_key if isinstance(current, TableSource) else current.name if current is not None else None
         chosen = next_choice(choices, name if name in choices else None)
         if chosen is None:
             self.set_reference(None)
+            return
+        if chosen == table_key:
+            self.set_reference(table)
             return
         from livox_viz.casting.warm import stages_for
 
