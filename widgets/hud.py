@@ -83,9 +83,9 @@ class HeadsUp:
             if now - self._reference_at > 0.5 or session.playback.paused or self._reference_coverage is None:
                 self._reference_at = now
                 self._reference_coverage = overlay.coverage()
-            shown = "" if overlay.visible else " (hidden)"
+            shown = " (blue)" if overlay.visible else " (hidden)"
             value = self._reference_coverage
-            reference = (f"\nreference {overlay.source.name}{shown} (blue), window {window_label(overlay.window)}: "
+            reference = (f"\nreference {overlay.source.name}{shown}, window {window_label(overlay.window)}: "
                          f"coverage {'-' if value is None else f'{100 * value:.1f} %'}")
         model = {"risley": "Risley track", "track": "track"}.get(cfg.pattern_model, "RflySim rosette")
         lasers = f"   {cfg.lasers} lasers" if cfg.lasers > 1 else ""

@@ -518,7 +518,7 @@ class MainWindow(QtWidgets.QMainWindow):
             busy.append(self.warmer.describe())
         if not self.controller.session.casting:
             busy.append("starting the ray caster (the pattern plays)")
-        if self.controller.fitting:
+        if self.controller.fitting and "fitting" not in session.message:  # the message says it already
             busy.append(f"fitting to {self.controller.fitting}")
         if session.filling is not None:
             busy.append(f"filling the window {100 * session.filling:.0f} %")
