@@ -380,7 +380,11 @@ class Session:
         """The frame of :attr:`shown_time` (-1 before the first)."""
         if self._filling_to is None:
             return self.frame_index
-        return (points_before(self._filling_to, self.config.point_rate) - 1) // self.config.points_per_frame
+        return self._frame_ending(points_before(self._filling_to, self.config.point_rate))
+
+    def _frame_ending(self, points: int) -> int:
+        """The frame the ``points``-th point of the stream falls in (-1 for none)."""
+        return (points - 1) // self.config.points_per_frame
 
     @property
     def filling(self) -> float | None:
@@ -481,7 +485,7 @@ class Session:
             frame = self.mounted.cast(chunk)
             self._add_cloud(frame, frame.stream_index)
         self._drop_old()
-        self.frame_index = (target - 1) // self.config.points_per_frame
+        self.frame_index = self._frame_ending(target)
         return missing
 
     def step(self, unit: str | None = None) -> int:
