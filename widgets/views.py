@@ -389,7 +389,9 @@ class PatternView(_View):
         else:
             names = ["x right, deg", "y up, deg"]
             centre_x = 0.0 if x0 < 0 < x1 else (x0 + x1) / 2
-            places = [(x1 + 0.01 * (x1 - x0), (0.0 if y0 < 0 < y1 else y0) - 0.04 * (y1 - y0), 0.0),
+            # x's name under the field of view, at its right: beside it, at 1280x720 it ran into the colour bar's
+            # marks.
+            places = [(x0 + 0.68 * (x1 - x0), y0 - 0.085 * (y1 - y0), 0.0),
                       (centre_x + 0.01 * (x1 - x0), y1 + 0.02 * (y1 - y0), 0.0)]
         plotter.add_point_labels(places, names, font_size=12, text_color="#9aa6b8", shape=None, show_points=False,
                                  name="axis-labels", always_visible=True, reset_camera=False)
@@ -422,7 +424,7 @@ class PatternView(_View):
             # Elevation marks on the left, azimuth marks and the axis name below, the elevation name above.
             return x0 - 28.0, x1 + 4.0, y0 - 0.36 * height, y1 + 0.18 * height
         width, height = x1 - x0, y1 - y0
-        return x0 - 0.02 * width, x1 + 0.12 * width, y0 - 0.08 * height, y1 + 0.07 * height
+        return x0 - 0.02 * width, x1 + 0.03 * width, y0 - 0.11 * height, y1 + 0.07 * height
 
     def reset_camera(self) -> None:
         """Look straight at the pattern plane, orthographic, everything drawn (the reference too) in the view, with
