@@ -91,14 +91,36 @@ def free_udp_port() -> int:
         return int(probe.getsockname()[1])
 
 
-def start_listening(argv: list[str]):
-    """Run ``livox-viz listen ARGV`` in a thread and give it half a second to bind; returns the thread."""
-    import threading
+def wait_until_bound(port: int, alive, seconds: float = 60.0) -> None:
+    """Return once something holds UDP ``port`` on the loopback (a probe can no longer bind it).
+
+    A fixed sleep lost the first frames on a loaded CI machine, where the listener's imports took longer than
+    the sleep; ``alive()`` says whether the listener still runs, so a listener that failed ends the wait.
+    """
+    import errno
+    import socket
     import time
+
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and alive():
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            try:
+                probe.bind(("127.0.0.1", port))
+            except OSError as exc:
+                if exc.errno == errno.EADDRINUSE:
+                    return
+                raise
+        time.sleep(0.02)
+    raise AssertionError(f"nothing listened on UDP port {port} within {seconds:.0f} s")
+
+
+def start_listening(argv: list[str]):
+    """Run ``livox-viz listen ARGV`` (with ``--port`` in it) in a thread, once it has bound; returns the thread."""
+    import threading
 
     from livox_viz.cli import main
 
     listener = threading.Thread(target=main, args=(["listen", *argv],))
     listener.start()
-    time.sleep(0.5)
+    wait_until_bound(int(argv[argv.index("--port") + 1]), listener.is_alive)
     return listener

@@ -30,7 +30,7 @@ from livox_viz.wire.rflysim import (
 )
 from livox_viz.wire.transport import ShmReceiver, UdpReceiver, UdpSender
 
-from .conftest import free_udp_port
+from .conftest import free_udp_port, wait_until_bound
 from .readers import read_pcd
 
 
@@ -45,7 +45,7 @@ class Listening:
         self.status: int | None = None
         self.thread = threading.Thread(target=self._run, args=(argv,))
         self.thread.start()
-        time.sleep(0.5)  # bound by then
+        wait_until_bound(int(argv[argv.index("--port") + 1]), self.thread.is_alive)
 
     def _run(self, argv: list[str]) -> None:
         self.status = main(["listen", *argv])
