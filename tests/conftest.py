@@ -53,6 +53,18 @@ def pytest_sessionfinish(session: pytest.Session) -> None:
 _WARMER = pytest.StashKey[subprocess.Popen]()
 
 
+@pytest.fixture(autouse=True)
+def _environment_kept():
+    """Each test leaves ``os.environ`` as it found it: a library that set variables in this process (Dask's
+    nannies set one BLAS thread and an eager malloc trim as they spawn workers) slowed every later test's child
+    processes four times."""
+    saved = dict(os.environ)
+    yield
+    if dict(os.environ) != saved:
+        os.environ.clear()
+        os.environ.update(saved)
+
+
 @pytest.fixture
 def mid70() -> SensorConfig:
     """The default preset."""

@@ -74,7 +74,10 @@ def test_the_same_batch_on_a_dask_local_cluster_writes_the_same_files(local_run:
                                                                       tmp_path: Path) -> None:
     pytest.importorskip("distributed")
     spec, out = local_run
+    environment = dict(os.environ)
     assert main(["batch", str(spec), "--out", str(tmp_path / "dask"), "--dask", "local:2"]) == 0
+    # Dask's nannies put their workers' variables into the spawning process's environment: not into ours.
+    assert dict(os.environ) == environment
     local, dask = _manifest(out), _manifest(tmp_path / "dask")
     assert [(r["job"], r["status"], r["points"], r["files"]) for r in dask] == [
         (r["job"], r["status"], r["points"], r["files"]) for r in local]
