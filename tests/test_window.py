@@ -515,3 +515,57 @@ def test_the_first_datasheet_use_keeps_the_window_painting(tmp_path: Path, qapp)
     assert found["took"] > 5.0, found  # a real first compile, not a warm cache
     assert found["ticks"] > 2 * found["took"], found  # it painted all along
     assert found["max_gap"] < 0.5, found
+
+
+def test_ticks_keys_and_menus_keep_none_alive(window, qtbot, user_presets: Path) -> None:
+    """Python 3.11's None is reference counted: a call that takes a reference off it each tick ends the window
+    (PySide6 6.12.0 took one in each call returning nothing, 20 a tick: "none_dealloc: deallocating None" after
+    minutes). 300 ticks and every light key 20 times leave None's count where it was, give or take the objects
+    made meanwhile (the leak took some 12 a tick and 37 a key)."""
+    import gc
+
+    from livox_viz.widgets.keys import KEYS
+
+    window.none_reserve = None  # the window's own make-up is tested below; here the binding itself
+    keys = [method for row in KEYS for key, method in row.bindings
+            if key not in ("q", "f", "m", "s", "p", "n", "b", "d", "t", "e", "h")]  # heavy, panel rebuilds, files
+    for _ in range(3):
+        window.tick()
+    gc.collect()
+    before = sys.getrefcount(None)
+    for _ in range(300):
+        window.tick()
+    for method in keys:
+        target = getattr(window, method, None) or getattr(window.controller, method)
+        for _ in range(20):
+            window.run(target)
+            window.tick()
+    gc.collect()
+    assert before - sys.getrefcount(None) < 100, (before, sys.getrefcount(None))
+
+
+@pytest.mark.skipif(sys.version_info >= (3, 12), reason="None is immortal from Python 3.12: nothing to give back")
+def test_the_window_gives_none_back_what_a_leaky_binding_took(window, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With a binding that takes references off None (simulated: 50 more each status update), the window's reserve
+    gives them back every tick: None's count never falls below the reserve's floor by more than one tick's loss."""
+    import ctypes
+
+    from livox_viz.widgets.nonerefs import NoneReserve
+
+    decref = ctypes.PYFUNCTYPE(None, ctypes.py_object)(("Py_DecRef", ctypes.pythonapi))
+    update = window._update_status
+
+    def leaky_update() -> None:
+        update()
+        for _ in range(50):
+            decref(None)
+
+    monkeypatch.setattr(window, "_update_status", leaky_update)
+    window.none_reserve = NoneReserve()
+    lowest = sys.getrefcount(None)
+    for _ in range(400):  # 20 000 references: enough to free None in a bare interpreter
+        window.tick()
+        lowest = min(lowest, sys.getrefcount(None))
+    window.tick()
+    assert window.none_reserve.given >= 400 * 50
+    assert lowest >= window.none_reserve.floor - 200, (lowest, window.none_reserve.floor)

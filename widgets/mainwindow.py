@@ -20,6 +20,7 @@ was, with a message naming what is wrong.
 from __future__ import annotations
 
 import os
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -40,6 +41,7 @@ from livox_viz.config.sensor import save_config
 from . import files
 from .app import VIEW_NAMES, LivoxVizApp, quiet_vtk
 from .keys import KEYS, help_html
+from .nonerefs import NoneReserve, binding_drops_none
 from .overlay import WINDOWS, PresetSource, TableSource, window_label
 from .panel import ParameterPanel, signals_blocked
 from .session import DRAWINGS, SCENE_COLOURS, Session, pattern_colours, step_units
@@ -98,6 +100,12 @@ class MainWindow(QtWidgets.QMainWindow):
                  warmer: LoopWarmer | None = None) -> None:
         application()
         super().__init__()
+        # A binding that takes a reference off None in each call (PySide6 6.12.0 on Python 3.11) ended the window
+        # within minutes: None's lost references are given back each tick (see widgets/nonerefs.py).
+        self.none_reserve = NoneReserve() if binding_drops_none() else None
+        if self.none_reserve is not None:
+            print("livox-viz: this PySide6 drops references to None on Python 3.11 (a bug of PySide6 6.12.0); the "
+                  "window makes up for it, installing PySide6-Essentials<6.12 avoids it", file=sys.stderr)
         quiet_vtk()
         self.setObjectName("livox-viz")
         self.resize(*size)
@@ -451,6 +459,8 @@ class MainWindow(QtWidgets.QMainWindow):
     # The tick -----------------------------------------------------------------------------------
     def tick(self) -> None:
         """Advance the scan by the wall time passed, apply what became ready, redraw."""
+        if self.none_reserve is not None:
+            self.none_reserve.top_up()
         if self._stop is not None and self._stop():
             self.close()
             return
