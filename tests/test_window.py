@@ -263,6 +263,69 @@ def test_a_typed_value_outside_the_range_is_refused_in_the_control(window, qtbot
     assert session.config.camera_fov == 40.0 and session.scan_time == 0.0
 
 
+def type_into(qtbot, box, text: str) -> None:
+    """Select all of a spin box's text and type ``text`` as a user does, then Enter."""
+    from qtpy import QtCore
+
+    box.setFocus()
+    box.lineEdit().selectAll()
+    qtbot.keyClicks(box.lineEdit(), text)
+    qtbot.keyClick(box.lineEdit(), QtCore.Qt.Key.Key_Return)
+
+
+def test_a_typed_number_in_scientific_notation_is_taken_exactly(window, qtbot) -> None:
+    """Qt's spin box dropped the 'e' keystroke by keystroke: '1e1' became 11 (refused as out of range), and a
+    value finer than the decimals shown was rounded (a first-use trial)."""
+    session = window.controller.session
+    type_into(qtbot, window.panel.rows["tip_exponent"].box, "1e1")
+    assert session.config.tip_exponent == 10.0
+    type_into(qtbot, window.panel.rows["petal_height"].box, "2.5E-3")
+    assert session.config.petal_height == 0.0025  # exact, not 0.003 (three decimals shown)
+    type_into(qtbot, window.panel.rows["camera_fov"].box, "4.5e1 deg")  # the box's own unit may stay
+    assert session.config.camera_fov == 45.0, window.panel.rows["camera_fov"].refusal_text
+    type_into(qtbot, window.panel.speed_box, "2.5e-1")
+    assert session.playback.speed == 0.25
+
+
+def test_a_typed_unit_or_word_is_refused_in_the_control_never_changed(window, qtbot) -> None:
+    """'45 rad' became 45 deg without a word (Qt dropped the letters): now it is refused, saying what is taken."""
+    session = window.controller.session
+    config = session.config
+    row = window.panel.rows["camera_fov"]
+    for text in ("45 rad", "1,5", "ten", "1e1e1", "nan"):
+        type_into(qtbot, row.box, text)
+        assert session.config == config, text
+        assert row.refusal_text.startswith(f"'{text}' refused: only a number in deg is taken"), row.refusal_text
+        assert row.refusal_text.endswith("allowed: (0, 180) deg")
+        assert session.message == row.refusal_text
+        assert row.box.value() == pytest.approx(config.camera_fov)
+    speed = session.playback.speed
+    type_into(qtbot, window.panel.speed_box, "2 times")
+    assert session.playback.speed == speed and "'2 times' refused" in session.message
+    assert "allowed: 0.01 to 10 x" in session.message
+
+
+def test_enter_in_an_unedited_box_asks_nothing(window, qtbot) -> None:
+    """The box shows the value rounded to its decimals: Enter (or leaving it) without typing must not ask for the
+    rounded value (that restarted the scan with another value)."""
+    from qtpy import QtCore
+
+    session = window.controller.session
+    row = window.panel.rows["camera_fov"]
+    assert row._commit("camera_fov", 70.43218) is None
+
+    def played() -> None:
+        window.tick()
+        assert session.scan_time > 0
+
+    qtbot.waitUntil(played, timeout=10_000)
+    started = session.scan_time
+    row.box.setFocus()
+    qtbot.keyClick(row.box.lineEdit(), QtCore.Qt.Key.Key_Return)
+    assert session.config.camera_fov == 70.43218
+    assert session.scan_time >= started
+
+
 def test_a_value_in_range_refused_for_another_reason_says_that_reason(window, qtbot) -> None:
     """DataCheckFreq 1000 with DataWidth 5000 is inside its own range but over the point budget: the control said
     "1000 refused; allowed: an integer in [1, 1000] Hz" (a first-use trial); it now gives the budget's words."""

@@ -23,10 +23,11 @@ state is deleted with it, so nothing is left over and nothing overlaps.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from qtpy import QtCore, QtWidgets
+from qtpy import QtCore, QtGui, QtWidgets
 
 from livox_viz.config.param_docs import describe, param_doc, slider_fraction, slider_value, value_bounds
 from livox_viz.config.sensor import PARAM_RANGES, SensorConfig
@@ -92,9 +93,41 @@ def _fine(modifiers: QtCore.Qt.KeyboardModifier) -> bool:
     return bool(modifiers & wanted)
 
 
+#: A number as a user types it: digits with an optional point and an optional exponent (``12``, ``.5``,
+#: ``2.5E-3``, ``1e1``); no group separators, no ``inf`` or ``nan``.
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+
+
+class TypedTextError(ValueError):
+    """Typed text that is not a number of the box's unit: the message says what was wrong and what is taken."""
+
+
+def read_typed(text: str, unit: str) -> float:
+    """The number ``text`` holds: a plain or scientific number, optionally followed by ``unit``.
+
+    Raises
+    ------
+    TypedTextError
+        Anything else (another unit, words, a comma), with what is taken instead.
+    """
+    body = text.strip()
+    if unit and body.endswith(unit):
+        body = body[: -len(unit)].rstrip()
+    if _NUMBER.fullmatch(body):
+        return float(body)
+    in_unit = f" in {unit}" if unit else ""
+    raise TypedTextError(f"'{text.strip()}' refused: only a number{in_unit} is taken (as 12, 2.5 or 1e1)")
+
+
 class ValueBox(QtWidgets.QDoubleSpinBox):
     """A spin box that takes any typed number and leaves judging it to the model (the range is shown, not clamped
-    silently); arrows and the wheel step by ``step``, by ``fine_step`` with Shift or Ctrl, within ``bounds``."""
+    silently); arrows and the wheel step by ``step``, by ``fine_step`` with Shift or Ctrl, within ``bounds``.
+
+    Qt's own reading of typed text drops what it does not know keystroke by keystroke (``1e1`` became ``11``,
+    ``45 rad`` became ``45``) and rounds to the decimals shown: here the box lets every keystroke in and reads
+    the text once, on Enter or when the focus leaves, with :func:`read_typed`; :meth:`take_typed` hands the
+    number (exact) or the refusal to whoever commits it, and the box itself never changes on typed text.
+    """
 
     def __init__(self, bounds: tuple[float, float], decimals: int, step: float, fine_step: float,
                  unit: str, parent: QtWidgets.QWidget | None = None) -> None:
@@ -111,6 +144,41 @@ class ValueBox(QtWidgets.QDoubleSpinBox):
             self.setSuffix(f" {unit}")
         self.setButtonSymbols(QtWidgets.QAbstractSpinBox.ButtonSymbols.UpDownArrows)
         self.setFixedWidth(136)
+        self.unit = unit
+        #: What the last commit's text held: a number, a refusal, or None (the text was the value shown).
+        self._typed: float | TypedTextError | None = None
+
+    def validate(self, text: str, pos: int) -> tuple[QtGui.QValidator.State, str, int]:
+        # Every keystroke is let in: the text is judged whole on commit, and a refusal is said, not swallowed.
+        return QtGui.QValidator.State.Acceptable, text, pos
+
+    def valueFromText(self, text: str) -> float:
+        if text.strip() == f"{self.prefix()}{self.textFromValue(self.value())}{self.suffix()}".strip():
+            self._typed = None  # Enter or a focus change on an unedited box: nothing asked
+        else:
+            # Qt puts the prefix and suffix back after every keystroke: what the user typed is between them.
+            body = text.strip()
+            prefix, suffix = self.prefix().strip(), self.suffix().strip()
+            body = body[len(prefix):] if prefix and body.startswith(prefix) else body
+            body = body[: -len(suffix)] if suffix and body.endswith(suffix) else body
+            try:
+                self._typed = read_typed(body, self.unit)
+            except TypedTextError as exc:
+                self._typed = exc
+        return self.value()  # the box shows what the model holds; the commit decides
+
+    def take_typed(self) -> float | None:
+        """The number typed since the last call (exact, not rounded to the decimals shown), or None.
+
+        Raises
+        ------
+        TypedTextError
+            The text was not a number of the box's unit.
+        """
+        typed, self._typed = self._typed, None
+        if isinstance(typed, TypedTextError):
+            raise typed
+        return typed
 
     def stepBy(self, steps: int) -> None:
         fine = _fine(QtWidgets.QApplication.keyboardModifiers())
@@ -120,6 +188,7 @@ class ValueBox(QtWidgets.QDoubleSpinBox):
         delta = direction * count * (self.fine_step if fine else self.step)
         low, high = self.bounds
         self.setValue(min(max(self.value() + delta, low), high))
+        self._typed = self.value()  # a step asks for its value as a typed one does
         self.editingFinished.emit()
 
     def textFromValue(self, value: float) -> str:
@@ -143,14 +212,18 @@ class ParamRow(QtWidgets.QWidget):
         The preset's value (what reset gives back); None: no reset.
     commit : callable
         ``commit(name, value) -> str | None``: ask for the value; why it was refused, or None when it was taken.
+    say : callable, optional
+        ``say(text)``: a message for the status bar (a typed text that is no number says so there too).
     """
 
     def __init__(self, name: str, value: float, preset_value: float | None,
-                 commit: Callable[[str, float], str | None], parent: QtWidgets.QWidget | None = None) -> None:
+                 commit: Callable[[str, float], str | None], parent: QtWidgets.QWidget | None = None,
+                 say: Callable[[str], None] | None = None) -> None:
         super().__init__(parent)
         self.name = name
         self.setObjectName(f"param-{name}")
         self._commit = commit
+        self._say = say
         self.preset_value = preset_value
         #: What the control said of the last value it refused ("" before any).
         self.refusal_text = ""
@@ -256,8 +329,16 @@ class ParamRow(QtWidgets.QWidget):
         self._ask(dragged)
 
     def _commit_box(self) -> None:
-        value = self.box.value()
-        if value != self._shown:
+        try:
+            value = self.box.take_typed()
+        except TypedTextError as exc:
+            spec = PARAM_RANGES[self.name]
+            text = f"{exc}; allowed: {spec.describe()} {param_doc(self.name).unit}".strip()
+            if self._say is not None:
+                self._say(text)
+            self._refuse(text)
+            return
+        if value is not None and value != self._shown:
             self._ask(value)
 
     def reset(self) -> None:
@@ -271,17 +352,20 @@ class ParamRow(QtWidgets.QWidget):
         refusal = self._commit(self.name, value)
         if refusal is None:
             self.show_value(value)
+            if QtWidgets.QToolTip.isVisible() and QtWidgets.QToolTip.text() == self.refusal_text:
+                QtWidgets.QToolTip.hideText()  # the last refusal no longer holds
             return
-        # Refused: the old value stays, and the control says what is allowed.
-        old = self._shown
-        self.show_value(old)
-        self.box.setStyleSheet("background: #5c1f24;")
         spec = PARAM_RANGES[self.name]
         unit = param_doc(self.name).unit
         # Inside the range, something else refused it (the point budget of DataWidth x DataHeight x DataCheckFreq,
         # say): its own words, not a range the value is in.
-        text = (f"{value:g} refused: {refusal}" if spec.contains(value)
-                else f"{value:g} refused; allowed: {spec.describe()} {unit}".strip())
+        self._refuse(f"{value:g} refused: {refusal}" if spec.contains(value)
+                     else f"{value:g} refused; allowed: {spec.describe()} {unit}".strip())
+
+    def _refuse(self, text: str) -> None:
+        """Refused: the old value stays, and the control says why and what is allowed."""
+        self.show_value(self._shown)
+        self.box.setStyleSheet("background: #5c1f24;")
         QtWidgets.QToolTip.showText(self.box.mapToGlobal(QtCore.QPoint(0, self.box.height())), text, self.box)
         self.refusal_text = text
         # A timer of the row's own: it dies with the row, should the panel be rebuilt before it fires.
@@ -378,7 +462,7 @@ class ParameterPanel(QtWidgets.QWidget):
                 preset_value = preset.param_value(name) if preset is not None else None
             except LivoxVizError:
                 preset_value = None
-            row = ParamRow(name, value, preset_value, self._commit, box)
+            row = ParamRow(name, value, preset_value, self._commit, box, say=self.say)
             layout.addWidget(row)
             self.rows[name] = row
         return box
@@ -446,8 +530,18 @@ class ParameterPanel(QtWidgets.QWidget):
         self.say(refusal)
         return refusal
 
+    def _typed(self, box: ValueBox, allowed: str) -> float | None:
+        """The number typed in a playback box, or None (nothing typed, or a refusal said in the status bar)."""
+        try:
+            return box.take_typed()
+        except TypedTextError as exc:
+            self.say(f"{exc}; allowed: {allowed}")
+            return None
+
     def _commit_speed(self) -> None:
-        value = self.speed_box.value()
+        value = self._typed(self.speed_box, f"{SPEED_RANGE[0]:g} to {SPEED_RANGE[1]:g} x")
+        if value is None or value == self.controller.session.playback.speed:
+            return
         if not (math.isfinite(value) and SPEED_RANGE[0] <= value <= SPEED_RANGE[1]):
             self.say(f"speed {value:g} refused; allowed: {SPEED_RANGE[0]:g} to {SPEED_RANGE[1]:g} x")
             with signals_blocked(self.speed_box):
@@ -464,7 +558,9 @@ class ParameterPanel(QtWidgets.QWidget):
         self._set_window(chosen)
 
     def _window_typed(self) -> None:
-        self._set_window(float(self.window_box.value()))
+        value = self._typed(self.window_box, f"{WINDOW_RANGE[0]:g} to {WINDOW_RANGE[1]:g} s")
+        if value is not None:
+            self._set_window(value)
 
     def _set_window(self, seconds: float | None) -> None:
         if seconds == self.controller.session.window:
