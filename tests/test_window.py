@@ -243,6 +243,43 @@ def test_every_menu_action_runs(window, qtbot, user_presets: Path, monkeypatch: 
     assert window.isVisible()
 
 
+def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot) -> None:
+    """The menus named no key (a first-use trial): an entry whose action has a key in the key table shows it at
+    its right as Qt does, and the key, pressed in a view, still runs its action once (Up doubles the speed once,
+    h opens the help and leaves it open)."""
+    from livox_viz.widgets.keys import KEYS
+
+    def actions(menu):
+        for action in menu.actions():
+            if action.menu() is not None:
+                yield from actions(action.menu())
+            elif not action.isSeparator():
+                yield action
+
+    shown = {action.text(): action.shortcut().toString() for top in window.menuBar().actions()
+             for action in actions(top.menu())}
+    expected = {"Play / pause": "Space", "Step one unit": "Right", "Faster (x2)": "Up", "Slower (/2)": "Down",
+                "Reset the scan to t = 0": "X", "Show the return model's sheet in the panel": "T",
+                "Switch rosette / track": "V", "Random rotation after each flower / figure": "J",
+                "Next preset": "N", "Previous preset": "B", "Next reference preset": "E",
+                "Reference overlay on / off": "O", "Reference's own window": "L",
+                "Fit the rosette to the reference": "F", "Cloud in the world / sensor frame": "W",
+                "Screenshot (views and sidecar)": "S", "Save as user preset": "P",
+                "Reset cameras (fit everything drawn)": "R", "Keys and mouse": "H", "Quit": "Ctrl+Q"}
+    assert {text: shown.get(text) for text in expected} == expected
+    table_keys = {key.upper() if len(key) == 1 else key.capitalize() for row in KEYS for key, _ in row.bindings}
+    assert {key for key in shown.values() if key and "+" not in key} <= table_keys
+    session = window.controller.session
+    press(qtbot, window, "Up")
+    assert session.playback.speed == 2.0
+    press(qtbot, window, "h")
+    assert window.help_dialog is not None and window.help_dialog.isVisible()
+    press(qtbot, window, "h")
+    assert not window.help_dialog.isVisible()
+    press(qtbot, window, "space")
+    assert session.playback.paused
+
+
 def test_a_typed_value_outside_the_range_is_refused_in_the_control(window, qtbot) -> None:
     from qtpy import QtCore
 

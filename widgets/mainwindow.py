@@ -51,6 +51,13 @@ from .warmup import LoopWarmer
 TIMER_MS = 33
 #: Qt's names of the key table's VTK key symbols.
 QT_KEYS = {"space": "Space", "Right": "Right", "Up": "Up", "Down": "Down"}
+#: The key table's key of each method it binds (a menu entry calling one shows its key).
+KEY_OF_METHOD = {method: key for row in KEYS for key, method in row.bindings}
+
+
+def key_sequence(key: str) -> QtGui.QKeySequence:
+    """Qt's key sequence of a key of the key table."""
+    return QtGui.QKeySequence(QT_KEYS.get(key, key.upper() if len(key) == 1 else key))
 #: Formats the window's cloud can be exported to (the writers of ``livox-viz scan``).
 EXPORT_FORMATS = (("PLY", ".ply"), ("PCD", ".pcd"), ("LAS 1.4", ".las"), ("NumPy NPZ", ".npz"), ("CSV", ".csv"))
 #: Points a refilled integration window casts per tick: about 40 ms of the ideal model's work on one core.
@@ -266,6 +273,12 @@ class MainWindow(QtWidgets.QMainWindow):
         if shortcut:
             action.setShortcut(QtGui.QKeySequence(shortcut))
             action.setShortcutContext(QtCore.Qt.ShortcutContext.WindowShortcut)
+        elif getattr(slot, "__name__", None) in KEY_OF_METHOD:
+            # The menu shows the key at the right of the entry; the key itself stays the window's shortcut
+            # (_make_shortcuts). A window-wide action on the same key would make both ambiguous (Qt then runs
+            # neither) and would fire in a spin box; tied to its menu it matches only where no focus ever is.
+            action.setShortcut(key_sequence(KEY_OF_METHOD[slot.__name__]))
+            action.setShortcutContext(QtCore.Qt.ShortcutContext.WidgetShortcut)
         action.setCheckable(checkable)
         if group is not None:
             group.addAction(action)
@@ -372,8 +385,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.shortcuts: list[QtGui.QShortcut] = []
         for row in KEYS:
             for key, method in row.bindings:
-                sequence = QtGui.QKeySequence(QT_KEYS.get(key, key.upper() if len(key) == 1 else key))
-                shortcut = QtGui.QShortcut(sequence, self)
+                shortcut = QtGui.QShortcut(key_sequence(key), self)
                 shortcut.setContext(QtCore.Qt.ShortcutContext.WindowShortcut)
                 target = getattr(self, method, None) or getattr(self.controller, method)
                 shortcut.activated.connect(lambda t=target: self.run(t))
