@@ -508,6 +508,51 @@ def test_the_panel_picture_matches_its_baseline(window, qtbot, tmp_path: Path) -
     assert changed < 0.02, f"{100 * changed:.2f} % of the panel's pixels differ from {baseline}"
 
 
+@pytest.mark.parametrize("size", [(1280, 720), (1600, 900)])
+def test_a_status_message_longer_than_the_bar_is_elided_with_the_whole_in_its_tooltip(urban, qtbot, size) -> None:
+    """At 1280 px a long message ran under the bar's edge cut without a sign (a first-use trial): each of the
+    bar's texts is now shown whole, or its start with an ellipsis and the whole in its tooltip; none overlaps
+    another or leaves the bar."""
+    from concurrent.futures import Future
+
+    from livox_viz.widgets.mainwindow import _Job
+    from qtpy import QtWidgets
+
+    window = make_window(urban, qtbot, size=size)
+    try:
+        busy = "reading a_reference_table_with_a_rather_long_name_from_a_deep_folder.csv " * 2
+        window._jobs.append(_Job(busy.strip(), Future(), lambda _result: None, 0.0))
+        message = ("integration window 25 s refused; allowed: 0.01 to 10 s, or unlimited (1 M points): a window the "
+                   "point budget of DataWidth x DataHeight x DataCheckFreq can hold, and this sentence goes on")
+        window.say(message, error=True)
+        window._update_status()
+        QtWidgets.QApplication.processEvents()
+        bar = window.statusBar()
+        labels = [window.status_busy, window.status_message, window.status_time, window.status_points,
+                  window.status_fps, window.status_returns]
+        for label in labels:
+            shown = QtWidgets.QLabel.text(label)  # what is drawn, whatever the label keeps
+            room = label.contentsRect().width()
+            assert label.fontMetrics().horizontalAdvance(shown) <= room, (shown, room)
+            whole = label.text()
+            if shown != whole:
+                assert shown.endswith("\u2026") and whole.startswith(shown[:-1]) and label.toolTip() == whole
+            assert bar.rect().contains(widget_rect(label, bar)), label.text()
+        assert window.status_message.text() == message and QtWidgets.QLabel.text(window.status_message) != message
+        assert window.status_message.toolTip() == message
+        assert window.status_message.width() >= 300  # what is being prepared leaves the message room
+        rects = [widget_rect(label, bar) for label in labels if label.isVisible()]
+        for k, first in enumerate(rects):
+            assert all(not first.intersects(second) for second in rects[k + 1:])
+        window.say("scene urban")
+        window._update_status()
+        QtWidgets.QApplication.processEvents()
+        assert QtWidgets.QLabel.text(window.status_message) == "scene urban" and not window.status_message.toolTip()
+    finally:
+        window._jobs.clear()
+        window.close()
+
+
 def test_the_help_dialog_lists_every_key_inside_the_screen(window, qtbot) -> None:
     from livox_viz.widgets.keys import KEYS
 

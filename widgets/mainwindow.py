@@ -75,6 +75,56 @@ def application() -> QtWidgets.QApplication:
     return app
 
 
+class ElidedLabel(QtWidgets.QLabel):
+    """A one-line label for the status bar: when its text is wider than the room it gets, it shows what fits and
+    an ellipsis, and the whole text is its tooltip (a long message was cut at the bar's edge without a sign).
+
+    :meth:`text` is the whole text; the label asks for its width, at most ``widest`` pixels, but takes less (down
+    to an ellipsis).
+    """
+
+    def __init__(self, widest: int = 1 << 20, parent: QtWidgets.QWidget | None = None) -> None:
+        super().__init__(parent)
+        self._whole = ""
+        self._widest = widest
+
+    def setText(self, text: str) -> None:
+        if text == self._whole:
+            return
+        self._whole = text
+        self.updateGeometry()
+        self._elide()
+
+    def text(self) -> str:
+        return self._whole
+
+    def shown_text(self) -> str:
+        """What the label shows now (the text, or its start and an ellipsis)."""
+        return super().text()
+
+    def sizeHint(self) -> QtCore.QSize:
+        margins = self.contentsMargins()
+        width = self.fontMetrics().horizontalAdvance(self._whole) + margins.left() + margins.right() + 2
+        return QtCore.QSize(min(width, self._widest), super().sizeHint().height())
+
+    def minimumSizeHint(self) -> QtCore.QSize:
+        return QtCore.QSize(min(self.sizeHint().width(), self.fontMetrics().horizontalAdvance("...") * 3),
+                            super().minimumSizeHint().height())
+
+    def resizeEvent(self, event: QtGui.QResizeEvent) -> None:
+        super().resizeEvent(event)
+        self._elide()
+
+    def _elide(self) -> None:
+        room = max(self.contentsRect().width() - 2, 0)
+        shown = self.fontMetrics().elidedText(self._whole, QtCore.Qt.TextElideMode.ElideRight, room)
+        if shown != super().text():
+            super().setText(shown)
+        tip = self._whole if shown != self._whole else ""
+        if tip != self.toolTip():
+            self.setToolTip(tip)
+
+
 @dataclass
 class _Job:
     """A background job the status bar shows: what it is, its future, and what to do with its result."""
@@ -240,8 +290,11 @@ class MainWindow(QtWidgets.QMainWindow):
         self.busy.setMaximumWidth(90)
         self.busy.setMaximumHeight(14)
         self.busy.setVisible(False)
-        self.status_busy = QtWidgets.QLabel()
-        self.status_message = QtWidgets.QLabel()
+        # Both give way to the permanent figures at the right, with an ellipsis and the whole text as tooltip; what
+        # is being prepared asks for a quarter of a 1280 px bar at most, the message (feedback to what was just done)
+        # for the rest.
+        self.status_busy = ElidedLabel(widest=320)
+        self.status_message = ElidedLabel()
         self.status_message.setObjectName("message")
         self.status_message.setTextInteractionFlags(QtCore.Qt.TextInteractionFlag.TextSelectableByMouse)
         for widget in (self.status_time, self.status_points, self.status_fps, self.status_returns):
