@@ -365,7 +365,8 @@ class ParamRow(QtWidgets.QWidget):
     def _refuse(self, text: str) -> None:
         """Refused: the old value stays, and the control says why and what is allowed."""
         self.show_value(self._shown)
-        self.box.setStyleSheet("background: #5c1f24;")
+        # Only the box itself: a bare rule also dyed the refusal's tooltip (the box is its parent), dark on dark red.
+        self.box.setStyleSheet("QAbstractSpinBox { background: #5c1f24; color: white; }")
         QtWidgets.QToolTip.showText(self.box.mapToGlobal(QtCore.QPoint(0, self.box.height())), text, self.box)
         self.refusal_text = text
         # A timer of the row's own: it dies with the row, should the panel be rebuilt before it fires.
