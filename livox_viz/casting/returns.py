@@ -210,7 +210,8 @@ class ReturnModel:
         #: Farthest range a false alarm may come from: the sensor's range gate.
         self.false_alarm_reach = min(self.range_max, params.detection_range(0.8))
         #: What the last run did (for benchmarks): pulses, footprints leaving their triangle, pulses the broad
-        #: phase named, and those the probes found covered.
+        #: phase named, those of them whose footprint stays on its triangle (probed), and those the probes found
+        #: covered.
         self.last_counts: dict[str, int] = {}
         #: Wall time spent in each step since the model was made, seconds (for benchmarks).
         self.stage_seconds: dict[str, float] = dict.fromkeys(STAGES, 0.0)
@@ -325,12 +326,13 @@ class ReturnModel:
                           footprint.tan_half_max, self._calibration, self.range_max, power, unit, leaves, reach)
         rows_basis = _Basis(xy_deg, panorama, rotation, basis_x, basis_y)
         self._lap("materials, edges and reach")
-        covered, near, may_meet, named = self._covered(leaves, directions_world, origins, rows_basis, reach,
-                                                       triangle, distance, moving, directions_sensor, rotation)
+        covered, near, may_meet, probed = self._covered(leaves, directions_world, origins, rows_basis, reach,
+                                                        triangle, distance, moving, directions_sensor, rotation)
         sampled_mask = leaves.copy()
         sampled_mask[covered] = True
         sampled = np.flatnonzero(sampled_mask)
-        counts = {"pulses": n, "leaves": int(leaves.sum()), "near": named, "covered": int(covered.size)}
+        counts = {"pulses": n, "leaves": int(leaves.sum()), "named": int(near.sum()), "probed": probed,
+                  "covered": int(covered.size)}
         if sampled.size:
             footprint_echoes = self._footprint_echoes(sampled, directions_world, origins, rows_basis, distance,
                                                       triangle, moving, ~near[sampled], may_meet)
