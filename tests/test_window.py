@@ -204,6 +204,30 @@ def test_every_key_runs_and_the_panel_follows_every_switch(window, qtbot, user_p
     assert all(extra <= 2 for extra in grown.values()), grown  # a picked-points marker, a reference: no pile-up
 
 
+def test_the_return_page_says_whose_figures_it_shows_and_its_title_fits(window, qtbot) -> None:
+    """The return page holds the datasheet model's figures whichever model runs: with the ideal model its title
+    says so ("Return model: ideal sheet" read as if the ideal model had a sheet), with the datasheet model it names
+    it; either title fits its group box at the window's narrowest panel."""
+    from qtpy import QtWidgets
+
+    def title() -> QtWidgets.QGroupBox:
+        boxes = window.panel.findChildren(QtWidgets.QGroupBox)
+        return next(box for box in boxes if box.title().startswith("Return model"))
+
+    window.resize(1280, 720)
+    window.controller.toggle_slider_page()
+    window.tick()
+    qtbot.waitUntil(lambda: any(b.title().startswith("Return model")
+                                for b in window.panel.findChildren(QtWidgets.QGroupBox)), timeout=5_000)
+    box = title()
+    assert box.title() == "Return model: datasheet's figures (running: ideal)"
+    assert box.fontMetrics().horizontalAdvance(box.title()) + 24 <= box.width(), (box.title(), box.width())
+    window.controller.toggle_returns_model()
+    qtbot.waitUntil(lambda: window.controller.session.config.returns_model == "datasheet", timeout=120_000)
+    window.tick()
+    qtbot.waitUntil(lambda: title().title() == "Return model: datasheet", timeout=5_000)
+
+
 def _has(config, name: str) -> bool:
     from livox_viz import LivoxVizError
 

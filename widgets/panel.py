@@ -428,7 +428,10 @@ class ParameterPanel(QtWidgets.QWidget):
         column.setSpacing(8)
         page = self.controller.page
         if page == "returns":
-            title = f"Return model: {config.returns_model} sheet"
+            # The page's figures are the datasheet model's whichever model runs ("Return model: ideal sheet" over
+            # them read as if the ideal model had a sheet of its own).
+            title = ("Return model: datasheet" if config.returns_model == "datasheet"
+                     else f"Return model: datasheet's figures (running: {config.returns_model})")
             names = RETURN_PARAMS
         else:
             title = _MODEL_TITLES.get(config.pattern_model, "Pattern")
