@@ -43,13 +43,17 @@ class LazyKernels:
         ``options(name)``: further numba options of the loop ``name``.
     prepare : callable, optional
         Called with ``namespace`` once, before the helpers (numba is imported by then).
+    called : tuple of str
+        Functions the loops or helpers call that are compiled as functions of their own, not inlined: a rare path
+        behind a helper inlined at many places (each inlined copy is typed and compiled again).
     """
 
     def __init__(self, namespace: dict[str, Any], helpers: tuple[str, ...] = (),
                  options: Callable[[str], dict[str, Any]] | None = None,
-                 prepare: Callable[[dict[str, Any]], None] | None = None) -> None:
+                 prepare: Callable[[dict[str, Any]], None] | None = None, called: tuple[str, ...] = ()) -> None:
         self.namespace = namespace
         self.helpers = helpers
+        self.called = called
         self.options = options
         self.prepare = prepare
         #: The loops compiled so far, by name.
@@ -69,6 +73,8 @@ class LazyKernels:
                         self.prepare(self.namespace)
                     for helper in self.helpers:
                         self.namespace[helper] = compile_nogil(self.namespace[helper], inline="always")
+                    for function in self.called:
+                        self.namespace[function] = compile_nogil(self.namespace[function])
                     self._prepared = True
                 options = self.options(name) if self.options is not None else {}
                 found = self.compiled[name] = compile_nogil(self.namespace[f"_{name}"], **options)
