@@ -421,6 +421,25 @@ def test_the_scrubber_seeks_when_paused_and_forgets_the_picks(window) -> None:
     assert window.status_message.text() != "range 12.000 m"
 
 
+def test_a_seek_with_no_pick_made_says_no_error_and_a_seek_takes_the_marks_away(window) -> None:
+    """A first-use trial paused and dragged the scrubber before clicking any point: the status bar said, in red,
+    pyvista's "Empty meshes cannot be plotted ..." (forgetting no picks drew an empty mesh), on every seek."""
+    session, controller = window.controller.session, window.controller
+    session.advance_to(1.0)
+    window.tick()
+    window.run(controller.toggle_pause)
+    for value in (300, 700):
+        window.scrubber.setValue(value)
+        window.tick()
+        assert not window._error and "mesh" not in session.message, session.message
+        assert "picks" not in controller.scene_view.plotter.actors
+    controller.scene_view.mark_picks([(1.0, 2.0, 3.0), (4.0, 5.0, 6.0)])
+    assert controller.scene_view.plotter.actors["picks"].mapper.GetInput().n_points == 2
+    window.scrubber.setValue(200)
+    window.tick()
+    assert not window._error and "picks" not in controller.scene_view.plotter.actors
+
+
 def test_the_clock_shown_holds_while_a_window_fills(window) -> None:
     """A trial saw the scan time run 24.0 -> 14.5 -> 20.9 -> 24.4 s as the unlimited window filled: the text and
     the status bar showed how far the filling had come. They show the time the window is filled to."""

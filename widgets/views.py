@@ -841,6 +841,11 @@ class SceneView(_View):
         """Mark the points picked (NED, metres): a ring round each, and the line between two."""
         self.plotter.subplot(*self.subplot)
         points = np.asarray(points_ned, dtype=np.float64).reshape(-1, 3)
+        if points.shape[0] == 0:
+            # pyvista refuses an empty mesh: forgetting the picks before any was made (a seek of the scrubber)
+            # said "Empty meshes cannot be plotted" in red.
+            self.plotter.remove_actor("picks", render=False)
+            return
         marks = pv.PolyData(points)
         if points.shape[0] == 2:
             marks.lines = np.array([2, 0, 1])
