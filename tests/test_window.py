@@ -304,6 +304,28 @@ def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot
     assert session.playback.paused
 
 
+def test_keys_run_while_the_menu_bar_has_the_focus(window, qtbot) -> None:
+    """A first-use trial opened a menu and closed it with Escape: the menu bar kept the focus, and from then on n,
+    b, space, Up ... did nothing (Qt: "Ambiguous shortcut overload: N": the menu entry's shortcut, tied to its
+    menu, matched there as well as the window's). Each key has one shortcut, which runs wherever the focus is
+    but in a control being typed in."""
+    from qtpy import QtCore, QtWidgets
+
+    session = window.controller.session
+    bar = window.menuBar()
+    bar.setFocus(QtCore.Qt.FocusReason.OtherFocusReason)
+    qtbot.waitUntil(lambda: QtWidgets.QApplication.focusWidget() is bar)
+    preset = session.preset_name
+    qtbot.keyClick(bar, "n")
+    assert session.preset_name != preset
+    qtbot.keyClick(bar, "b")
+    assert session.preset_name == preset
+    qtbot.keyClick(bar, QtCore.Qt.Key.Key_Up)
+    assert session.playback.speed == 2.0
+    qtbot.keyClick(bar, QtCore.Qt.Key.Key_Space)
+    assert session.playback.paused
+
+
 def test_a_typed_value_outside_the_range_is_refused_in_the_control(window, qtbot) -> None:
     from qtpy import QtCore
 

@@ -216,6 +216,8 @@ class MainWindow(QtWidgets.QMainWindow):
 
         self._make_status_bar()
         self._make_scrubber()
+        #: The keys of the key table a menu entry's action holds (:meth:`_action`).
+        self._menu_keys: set[str] = set()
         self._make_menus()
         self._make_shortcuts()
         self.help_dialog: QtWidgets.QDialog | None = None
@@ -327,11 +329,14 @@ class MainWindow(QtWidgets.QMainWindow):
             action.setShortcut(QtGui.QKeySequence(shortcut))
             action.setShortcutContext(QtCore.Qt.ShortcutContext.WindowShortcut)
         elif getattr(slot, "__name__", None) in KEY_OF_METHOD:
-            # The menu shows the key at the right of the entry; the key itself stays the window's shortcut
-            # (_make_shortcuts). A window-wide action on the same key would make both ambiguous (Qt then runs
-            # neither) and would fire in a spin box; tied to its menu it matches only where no focus ever is.
-            action.setShortcut(key_sequence(KEY_OF_METHOD[slot.__name__]))
-            action.setShortcutContext(QtCore.Qt.ShortcutContext.WidgetShortcut)
+            # The menu shows the key at the right of the entry and the action is that key's only shortcut, window
+            # wide (_make_shortcuts leaves it out): two shortcuts on one key are ambiguous and Qt runs neither. Tied
+            # to its menu (WidgetShortcut) it still matched once the menu bar had the focus (after Escape closed a
+            # menu): every such key then did nothing. A focused control keeps its own keys (KeepKeys).
+            key = KEY_OF_METHOD[slot.__name__]
+            action.setShortcut(key_sequence(key))
+            action.setShortcutContext(QtCore.Qt.ShortcutContext.WindowShortcut)
+            self._menu_keys.add(key)
         action.setCheckable(checkable)
         if group is not None:
             group.addAction(action)
@@ -438,6 +443,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self.shortcuts: list[QtGui.QShortcut] = []
         for row in KEYS:
             for key, method in row.bindings:
+                if key in self._menu_keys:  # its menu entry's action is its shortcut
+                    continue
                 shortcut = QtGui.QShortcut(key_sequence(key), self)
                 shortcut.setContext(QtCore.Qt.ShortcutContext.WindowShortcut)
                 target = getattr(self, method, None) or getattr(self.controller, method)
