@@ -326,6 +326,25 @@ def test_keys_run_while_the_menu_bar_has_the_focus(window, qtbot) -> None:
     assert session.playback.paused
 
 
+def test_the_panel_shows_the_speed_and_window_the_keys_and_menus_set(window, qtbot) -> None:
+    """A first-use trial pressed Up to 10 x: the status bar said 10x, the panel's speed box still 1 x real time
+    (and i left its window box behind too)."""
+    from livox_viz.widgets.overlay import WINDOWS
+
+    session, panel = window.controller.session, window.panel
+    for _ in range(3):
+        press(qtbot, window, "Up")
+    assert session.playback.speed == 8.0 and panel.speed_box.value() == 8.0
+    press(qtbot, window, "Down")
+    assert panel.speed_box.value() == 4.0
+    press(qtbot, window, "i")
+    assert session.window_index is not None
+    assert panel.window_choice.currentIndex() == session.window_index
+    assert panel.window_choice.currentData() == WINDOWS[session.window_index]
+    window.window_actions[2.0].trigger()
+    assert session.window == 2.0 and panel.window_box.value() == 2.0 and panel.window_choice.currentData() == 2.0
+
+
 def test_a_typed_value_outside_the_range_is_refused_in_the_control(window, qtbot) -> None:
     from qtpy import QtCore
 

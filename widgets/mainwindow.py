@@ -460,6 +460,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _after_action(self) -> None:
         self.controller.refresh()
+        self.panel.show_playback()  # the panel showed 1 x real time after Up had made it 10 x
         self._sync_menus()
         self._update_status()
         self._update_title()

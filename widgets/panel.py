@@ -513,6 +513,10 @@ class ParameterPanel(QtWidgets.QWidget):
         frame_group = self.findChild(QtWidgets.QGroupBox, "group-frame")
         if frame_group is not None:
             frame_group.setTitle(self._frame_title(config))
+        self.show_playback()
+
+    def show_playback(self) -> None:
+        """Show the session's playback speed and integration window (Up, Down, i and the menus change them)."""
         with signals_blocked(self.speed_box):
             self.speed_box.setValue(self.controller.session.playback.speed)
         self._show_window()
