@@ -304,6 +304,27 @@ def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot
     assert session.playback.paused
 
 
+def test_the_menus_check_the_current_choices_from_the_start(window) -> None:
+    """A first-use trial opened Returns, View > Colour the cloud by and Playback > Integration window before
+    pressing any key: no entry was checked. They show the current choice at once, and one made elsewhere (the
+    panel's window box, a preset with its own return model) when the menu opens."""
+    session = window.controller.session
+
+    def checked(actions) -> list:
+        return [choice for choice, action in actions.items() if action.isChecked()]
+
+    assert checked(window.returns_actions) == [session.config.returns_model] == ["ideal"]
+    assert checked(window.scene_colour_actions) == [session.display.scene_colour]
+    assert checked(window.drawing_actions) == [session.display.drawing]
+    assert checked(window.window_actions) == [session.window] == [0.5]
+    window.panel._set_window(1.0)
+    session.set_config(session.config.with_returns_model("datasheet"))
+    for top in window.menuBar().actions():
+        top.menu().aboutToShow.emit()
+    assert checked(window.window_actions) == [1.0]
+    assert checked(window.returns_actions) == ["datasheet"]
+
+
 def test_keys_run_while_the_menu_bar_has_the_focus(window, qtbot) -> None:
     """A first-use trial opened a menu and closed it with Escape: the menu bar kept the focus, and from then on n,
     b, space, Up ... did nothing (Qt: "Ambiguous shortcut overload: N": the menu entry's shortcut, tied to its

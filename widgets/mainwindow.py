@@ -219,6 +219,11 @@ class MainWindow(QtWidgets.QMainWindow):
         #: The keys of the key table a menu entry's action holds (:meth:`_action`).
         self._menu_keys: set[str] = set()
         self._make_menus()
+        # The choices' menus show the current one from the start, and whatever changed it since (the panel, a
+        # preset's own return model, a change that waited for its loops): none was checked before the first key.
+        self._sync_menus()
+        for top in self.menuBar().actions():
+            top.menu().aboutToShow.connect(self._sync_menus)
         self._make_shortcuts()
         self.help_dialog: QtWidgets.QDialog | None = None
 
