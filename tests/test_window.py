@@ -658,6 +658,27 @@ def test_a_status_message_longer_than_the_bar_is_elided_with_the_whole_in_its_to
         window.close()
 
 
+def test_a_short_status_text_is_shown_whole_when_the_bar_has_room(window) -> None:
+    """A first-use trial saw "loading dense_terr..." in a bar with 700 px to spare: the label asked for its
+    text's width rounded down to whole pixels and the elision measured it in fractions."""
+    from concurrent.futures import Future
+
+    from livox_viz.widgets.mainwindow import _Job
+    from qtpy import QtWidgets
+
+    window.say("scene urban")
+    texts = ["loading dense_terrain", "loading open_field", "loading urban", "exporting window.ply",
+             "reading mid70.csv", "fitting to livox_mid70", "loading hangar_with_a_long_name.obj"]
+    try:
+        for text in texts:
+            window._jobs[:] = [_Job(text, Future(), lambda _result: None, 0.0)]
+            window._update_status()
+            QtWidgets.QApplication.processEvents()
+            assert QtWidgets.QLabel.text(window.status_busy) == text, window.status_busy.width()
+    finally:
+        window._jobs.clear()
+
+
 def test_the_help_dialog_lists_every_key_inside_the_screen(window, qtbot) -> None:
     from livox_viz.widgets.keys import KEYS
 

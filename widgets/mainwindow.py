@@ -19,6 +19,7 @@ was, with a message naming what is wrong.
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 import threading
@@ -104,7 +105,11 @@ class ElidedLabel(QtWidgets.QLabel):
 
     def sizeHint(self) -> QtCore.QSize:
         margins = self.contentsMargins()
-        width = self.fontMetrics().horizontalAdvance(self._whole) + margins.left() + margins.right() + 2
+        # Rounded up: the whole pixels of horizontalAdvance round a text's width down as often as up, and the
+        # elision (which measures in fractions) then cut "loading dense_terrain" to "loading dense_terr..." with
+        # the bar's room to spare.
+        text_width = math.ceil(QtGui.QFontMetricsF(self.font()).horizontalAdvance(self._whole))
+        width = text_width + margins.left() + margins.right() + 2
         return QtCore.QSize(min(width, self._widest), super().sizeHint().height())
 
     def minimumSizeHint(self) -> QtCore.QSize:
