@@ -386,6 +386,28 @@ def test_a_typed_value_outside_the_range_is_refused_in_the_control(window, qtbot
     assert session.config.camera_fov == 40.0 and session.scan_time == 0.0
 
 
+def test_a_refusal_from_the_panel_is_red_and_the_next_message_is_not(window, qtbot) -> None:
+    """The README says a refused change is said in red: a value refused in the panel was said in the status bar's
+    plain colour, and after a refused key the red stuck to every later message until the next key."""
+    from qtpy import QtCore
+
+    def red() -> bool:
+        window._update_status()
+        return "#d9534f" in window.status_message.styleSheet()
+
+    row = window.panel.rows["camera_fov"]
+    row.box.lineEdit().selectAll()
+    qtbot.keyClicks(row.box.lineEdit(), "200")
+    qtbot.keyClick(row.box.lineEdit(), QtCore.Qt.Key.Key_Return)
+    assert "allowed: (0, 180)" in window.controller.session.message and red()
+    window.run(lambda: window.controller.set_window_seconds(1.0))  # a change that is taken: its message is plain
+    assert not red(), window.controller.session.message
+    window.run(lambda: window.controller.set_window_seconds(-5.0))  # a key refused: red
+    assert red(), window.controller.session.message
+    window.say("a message that is no refusal")
+    assert not red()
+
+
 def type_into(qtbot, box, text: str) -> None:
     """Select all of a spin box's text and type ``text`` as a user does, then Enter."""
     from qtpy import QtCore

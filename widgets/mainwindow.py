@@ -175,7 +175,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._jobs: list[_Job] = []
         #: Changes waiting for their compiled loops, by kind: (stages, action, what).
         self._pending: dict[str, tuple[set[str], Callable[[], None], str]] = {}
-        self._error = False
+        #: The refusal or failure the status bar shows in red while it is the message (a later message is not red).
+        self._error_text: str | None = None
         self._press: tuple[str, int, int] | None = None
         self._closing = False
         self._sized = False
@@ -205,7 +206,7 @@ class MainWindow(QtWidgets.QMainWindow):
                 self._watch_clicks(name, interactor)
 
         # The parameter panel.
-        self.panel = ParameterPanel(self.controller, self.say)
+        self.panel = ParameterPanel(self.controller, lambda text: self.say(text, error=True))  # its refusals
         scroll = QtWidgets.QScrollArea()
         scroll.setWidgetResizable(True)
         scroll.setWidget(self.panel)
@@ -464,7 +465,7 @@ class MainWindow(QtWidgets.QMainWindow):
     # Running actions ------------------------------------------------------------------------------
     def run(self, action: Callable[[], Any]) -> None:
         """Run a key's or menu's action: bad input becomes a message in the window, never a crash."""
-        self._error = self.controller.guarded(action) is not None
+        self._error_text = self.controller.guarded(action)
         if not self._closing:  # q closes the window: nothing left to bring up to date
             self._after_action()
 
@@ -476,9 +477,15 @@ class MainWindow(QtWidgets.QMainWindow):
         self._update_title()
 
     def say(self, text: str, error: bool = False) -> None:
-        """A message in the status bar (red for an error)."""
+        """A message in the status bar (red for an error, while it is the message)."""
         self.controller.session.message = text
-        self._error = error or self._error
+        if error:
+            self._error_text = text
+
+    @property
+    def _error(self) -> bool:
+        """Whether the status bar's message is a refusal or a failure (said red)."""
+        return self._error_text is not None and self._error_text == self.controller.session.message
 
     def _defer(self, stages: set[str], action: Callable[[], None], what: str, kind: str = "config") -> bool:
         """The controller's gate: True when the loops of ``stages`` are loaded (run now); else ``action`` runs when

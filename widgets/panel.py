@@ -382,7 +382,7 @@ class ParameterPanel(QtWidgets.QWidget):
     controller : LivoxVizApp
         Whose session the panel shows and asks.
     say : callable
-        ``say(text)``: a message for the status bar.
+        ``say(text)``: a refusal for the status bar (every message the panel says is one).
     """
 
     def __init__(self, controller, say: Callable[[str], None], parent: QtWidgets.QWidget | None = None) -> None:
