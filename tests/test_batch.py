@@ -153,6 +153,8 @@ def test_a_job_with_a_broken_scene_fails_alone_with_its_message(tmp_path: Path,
     (("seconds = 0.1", "seconds = 1e9"), "asks 100,000,000,000,000 points"),
     (("seeds = [3]", "seeds = [-1]"), "grid.seeds holds -1; allowed: whole numbers"),
     (("seconds = 0.1", "seconds = 0.1\n[grid"), "not a readable TOML spec"),
+    (("seconds = 0.1", "seconds = 0.1\nimu_rate = 5"), "imu_rate = 5; allowed: IMU samples per second, 200 to 10000"),
+    (("seconds = 0.1", "seconds = 0.1\nimu_rate = 1e9"), "imu_rate = 1000000000.0; allowed: IMU samples per second"),
 ])
 def test_a_bad_spec_is_one_line_before_any_job(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                                change: tuple[str, str], message: str) -> None:

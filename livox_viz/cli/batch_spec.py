@@ -40,6 +40,7 @@ from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.jsonfile import read_json_file
 from livox_viz.core.workload import POINT_BUDGET
 from livox_viz.motion.flights import BUILTIN_TRAJECTORIES, MAX_SPEED
+from livox_viz.motion.imu import MAX_RATE, MIN_RATE
 from livox_viz.patterns.stream import points_before
 from livox_viz.scene.scenes import list_scenes
 
@@ -214,8 +215,11 @@ def _options(data: dict[str, Any], where: str) -> dict[str, Any]:
                               or not 0 <= speed <= MAX_SPEED):
         raise SpecError(f"{where}: trajectory_speed = {speed!r}; allowed: 0 to {MAX_SPEED:g} m/s")
     rate = options["imu_rate"]
-    if rate is not None and (isinstance(rate, bool) or not isinstance(rate, int | float) or not rate > 0):
-        raise SpecError(f"{where}: imu_rate = {rate!r}; allowed: IMU samples per second (200 to 10000)")
+    # The range scan's --imu-rate takes: checked here, or every bag job would fail alone after the batch started.
+    if rate is not None and (isinstance(rate, bool) or not isinstance(rate, int | float)
+                             or not MIN_RATE <= rate <= MAX_RATE):
+        raise SpecError(f"{where}: imu_rate = {rate!r}; allowed: IMU samples per second, {MIN_RATE:g} to "
+                        f"{MAX_RATE:g}")
     workers = options["workers_per_job"]
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 1024):
         raise SpecError(f"{where}: workers_per_job = {workers!r}; allowed: a whole number of threads, 1 to 1024")
