@@ -167,6 +167,30 @@ def test_a_bad_spec_is_one_line_before_any_job(tmp_path: Path, capsys: pytest.Ca
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize(("make", "message"), [
+    (lambda out: out.chmod(0o555), "is not a writable folder; allowed: a folder this user can write"),
+    (lambda out: (out / "jobs").write_text("mine"), "jobs is not a folder; allowed: a folder whose jobs/"),
+    (lambda out: (out / "manifest.csv").mkdir(), "the manifest cannot be written there"),
+    (lambda out: ((out / "manifest.csv").write_text("mine"), (out / "manifest.csv").chmod(0o444)),
+     "the manifest cannot be written there"),
+])
+def test_an_out_folder_the_batch_cannot_write_is_one_line_before_any_job(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], make, message: str) -> None:
+    """Even to root, who may write in a folder with no write bit but whose manifest is then refused."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC)
+    out = tmp_path / "out"
+    out.mkdir()
+    make(out)
+    try:
+        assert main(["batch", str(spec), "--out", str(out)]) == 2
+    finally:
+        out.chmod(0o755)
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err and err.startswith(f"livox-viz: error: --out {out}: "), err
+    assert not (out / "jobs").is_dir() or not any((out / "jobs").iterdir())
+
+
 def test_an_unreachable_scheduler_is_one_line_before_any_job(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                              capsys: pytest.CaptureFixture[str]) -> None:
     pytest.importorskip("distributed")

@@ -34,7 +34,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from livox_viz.core.atomic import write_text_atomic
+from livox_viz.core.atomic import resolve_destination, write_text_atomic
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.portable import usable_cores
 from livox_viz.files.export import sidecar_path
@@ -369,12 +369,27 @@ def cmd_batch(args: argparse.Namespace) -> int:
 
 
 def _check_out(out: Path) -> Path:
-    """The batch's folder (made later, if needed): refused when it is a file or cannot be made or written."""
+    """The batch's folder (made later, if needed): refused when it is a file or cannot be made or written, or
+    when what the batch writes in it (``jobs/``, ``manifest.csv``) could not be written there.
+
+    A folder with no write bit at all is refused even to root, as the files' own atomic writes refuse it
+    (:func:`~livox_viz.core.atomic.resolve_destination`): checked here, or the jobs ran and the manifest was
+    refused at the end.
+    """
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out}: is a file; allowed: a folder (made if needed) for the jobs and the manifest")
     existing = next(folder for folder in (out.absolute(), *out.absolute().parents) if folder.exists())
-    if not existing.is_dir() or not os.access(existing, os.W_OK):
+    if not existing.is_dir() or not os.access(existing, os.W_OK) or not existing.stat().st_mode & 0o222:
         raise UsageError(f"--out {out}: {existing} is not a writable folder; allowed: a folder this user can write")
+    jobs = out / "jobs"
+    if os.path.lexists(jobs) and not jobs.is_dir():
+        raise UsageError(f"--out {out}: {jobs} is not a folder; allowed: a folder whose jobs/ (made if needed) is "
+                         "the batch's folder of jobs")
+    if out.is_dir():
+        try:
+            resolve_destination(out / "manifest.csv")
+        except LivoxVizError as error:
+            raise UsageError(f"--out {out}: the manifest cannot be written there ({error})") from None
     return out
 
 
