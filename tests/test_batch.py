@@ -191,6 +191,38 @@ def test_an_out_folder_the_batch_cannot_write_is_one_line_before_any_job(
     assert not (out / "jobs").is_dir() or not any((out / "jobs").iterdir())
 
 
+def test_a_folder_of_another_batch_is_refused_and_its_manifest_kept(tmp_path: Path,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC)
+    out = tmp_path / "out"
+    out.mkdir()
+    theirs = "job,status\nsomeone-else-s0-1234567890,done\n"
+    (out / "manifest.csv").write_text(theirs)
+    assert main(["batch", str(spec), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert "holds another batch's manifest (1 of its jobs, e.g. someone-else-s0-1234567890, are not jobs of " \
+           "spec.toml); allowed: this spec's own folder" in err, err
+    assert (out / "manifest.csv").read_text() == theirs and not (out / "jobs").exists()
+    (out / "manifest.csv").write_text("x;y\n")  # a user's own file of that name, not a manifest
+    assert main(["batch", str(spec), "--out", str(out)]) == 2
+    assert "holds a manifest.csv that is not a batch's manifest" in capsys.readouterr().err
+    assert (out / "manifest.csv").read_text() == "x;y\n" and not (out / "jobs").exists()
+
+
+def test_a_grown_spec_keeps_its_folder_a_shrunk_one_does_not(local_run: tuple[Path, Path], tmp_path: Path) -> None:
+    """A folder's manifest whose jobs are all still the spec's (a seed added) is the spec's own: it finishes there."""
+    spec, folder = local_run
+    grown = tmp_path / "grown.toml"
+    grown.write_text(spec.read_text().replace("seeds = [3]", "seeds = [3, 4]"))
+    batch_commands._check_same_batch(folder, read_spec(grown), "grown.toml")
+    shrunk = tmp_path / "shrunk.toml"
+    shrunk.write_text(spec.read_text().replace('trajectories = ["none", "line", "circle"]', 'trajectories = ["line"]'))
+    with pytest.raises(batch_commands.UsageError, match=r"\(4 of its jobs, e\.g\. livox_mid70-urban-none-"):
+        batch_commands._check_same_batch(folder, read_spec(shrunk), "shrunk.toml")
+
+
 def test_an_unreachable_scheduler_is_one_line_before_any_job(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                              capsys: pytest.CaptureFixture[str]) -> None:
     pytest.importorskip("distributed")

@@ -314,6 +314,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
         raise UsageError("give SPEC and --out DIR (or --example for a spec to start from)")
     jobs = read_spec(args.spec, force=args.force)
     root = _check_out(Path(args.out))
+    _check_same_batch(root, jobs, Path(args.spec).name)
     runner = DaskRunner(args.dask) if args.dask else None
     (root / "jobs").mkdir(parents=True, exist_ok=True)
     records: dict[str, dict[str, Any]] = {}
@@ -391,6 +392,34 @@ def _check_out(out: Path) -> Path:
         except LivoxVizError as error:
             raise UsageError(f"--out {out}: the manifest cannot be written there ({error})") from None
     return out
+
+
+def _check_same_batch(out: Path, jobs: list[Job], spec: str) -> None:
+    """Refuse a folder whose manifest is another batch's (it lists jobs this spec does not make) or not a batch
+    manifest at all: the run would replace it with this spec's, and that batch's record of its jobs was lost.
+
+    A spec grown since (more seeds) keeps its folder: all the jobs its manifest lists are still the spec's.
+    """
+    path = out / "manifest.csv"
+    if not path.is_file():
+        return
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            rows = csv.reader(handle)
+            header = next(rows, None)
+            if header is None or "job" not in header:
+                raise ValueError("no job column")
+            column = header.index("job")
+            listed = [row[column] for row in rows if len(row) > column]
+    except (OSError, UnicodeDecodeError, csv.Error, ValueError):
+        raise UsageError(f"--out {out}: holds a manifest.csv that is not a batch's manifest; allowed: a folder of "
+                         "this spec's batch (to finish it) or a new one (it is not replaced)") from None
+    names = {job.name for job in jobs}
+    others = [name for name in listed if name not in names]
+    if others:
+        raise UsageError(f"--out {out}: holds another batch's manifest ({len(others):,} of its jobs, e.g. "
+                         f"{others[0]}, are not jobs of {spec}); allowed: this spec's own folder (to finish it) or a "
+                         "new one (it is not replaced)")
 
 
 class _Say:
