@@ -243,6 +243,51 @@ def test_an_unreachable_scheduler_is_one_line_before_any_job(tmp_path: Path, mon
     assert "allowed: local:N with N from 1 to 1024" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("answer", "message"), [
+    (b"HTTP/1.0 400 Bad Request\r\n\r\n" * 4, "no Dask scheduler this can use there (MemoryError: "),
+    (None, "no Dask scheduler answered within 1 s (something accepts connections there but does not answer as one)"),
+])
+def test_an_address_that_is_not_a_scheduler_is_one_line_before_any_job(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], answer: bytes | None,
+        message: str) -> None:
+    """A web server's port (what it answers read as a Dask message's length), or a peer that never answers: Dask's
+    own timeout covers the connection only, and its handshake waited for ever."""
+    pytest.importorskip("distributed")
+    import socket
+    import threading
+
+    monkeypatch.setattr(batch_commands, "CONNECT_SECONDS", 1.0)
+    listener = socket.create_server(("127.0.0.1", 0))
+    port = listener.getsockname()[1]
+    held: list[socket.socket] = []
+
+    def serve() -> None:
+        listener.settimeout(30.0)  # then the peers go (before this fix, Client() waited until then)
+        try:
+            while True:
+                peer, _ = listener.accept()
+                held.append(peer)
+                if answer is not None:
+                    peer.sendall(answer)
+        except OSError:
+            pass
+        for peer in held:
+            peer.close()
+
+    server = threading.Thread(target=serve, daemon=True)
+    server.start()
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC)
+    try:
+        assert main(["batch", str(spec), "--out", str(tmp_path / "out"), "--dask", f"tcp://127.0.0.1:{port}"]) == 2
+    finally:
+        listener.close()
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--dask tcp://127.0.0.1:{port}: {message}" in err, err
+    assert "allowed: a running Dask scheduler's address" in err
+    assert not (tmp_path / "out").exists()
+
+
 def test_the_example_spec_is_a_valid_spec(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["batch", "--example"]) == 0
     spec = tmp_path / "spec.toml"

@@ -257,11 +257,7 @@ class DaskRunner:
             self.client = Client(self._cluster)
             self.where = f"a Dask LocalCluster of {self.processes} process" + ("" if self.processes == 1 else "es")
         else:
-            try:
-                self.client = Client(address, timeout=f"{CONNECT_SECONDS:g}s")
-            except (OSError, TimeoutError, ValueError) as error:
-                raise UsageError(f"--dask {address}: cannot reach the scheduler ({str(error).splitlines()[0]:.120}); "
-                                 "allowed: a running Dask scheduler's address (tcp://HOST:8786) or local:N") from None
+            self.client = _connect(address)
             self.processes = max(1, len(self.client.scheduler_info().get("workers", {})))
             self.where = f"the Dask scheduler at {address}"
         self._futures: list = []
@@ -297,6 +293,44 @@ class DaskRunner:
         self.client.close()
         if self._cluster is not None:
             self._cluster.close()
+
+
+def _connect(address: str):
+    """A Dask client of the scheduler at ``address``, or one line saying why not within about CONNECT_SECONDS.
+
+    The client is made on a thread of its own and waited for with a deadline: distributed's own timeout covers
+    the connection only, and something that accepts it but never answers as a scheduler (a web server, the
+    dashboard's port, a firewall's proxy) held ``Client()`` in its handshake for ever. What such a peer sends
+    back fails in ways of its own (a length read from an HTTP reply asked for exabytes, a tls:// address
+    without a certificate raised TypeError): every failure here is the address's, said in one line.
+    """
+    import threading
+
+    from distributed import Client
+
+    made: dict[str, Any] = {}
+
+    def connect() -> None:
+        try:
+            made["client"] = Client(address, timeout=f"{CONNECT_SECONDS:g}s")
+        except Exception as error:
+            made["error"] = error
+
+    allowed = "allowed: a running Dask scheduler's address (tcp://HOST:8786) or local:N"
+    thread = threading.Thread(target=connect, name="livox-viz dask connect", daemon=True)
+    thread.start()
+    thread.join(CONNECT_SECONDS + 5.0)
+    if thread.is_alive():
+        raise UsageError(f"--dask {address}: no Dask scheduler answered within {CONNECT_SECONDS:g} s (something "
+                         f"accepts connections there but does not answer as one); {allowed}")
+    error = made.get("error")
+    if error is None:
+        return made["client"]
+    line = (str(error).splitlines() or [""])[0]
+    if isinstance(error, OSError | TimeoutError | ValueError):
+        raise UsageError(f"--dask {address}: cannot reach the scheduler ({line:.120}); {allowed}")
+    raise UsageError(f"--dask {address}: no Dask scheduler this can use there ({type(error).__name__}: {line:.120}); "
+                     f"{allowed}")
 
 
 def _lost(job: Job, error: BaseException) -> dict[str, Any]:
