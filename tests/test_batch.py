@@ -288,6 +288,20 @@ def test_an_address_that_is_not_a_scheduler_is_one_line_before_any_job(
     assert not (tmp_path / "out").exists()
 
 
+def test_dask_local_workers_leave_ctrl_c_to_the_batch() -> None:
+    """A terminal's Ctrl-C reaches every process of its group: a LocalCluster's workers printed their
+    KeyboardInterrupt tracebacks while the batch was stopping them itself."""
+    pytest.importorskip("distributed")
+    before = signal.getsignal(signal.SIGINT)
+    runner = batch_commands.DaskRunner("local:1")
+    try:
+        ignored = runner.client.run(lambda: signal.getsignal(signal.SIGINT) == signal.SIG_IGN)
+    finally:
+        runner.close()
+    assert list(ignored.values()) == [True]
+    assert signal.getsignal(signal.SIGINT) is before  # this process takes Ctrl-C as before
+
+
 def test_the_example_spec_is_a_valid_spec(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["batch", "--example"]) == 0
     spec = tmp_path / "spec.toml"

@@ -29,8 +29,10 @@ import os
 import shutil
 import signal
 import sys
+import threading
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -219,6 +221,22 @@ class LocalRunner:
             self._pool.join()
 
 
+@contextmanager
+def _workers_ignore_interrupts() -> Iterator[None]:
+    """Ctrl-C ignored while a LocalCluster spawns its worker processes, which keep it ignored (an ignored signal
+    stays so through exec, and their event loops then take no Ctrl-C of their own): a terminal's Ctrl-C reaches
+    every process of its group, and each worker printed its KeyboardInterrupt's traceback while the batch stopped
+    them itself. Only the main thread may set a handler; elsewhere nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _restore_environment(saved: dict[str, str]) -> None:
     """Make ``os.environ`` equal ``saved`` again (variables added since removed, changed ones put back)."""
     for name in set(os.environ) - set(saved):
@@ -250,8 +268,9 @@ class DaskRunner:
             # launched afterwards by the same program ran four times slower.
             saved = dict(os.environ)
             try:
-                self._cluster = LocalCluster(n_workers=self.processes, threads_per_worker=1, processes=True,
-                                             dashboard_address=None)
+                with _workers_ignore_interrupts():
+                    self._cluster = LocalCluster(n_workers=self.processes, threads_per_worker=1, processes=True,
+                                                 dashboard_address=None)
             finally:
                 _restore_environment(saved)
             self.client = Client(self._cluster)
