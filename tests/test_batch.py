@@ -302,6 +302,21 @@ def test_dask_local_workers_leave_ctrl_c_to_the_batch() -> None:
     assert signal.getsignal(signal.SIGINT) is before  # this process takes Ctrl-C as before
 
 
+@pytest.mark.parametrize("encoding", ["utf-8-sig", "utf-16"])
+def test_the_example_saved_by_windows_tools_reads_as_it_is(tmp_path: Path, encoding: str) -> None:
+    """Notepad's byte-order mark, and Windows PowerShell 5.1's ``batch --example > spec.toml`` (UTF-16)."""
+    spec = tmp_path / "spec.toml"
+    spec.write_bytes(EXAMPLE.encode(encoding))
+    plain = tmp_path / "plain.toml"
+    plain.write_text(EXAMPLE, encoding="utf-8")
+    assert [job.name for job in read_spec(spec)] == [job.name for job in read_spec(plain)]
+
+
+def test_a_folder_given_as_the_spec_is_named_a_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["batch", str(tmp_path), "--out", str(tmp_path / "out")]) == 2
+    assert f"{tmp_path}: is a folder; allowed: a TOML or JSON batch spec file" in capsys.readouterr().err
+
+
 def test_the_example_spec_is_a_valid_spec(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["batch", "--example"]) == 0
     spec = tmp_path / "spec.toml"

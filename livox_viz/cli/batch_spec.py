@@ -180,6 +180,8 @@ def read_spec(path: str | Path, force: bool = False) -> list[Job]:
 
 
 def _load(path: Path) -> dict[str, Any]:
+    if path.is_dir():
+        raise SpecError(f"{path}: is a folder; allowed: a TOML or JSON batch spec file (livox-viz batch --example)")
     if not path.is_file():
         raise SpecError(f"{path}: no such spec file; allowed: a TOML or JSON batch spec (livox-viz batch --example)")
     if path.suffix.lower() == ".json":
@@ -189,13 +191,21 @@ def _load(path: Path) -> dict[str, Any]:
         if size > MAX_SPEC_BYTES:
             raise SpecError(f"{path}: {size:,} bytes; allowed: a spec of at most {MAX_SPEC_BYTES:,} bytes")
         try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
+            data = tomllib.loads(_decode(path.read_bytes()))
         except (UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
             raise SpecError(f"{path}: not a readable TOML spec ({error}); allowed: TOML, or JSON named *.json") \
                 from None
     if not isinstance(data, dict):
         raise SpecError(f"{path}: a {type(data).__name__}; allowed: a table with a [grid]")
     return data
+
+
+def _decode(data: bytes) -> str:
+    """A spec's text: UTF-8, with or without the byte-order mark Windows editors write, or UTF-16 with its mark
+    (what Windows PowerShell 5.1's ``livox-viz batch --example > spec.toml`` writes)."""
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return data.decode("utf-16")
+    return data.decode("utf-8-sig")
 
 
 def _options(data: dict[str, Any], where: str) -> dict[str, Any]:
