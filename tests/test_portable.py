@@ -91,6 +91,18 @@ def test_process_alive() -> None:
     assert not portable.process_alive(child.pid)
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="zombies are read from Linux's /proc")
+def test_a_process_that_ended_unreaped_is_not_alive() -> None:
+    """A zombie (ended, its parent not yet waiting for it) is not running: a batch killed with its workers left
+    them so until init reaped them, and the rerun kept their temporaries as a running process's."""
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    os.waitid(os.P_PID, child.pid, os.WEXITED | os.WNOWAIT)  # ended, not reaped
+    try:
+        assert not portable.process_alive(child.pid)
+    finally:
+        child.wait()
+
+
 def test_write_at_puts_bytes_where_pwrite_would_and_keeps_the_position(tmp_path: Path) -> None:
     path = tmp_path / "body"
     with open(path, "wb", buffering=0) as raw:

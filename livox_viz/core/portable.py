@@ -100,7 +100,20 @@ def process_alive(pid: int) -> bool:
         return False
     except PermissionError:
         return True
-    return True
+    return not _ended_unreaped(pid)
+
+
+def _ended_unreaped(pid: int) -> bool:
+    """Whether ``pid`` has ended but its parent has not reaped it yet (a zombie: state Z in Linux's /proc; False
+    where there is no /proc). A batch killed with its workers leaves them so until init reaps them, and a rerun
+    in the meantime kept their temporaries as a running process's (a CI run of the batch's kill test)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as handle:
+            stat = handle.read()
+    except OSError:
+        return False
+    end = stat.rfind(b")")  # the command's name, in parentheses, may hold anything
+    return stat[end + 2:end + 3] == b"Z"
 
 
 if sys.platform == "win32":  # pragma: no cover - Windows only
