@@ -54,17 +54,17 @@ TIMER_MS = 33
 QT_KEYS = {"space": "Space", "Right": "Right", "Up": "Up", "Down": "Down"}
 #: The key table's key of each method it binds (a menu entry calling one shows its key).
 KEY_OF_METHOD = {method: key for row in KEYS for key, method in row.bindings}
-
-
-def key_sequence(key: str) -> QtGui.QKeySequence:
-    """Qt's key sequence of a key of the key table."""
-    return QtGui.QKeySequence(QT_KEYS.get(key, key.upper() if len(key) == 1 else key))
 #: Formats the window's cloud can be exported to (the writers of ``livox-viz scan``).
 EXPORT_FORMATS = (("PLY", ".ply"), ("PCD", ".pcd"), ("LAS 1.4", ".las"), ("NumPy NPZ", ".npz"), ("CSV", ".csv"))
 #: Points a refilled integration window casts per tick: about 40 ms of the ideal model's work on one core.
 FILL_PER_TICK = 40_000
 #: Pixels a click may move between press and release and still be a click (not a drag of the camera).
 CLICK_SLOP = 4
+
+
+def key_sequence(key: str) -> QtGui.QKeySequence:
+    """Qt's key sequence of a key of the key table."""
+    return QtGui.QKeySequence(QT_KEYS.get(key, key.upper() if len(key) == 1 else key))
 
 
 def application() -> QtWidgets.QApplication:

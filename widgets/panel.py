@@ -547,11 +547,12 @@ class ParameterPanel(QtWidgets.QWidget):
             return None
 
     def _commit_speed(self) -> None:
-        value = self._typed(self.speed_box, f"{SPEED_RANGE[0]:g} to {SPEED_RANGE[1]:g} x")
+        allowed = f"{SPEED_RANGE[0]:g} to {SPEED_RANGE[1]:g} x"
+        value = self._typed(self.speed_box, allowed)
         if value is None or value == self.controller.session.playback.speed:
             return
         if not (math.isfinite(value) and SPEED_RANGE[0] <= value <= SPEED_RANGE[1]):
-            self.say(f"speed {value:g} refused; allowed: {SPEED_RANGE[0]:g} to {SPEED_RANGE[1]:g} x")
+            self.say(f"speed {value:g} refused; allowed: {allowed}")
             with signals_blocked(self.speed_box):
                 self.speed_box.setValue(self.controller.session.playback.speed)
             return

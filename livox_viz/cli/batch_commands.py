@@ -45,7 +45,8 @@ from .batch_spec import EXAMPLE, Job, SpecError, read_spec, scan_argv
 from .common import PROG, Command, UsageError, whole_number
 from .signals import StopRequests, signal_name, signal_status
 
-#: The manifest's columns, one row a job in the spec's order.
+#: The batch's record in its folder, and its columns, one row a job in the spec's order.
+MANIFEST = "manifest.csv"
 MANIFEST_COLUMNS = ("job", "status", "sensor", "scene", "trajectory", "seed", "returns", "outputs", "seconds",
                     "frames", "points", "duration_s", "files", "error")
 #: Seconds a batch waits for a Dask scheduler to answer.
@@ -178,7 +179,7 @@ def write_manifest(root: Path, jobs: list[Job], records: dict[str, dict[str, Any
                         record.get("trajectory"), record.get("seed"), record.get("returns"), record.get("outputs"),
                         record.get("seconds"), record.get("frames", ""), record.get("points", ""),
                         record.get("duration_s", ""), files, record.get("error", "")])
-    path = root / "manifest.csv"
+    path = root / MANIFEST
     write_text_atomic(path, text.getvalue())
     return path
 
@@ -230,7 +231,8 @@ def _workers_ignore_interrupts() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    previous = signal.getsignal(signal.SIGINT)
+    _ignore_interrupts()
     try:
         yield
     finally:
@@ -441,7 +443,7 @@ def _check_out(out: Path) -> Path:
                          "the batch's folder of jobs")
     if out.is_dir():
         try:
-            resolve_destination(out / "manifest.csv")
+            resolve_destination(out / MANIFEST)
         except LivoxVizError as error:
             raise UsageError(f"--out {out}: the manifest cannot be written there ({error})") from None
     return out
@@ -453,7 +455,7 @@ def _check_same_batch(out: Path, jobs: list[Job], spec: str) -> None:
 
     A spec grown since (more seeds) keeps its folder: all the jobs its manifest lists are still the spec's.
     """
-    path = out / "manifest.csv"
+    path = out / MANIFEST
     if not path.is_file():
         return
     try:
