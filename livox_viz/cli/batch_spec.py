@@ -38,6 +38,7 @@ from livox_viz.config.returns_params import RETURN_MODELS
 from livox_viz.config.sensor import load_config
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.jsonfile import read_json_file
+from livox_viz.core.textfile import decode_text
 from livox_viz.core.workload import POINT_BUDGET
 from livox_viz.motion.flights import BUILTIN_TRAJECTORIES, MAX_SPEED
 from livox_viz.motion.imu import MAX_RATE, MIN_RATE
@@ -191,21 +192,13 @@ def _load(path: Path) -> dict[str, Any]:
         if size > MAX_SPEC_BYTES:
             raise SpecError(f"{path}: {size:,} bytes; allowed: a spec of at most {MAX_SPEC_BYTES:,} bytes")
         try:
-            data = tomllib.loads(_decode(path.read_bytes()))
+            data = tomllib.loads(decode_text(path.read_bytes()))
         except (UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
             raise SpecError(f"{path}: not a readable TOML spec ({error}); allowed: TOML, or JSON named *.json") \
                 from None
     if not isinstance(data, dict):
         raise SpecError(f"{path}: a {type(data).__name__}; allowed: a table with a [grid]")
     return data
-
-
-def _decode(data: bytes) -> str:
-    """A spec's text: UTF-8, with or without the byte-order mark Windows editors write, or UTF-16 with its mark
-    (what Windows PowerShell 5.1's ``livox-viz batch --example > spec.toml`` writes)."""
-    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
-        return data.decode("utf-16")
-    return data.decode("utf-8-sig")
 
 
 def _options(data: dict[str, Any], where: str) -> dict[str, Any]:

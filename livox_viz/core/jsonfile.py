@@ -1,7 +1,9 @@
 """A JSON reader that turns every failure into one line naming the file and what is wrong.
 
-NaN and Infinity (which Python's parser accepts but JSON does not) are refused
-with the key that holds them; so is nesting too deep to parse. At most
+Text is UTF-8, with or without Notepad's byte-order mark, or UTF-16 with its
+mark, as PowerShell 5.1 writes (:mod:`~livox_viz.core.textfile`). NaN and
+Infinity (which Python's parser accepts but JSON does not) are refused with
+the key that holds them; so is nesting too deep to parse. At most
 :data:`MAX_JSON_BYTES` (64 MiB) is ever read: the file is read to one byte past
 the limit, so an endless source (``/dev/zero``, a pipe that never closes its
 end, which ``stat`` calls empty) is refused as soon as it passes the limit.
@@ -15,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from livox_viz.core.errors import ConfigError
+from livox_viz.core.textfile import ENCODINGS, decode_text
 
 # Files ------------------------------------------------------------------------------
 MAX_JSON_BYTES = 64 << 20
@@ -61,10 +64,12 @@ def _read_json_file(path: str | os.PathLike[str]) -> Any:
             data = handle.read(MAX_JSON_BYTES + 1)
         if len(data) > MAX_JSON_BYTES:
             raise ConfigError(too_big)
-        text = data.decode("utf-8-sig")
+        text = decode_text(data)
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not text (byte {exc.start}: {exc.reason}); allowed: JSON in {ENCODINGS}") from None
+    except OSError as exc:
         raise ConfigError(f"{path}: cannot read ({exc})") from None
     if not text.strip():
         raise ConfigError(f"{path}: is empty, expected a JSON object")

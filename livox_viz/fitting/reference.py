@@ -30,6 +30,7 @@ import numpy as np
 
 from livox_viz.config.presets import shipped_preset_dir
 from livox_viz.core.errors import LivoxVizError, require_file
+from livox_viz.core.textfile import ENCODINGS, decode_text
 from livox_viz.fitting.table import ReferencePattern
 from livox_viz.patterns.planes import frd_from_zup, xy_from_directions
 
@@ -296,11 +297,11 @@ def _read_csv(path: Path) -> _FileRows:
                             "(cut the table, or save it as .npy)")
     raw = path.read_bytes()
     try:
-        text = raw.decode("utf-8-sig")
+        text = decode_text(raw)
     except UnicodeDecodeError as exc:
         line = raw[: exc.start].count(b"\n") + 1
         raise LivoxVizError(f"{path}: not UTF-8 text (byte {exc.start}, line {line}); allowed: a Livox CSV "
-                            "(Time/s,Azimuth/deg,Zenith/deg)") from None
+                            f"(Time/s,Azimuth/deg,Zenith/deg) in {ENCODINGS}") from None
     lines = text.splitlines()
     if not lines or not lines[0].strip():
         raise LivoxVizError(f"{path}: is empty; allowed: a Livox CSV with a header line Time/s,Azimuth/deg,Zenith/deg")

@@ -14,7 +14,6 @@ and a line may be at most :data:`MAX_LINE_CHARS` characters.
 
 from __future__ import annotations
 
-import codecs
 import io
 import os
 import re
@@ -24,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from livox_viz.core.errors import LivoxVizError, quoted, require_file
+from livox_viz.core.textfile import ENCODINGS, utf8_blocks
 from livox_viz.motion.trajectory import Trajectory
 
 #: Poses kept for the scan's span, at most.
@@ -63,10 +63,13 @@ def load_tum(path: str | os.PathLike[str], start: float | None = None, stop: flo
     line_number = 0
     rest = b""
     with open(path, "rb") as handle:
+        blocks = utf8_blocks(handle, _BLOCK_BYTES)
         while after < MARGIN_POSES:
-            block = handle.read(_BLOCK_BYTES)
-            if handle.tell() == len(block):  # the first block: a UTF-8 byte-order mark (Windows' Notepad) goes
-                block = block.removeprefix(codecs.BOM_UTF8)
+            try:
+                block = next(blocks, b"")
+            except UnicodeDecodeError as exc:
+                raise LivoxVizError(f"{path}: not text ({exc.reason}); allowed: a TUM trajectory (t x y z qx qy qz "
+                                    f"qw per line) in {ENCODINGS}") from None
             if not block and not rest:
                 break
             lines = (rest + block).split(b"\n")
@@ -109,7 +112,8 @@ def _parse_lines(path: Path, lines: list[bytes], first_line: int) -> np.ndarray:
     try:
         text = b"\n".join(lines).decode("utf-8")
     except UnicodeDecodeError:
-        raise LivoxVizError(f"{path}: not UTF-8 text; allowed: a TUM trajectory (t x y z qx qy qz qw)") from None
+        raise LivoxVizError(f"{path}: not UTF-8 text; allowed: a TUM trajectory (t x y z qx qy qz qw) in "
+                            f"{ENCODINGS}") from None
     text = text.replace(",", " ")
     if not text.strip():
         return np.zeros((0, 8))
