@@ -22,7 +22,8 @@ products are several times slower with BLAS's default threads on this shared
 
 ``--terrain`` alone: the dense terrain's datasheet scan against its ideal scan with the broad phase's tiles tested
 by their boxes only and by their cells' boxes too (issue 34, item 4: target >= 0.3 x), in turns, same run; then
-how many pulses a perfect broad phase would still name (a footprint ray really meets another tile).
+how many pulses a perfect broad phase would still name (a footprint ray really meets another tile), and each step's
+cost on one thread.
 """
 
 from __future__ import annotations
@@ -294,6 +295,7 @@ def main() -> None:
     if "--terrain" in sys.argv:
         terrain_broad_phase()
         terrain_met()
+        one_thread_parts("livox_mid70_risley", "dense_terrain")
         return
     if "--child" in sys.argv:
         print(json.dumps(speed(sys.argv[2], sys.argv[3])))
