@@ -835,9 +835,10 @@ def _run(args: argparse.Namespace, grid: Grid, spec: str, root: Path, lock: Batc
                         say.finished(record)
                     lock.save()
                     if stop.requested:
-                        stopped = stop.signum
-                        runner.stop()
                         break
+                if stop.requested:  # also when it came while finished jobs were being skipped
+                    stopped = stop.signum
+                    runner.stop()
         finally:
             if isinstance(runner, DaskRunner) and stopped is None:
                 runner.close()
