@@ -164,9 +164,10 @@ def _ignore_interrupts() -> None:
 # Records and the manifest ----------------------------------------------------------------------------
 def finished_record(root: Path, name: str) -> dict[str, Any] | None:
     """The job ``name``'s record from an earlier run, when its files are all there with their sizes (else None)."""
-    path = root / "jobs" / name / "job.json"
     try:
-        record = json.loads(path.read_text(encoding="utf-8"))
+        # Strings, not Paths: a rerun asks this of every job of the grid, most of them without a record yet.
+        with open(os.path.join(root, "jobs", name, "job.json"), "rb") as handle:
+            record = json.loads(handle.read().decode("utf-8"))
     except (OSError, ValueError):
         return None
     if not isinstance(record, dict) or record.get("job") != name:
