@@ -4,11 +4,14 @@ Every job (:mod:`~livox_viz.cli.batch_spec`) is a normal ``scan`` (:func:`run_jo
 into a folder of its own, ``OUT/jobs/<job>/``, whose files are written atomically
 as ``scan`` writes them; its record (parameters, outputs with their sizes and
 SHA-256, frames, points, duration, or its error) goes last into ``job.json``
-beside them, and the records make ``OUT/manifest.csv``. A job whose record says
-done and whose files are there is not run again, so a batch stopped half-way
-(Ctrl-C, a killed process, a lost node) is finished by running it again; a
-failed job is reported with its error, does not stop the others, and runs again
-with ``--retry``.
+beside them, and as a row at the end of ``OUT/manifest.csv`` (:class:`Manifest`).
+A job whose record says done and whose files are there is not run again, so a
+batch stopped half-way (Ctrl-C, a killed process, a lost node) is finished by
+running it again; a failed job is reported with its error, does not stop the
+others, and runs again with ``--retry``. The grid is never listed: its jobs are
+made, named and handed out as the runner has room (:func:`_bounded`), so the
+batch's memory does not grow with it. One batch at a time holds a folder
+(:class:`BatchLock`).
 
 Jobs run on a local pool of processes (the default: nothing to start), or on
 Dask distributed (``--dask ADDRESS`` for a running scheduler, a SLURM or
