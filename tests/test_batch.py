@@ -502,3 +502,25 @@ def test_a_second_batch_in_a_folder_is_refused_while_the_first_runs(tmp_path: Pa
     lock.write_text(held)  # its process now gone
     assert main(["batch", str(spec), "--out", str(out)]) == 128 + signal.SIGINT
     assert len(_manifest(out)) == 6 and not lock.exists()
+
+
+def test_the_local_pool_takes_jobs_as_it_has_room(tmp_path: Path) -> None:
+    """A pool of one process holds at most two jobs (one running, one queued): of a grid of 200,000, it has
+    taken no more than that when the first ends (it took all of them, each queued in the pool, before)."""
+    grid = read_spec(_huge_spec(tmp_path), force=True)
+    taken = [0]
+
+    def jobs():
+        for job in grid:
+            taken[0] += 1
+            yield job
+
+    runner = batch_commands.LocalRunner(1)
+    try:
+        for record in runner.run(jobs(), tmp_path / "out", 1):
+            if record is not None:
+                break
+    finally:
+        runner.stop()
+    assert record["status"] == "done" and record["job"] == grid[0].name, record
+    assert taken[0] == 2
