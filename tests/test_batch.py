@@ -7,6 +7,7 @@ import csv
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -72,10 +73,26 @@ def test_every_job_of_a_local_batch_writes_what_the_scan_alone_writes(local_run:
 
 def test_the_same_batch_on_a_dask_local_cluster_writes_the_same_files(local_run: tuple[Path, Path],
                                                                       tmp_path: Path) -> None:
+    """Handed to the cluster two at a time (--jobs 2)."""
     pytest.importorskip("distributed")
     spec, out = local_run
+    from distributed import Client
+
     environment = dict(os.environ)
-    assert main(["batch", str(spec), "--out", str(tmp_path / "dask"), "--dask", "local:2"]) == 0
+    handed: list = []
+    most = [0]
+    submit = Client.submit
+
+    def counted(client: Client, *args, **kwargs):
+        future = submit(client, *args, **kwargs)
+        handed.append(future)
+        most[0] = max(most[0], sum(not f.done() for f in handed))
+        return future
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(Client, "submit", counted)
+        assert main(["batch", str(spec), "--out", str(tmp_path / "dask"), "--dask", "local:2", "--jobs", "2"]) == 0
+    assert len(handed) == 6 and most[0] == 2  # --jobs: at most two jobs on the cluster at once
     # Dask's nannies put their workers' variables into the spawning process's environment: not into ours.
     assert dict(os.environ) == environment
     local, dask = _manifest(out), _manifest(tmp_path / "dask")
@@ -93,9 +110,11 @@ def test_a_rerun_runs_nothing_finished_again(local_run: tuple[Path, Path], capsy
     assert {p: p.stat().st_mtime_ns for p in (out / "jobs").rglob("*")} == before
 
 
-def test_a_batch_killed_half_way_is_finished_by_running_it_again(tmp_path: Path) -> None:
+def test_a_batch_killed_half_way_is_finished_by_running_it_again(tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
     """Killed (the batch and its workers, SIGKILL) once two jobs are done: the rerun runs the four others only, and
-    leaves the two as they were."""
+    leaves the two as they were. Meanwhile another batch in that folder is refused, naming the running one; the
+    killed one's manifest holds whole rows of finished jobs, and its lock does not block the rerun."""
     spec = tmp_path / "spec.toml"
     spec.write_text(SPEC)
     out = tmp_path / "out"
@@ -104,10 +123,17 @@ def test_a_batch_killed_half_way_is_finished_by_running_it_again(tmp_path: Path)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and len(list(out.glob("jobs/*/job.json"))) < 2:
         time.sleep(0.05)
-    os.killpg(process.pid, signal.SIGKILL)
-    process.communicate()
+    try:
+        assert main(["batch", str(spec), "--out", str(out)]) == 2
+    finally:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.communicate()
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--out {out}: another batch is running there (process {process.pid}, " in err
     finished = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("jobs/*/job.json")}
     assert 2 <= len(finished) < 6
+    assert {row["status"] for row in _manifest(out)} <= {"done"} and {row["job"] for row in _manifest(out)} <= set(
+        finished)
     rerun = subprocess.run(argv, capture_output=True, text=True, timeout=300)
     assert rerun.returncode == 0, rerun.stderr
     assert f"{len(finished)} already finished; {6 - len(finished)} to run" in rerun.stderr
@@ -135,10 +161,10 @@ def test_a_job_with_a_broken_scene_fails_alone_with_its_message(tmp_path: Path,
     # Not run again unless asked; --retry runs it again (the finished one stays as it was).
     records = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("jobs/*/job.json")}
     assert main(["batch", str(spec), "--out", str(out)]) == 1
-    assert "1 failed: --retry runs them again" in capsys.readouterr().err
+    assert "1 failed: --retry runs it again" in capsys.readouterr().err
     assert {p.parent.name: p.stat().st_mtime_ns for p in out.glob("jobs/*/job.json")} == records
     assert main(["batch", str(spec), "--out", str(out), "--retry"]) == 1
-    assert "1 failed ones again; 1 to run" in capsys.readouterr().err
+    assert "1 failed one again; 1 to run" in capsys.readouterr().err
     again = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("jobs/*/job.json")}
     assert [name for name in records if again[name] != records[name]] == [rows[str(broken)]["job"]]
 
@@ -325,3 +351,176 @@ def test_the_example_spec_is_a_valid_spec(tmp_path: Path, capsys: pytest.Capture
     jobs = read_spec(spec)
     assert len(jobs) == 8 and len({job.name for job in jobs}) == 8 and len(jobs) <= MAX_JOBS
     assert {job.outputs for job in jobs} == {("npz",)} and {job.seed for job in jobs} == {0, 1}
+
+
+class _Pretend:
+    """A runner that pretends: each job it takes ends at once, done, with a record (``job.json``) and no files;
+    after ``LIMIT`` jobs it stops the batch as Ctrl-C does. Counts the jobs it took."""
+
+    LIMIT = 3
+    taken = 0
+
+    def __init__(self, processes: int) -> None:
+        self.where = f"pretend ({processes})"
+
+    def run(self, jobs, root: Path, workers: int | None):
+        for job in jobs:
+            _Pretend.taken += 1
+            record = {"job": job.name, **job.parameters(), "status": "done", "frames": 1, "points": 10,
+                      "duration_s": 0.0, "files": {}, "error": ""}
+            folder = root / "jobs" / job.name
+            folder.mkdir(parents=True)
+            (folder / "job.json").write_text(json.dumps(record))
+            yield record
+            if _Pretend.taken % self.LIMIT == 0:
+                signal.raise_signal(signal.SIGINT)
+                yield None
+
+    def stop(self) -> None:
+        pass
+
+
+def _huge_spec(tmp_path: Path, seeds: int = 100_000) -> Path:
+    """A spec of ``2 x seeds`` jobs."""
+    spec = tmp_path / "huge.toml"
+    spec.write_text(SPEC.replace("seeds = [3]", f"seeds = {list(range(seeds))}").replace(
+        '"none", "line", "circle"', '"none"'))
+    return spec
+
+
+@pytest.fixture
+def named(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """How many times a job was named (its name is its hash: the cost of a job that is only listed)."""
+    from livox_viz.cli import batch_spec
+
+    count = [0]
+    name = batch_spec.Job.name
+
+    def counted(job: batch_spec.Job) -> str:
+        count[0] += 1
+        return name.fget(job)
+
+    monkeypatch.setattr(batch_spec.Job, "name", property(counted))
+    return count
+
+
+def test_a_huge_grid_names_its_jobs_only_as_they_are_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                         named: list[int], capsys: pytest.CaptureFixture[str]) -> None:
+    """200,000 jobs with --force, stopped after three: only those (and the few taken ahead) are named, the
+    progress counts of the grid's total, the manifest holds their three rows; a rerun skips them by reading their
+    records and the manifest's index, naming no more jobs than it takes."""
+    monkeypatch.setattr(batch_commands, "LocalRunner", _Pretend)
+    monkeypatch.setattr(_Pretend, "taken", 0)
+    spec = _huge_spec(tmp_path)
+    out = tmp_path / "out"
+    assert main(["batch", str(spec), "--out", str(out), "--force", "--jobs", "1"]) == 128 + signal.SIGINT
+    err = capsys.readouterr().err
+    assert named[0] <= 10, named
+    assert "batch: 200,000 jobs from huge.toml: 0 already finished; 200,000 to run" in err
+    assert "[3/200,000] done livox_mid70-urban-none-s1-ideal-npz-" in err
+    assert "batch stopped by Ctrl-C: 3 of 200,000 jobs done, 0 failed, 30 points" in err
+    rows = _manifest(out)
+    assert [row["job"] for row in rows] == [job.name for job in read_spec(spec, force=True)[:3]]
+    named[0] = 0
+    assert main(["batch", str(spec), "--out", str(out), "--force", "--jobs", "1"]) == 128 + signal.SIGINT
+    err = capsys.readouterr().err
+    assert "3 already finished; 199,997 to run" in err and "[6/200,000] done" in err
+    assert named[0] <= 15, named
+    assert [row["job"] for row in _manifest(out)] == [job.name for job in read_spec(spec, force=True)[:6]]
+
+
+def test_a_manifest_cut_in_a_row_loses_that_row_only(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """A batch killed while it appended a row leaves a part of a line: the rerun drops it, keeps every row before
+    it, and the job whose row it was gets its whole row from its record."""
+    monkeypatch.setattr(batch_commands, "LocalRunner", _Pretend)
+    monkeypatch.setattr(_Pretend, "taken", 0)
+    spec = _huge_spec(tmp_path, seeds=20_000)
+    out = tmp_path / "out"
+    main(["batch", str(spec), "--out", str(out), "--force"])
+    manifest = (out / "manifest.csv").read_bytes()
+    lines = manifest.splitlines(keepends=True)
+    assert len(lines) == 4 and all(line.endswith(b"\n") for line in lines)
+    (out / "manifest.csv").write_bytes(b"".join(lines[:3]) + lines[3][:25])  # the third row cut
+    capsys.readouterr()
+    main(["batch", str(spec), "--out", str(out), "--force"])
+    err = capsys.readouterr().err
+    assert "2 already finished; 39,998 to run" in err and "[4/40,000] done" in err
+    assert "batch stopped by Ctrl-C: 6 of 40,000 jobs done" in err, err
+    assert (out / "manifest.csv").read_bytes().startswith(b"".join(lines[:3]))
+    rows = _manifest(out)
+    assert sorted(row["job"] for row in rows) == sorted(job.name for job in read_spec(spec, force=True)[:6])
+    assert all(row["status"] == "done" and row["points"] == "10" for row in rows)
+
+
+def test_counts_of_one_are_singular(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                    capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setattr(batch_commands, "LocalRunner", _Pretend)
+    monkeypatch.setattr(_Pretend, "taken", 1)  # the one job runs to its end
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.replace('"none", "line", "circle"', '"none"').replace('"npz", "las+rosbag"', '"npz"'))
+    assert main(["batch", str(spec), "--out", str(tmp_path / "out")]) == 0
+    captured = capsys.readouterr()
+    assert "batch: 1 job from spec.toml: 0 already finished; 1 to run" in captured.err
+    assert "(10 points, 0.0 s); 0 failed, 10 points" in captured.err
+    assert "batch: 1 of 1 job done, 0 failed, 10 points; manifest" in captured.out
+    assert "1 jobs" not in captured.err + captured.out
+    assert batch_commands._count(1, "point") == "1 point" and batch_commands._count(2, "process") == "2 processes"
+
+
+def test_a_second_batch_in_a_folder_is_refused_while_the_first_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """The lock of a live process refuses the batch in one line naming it, before any job; a killed one's lock
+    (gone, or ended and not yet reaped) does not block the rerun."""
+    monkeypatch.setattr(batch_commands, "LocalRunner", _Pretend)
+    monkeypatch.setattr(_Pretend, "taken", 0)
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC)
+    out = tmp_path / "out"
+    out.mkdir()
+    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    lock = out / ".batch.lock"
+    held = json.dumps({"pid": other.pid, "host": socket.gethostname(), "started": "2026-01-02 03:04:05",
+                       "running": []})
+    lock.write_text(held)
+    try:
+        assert main(["batch", str(spec), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith(f"livox-viz: error: --out {out}: another batch is running "
+                                                       f"there (process {other.pid}, since 2026-01-02 03:04:05)"), err
+        assert not (out / "jobs").exists() and not (out / "manifest.csv").exists() and lock.exists()
+        other.kill()
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and batch_commands.process_alive(other.pid):
+            time.sleep(0.01)
+        # Ended, not yet reaped (a zombie): stale.
+        assert main(["batch", str(spec), "--out", str(out)]) == 128 + signal.SIGINT
+    finally:
+        other.kill()
+        other.wait()
+    assert len(_manifest(out)) == 3 and not lock.exists()
+    lock.write_text(held)  # its process now gone
+    assert main(["batch", str(spec), "--out", str(out)]) == 128 + signal.SIGINT
+    assert len(_manifest(out)) == 6 and not lock.exists()
+
+
+def test_the_local_pool_takes_jobs_as_it_has_room(tmp_path: Path) -> None:
+    """A pool of one process holds at most two jobs (one running, one queued): of a grid of 200,000, it has
+    taken no more than that when the first ends (it took all of them, each queued in the pool, before)."""
+    grid = read_spec(_huge_spec(tmp_path), force=True)
+    taken = [0]
+
+    def jobs():
+        for job in grid:
+            taken[0] += 1
+            yield job
+
+    runner = batch_commands.LocalRunner(1)
+    try:
+        for record in runner.run(jobs(), tmp_path / "out", 1):
+            if record is not None:
+                break
+    finally:
+        runner.stop()
+    assert record["status"] == "done" and record["job"] == grid[0].name, record
+    assert taken[0] == 2

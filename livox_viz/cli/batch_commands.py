@@ -4,11 +4,14 @@ Every job (:mod:`~livox_viz.cli.batch_spec`) is a normal ``scan`` (:func:`run_jo
 into a folder of its own, ``OUT/jobs/<job>/``, whose files are written atomically
 as ``scan`` writes them; its record (parameters, outputs with their sizes and
 SHA-256, frames, points, duration, or its error) goes last into ``job.json``
-beside them, and the records make ``OUT/manifest.csv``. A job whose record says
-done and whose files are there is not run again, so a batch stopped half-way
-(Ctrl-C, a killed process, a lost node) is finished by running it again; a
-failed job is reported with its error, does not stop the others, and runs again
-with ``--retry``.
+beside them, and as a row at the end of ``OUT/manifest.csv`` (:class:`Manifest`).
+A job whose record says done and whose files are there is not run again, so a
+batch stopped half-way (Ctrl-C, a killed process, a lost node) is finished by
+running it again; a failed job is reported with its error, does not stop the
+others, and runs again with ``--retry``. The grid is never listed: its jobs are
+made, named and handed out as the runner has room (:func:`_bounded`), so the
+batch's memory does not grow with it. One batch at a time holds a folder
+(:class:`BatchLock`).
 
 Jobs run on a local pool of processes (the default: nothing to start), or on
 Dask distributed (``--dask ADDRESS`` for a running scheduler, a SLURM or
@@ -28,20 +31,24 @@ import multiprocessing
 import os
 import shutil
 import signal
+import socket
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from array import array
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
-from livox_viz.core.atomic import resolve_destination, write_text_atomic
+import numpy as np
+
+from livox_viz.core.atomic import atomic_path, resolve_destination, write_text_atomic
 from livox_viz.core.errors import LivoxVizError
-from livox_viz.core.portable import usable_cores
+from livox_viz.core.portable import process_alive, usable_cores
 from livox_viz.files.export import sidecar_path
 
-from .batch_spec import EXAMPLE, Job, SpecError, read_spec, scan_argv
+from .batch_spec import EXAMPLE, MAX_JOBS, Grid, Job, SpecError, read_spec, scan_argv
 from .common import PROG, Command, UsageError, whole_number
 from .signals import StopRequests, signal_name, signal_status
 
@@ -49,8 +56,16 @@ from .signals import StopRequests, signal_name, signal_status
 MANIFEST = "manifest.csv"
 MANIFEST_COLUMNS = ("job", "status", "sensor", "scene", "trajectory", "seed", "returns", "outputs", "seconds",
                     "frames", "points", "duration_s", "files", "error")
+#: The lock of a folder a batch runs in.
+LOCK = ".batch.lock"
+#: Seconds after which a lock without its content (its batch killed while making it) is stale.
+STALE_EMPTY_LOCK_SECONDS = 10.0
 #: Seconds a batch waits for a Dask scheduler to answer.
 CONNECT_SECONDS = 10.0
+#: Jobs handed to a Dask cluster at once, at least (without --jobs).
+DASK_IN_FLIGHT = 1000
+#: Failed jobs named one by one at the end of a batch.
+SHOWN_FAILURES = 20
 
 
 # One job, in a worker ------------------------------------------------------------------------------
@@ -150,68 +165,455 @@ def _ignore_interrupts() -> None:
 
 
 # Records and the manifest ----------------------------------------------------------------------------
-def finished_record(root: Path, job: Job) -> dict[str, Any] | None:
-    """The job's record from an earlier run, when its files are all there with their sizes (else None)."""
-    path = root / "jobs" / job.name / "job.json"
+def finished_record(root: Path, name: str) -> dict[str, Any] | None:
+    """The job ``name``'s record from an earlier run, when its files are all there with their sizes (else None)."""
     try:
-        record = json.loads(path.read_text(encoding="utf-8"))
+        # Strings, not Paths: a rerun asks this of every job of the grid, most of them without a record yet.
+        with open(os.path.join(root, "jobs", name, "job.json"), "rb") as handle:
+            record = json.loads(handle.read().decode("utf-8"))
     except (OSError, ValueError):
         return None
-    if not isinstance(record, dict) or record.get("job") != job.name:
+    if not isinstance(record, dict) or record.get("job") != name:
         return None
     if record.get("status") == "done":
-        for name, about in record.get("files", {}).items():
-            file = root / "jobs" / job.name / name
+        for file_name, about in record.get("files", {}).items():
+            file = root / "jobs" / name / file_name
             if not file.is_file() or file.stat().st_size != about.get("bytes"):
                 return None
     return record
 
 
-def write_manifest(root: Path, jobs: list[Job], records: dict[str, dict[str, Any]]) -> Path:
-    """``root/manifest.csv``: one row a job, in the spec's order (``pending`` for one not run yet)."""
-    text = io.StringIO()
-    table = csv.writer(text, lineterminator="\n")
-    table.writerow(MANIFEST_COLUMNS)
-    for job in jobs:
-        record = records.get(job.name) or {"job": job.name, **job.parameters(), "status": "pending"}
-        files = " ".join(f"{name}:{about['sha256']}" for name, about in record.get("files", {}).items())
-        table.writerow([record.get("job"), record.get("status"), record.get("sensor"), record.get("scene"),
-                        record.get("trajectory"), record.get("seed"), record.get("returns"), record.get("outputs"),
-                        record.get("seconds"), record.get("frames", ""), record.get("points", ""),
-                        record.get("duration_s", ""), files, record.get("error", "")])
-    path = root / MANIFEST
-    write_text_atomic(path, text.getvalue())
-    return path
+def _row(record: dict[str, Any]) -> list[Any]:
+    """A record as the manifest's row, each field on one line (a torn last line is then a line without its end)."""
+    files = " ".join(f"{name}:{about['sha256']}" for name, about in record.get("files", {}).items())
+    row = [record.get("job"), record.get("status"), record.get("sensor"), record.get("scene"),
+           record.get("trajectory"), record.get("seed"), record.get("returns"), record.get("outputs"),
+           record.get("seconds"), record.get("frames", ""), record.get("points", ""), record.get("duration_s", ""),
+           files, record.get("error", "")]
+    return [" ".join(value.splitlines()) if isinstance(value, str) else value for value in row]
+
+
+def _name_key(name: str) -> int:
+    """A job name's 64-bit key in the index of the manifest's rows."""
+    return int.from_bytes(hashlib.blake2b(name.encode("utf-8"), digest_size=8).digest(), "little")
+
+
+_STATUSES = ("done", "failed")
+
+
+class Manifest:
+    """``OUT/manifest.csv``, grown by one row as each job finishes, and the index of the jobs it lists.
+
+    A row is appended (and flushed) as a job ends, never the whole file rewritten per job (that was quadratic in
+    the jobs): a batch killed at any moment leaves every earlier row, and at most a last line without its end,
+    which the next run drops before it appends. The index says which jobs have a row and their last status and
+    points: 17 bytes a row (a sorted array of 64-bit keys of the names, a status byte, the points), 170 MB for
+    10**7 rows, so a rerun skips finished jobs without holding their names. A job that runs again (``--retry``,
+    its files gone) gets a row after its old one; :meth:`tidy` keeps only each job's last row at the end of a run
+    (one pass), and puts a grid of at most MAX_JOBS jobs in the spec's order, as a small batch's manifest always
+    was. Rows are those of finished jobs (done or failed); a job without one has not finished.
+    """
+
+    def __init__(self, root: Path, grid: Grid, spec: str) -> None:
+        self.path = root / MANIFEST
+        self.grid = grid
+        self.spec = spec
+        self.done = self.failed = self.points = 0
+        #: Rows that a later row of the same job makes stale (or that are no finished job's: an old version's
+        #: ``pending``), so :meth:`tidy` has work.
+        self.superseded = 0
+        self._keys: np.ndarray = np.zeros(0, np.uint64)
+        self._statuses: np.ndarray = np.zeros(0, np.int8)
+        self._points: np.ndarray = np.zeros(0, np.int64)
+        self._late: dict[str, tuple[str, int]] = {}  # rows appended this run for jobs the index may meet again
+        self._end = 0  # where the last whole line ends
+        self._seen: tuple[int, int] | None = None  # the file's size and time when read
+        self._handle: Any = None
+        self._header = list(MANIFEST_COLUMNS)
+
+    # Reading ---------------------------------------------------------------------------------------------
+    def read(self) -> None:
+        """Read the rows there are (a last line without its end is left out), checking they are this grid's.
+
+        Raises
+        ------
+        UsageError
+            When the file is not a batch manifest, or lists jobs this spec does not make (another batch's).
+        """
+        out = self.path.parent
+        self.done = self.failed = self.points = self.superseded = 0
+        if not self.path.is_file():
+            self._seen = None
+            return
+        keys: array[int] = array("Q")
+        statuses: array[int] = array("b")
+        points: array[int] = array("q")
+        others = 0
+        example = ""
+        try:
+            status = self.path.stat()
+            with open(self.path, "rb") as raw:
+                self._end = _whole_lines_end(raw)
+                raw.seek(0)
+                text = io.TextIOWrapper(io.BufferedReader(_Limited(raw, self._end)), encoding="utf-8", newline="")
+                rows = csv.reader(text)
+                header = next(rows, None)
+                if header is None or "job" not in header:
+                    raise ValueError("no job column")
+                self._header = header
+                if header != list(MANIFEST_COLUMNS):
+                    self.superseded += 1  # another version's columns: tidy() writes them as this version's
+                column = {name: header.index(name) for name in header}
+                for row in rows:
+                    if len(row) != len(header):
+                        continue
+                    name = row[column["job"]]
+                    fields = dict(zip(header, row, strict=True))
+                    if self.grid.place_of(name, fields) is None:
+                        others += 1
+                        example = example or name
+                        continue
+                    if fields.get("status") not in _STATUSES:
+                        self.superseded += 1
+                        continue
+                    keys.append(_name_key(name))
+                    statuses.append(_STATUSES.index(fields["status"]))
+                    points.append(_whole(fields.get("points")))
+        except (OSError, UnicodeDecodeError, csv.Error, ValueError):
+            raise UsageError(f"--out {out}: holds a manifest.csv that is not a batch's manifest; allowed: a folder of "
+                             "this spec's batch (to finish it) or a new one (it is not replaced)") from None
+        if others:
+            raise UsageError(f"--out {out}: holds another batch's manifest ({others:,} of its jobs, e.g. {example}, "
+                             f"are not jobs of {self.spec}); allowed: this spec's own folder (to finish it) or a new "
+                             "one (it is not replaced)")
+        self._seen = (status.st_size, status.st_mtime_ns)
+        self._index(np.frombuffer(keys, np.uint64), np.frombuffer(statuses, np.int8),
+                    np.frombuffer(points, np.int64))
+
+    def _index(self, keys: np.ndarray, statuses: np.ndarray, points: np.ndarray) -> None:
+        """Keep each job's last row: its key, status and points, sorted by key."""
+        order = np.argsort(keys, kind="stable")
+        keys, statuses, points = keys[order], statuses[order], points[order]
+        last: np.ndarray = np.ones(len(keys), bool)
+        last[:-1] = keys[1:] != keys[:-1]
+        self.superseded += int(len(keys) - last.sum())
+        self._keys, self._statuses, self._points = keys[last], statuses[last], points[last]
+        self.done = int((self._statuses == 0).sum())
+        self.failed = int((self._statuses == 1).sum())
+        self.points = int(self._points[self._statuses == 0].sum())
+
+    def previous(self, name: str) -> tuple[str, int] | None:
+        """The job's status and points in its last row, or None if the manifest has no row of it."""
+        if name in self._late:
+            return self._late[name]
+        key = np.uint64(_name_key(name))
+        at = int(np.searchsorted(self._keys, key))
+        if at < len(self._keys) and self._keys[at] == key:
+            return _STATUSES[self._statuses[at]], int(self._points[at])
+        return None
+
+    # Writing ---------------------------------------------------------------------------------------------
+    def open(self) -> None:
+        """Ready to append (the batch holds the folder's lock): read again if the file changed since it was read,
+        drop a last line without its end, start a new file with its header."""
+        if self.path.is_file():
+            status = self.path.stat()
+            if self._seen != (status.st_size, status.st_mtime_ns):
+                self.read()
+            if self.superseded and self._header != list(MANIFEST_COLUMNS):
+                self.tidy()
+                self.read()
+        if not self.path.is_file():
+            write_text_atomic(self.path, ",".join(MANIFEST_COLUMNS) + "\n")
+            self._end = self.path.stat().st_size
+        self._handle = open(self.path, "r+", newline="", encoding="utf-8")
+        self._handle.truncate(self._end)
+        self._handle.seek(self._end)
+
+    def append(self, record: dict[str, Any], again: bool = False) -> None:
+        """A finished job's row, on disk when this returns (flushed to the system, not synced: a power cut may
+        lose the last rows, which the next run's records put back). ``again``: the job may be met again in this
+        run (its row is remembered by name)."""
+        previous = self.previous(record["job"])
+        if previous is not None:
+            self.superseded += 1
+            self._count(*previous, -1)
+        status = record["status"]
+        points = int(record.get("points") or 0)
+        self._count(status, points, 1)
+        if again:
+            self._late[record["job"]] = (status, points)
+        text = io.StringIO()
+        csv.writer(text, lineterminator="\n").writerow(_row(record))
+        self._handle.write(text.getvalue())
+        self._handle.flush()
+
+    def _count(self, status: str, points: int, sign: int) -> None:
+        if status == "done":
+            self.done += sign
+            self.points += sign * points
+        elif status == "failed":
+            self.failed += sign
+
+    def close(self) -> None:
+        if self._handle is not None:
+            self._handle.close()
+            self._handle = None
+
+    def tidy(self) -> None:
+        """Rewrite the file (atomically, in one pass) with each finished job's last row only, in the spec's order
+        when the grid has at most MAX_JOBS jobs; nothing to do for a bigger grid whose rows are each a job's only
+        one."""
+        self.close()
+        small = self.grid.total <= MAX_JOBS
+        if not self.path.is_file() or not (small or self.superseded):
+            return
+        keys: array[int] = array("Q")
+        with open(self.path, newline="", encoding="utf-8") as handle:
+            rows = csv.reader(handle)
+            header = next(rows)
+            for row in rows:
+                keys.append(_name_key(row[header.index("job")]) if len(row) == len(header) else 0)
+        found = np.frombuffer(keys, np.uint64)
+        order = np.argsort(found, kind="stable")  # a job's rows stay in the file's order
+        ends: np.ndarray = np.ones(len(found), bool)
+        ends[:-1] = found[order][1:] != found[order][:-1]
+        last: np.ndarray = np.zeros(len(found), bool)  # each job's last row
+        last[order[ends]] = True
+        kept: list[tuple[int, list[Any]]] = []
+        with open(self.path, newline="", encoding="utf-8") as handle, atomic_path(self.path) as temporary, \
+                open(temporary, "w", newline="", encoding="utf-8") as written:
+            rows = csv.reader(handle)
+            header = next(rows)
+            table = csv.writer(written, lineterminator="\n")
+            table.writerow(MANIFEST_COLUMNS)
+            for number, row in enumerate(rows):
+                if not last[number] or len(row) != len(header):
+                    continue
+                fields = dict(zip(header, row, strict=True))
+                if fields.get("status") not in _STATUSES:
+                    continue
+                line = [fields.get(column, "") for column in MANIFEST_COLUMNS]
+                if small:
+                    kept.append((self.grid.place_of(fields["job"], fields) or 0, line))
+                else:
+                    table.writerow(line)
+            table.writerows(line for _, line in sorted(kept, key=lambda placed: placed[0]))
+        self.superseded = 0
+
+
+def _whole(text: Any) -> int:
+    try:
+        return int(text)
+    except (TypeError, ValueError):
+        return 0
+
+
+def _whole_lines_end(raw: BinaryIO) -> int:
+    """Where the file's last whole line (ending in a newline) ends: a batch killed while appending a row left at
+    most a part of a line after it."""
+    end = raw.seek(0, os.SEEK_END)
+    block = 1 << 16
+    while end > 0:
+        start = max(0, end - block)
+        raw.seek(start)
+        data = raw.read(end - start)
+        newline = data.rfind(b"\n")
+        if newline >= 0:
+            return start + newline + 1
+        end = start
+    return 0
+
+
+class _Limited(io.RawIOBase):
+    """The first ``size`` bytes of a binary file, as a file."""
+
+    def __init__(self, raw: BinaryIO, size: int) -> None:
+        self.raw = raw
+        self.left = size
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer: Any) -> int:
+        count = min(len(buffer), self.left)
+        data = self.raw.read(count)
+        buffer[:len(data)] = data
+        self.left -= len(data)
+        return len(data)
+
+
+# The folder's lock -----------------------------------------------------------------------------------
+class BatchLock:
+    """``OUT/.batch.lock``: one batch at a time in a folder, and the jobs it has in flight.
+
+    Made with an exclusive create (``O_EXCL``, on Windows too), holding the batch's process id, host and start, and
+    the names of the jobs it has handed out (rewritten atomically as they change): a batch killed with jobs in
+    flight leaves them there, and the rerun puts the rows of those that finished into the manifest before it
+    counts what is done. A lock whose process is gone (or ended and not yet reaped: :func:`process_alive`) is
+    stale and taken over; one made on another host (a shared folder) cannot be probed and is taken as held.
+    """
+
+    def __init__(self, root: Path) -> None:
+        self.path = root / LOCK
+        self.running: set[str] = set()
+        #: The jobs the stale lock taken over listed as in flight.
+        self.left_running: list[str] = []
+        self._written: frozenset[str] = frozenset()
+        self._held = False
+        self._started = time.strftime("%Y-%m-%d %H:%M:%S")
+
+    def holder(self) -> dict[str, Any] | None:
+        """What the lock of a live batch says (its ``pid``, ``host``, ``started``), or None: no lock, or stale."""
+        try:
+            text = self.path.read_text(encoding="utf-8")
+            data = json.loads(text)
+            pid = int(data["pid"])
+            host = str(data.get("host", ""))
+        except FileNotFoundError:
+            return None
+        except (OSError, ValueError, KeyError, TypeError):
+            # Being written this instant, or a batch killed while it wrote it: stale once it is a few seconds old.
+            try:
+                young = time.time() - self.path.stat().st_mtime < STALE_EMPTY_LOCK_SECONDS
+            except OSError:
+                return None
+            return {"pid": "?", "host": socket.gethostname(), "started": "just now"} if young else None
+        if host != socket.gethostname():
+            return data
+        return data if pid != os.getpid() and process_alive(pid) else None
+
+    def refuse_if_held(self) -> None:
+        """Raise the one line naming the other batch, when a live one holds the folder."""
+        holder = self.holder()
+        if holder is not None:
+            where = "" if holder.get("host") == socket.gethostname() else f" on host {holder.get('host')}"
+            pid = holder.get("pid")
+            raise UsageError(f"--out {self.path.parent}: another batch is running there (process {pid}{where}, "
+                             f"since {holder.get('started', '?')}); allowed: wait for it to end, or another folder "
+                             f"(if process {pid} is no livox-viz batch, remove {self.path})")
+
+    def acquire(self) -> None:
+        """Take the lock, or raise :meth:`refuse_if_held`'s line; a stale lock is taken over."""
+        for _ in range(3):
+            try:
+                descriptor = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                self.refuse_if_held()
+                self._take_stale()
+                continue
+            except OSError as error:
+                raise UsageError(f"--out {self.path.parent}: cannot make its lock {self.path} ({error.strerror}); "
+                                 "allowed: a folder this user can write") from None
+            with os.fdopen(descriptor, "w", encoding="utf-8") as handle:
+                handle.write(self._text())
+            self._held = True
+            return
+        self.refuse_if_held()
+        raise UsageError(f"--out {self.path.parent}: its lock {self.path} keeps changing (batches started at once?); "
+                         "allowed: one batch at a time in a folder")
+
+    def _take_stale(self) -> None:
+        """Move a stale lock aside (a rename: another batch taking it too finds it gone) and keep its jobs."""
+        aside = self.path.with_name(f"{LOCK}.{os.getpid()}.stale")
+        try:
+            os.replace(self.path, aside)
+        except FileNotFoundError:
+            return
+        except OSError as error:
+            raise UsageError(f"--out {self.path.parent}: cannot take over the stale lock {self.path} "
+                             f"({error.strerror}); allowed: remove it") from None
+        try:
+            running = json.loads(aside.read_text(encoding="utf-8")).get("running", [])
+            self.left_running = [name for name in running if isinstance(name, str)]
+        except (OSError, ValueError, AttributeError):
+            pass
+        aside.unlink(missing_ok=True)
+
+    def _text(self) -> str:
+        return json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "started": self._started,
+                           "running": sorted(self.running)}) + "\n"
+
+    def save(self) -> None:
+        """Write the jobs in flight into the lock when they changed (a hint for a rerun after a kill: a write
+        refused, as Windows refuses to replace a file another process has open, is tried again at the next)."""
+        if not self._held or self._written == self.running:
+            return
+        try:
+            write_text_atomic(self.path, self._text())
+            self._written = frozenset(self.running)
+        except (OSError, LivoxVizError):
+            pass
+
+    def release(self) -> None:
+        if self._held:
+            self.path.unlink(missing_ok=True)
+            self._held = False
 
 
 # Where the jobs run ------------------------------------------------------------------------------------
+def _bounded(jobs: Iterator[Job], limit: int, submit: Callable[[Job], None],
+             finished: Callable[[], list[dict[str, Any]]]) -> Iterator[dict[str, Any] | None]:
+    """Hand jobs out as they are taken, at most ``limit`` of them handed out and not yet ended; yield each
+    record ``finished()`` gives back (it waits a moment), None when it gave none."""
+    flying = 0
+    taken_all = False
+    while True:
+        while not taken_all and flying < limit:
+            job = next(jobs, None)
+            if job is None:
+                taken_all = True
+            else:
+                submit(job)
+                flying += 1
+        if not flying:
+            return
+        records = finished()
+        if not records:
+            yield None
+        for record in records:
+            flying -= 1
+            yield record
+
+
 class LocalRunner:
-    """Jobs on a pool of ``processes`` local processes, each job's scan on ``cores // processes`` workers."""
+    """Jobs on a pool of ``processes`` local processes, each job's scan on ``cores // processes`` workers.
+
+    Jobs are taken from their iterator as they are handed out, at most two a process in flight (one running, one
+    queued so no process waits for the batch): a grid of millions of jobs is never held.
+    """
 
     def __init__(self, processes: int) -> None:
         self.processes = processes
-        self.where = f"a local pool of {processes} process" + ("" if processes == 1 else "es")
-        self._pool = None
+        self.in_flight = 2 * processes
+        self.where = f"a local pool of {_count(processes, 'process')}"
+        self._pool: Any = None
 
-    def run(self, jobs: list[Job], root: Path, workers: int | None) -> Iterator[dict[str, Any]]:
+    def run(self, jobs: Iterator[Job], root: Path, workers: int | None) -> Iterator[dict[str, Any] | None]:
+        """Each job's record as it ends (None every 0.2 s meanwhile: a chance to notice a stop)."""
         import queue
 
         per_job = workers or max(1, usable_cores() // self.processes)
         done: queue.Queue = queue.Queue()
-        # spawn: workers start from a clean interpreter (the batch's own threads are not forked half-held).
-        self._pool = multiprocessing.get_context("spawn").Pool(self.processes, initializer=_ignore_interrupts)
-        for job in jobs:
+
+        def submit(job: Job) -> None:
+            if self._pool is None:  # made for the first job only: a rerun with nothing left starts no process
+                # spawn: workers start from a clean interpreter (the batch's own threads are not forked half-held).
+                self._pool = multiprocessing.get_context("spawn").Pool(self.processes,
+                                                                       initializer=_ignore_interrupts)
             self._pool.apply_async(run_job, (job, str(root), per_job), callback=done.put,
                                    error_callback=lambda error, job=job: done.put(_lost(job, error)))
-        self._pool.close()
-        for _ in jobs:
-            while True:
-                try:
-                    yield done.get(timeout=0.2)
-                    break
-                except queue.Empty:
-                    yield None  # a chance to notice a stop
-        self._pool.join()
+
+        def finished() -> list[dict[str, Any]]:
+            try:
+                return [done.get(timeout=0.2)]
+            except queue.Empty:
+                return []
+
+        yield from _bounded(jobs, self.in_flight, submit, finished)
+        if self._pool is not None:
+            self._pool.close()
+            self._pool.join()
 
     def stop(self) -> None:
         """Kill the workers (their jobs' temporaries go at the next run in those folders) and the pool."""
@@ -251,7 +653,7 @@ def _restore_environment(saved: dict[str, str]) -> None:
 class DaskRunner:
     """Jobs on Dask distributed: a scheduler's address, or ``local:N`` for a ``LocalCluster`` of N processes."""
 
-    def __init__(self, address: str) -> None:
+    def __init__(self, address: str, jobs: int | None = None) -> None:
         try:
             from distributed import Client, LocalCluster
         except ImportError:
@@ -276,38 +678,50 @@ class DaskRunner:
             finally:
                 _restore_environment(saved)
             self.client = Client(self._cluster)
-            self.where = f"a Dask LocalCluster of {self.processes} process" + ("" if self.processes == 1 else "es")
+            self.where = f"a Dask LocalCluster of {_count(self.processes, 'process')}"
         else:
             self.client = _connect(address)
             self.processes = max(1, len(self.client.scheduler_info().get("workers", {})))
             self.where = f"the Dask scheduler at {address}"
-        self._futures: list = []
+        # --jobs: at most that many jobs handed to the cluster at once (a share of a cluster others use too);
+        # else enough that every worker finds work, and an adaptive cluster (which scales on the tasks it is
+        # given) sees the batch's demand.
+        self.in_flight = jobs or max(DASK_IN_FLIGHT, 2 * self.processes)
+        if jobs is not None:
+            self.where += f", at most {_count(jobs, 'job')} at once"
+        self._futures: dict[Any, Job] = {}
 
-    def run(self, jobs: list[Job], root: Path, workers: int | None) -> Iterator[dict[str, Any]]:
+    def run(self, jobs: Iterator[Job], root: Path, workers: int | None) -> Iterator[dict[str, Any] | None]:
+        """Each job's record as it ends (None every 0.2 s meanwhile: a chance to notice a stop)."""
         from distributed import wait
 
         per_job = workers
         if per_job is None and self._cluster is not None:
             per_job = max(1, usable_cores() // self.processes)
-        self._futures = [self.client.submit(run_job, job, str(root), per_job, key=f"livox-viz-{job.name}",
-                                            pure=False) for job in jobs]
-        by_key = {future.key: job for future, job in zip(self._futures, jobs, strict=True)}
-        remaining = set(self._futures)
-        while remaining:
+
+        def submit(job: Job) -> None:
+            future = self.client.submit(run_job, job, str(root), per_job, key=f"livox-viz-{job.name}", pure=False)
+            self._futures[future] = job
+
+        def finished() -> list[dict[str, Any]]:
             try:
-                finished, remaining = wait(remaining, timeout=0.2, return_when="FIRST_COMPLETED")
+                ended, _ = wait(list(self._futures), timeout=0.2, return_when="FIRST_COMPLETED")
             except TimeoutError:
-                yield None  # a chance to notice a stop
-                continue
-            for future in finished:
+                return []
+            records = []
+            for future in ended:
+                job = self._futures.pop(future)
                 try:
-                    yield future.result()
+                    records.append(future.result())
                 except Exception as error:  # a worker lost: the job failed, the others go on
-                    yield _lost(by_key[future.key], error)
+                    records.append(_lost(job, error))
+            return records
+
+        yield from _bounded(jobs, self.in_flight, submit, finished)
 
     def stop(self) -> None:
         if self._futures:
-            self.client.cancel(self._futures)
+            self.client.cancel(list(self._futures))
         self.close()
 
     def close(self) -> None:
@@ -367,61 +781,110 @@ def cmd_batch(args: argparse.Namespace) -> int:
         return 0
     if not args.spec or not args.out:
         raise UsageError("give SPEC and --out DIR (or --example for a spec to start from)")
-    jobs = read_spec(args.spec, force=args.force)
+    grid = read_spec(args.spec, force=args.force)
+    spec = Path(args.spec).name
     root = _check_out(Path(args.out))
-    _check_same_batch(root, jobs, Path(args.spec).name)
-    runner = DaskRunner(args.dask) if args.dask else None
-    (root / "jobs").mkdir(parents=True, exist_ok=True)
-    records: dict[str, dict[str, Any]] = {}
-    todo: list[Job] = []
-    kept = retried = 0
-    for job in jobs:
-        record = finished_record(root, job)
-        if record is not None and (record["status"] == "done" or not args.retry):
-            records[job.name] = record
-            kept += 1
-        else:
-            retried += record is not None
-            todo.append(job)
-    workers = dict(jobs[0].options).get("workers_per_job") if jobs else None
-    runner = runner or LocalRunner(min(args.jobs or usable_cores(), max(1, len(todo))))
-    earlier_failed = sum(1 for r in records.values() if r["status"] == "failed")
-    say = _Say(len(jobs), kept, records)
-    print(f"batch: {len(jobs)} jobs from {Path(args.spec).name}: {kept} already finished"
-          + (f" ({earlier_failed} failed: --retry runs them again)" if earlier_failed else "")
-          + (f", {retried} failed ones again" if retried else "") + f"; {len(todo)} to run on {runner.where}",
-          file=sys.stderr)
-    stopped = None
-    last_manifest = time.monotonic()
+    lock = BatchLock(root)
+    lock.refuse_if_held()
+    manifest = Manifest(root, grid, spec)
+    manifest.read()
+    runner = DaskRunner(args.dask, args.jobs) if args.dask else None
     try:
-        with StopRequests() as stop:
-            for record in runner.run(todo, root, workers) if todo else ():
-                if record is not None:
-                    records[record["job"]] = record
-                    say.finished(record)
-                    if time.monotonic() - last_manifest > 2.0:
-                        write_manifest(root, jobs, records)
-                        last_manifest = time.monotonic()
-                if stop.requested:
+        (root / "jobs").mkdir(parents=True, exist_ok=True)
+        lock.acquire()
+    except BaseException:
+        if runner is not None:
+            runner.close()
+        raise
+    try:
+        return _run(args, grid, spec, root, lock, manifest, runner)
+    finally:
+        lock.release()
+
+
+def _run(args: argparse.Namespace, grid: Grid, spec: str, root: Path, lock: BatchLock, manifest: Manifest,
+         runner: LocalRunner | DaskRunner | None) -> int:
+    """The batch, holding its folder's lock: the rows of jobs a killed run left in flight, then every job not
+    finished taken from the grid as the runner has room for it."""
+    manifest.open()
+    try:
+        for name in lock.left_running:
+            if manifest.previous(name) is None:
+                record = finished_record(root, name)
+                if record is not None and grid.place_of(name, record) is not None:
+                    manifest.append(record, again=True)
+        kept = manifest.done + (0 if args.retry else manifest.failed)
+        to_run = grid.total - kept
+        workers = dict(grid.options).get("workers_per_job")
+        if runner is None:
+            runner = LocalRunner(min(args.jobs or usable_cores(), max(1, to_run)))
+        retried = f", {_count(manifest.failed, 'failed one')} again" if args.retry and manifest.failed else ""
+        earlier = (f" ({manifest.failed:,} failed: --retry runs {'it' if manifest.failed == 1 else 'them'} again)"
+                   if manifest.failed and not args.retry else "")
+        print(f"batch: {_count(grid.total, 'job')} from {spec}: {kept:,} already finished{earlier}{retried}; "
+              f"{to_run:,} to run on {runner.where}", file=sys.stderr)
+        say = _Say(grid.total, kept, manifest.points)
+        failures: list[dict[str, Any]] = []
+        stopped = None
+        try:
+            with StopRequests() as stop:
+                todo = _todo(grid, root, manifest, args.retry, say, failures, lock, stop)
+                for record in runner.run(todo, root, workers):
+                    if record is not None:
+                        lock.running.discard(record["job"])
+                        if record["status"] != "stopped":  # a stopped job has not finished: it runs again
+                            manifest.append(record)
+                        if record["status"] == "failed" and len(failures) < SHOWN_FAILURES:
+                            failures.append(record)
+                        say.finished(record)
+                    lock.save()
+                    if stop.requested:
+                        break
+                if stop.requested:  # also when it came while finished jobs were being skipped
                     stopped = stop.signum
                     runner.stop()
-                    break
+        finally:
+            if isinstance(runner, DaskRunner) and stopped is None:
+                runner.close()
+            manifest.tidy()
     finally:
-        if isinstance(runner, DaskRunner) and stopped is None:
-            runner.close()
-        manifest = write_manifest(root, jobs, records)
-    done = sum(1 for r in records.values() if r["status"] == "done")
-    failed = [r for r in records.values() if r["status"] == "failed"]
-    points = sum(int(r.get("points") or 0) for r in records.values() if r["status"] == "done")
-    summary = (f"{done} of {len(jobs)} jobs done, {len(failed)} failed, {points:,} points; manifest {manifest}")
+        manifest.close()
+    summary = (f"{manifest.done:,} of {_count(grid.total, 'job')} done, {manifest.failed:,} failed, "
+               f"{_count(manifest.points, 'point')}; manifest {manifest.path}")
     if stopped is not None:
         print(f"{PROG}: batch stopped by {signal_name(stopped)}: {summary}; run it again to finish the rest",
               file=sys.stderr)
         return signal_status(stopped)
     print(f"batch: {summary}")
-    for record in failed[:20]:
+    for record in failures:
         print(f"{PROG}: batch: job {record['job']} failed: {record['error']}", file=sys.stderr)
-    return 1 if failed else 0
+    return 1 if manifest.failed else 0
+
+
+def _todo(grid: Grid, root: Path, manifest: Manifest, retry: bool, say: _Say, failures: list[dict[str, Any]],
+          lock: BatchLock, stop: StopRequests) -> Iterator[Job]:
+    """The grid's jobs to run, named one at a time as the runner takes them; a stop ends them.
+
+    A job is finished when its own record says so (its files all there), whatever the manifest says: one whose
+    files went is run again, one finished whose row a killed batch never wrote gets its row now.
+    """
+    for job in grid:
+        if stop.requested:
+            return
+        name = job.name
+        previous = manifest.previous(name)
+        counted = previous is not None and (previous[0] == "done" or not retry)
+        record = finished_record(root, name)
+        if record is not None and (record["status"] == "done" or not retry):
+            if previous is None or previous[0] != record["status"]:
+                manifest.append(record)
+            say.kept += not counted
+            if record["status"] == "failed" and len(failures) < SHOWN_FAILURES:
+                failures.append(record)
+            continue
+        say.kept -= counted
+        lock.running.add(name)
+        yield job
 
 
 def _check_out(out: Path) -> Path:
@@ -449,43 +912,24 @@ def _check_out(out: Path) -> Path:
     return out
 
 
-def _check_same_batch(out: Path, jobs: list[Job], spec: str) -> None:
+def _check_same_batch(out: Path, grid: Grid, spec: str) -> None:
     """Refuse a folder whose manifest is another batch's (it lists jobs this spec does not make) or not a batch
-    manifest at all: the run would replace it with this spec's, and that batch's record of its jobs was lost.
+    manifest at all: the run would append to it, mixing two batches' records.
 
     A spec grown since (more seeds) keeps its folder: all the jobs its manifest lists are still the spec's.
     """
-    path = out / MANIFEST
-    if not path.is_file():
-        return
-    try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            rows = csv.reader(handle)
-            header = next(rows, None)
-            if header is None or "job" not in header:
-                raise ValueError("no job column")
-            column = header.index("job")
-            listed = [row[column] for row in rows if len(row) > column]
-    except (OSError, UnicodeDecodeError, csv.Error, ValueError):
-        raise UsageError(f"--out {out}: holds a manifest.csv that is not a batch's manifest; allowed: a folder of "
-                         "this spec's batch (to finish it) or a new one (it is not replaced)") from None
-    names = {job.name for job in jobs}
-    others = [name for name in listed if name not in names]
-    if others:
-        raise UsageError(f"--out {out}: holds another batch's manifest ({len(others):,} of its jobs, e.g. "
-                         f"{others[0]}, are not jobs of {spec}); allowed: this spec's own folder (to finish it) or a "
-                         "new one (it is not replaced)")
+    Manifest(out, grid, spec).read()
 
 
 class _Say:
-    """A line on stderr as each job ends: how many are done, the points, the time left."""
+    """A line on stderr as each job ends: how many are done of the grid's, the points, the time left."""
 
-    def __init__(self, total: int, kept: int, records: dict[str, dict[str, Any]]) -> None:
+    def __init__(self, total: int, kept: int, points: int) -> None:
         self.total = total
         self.kept = kept
         self.ran = 0
         self.failed = 0
-        self.points = sum(int(r.get("points") or 0) for r in records.values() if r["status"] == "done")
+        self.points = points
         self.start = time.monotonic()
 
     def finished(self, record: dict[str, Any]) -> None:
@@ -493,16 +937,23 @@ class _Say:
         ended = self.kept + self.ran
         if record["status"] == "done":
             self.points += int(record["points"])
-            what = f"done {record['job']} ({int(record['points']):,} points, {record['duration_s']:.1f} s)"
+            what = f"done {record['job']} ({_count(int(record['points']), 'point')}, {record['duration_s']:.1f} s)"
         elif record["status"] == "stopped":
             what = f"stopped {record['job']} (it runs again next time)"
         else:
             self.failed += 1
             what = f"FAILED {record['job']}: {record['error']}"
         elapsed = time.monotonic() - self.start
-        left = elapsed / self.ran * (self.total - ended)
-        print(f"batch: [{ended}/{self.total}] {what}; {self.failed} failed, {self.points:,} points, about "
-              f"{_clock(left)} left", file=sys.stderr, flush=True)
+        left = elapsed / self.ran * max(0, self.total - ended)
+        print(f"batch: [{ended:,}/{self.total:,}] {what}; {self.failed:,} failed, {_count(self.points, 'point')}, "
+              f"about {_clock(left)} left", file=sys.stderr, flush=True)
+
+
+def _count(number: int, noun: str) -> str:
+    """``1 job``, ``2 jobs``, ``1,000 processes``."""
+    if number == 1:
+        return f"1 {noun}"
+    return f"{number:,} {noun}{'es' if noun.endswith('ss') else 's'}"
 
 
 def _clock(seconds: float) -> str:
@@ -518,8 +969,10 @@ def _batch_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run on Dask distributed: a scheduler's address (tcp://HOST:8786) or local:N (a "
                              "LocalCluster of N processes); needs pip install 'livox-viz[cluster]'. Default: a "
                              "local pool of processes")
-    parser.add_argument("--jobs", type=whole_number(1, 1024, "1 to 1024 processes"),
-                        help="jobs at once on the local pool (default: one per core this process may use)")
+    parser.add_argument("--jobs", type=whole_number(1, 1024, "1 to 1024 jobs"),
+                        help="jobs at once: the local pool's processes (default: one per core this process may "
+                             "use); with --dask, the jobs handed to the cluster at once (default: enough for every "
+                             "worker)")
     parser.add_argument("--retry", action="store_true", help="run the jobs that failed before again")
     parser.add_argument("--force", action="store_true",
                         help="allow more jobs than 10,000, and jobs of more points than a scan's budget")
@@ -532,5 +985,5 @@ COMMANDS: tuple[Command, ...] = (
             "livox-viz batch --example > spec.toml && livox-viz batch spec.toml --out runs/", _batch_arguments),
 )
 
-__all__ = ["COMMANDS", "DaskRunner", "LocalRunner", "SpecError", "cmd_batch", "finished_record", "run_job",
-           "write_manifest"]
+__all__ = ["COMMANDS", "BatchLock", "DaskRunner", "LocalRunner", "Manifest", "SpecError", "cmd_batch",
+           "finished_record", "run_job"]

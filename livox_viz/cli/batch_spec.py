@@ -23,15 +23,17 @@ mesh) is the job's own failure, reported with its message.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import itertools
 import json
 import math
 import re
 import tomllib
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 from livox_viz.config.presets import list_presets
 from livox_viz.config.returns_params import RETURN_MODELS
@@ -101,14 +103,100 @@ class Job:
     def name(self) -> str:
         """The job's folder name: what it scans, readable, then 10 hex digits of the hash of all its parameters."""
         digest = hashlib.sha256(json.dumps(self.parameters(), sort_keys=True).encode()).hexdigest()[:10]
-        words = [Path(self.sensor).stem, Path(self.scene).stem, Path(self.trajectory).stem, f"s{self.seed}",
-                 self.returns, "+".join(self.outputs)]
+        words = [_stem(self.sensor), _stem(self.scene), _stem(self.trajectory), f"s{self.seed}", self.returns,
+                 "+".join(self.outputs)]
         readable = re.sub(r"[^A-Za-z0-9_+.-]+", "_", "-".join(words))[:80]
         return f"{readable}-{digest}"
 
     def output_names(self) -> dict[str, str]:
         """Each output's name in the job's folder: ``cloud.<ext>`` and ``bag``."""
         return {output: "bag" if output == "rosbag" else f"cloud.{output}" for output in self.outputs}
+
+
+class Grid(Sequence[Job]):
+    """Every combination of a spec's lists, in ``itertools.product``'s order (the last list fastest), made one
+    job at a time: its count is arithmetic, ``grid[i]`` is computed from ``i``, iterating makes each job as it
+    is taken, so memory does not grow with the number of jobs.
+
+    Parameters
+    ----------
+    axes : tuple of tuple
+        The checked values of :data:`GRID_KEYS`, in that order.
+    options : tuple of (str, value)
+        The spec's shared options, sorted.
+    """
+
+    def __init__(self, axes: tuple[tuple[Any, ...], ...], options: tuple[tuple[str, Any], ...]) -> None:
+        self.axes = axes
+        self.options = options
+        #: The number of jobs (a Python int: it may pass what ``len`` can say).
+        self.total = math.prod(len(values) for values in axes)
+        # Each value's place in its list, to find a job from its parameters (a manifest's row).
+        self._places = [{value: place for place, value in enumerate(values)} for values in axes]
+
+    def __len__(self) -> int:
+        return self.total
+
+    @overload
+    def __getitem__(self, index: int) -> Job: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> Sequence[Job]: ...
+
+    def __getitem__(self, index: int | slice) -> Job | Sequence[Job]:
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(self.total))]
+        if index < 0:
+            index += self.total
+        if not 0 <= index < self.total:
+            raise IndexError(f"job {index} of a grid of {self.total}")
+        values = []
+        for axis in reversed(self.axes):
+            index, place = divmod(index, len(axis))
+            values.append(axis[place])
+        return Job(*reversed(values), self.options)
+
+    def __iter__(self) -> Iterator[Job]:
+        return (Job(*values, self.options) for values in itertools.product(*self.axes))
+
+    def place_of(self, name: str, parameters: dict[str, Any]) -> int | None:
+        """Where the job ``name`` with these parameters (a manifest row's or a record's, values as text or as
+        they are) is in the grid, or None when the grid makes no such job (another spec's, or this one's before
+        its shared options changed: its name's hash then differs)."""
+        try:
+            keys = (str(parameters["sensor"]), str(parameters["scene"]), str(parameters["trajectory"]),
+                    int(parameters["seed"]), str(parameters["returns"]), tuple(str(parameters["outputs"]).split("+")))
+            places = [self._places[axis][key] for axis, key in enumerate(keys)]
+        except (KeyError, ValueError, TypeError):
+            return None
+        if Job(*(axis[at] for axis, at in zip(self.axes, places, strict=True)), self.options).name != name:
+            return None
+        place = 0
+        for axis, at in zip(self.axes, places, strict=True):
+            place = place * len(axis) + at
+        return place
+
+    def repeated_job(self) -> Job | None:
+        """A job the grid makes twice (a value given twice in one list), or None.
+
+        Two jobs share a name exactly when they share all their parameters (the name ends in their hash), which
+        is a value repeated in one list: checked list by list, not by naming every job.
+        """
+        for axis, values in enumerate(self.axes):
+            seen: set[Any] = set()
+            for value in values:
+                if value in seen:
+                    return Job(*(value if other == axis else self.axes[other][0] for other in range(len(self.axes))),
+                               self.options)
+                seen.add(value)
+        return None
+
+
+@functools.lru_cache(maxsize=1024)
+def _stem(text: str) -> str:
+    """A path's stem, remembered: a grid's jobs share a few sensors, scenes and trajectories, and the stems were
+    a third of the cost of naming a job (a rerun names every job of the grid it passes)."""
+    return Path(text).stem
 
 
 def scan_argv(job: Job, folder: Path, workers: int | None) -> list[str]:
@@ -132,8 +220,11 @@ def scan_argv(job: Job, folder: Path, workers: int | None) -> list[str]:
     return argv
 
 
-def read_spec(path: str | Path, force: bool = False) -> list[Job]:
+def read_spec(path: str | Path, force: bool = False) -> Grid:
     """The jobs of the spec at ``path`` (TOML, or JSON by its suffix), checked whole before any runs.
+
+    The grid is checked list by list, never job by job: its jobs are made (and named) only as they are taken,
+    so a grid of 10**7 jobs costs no more to read than one of ten.
 
     Raises
     ------
@@ -169,15 +260,12 @@ def read_spec(path: str | Path, force: bool = False) -> list[Job]:
         raise SpecError(f"{where}: the grid makes {count:,} jobs; allowed: at most {MAX_JOBS:,} (pass --force to "
                         "run more)")
     _check_points(sensors, options["seconds"], where, force)
-    frozen = tuple(sorted(options.items()))
-    jobs = [Job(sensor, scene, trajectory, seed, model, output, frozen)
-            for sensor, scene, trajectory, seed, model, output in itertools.product(
-                sensors, scenes, trajectories, seeds, returns, outputs)]
-    names = [job.name for job in jobs]
-    if len(set(names)) != len(names):
-        twice = next(name for name in names if names.count(name) > 1)
-        raise SpecError(f"{where}: the grid names one job twice ({twice}); allowed: each value once in each list")
-    return jobs
+    grid = Grid((tuple(sensors), tuple(scenes), tuple(trajectories), tuple(seeds), tuple(returns),
+                 tuple(outputs)), tuple(sorted(options.items())))
+    twice = grid.repeated_job()
+    if twice is not None:
+        raise SpecError(f"{where}: the grid names one job twice ({twice.name}); allowed: each value once in each list")
+    return grid
 
 
 def _load(path: Path) -> dict[str, Any]:
