@@ -431,6 +431,10 @@ class MainWindow(QtWidgets.QMainWindow):
                                                     checkable=True, group=group)
                                 for model, text in (("ideal", "Ideal (each ray's exact first hit, as RflySim)"),
                                                     ("datasheet", "Datasheet (noise, footprint, returns, tags)"))}
+        # The d key switches between the two: its own entry shows it, as v's does in the Pattern menu (a key is one
+        # action's only shortcut, so neither choice above can hold it).
+        self._action(returns, "Switch ideal / datasheet", c.toggle_returns_model)
+        returns.addSeparator()
         self._action(returns, "Show the return model's sheet in the panel", c.toggle_slider_page)
 
         pattern = bar.addMenu("P&attern")
