@@ -740,6 +740,49 @@ def test_a_short_status_text_is_shown_whole_when_the_bar_has_room(window) -> Non
         window._jobs.clear()
 
 
+@pytest.mark.parametrize("size", [(1280, 720), (1600, 900), (1100, 700)])
+def test_what_is_being_prepared_uses_the_room_the_bar_has(urban, qtbot, size) -> None:
+    """A first-use trial saw "preparing the datasheet loops, 40 s (compiled..." cut at 320 px with the rest only in
+    the tooltip, in a bar with room for it: the text takes the room the permanent figures leave (all of it with no
+    message; the message keeps its share), and is elided only when the window is too narrow for it."""
+    from concurrent.futures import Future
+
+    from livox_viz.widgets.mainwindow import _Job
+    from qtpy import QtWidgets
+
+    window = make_window(urban, qtbot, size=size)
+    preparing = "preparing the datasheet loops, 40 s (compiled once, 1-2 min on 2 cores, then loaded from the cache)"
+    try:
+        window._jobs.append(_Job(preparing, Future(), lambda _result: None, 0.0))
+        label = window.status_busy
+
+        def settle(message: str) -> str:
+            window.say(message)
+            for _ in range(3):  # the room is shared after the bar has laid its labels out
+                window._update_status()
+                QtWidgets.QApplication.processEvents()
+            return QtWidgets.QLabel.text(label)
+
+        shown = settle("")
+        whole = label.fontMetrics().horizontalAdvance(preparing)
+        room = window.status_time.geometry().left() - label.geometry().left()
+        assert label.fontMetrics().horizontalAdvance(shown) <= label.contentsRect().width()
+        if whole + 40 <= room:  # the bar has the room: shown whole, no tooltip needed
+            assert shown == preparing and not label.toolTip()
+        else:  # too narrow: elided, the whole in the tooltip, and it took the room it had
+            assert shown.endswith("\u2026") and preparing.startswith(shown[:-1]) and label.toolTip() == preparing
+            assert label.width() >= room - 40
+        if size[0] >= 1280:
+            assert shown == preparing  # the common sizes show it whole
+        message = "integration window 25 s refused; allowed: 0.01 to 10 s, or unlimited (1 M points) " * 3
+        settle(message)
+        assert window.status_message.width() >= 300  # the message keeps its share
+        assert not widget_rect(label, window).intersects(widget_rect(window.status_message, window))
+    finally:
+        window._jobs.clear()
+        window.close()
+
+
 def test_the_help_dialog_lists_every_key_inside_the_screen(window, qtbot) -> None:
     from livox_viz.widgets.keys import KEYS
 

@@ -58,6 +58,8 @@ KEY_OF_METHOD = {method: key for row in KEYS for key, method in row.bindings}
 EXPORT_FORMATS = (("PLY", ".ply"), ("PCD", ".pcd"), ("LAS 1.4", ".las"), ("NumPy NPZ", ".npz"), ("CSV", ".csv"))
 #: Points a refilled integration window casts per tick: about 40 ms of the ideal model's work on one core.
 FILL_PER_TICK = 40_000
+#: Pixels of the status bar the message keeps beside what is being prepared (less when it needs less).
+STATUS_MESSAGE_SHARE = 300
 #: Pixels a click may move between press and release and still be a click (not a drag of the camera).
 CLICK_SLOP = 4
 
@@ -98,6 +100,12 @@ class ElidedLabel(QtWidgets.QLabel):
 
     def text(self) -> str:
         return self._whole
+
+    def set_widest(self, widest: int) -> None:
+        """Ask for at most ``widest`` pixels from now on."""
+        if widest != self._widest:
+            self._widest = widest
+            self.updateGeometry()
 
     def shown_text(self) -> str:
         """What the label shows now (the text, or its start and an ellipsis)."""
@@ -304,9 +312,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self.busy.setMaximumHeight(14)
         self.busy.setVisible(False)
         # Both give way to the permanent figures at the right, with an ellipsis and the whole text as tooltip; what
-        # is being prepared asks for a quarter of a 1280 px bar at most, the message (feedback to what was just done)
-        # for the rest.
-        self.status_busy = ElidedLabel(widest=320)
+        # is being prepared takes the room it needs, but leaves the message (feedback to what was just done) its
+        # share (_share_status_room): capped at 320 px, "(compiled once, ...)" was cut with 600 px to spare.
+        self.status_busy = ElidedLabel()
         self.status_message = ElidedLabel()
         self.status_message.setObjectName("message")
         self.status_message.setTextInteractionFlags(QtCore.Qt.TextInteractionFlag.TextSelectableByMouse)
@@ -633,12 +641,24 @@ class MainWindow(QtWidgets.QMainWindow):
             message = self.controller.pick_text
         self.status_message.setText(message)
         self.status_message.setStyleSheet("color: #d9534f;" if self._error and message else "")
+        self._share_status_room()
         paused = session.playback.paused
         self.scrubber.setEnabled(paused and self._played > 0)
         if paused and self._played > 0 and not self.scrubber.isSliderDown():
             with signals_blocked(self.scrubber):
                 self.scrubber.setValue(round(1000 * session.shown_time / self._played))
         self.scrub_label.setText(f" scan time {session.shown_time:8.3f} s ")
+
+    def _share_status_room(self) -> None:
+        """What is being prepared gets the room the permanent figures leave, but for the message's share: the
+        message's own width, up to 300 px or 40 % of the room (none when there is no message)."""
+        busy, message = self.status_busy, self.status_message
+        if not busy.isVisible() or not message.isVisible():
+            return
+        spacing = max(self.statusBar().layout().spacing(), 0)
+        room = message.geometry().right() - busy.geometry().left() + 1 - spacing
+        share = min(message.sizeHint().width(), max(STATUS_MESSAGE_SHARE, int(0.4 * room))) if message.text() else 0
+        busy.set_widest(max(room - share, busy.minimumSizeHint().width()))
 
     def _sync_menus(self) -> None:
         session = self.controller.session
