@@ -531,6 +531,44 @@ def test_the_scrubber_seeks_when_paused_and_forgets_the_picks(window) -> None:
     assert window.status_message.text() != "range 12.000 m"
 
 
+@pytest.mark.parametrize("switch", ["n key", "preset menu", "x key"])
+def test_after_a_restart_the_scrubber_spans_only_the_new_scans_times(window, qtbot, switch: str) -> None:
+    """A first-use trial played 3 s, pressed n, paused and dragged the scrubber: it reached back to 3 s, times of
+    the scan before the switch (cast again with the new preset, a scan that never was). It spans the new scan's."""
+    from livox_viz import list_presets
+
+    session, controller = window.controller.session, window.controller
+    session.advance_to(3.0)
+    window.tick()
+    if switch == "n key":
+        press(qtbot, window, "n")
+    elif switch == "preset menu":
+        info = next(i for i in list_presets() if i.name == "livox_avia")
+        window.run(lambda: window.load_preset_file(info.path, info.name))
+        assert session.preset_name == "livox_avia"
+    else:
+        press(qtbot, window, "x")
+    assert session.scan_time == 0.0
+    session.advance_to(0.5)
+    window.tick()
+    window.run(controller.toggle_pause)
+    assert session.playback.paused and window.scrubber.isEnabled()
+    window.scrubber.setValue(1000)  # the scrubber's far end
+    for _ in range(200):
+        if session.filling is None:
+            break
+        window.tick()
+    assert session.filling is None
+    played = window._played
+    assert session.scan_time == pytest.approx(played, abs=1e-6) and 0.5 <= played < 0.6
+    window.scrubber.setValue(500)
+    for _ in range(200):
+        if session.filling is None:
+            break
+        window.tick()
+    assert session.scan_time == pytest.approx(0.5 * played, abs=1e-3)
+
+
 def test_a_seek_with_no_pick_made_says_no_error_and_a_seek_takes_the_marks_away(window) -> None:
     """A first-use trial paused and dragged the scrubber before clicking any point: the status bar said, in red,
     pyvista's "Empty meshes cannot be plotted ..." (forgetting no picks drew an empty mesh), on every seek."""

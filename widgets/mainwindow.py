@@ -339,7 +339,11 @@ class MainWindow(QtWidgets.QMainWindow):
         bar.addWidget(self.scrub_label)
         bar.addWidget(self.scrubber)
         self.addToolBar(QtCore.Qt.ToolBarArea.BottomToolBarArea, bar)
-        self._played = 0.0
+
+    @property
+    def _played(self) -> float:
+        """The scan time the scrubber spans: as far as the scan played since it last restarted, seconds."""
+        return self.controller.session.played
 
     def _action(self, menu: QtWidgets.QMenu, text: str, slot: Callable[[], Any], shortcut: str | None = None,
                 checkable: bool = False, group: QtGui.QActionGroup | None = None, data: Any = None) -> QtGui.QAction:
@@ -580,7 +584,6 @@ class MainWindow(QtWidgets.QMainWindow):
                 self.controller.session.start_casting()
         self._finish_jobs()
         self._run_deferred()
-        session = self.controller.session
         try:
             if self._playing_allowed:
                 self.controller.tick()
@@ -588,7 +591,6 @@ class MainWindow(QtWidgets.QMainWindow):
                 self.controller.refresh()
         except LivoxVizError as exc:
             self.say(str(exc), error=True)
-        self._played = max(self._played, session.scan_time)
         self._follow_view_sizes()
         self.controller.render(draw=QtWidgets.QWidget.update)
         if self._first_frame is None and self._playing_allowed:
