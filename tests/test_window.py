@@ -982,3 +982,155 @@ def test_the_window_gives_none_back_what_a_leaky_binding_took(window, monkeypatc
     window.tick()
     assert window.none_reserve.given >= 400 * 50
     assert lowest >= window.none_reserve.floor - 200, (lowest, window.none_reserve.floor)
+
+
+# The ROS 2 bag export ----------------------------------------------------------------------------------
+def bag_messages(path: Path) -> tuple[list, list]:
+    """The bag as its reader gives it: its connections (topic, type, offered QoS) and every message (topic,
+    log time, serialized bytes), in order."""
+    from rosbags.rosbag2 import Reader
+
+    with Reader(path) as reader:
+        connections = sorted((c.topic, c.msgtype, str(c.ext.offered_qos_profiles)) for c in reader.connections)
+        messages = [(c.topic, stamp, bytes(data)) for c, stamp, data in reader.messages()]
+    return connections, messages
+
+
+def export_bag_from_menu(window, qtbot, monkeypatch: pytest.MonkeyPatch, target: Path, seconds: float) -> None:
+    """File > Export ROS 2 bag..., the dialogs answered with ``seconds`` and ``target``; waits for the worker."""
+    from qtpy import QtWidgets
+
+    monkeypatch.setattr(QtWidgets.QInputDialog, "getDouble", staticmethod(lambda *a, **k: (seconds, True)))
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getSaveFileName", staticmethod(lambda *a, **k: (str(target), "")))
+    file_menu = window.menuBar().actions()[0].menu()
+    entry = next(action for action in file_menu.actions() if action.text() == "Export ROS 2 bag...")
+    entry.trigger()
+    qtbot.waitUntil(lambda: (window.tick(), not window._jobs)[1], timeout=120_000)
+
+
+@pytest.mark.parametrize("case", ["ideal", "datasheet", "moving"])
+def test_a_bag_exported_from_the_window_is_the_scan_commands_bag(urban, qtbot, tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch, case: str) -> None:
+    """The bag File > Export ROS 2 bag writes holds, message for message and byte for byte, what ``livox-viz scan
+    --rosbag`` writes for the window's preset, return model, scene, motion and seed."""
+    pytest.importorskip("rosbags")
+    from livox_viz.widgets.mainwindow import MainWindow
+    from livox_viz.widgets.session import Session
+
+    from livox_viz import load_preset
+    from livox_viz.cli import main
+    from livox_viz.motion.flights import builtin_trajectory
+    from livox_viz.motion.tum import load_tum, save_tum
+
+    seconds = 0.3
+    options = []
+    trajectory = None
+    if case == "moving":  # a flight of the bag's length: the command reads it whole, as the window does
+        tum = tmp_path / "flight.tum"
+        save_tum(builtin_trajectory("circle", 5.0, urban.vehicle_pose, seconds), tum)
+        trajectory = load_tum(tum)
+        options = ["--trajectory", str(tum)]
+    session = Session(load_preset("livox_mid70"), urban, seed=3, preset_name="livox_mid70", trajectory=trajectory)
+    window = MainWindow(session, size=(1280, 720), warm=False)
+    qtbot.addWidget(window)
+    try:
+        window.show()
+        qtbot.waitExposed(window)
+        if case == "datasheet":
+            window.run(lambda: window.controller.set_returns_model("datasheet"))
+            options = ["--returns", "datasheet"]
+        assert session.config.returns_model == ("datasheet" if case == "datasheet" else "ideal")
+        window.run(window.controller.toggle_pause)  # a 0.3 s flight ends at once: its end would be the message
+        ours = tmp_path / "window_bag"
+        export_bag_from_menu(window, qtbot, monkeypatch, ours, seconds)
+        assert not window._error and f"to {ours}" in window.status_message.text(), window.status_message.text()
+        theirs = tmp_path / "scan_bag"
+        assert main(["scan", "--preset", "livox_mid70", "--scene", "urban", "--seed", "3", "--seconds", f"{seconds}",
+                     "--rosbag", str(theirs), *options]) == 0
+        connections, messages = bag_messages(ours)
+        assert (connections, messages) == bag_messages(theirs)
+        topics = {topic for topic, _, _ in messages}
+        assert {"/livox/lidar", "/livox/points", "/livox/imu", "/odom", "/tf", "/tf_static"} <= topics
+        assert sum(topic == "/livox/lidar" for topic, _, _ in messages) == 3  # 10 Hz frames
+    finally:
+        window.close()
+
+
+def test_the_bag_is_written_on_a_worker_while_the_window_plays_and_closing_gives_it_up(
+        window, qtbot, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every frame goes into the bag on a worker thread: held at its first frame, the window keeps ticking and
+    playing, the status bar says how far the export is, and the bag does not exist yet (atomic). Closing the window
+    gives the bag up: nothing is left, not even its temporary folder."""
+    import threading
+
+    from livox_viz.widgets import files as window_files
+
+    from livox_viz.files import scan_bag
+
+    main_thread = threading.get_ident()
+    writers: list[int] = []
+    gate = threading.Event()
+    original_write = scan_bag.BagSink.write
+
+    def held_write(sink, frame) -> None:
+        writers.append(threading.get_ident())
+        gate.wait(60)
+        original_write(sink, frame)
+
+    monkeypatch.setattr(scan_bag.BagSink, "write", held_write)
+    original_cancel = window_files.BagExport.cancel
+
+    def cancel_and_go_on(export) -> None:
+        original_cancel(export)
+        gate.set()
+
+    monkeypatch.setattr(window_files.BagExport, "cancel", cancel_and_go_on)
+    session = window.controller.session
+    target = tmp_path / "held_bag"
+    window.run(lambda: window.export_bag(str(target), 2.0))
+    assert len(window._jobs) == 1
+    qtbot.waitUntil(lambda: bool(writers), timeout=60_000)
+    start = session.scan_time
+    for _ in range(10):
+        window.tick()
+        qtbot.wait(20)
+    assert session.scan_time > start and not session.playback.paused  # the window played on
+    assert "exporting held_bag 0 %" in window.status_busy.text()
+    assert not target.exists() and window._jobs
+    job = window._jobs[0]
+    window.close()
+    assert isinstance(job.future.exception(timeout=30), scan_bag.ScanCancelled)
+    assert writers and main_thread not in writers
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name != "shots") == []
+
+
+def test_a_refused_bag_path_or_a_full_disk_is_one_line_and_nothing_is_left(window, qtbot, tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    import errno
+
+    from livox_viz.files import rosbag
+
+    folder = tmp_path / "bags"
+    folder.mkdir()
+    (folder / "taken").mkdir()
+    (folder / "a_file").write_text("x")
+    for path, words in ((folder / "taken", "exists (a folder)"), (folder / "a_file" / "bag", "does not exist")):
+        window.run(lambda p=path: window.export_bag(str(p), 0.3))
+        text = window.status_message.text()
+        assert window._error and words in text and "\n" not in text, text
+        assert not window._jobs
+    window.run(lambda: window.export_bag(str(folder / "long"), 1e6))
+    assert window._error and "allowed" in window.status_message.text() and not window._jobs
+
+    def disk_full(self, frame) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device", str(folder / "long"))
+
+    monkeypatch.setattr(rosbag.RosbagWriter, "write_frame", disk_full)
+    window.run(lambda: window.export_bag(str(folder / "full"), 0.3))
+    qtbot.waitUntil(lambda: (window.tick(), not window._jobs)[1], timeout=60_000)
+    text = window.status_message.text()
+    assert window._error and "exporting full failed" in text and "No space left on device" in text, text
+    assert "\n" not in text
+    assert sorted(p.name for p in folder.iterdir()) == ["a_file", "taken"]  # no bag, no temporary folder
+    window.tick()
+    assert window.isVisible()
