@@ -1134,3 +1134,50 @@ def test_a_refused_bag_path_or_a_full_disk_is_one_line_and_nothing_is_left(windo
     assert sorted(p.name for p in folder.iterdir()) == ["a_file", "taken"]  # no bag, no temporary folder
     window.tick()
     assert window.isVisible()
+
+
+# The scene camera's presets ------------------------------------------------------------------------------
+def drawn_inside(renderer, points_display: np.ndarray, box: tuple[float, float, float, float]) -> np.ndarray:
+    """Whether each display-frame point (n, 3) is drawn in front of the camera and inside ``box`` = (left, right,
+    bottom, top), shares of the view's width and height (VTK's pixels: origin bottom left)."""
+    width, height = renderer.GetSize()
+    camera = renderer.GetActiveCamera()
+    eye, focal = np.array(camera.GetPosition()), np.array(camera.GetFocalPoint())
+    # VTK's own projection: world -> normalized view coordinates, -1 to 1 across the view.
+    matrix = camera.GetCompositeProjectionTransformMatrix(width / height, -1, 1)
+    projection = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+    homogeneous = np.column_stack([points_display, np.ones(len(points_display))]) @ projection.T
+    x = (homogeneous[:, 0] / homogeneous[:, 3] + 1) / 2
+    y = (homogeneous[:, 1] / homogeneous[:, 3] + 1) / 2
+    ahead = (points_display - eye) @ (focal - eye) > 0
+    left, right, bottom, top = box
+    return ahead & (left <= x) & (x <= right) & (bottom <= y) & (y <= top)
+
+
+@pytest.mark.parametrize("size", [(1280, 720), (1600, 900)])
+def test_each_scene_camera_shows_the_sensor_and_the_cloud(urban, qtbot, size) -> None:
+    """A first-use trial's "side" camera left the sensor off the view's edge (it looked at a point 15 m ahead from
+    40 m away, in a view narrower than tall). From every preset camera the sensor is drawn inside the view, 5 % in
+    from its edges, clear of the colour bar (right) and the text (top); from the side, the cloud too."""
+    from livox_viz.widgets.views import CAMERA_PRESETS, NED_TO_DISPLAY, SCALAR_BAR_LEFT
+
+    window = make_window(urban, qtbot, size=size)
+    try:
+        session, controller = window.controller.session, window.controller
+        session.advance_to(0.5)
+        window.tick()
+        renderer = controller.scene_view.renderer
+        ring = session.scene_ring
+        cloud = ring.ordered(ring.positions).astype(float) @ NED_TO_DISPLAY[:3, :3].T
+        assert len(cloud) > 10_000
+        for preset in CAMERA_PRESETS:
+            window.run(lambda p=preset: controller.set_scene_camera(p))
+            window.tick()
+            sensor = NED_TO_DISPLAY[:3, :3] @ session.sensor_pose.origin
+            text_band = 52 / renderer.GetSize()[1]
+            assert drawn_inside(renderer, sensor[None], (0.05, SCALAR_BAR_LEFT, 0.05, 1 - text_band))[0], preset
+            if preset == "side":
+                share = drawn_inside(renderer, cloud, (0.0, SCALAR_BAR_LEFT, 0.0, 1 - text_band)).mean()
+                assert share > 0.9, share
+    finally:
+        window.close()

@@ -181,6 +181,13 @@ def _address(array: np.ndarray) -> int:
     return int(array.__array_interface__["data"][0])
 
 
+#: Where the colour bar's strip begins, a share of the view's width from its left (its title, centred on the bar,
+#: reaches a little to the left of the bar).
+SCALAR_BAR_LEFT = 0.82
+#: Pixels at the top of the scene view its text's three lines take.
+SCENE_TEXT_BAND_PX = 52
+
+
 def add_scalar_bar(plotter: pv.Plotter, title: str, mapper) -> object:
     """The vertical colour bar both views show at their right edge (far enough in that a title such as
     "range, m", centred on the bar, stays whole in a 280-pixel view)."""
@@ -649,6 +656,16 @@ def fov_wire(fov, length: float = 1.6) -> pv.PolyData:
 #: The scene view's camera presets (View menu): behind the sensor looking along its boresight, from above, from
 #: the front, from the side; "follow" keeps the user's angle and zoom and moves with the vehicle.
 CAMERA_PRESETS = ("behind", "top", "front", "side")
+#: The scene camera's vertical view angle, degrees.
+SCENE_VIEW_ANGLE = 50.0
+#: The side camera: how far ahead it frames before there is a cloud (m), the cloud's points it needs to frame
+#: them instead, its elevation (radians), the share of the view's half-angle the framed box may fill, and its
+#: least distance (m).
+SIDE_REACH_M = 30.0
+SIDE_FIT_POINTS = 100
+SIDE_ELEVATION = math.radians(15.0)
+SIDE_MARGIN = 0.85
+SIDE_NEAREST_M = 8.0
 
 
 class SceneView(_View):
@@ -824,18 +841,52 @@ class SceneView(_View):
             eye_ned = sensor.origin + flat * 40.0 + np.array([0, 0, -6.0])
             target_ned = sensor.origin
         else:
-            eye_ned = sensor.origin + left * 40.0 + flat * 15.0 + np.array([0, 0, -6.0])
-            target_ned = sensor.origin + flat * 15.0
+            eye_ned, target_ned = self._side_camera(sensor.origin, flat, left)
         to_display = NED_TO_DISPLAY[:3, :3]
         camera = self.renderer.camera
         camera.disable_parallel_projection()
         camera.position = tuple(to_display @ eye_ned)
         camera.focal_point = tuple(to_display @ target_ned)
         camera.up = up
-        camera.view_angle = 50
+        camera.view_angle = SCENE_VIEW_ANGLE
         self.renderer.ResetCameraClippingRange()
         vehicle = self.session.vehicle_pose_now
         self._followed = (NED_TO_DISPLAY[:3, :3] @ vehicle.origin, _heading(vehicle.rotation))
+
+    def _side_camera(self, origin: np.ndarray, flat: np.ndarray, left: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(eye, target)``, NED metres, of the side camera: from the sensor's left and a little above, at the
+        middle of the box that holds the sensor and the cloud (its 2nd to 98th percentiles each way, stray far
+        points left out), far enough that the whole box is in the view, with a margin, at the view's own shape.
+
+        A fixed eye 40 m off, looking 15 m ahead, left the sensor off the edge of a view narrower than tall.
+        """
+        up = np.array([0.0, 0.0, -1.0])
+        axes = np.stack([flat, left, up])  # rows: ahead, left, up
+        ring = self.session.scene_ring
+        low, high = np.array([-2.0, -3.0, -2.0]), np.array([SIDE_REACH_M, 3.0, 3.0])  # before any cloud
+        if ring.count >= SIDE_FIT_POINTS:
+            local = (ring.ordered(ring.positions).astype(np.float64) - origin) @ axes.T
+            low, high = np.percentile(local, [2.0, 98.0], axis=0)
+        low, high = np.minimum(low, 0.0) - 1.0, np.maximum(high, 0.0) + 1.0  # the sensor in the box too
+        centre = origin + ((low + high) / 2) @ axes
+        corners = np.array([[a, b, c] for a in (low[0], high[0]) for b in (low[1], high[1])
+                            for c in (low[2], high[2])]) @ axes + origin - centre
+        back = left * math.cos(SIDE_ELEVATION) + up * math.sin(SIDE_ELEVATION)  # from the target to the eye
+        view = -back
+        right = np.cross(view, up)
+        right /= np.linalg.norm(right)
+        screen_up = np.cross(right, view)
+        # The box goes into the part of the view the colour bar (right) and the text (top) leave free.
+        width, height = self.renderer.GetSize()
+        free_x, free_y = SCALAR_BAR_LEFT, 1.0 - min(0.3, SCENE_TEXT_BAND_PX / max(height, 1))
+        tan_v = math.tan(math.radians(SCENE_VIEW_ANGLE / 2))
+        tan_h = tan_v * max(width, 1) / max(height, 1)
+        depth = corners @ view
+        distance = max(np.max(np.abs(corners @ right) / (tan_h * free_x * SIDE_MARGIN) - depth),
+                       np.max(np.abs(corners @ screen_up) / (tan_v * free_y * SIDE_MARGIN) - depth), SIDE_NEAREST_M)
+        # Moved right and up, the camera draws the box's middle in the middle of the free part.
+        shift = right * (1.0 - free_x) * tan_h * distance + screen_up * (1.0 - free_y) * tan_v * distance
+        return centre + back * distance + shift, centre + shift
 
     def mark_picks(self, points_ned: list) -> None:
         """Mark the points picked (NED, metres): a ring round each, and the line between two."""
