@@ -322,7 +322,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.busy.setVisible(False)
         # Both give way to the permanent figures at the right, with an ellipsis and the whole text as tooltip; what
         # is being prepared takes the room it needs, but leaves the message (feedback to what was just done) its
-        # share (_share_status_room): capped at 320 px, "(compiled once, ...)" was cut with 600 px to spare.
+        # share (_share_status_room): capped at 320 px, its note on the first compile was cut with 600 px to spare.
         self.status_busy = ElidedLabel()
         self.status_message = ElidedLabel()
         self.status_message.setObjectName("message")
@@ -917,7 +917,7 @@ class MainWindow(QtWidgets.QMainWindow):
         if session.source is not None:
             raise LivoxVizError("a live view is not exported as a bag here; record it with 'livox-viz listen "
                                 "--record FILE'")
-        longest = files.bag_longest(session)
+        longest = math.floor(10 * files.bag_longest(session)) / 10  # as the box shows it, to its one decimal
         if seconds is None:
             seconds, accepted = QtWidgets.QInputDialog.getDouble(
                 self, "Export a ROS 2 bag", f"scan seconds from t = 0 ({files.BAG_SHORTEST:g} to {longest:g}):",
