@@ -124,3 +124,74 @@ def test_a_reference_in_another_plane_is_refused_or_removed(urban, tmp_path: Pat
         assert session.overlay.source is None and "removed" in session.message
     finally:
         app.close()
+
+
+def drawn_rect(renderer, bounds: tuple[float, ...]) -> tuple[float, float, float, float]:
+    """``(left, right, top, bottom)`` pixels (rows down from the top) of a world box ``(x0, x1, y0, y1, z0, z1)``
+    as ``renderer`` draws it."""
+    height = renderer.GetSize()[1]
+    xs, ys = [], []
+    for x in bounds[:2]:
+        for y in bounds[2:4]:
+            renderer.SetWorldPoint(x, y, 0.0, 1.0)
+            renderer.WorldToDisplay()
+            px, py, _ = renderer.GetDisplayPoint()
+            xs.append(px)
+            ys.append(height - py)
+    return min(xs), max(xs), min(ys), max(ys)
+
+
+def label_rects(app: LivoxVizApp) -> dict[str, tuple[int, int, int, int]]:
+    """The axes' names as drawn: the pattern view rendered with nothing but one name at a time, the box ``(left,
+    right, top, bottom)`` of its lit pixels, by the actor's name."""
+    plotter = app.pattern_view.plotter
+    renderer = app.pattern_view.renderer
+    props = renderer.GetViewProps()
+    everything = [props.GetItemAsObject(k) for k in range(props.GetNumberOfItems())]
+    shown = [prop for prop in everything if prop.GetVisibility()]
+    names = {name: actor for name, actor in plotter.actors.items() if name.startswith("axis-label")}
+    assert len(names) == 2
+    rects = {}
+    try:
+        for name, actor in names.items():
+            for prop in everything:
+                prop.SetVisibility(prop is actor)
+            plotter.render()
+            image = np.asarray(plotter.screenshot(return_img=True)).astype(int)
+            rows, cols = np.nonzero(np.abs(image - image[0, 0]).sum(axis=2) > 60)
+            assert rows.size, f"{name} is not drawn"
+            rects[name] = (cols.min(), cols.max(), rows.min(), rows.max())
+    finally:
+        for prop in shown:
+            prop.SetVisibility(True)
+    return rects
+
+
+@pytest.mark.parametrize("size", [(352, 656), (496, 836), (900, 480)])
+def test_no_axis_name_overlaps_the_pattern_and_each_stays_in_the_view(urban, tmp_path: Path, size,
+                                                                       user_presets: Path) -> None:
+    """A first-use trial saw the HAP's "x right, deg" drawn over the bottom of its band: the names sat a share of
+    the field of view's height away from it, a few pixels for a flat band. Drawn, each name's box lies outside the
+    field of view's drawn box and inside the view, for every sensor preset, at the pattern view's sizes in a
+    1280x720 and a 1600x900 window and in a wide one."""
+    from livox_viz.widgets.app import offscreen_plotter
+
+    from livox_viz import list_presets
+
+    shipped = [info.name for info in list_presets()]
+    assert "livox_hap" in shipped and len(shipped) >= 10
+    for preset in shipped:
+        session = Session(load_preset(preset), urban, seed=0, preset_name=preset)
+        app = LivoxVizApp(session, views="pattern", plotters={"pattern": offscreen_plotter(size)},
+                          screenshot_dir=tmp_path / "shots")
+        try:
+            view = app.pattern_view
+            view.reset_camera()
+            view.refit_guides()
+            left, right, top, bottom = drawn_rect(view.renderer, view.plotter.actors["fov-outline"].GetBounds())
+            for name, (x0, x1, y0, y1) in label_rects(app).items():
+                apart = x1 < left or x0 > right or y1 < top or y0 > bottom
+                assert apart, (preset, name, (x0, x1, y0, y1), (left, right, top, bottom))
+                assert 0 <= x0 and x1 < size[0] and 0 <= y0 and y1 < size[1], (preset, name, (x0, x1, y0, y1))
+        finally:
+            app.close()

@@ -284,6 +284,7 @@ def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot
              for action in actions(top.menu())}
     expected = {"Play / pause": "Space", "Step one unit": "Right", "Faster (x2)": "Up", "Slower (/2)": "Down",
                 "Reset the scan to t = 0": "X", "Show the return model's sheet in the panel": "T",
+                "Switch ideal / datasheet": "D",
                 "Switch rosette / track": "V", "Random rotation after each flower / figure": "J",
                 "Next preset": "N", "Previous preset": "B", "Next reference preset": "E",
                 "Reference overlay on / off": "O", "Reference's own window": "L",
@@ -302,6 +303,31 @@ def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot
     assert not window.help_dialog.isVisible()
     press(qtbot, window, "space")
     assert session.playback.paused
+
+
+def test_each_key_is_one_shortcut_and_d_shown_in_the_returns_menu_switches_once(window, qtbot) -> None:
+    """A first-use trial found no d in the Returns menu. The key is its entry's action's only shortcut (a key held
+    by a menu entry and by the window both is ambiguous: Qt runs neither), and every key of the key table is held
+    by exactly one shortcut of the window."""
+    from livox_viz.widgets.keys import KEYS
+    from livox_viz.widgets.mainwindow import key_sequence
+    from qtpy import QtGui
+
+    held = [action.shortcut() for action in window.findChildren(QtGui.QAction) if not action.shortcut().isEmpty()]
+    held += [shortcut.key() for shortcut in window.shortcuts]
+    for row in KEYS:
+        for key, _ in row.bindings:
+            assert sum(sequence == key_sequence(key) for sequence in held) == 1, key
+    returns = next(top.menu() for top in window.menuBar().actions() if top.text() == "&Returns")
+    switch = [action for action in returns.actions() if action.shortcut() == key_sequence("d")]
+    assert len(switch) == 1 and "ideal / datasheet" in switch[0].text()
+    session = window.controller.session
+    assert session.config.returns_model == "ideal"
+    press(qtbot, window, "d")
+    assert session.config.returns_model == "datasheet"
+    assert [m for m, action in window.returns_actions.items() if action.isChecked()] == ["datasheet"]
+    switch[0].trigger()
+    assert session.config.returns_model == "ideal"
 
 
 def test_the_menus_check_the_current_choices_from_the_start(window) -> None:
@@ -503,6 +529,44 @@ def test_the_scrubber_seeks_when_paused_and_forgets_the_picks(window) -> None:
     assert session.filling is None and session.scan_time == pytest.approx(0.4 * played, abs=1e-6)
     assert controller.picks == [] and controller.pick_text == ""
     assert window.status_message.text() != "range 12.000 m"
+
+
+@pytest.mark.parametrize("switch", ["n key", "preset menu", "x key"])
+def test_after_a_restart_the_scrubber_spans_only_the_new_scans_times(window, qtbot, switch: str) -> None:
+    """A first-use trial played 3 s, pressed n, paused and dragged the scrubber: it reached back to 3 s, times of
+    the scan before the switch (cast again with the new preset, a scan that never was). It spans the new scan's."""
+    from livox_viz import list_presets
+
+    session, controller = window.controller.session, window.controller
+    session.advance_to(3.0)
+    window.tick()
+    if switch == "n key":
+        press(qtbot, window, "n")
+    elif switch == "preset menu":
+        info = next(i for i in list_presets() if i.name == "livox_avia")
+        window.run(lambda: window.load_preset_file(info.path, info.name))
+        assert session.preset_name == "livox_avia"
+    else:
+        press(qtbot, window, "x")
+    assert session.scan_time == 0.0
+    session.advance_to(0.5)
+    window.tick()
+    window.run(controller.toggle_pause)
+    assert session.playback.paused and window.scrubber.isEnabled()
+    window.scrubber.setValue(1000)  # the scrubber's far end
+    for _ in range(200):
+        if session.filling is None:
+            break
+        window.tick()
+    assert session.filling is None
+    played = window._played
+    assert session.scan_time == pytest.approx(played, abs=1e-6) and 0.5 <= played < 0.6
+    window.scrubber.setValue(500)
+    for _ in range(200):
+        if session.filling is None:
+            break
+        window.tick()
+    assert session.scan_time == pytest.approx(0.5 * played, abs=1e-3)
 
 
 def test_a_seek_with_no_pick_made_says_no_error_and_a_seek_takes_the_marks_away(window) -> None:
@@ -714,6 +778,58 @@ def test_a_short_status_text_is_shown_whole_when_the_bar_has_room(window) -> Non
         window._jobs.clear()
 
 
+@pytest.mark.parametrize("size", [(1280, 720), (1600, 900), (1100, 700)])
+def test_what_is_being_prepared_uses_the_room_the_bar_has(urban, qtbot, size) -> None:
+    """A first-use trial saw "preparing the datasheet loops, 40 s (compiled..." cut at 320 px with the rest only in
+    the tooltip, in a bar with room for it: the text takes the room the permanent figures leave (all of it with no
+    message; the message keeps its share), and is elided only when the window is too narrow for it."""
+    from concurrent.futures import Future
+
+    from livox_viz.widgets.mainwindow import _Job
+    from livox_viz.widgets.warmup import FIRST_COMPILE_NOTE
+    from qtpy import QtWidgets
+
+    window = make_window(urban, qtbot, size=size)
+    preparing = f"preparing the datasheet loops, 40 s{FIRST_COMPILE_NOTE}"
+    try:
+        window._jobs.append(_Job(preparing, Future(), lambda _result: None, 0.0))
+        label = window.status_busy
+
+        def settle(message: str) -> str:
+            window.say(message)
+            for _ in range(3):  # the room is shared after the bar has laid its labels out
+                window._update_status()
+                QtWidgets.QApplication.processEvents()
+            return QtWidgets.QLabel.text(label)
+
+        shown = settle("")
+        whole = label.fontMetrics().horizontalAdvance(preparing)
+        room = window.status_time.geometry().left() - label.geometry().left()
+        assert label.fontMetrics().horizontalAdvance(shown) <= label.contentsRect().width()
+        if whole + 40 <= room:  # the bar has the room: shown whole, no tooltip needed
+            assert shown == preparing and not label.toolTip()
+        else:  # too narrow: elided, the whole in the tooltip, and it took the room it had
+            assert shown.endswith("\u2026") and preparing.startswith(shown[:-1]) and label.toolTip() == preparing
+            assert label.width() >= room - 40
+        if size[0] >= 1280:
+            assert shown == preparing  # the common sizes show it whole
+        # d pressed while they compile: what is being prepared stays whole at the common sizes, the message whole
+        # at 1600 px (at 1280 it keeps its share, its whole in the tooltip).
+        waiting = "returns datasheet: waiting for the datasheet loops; the current state plays meanwhile"
+        shown = settle(waiting)
+        if size[0] >= 1280:
+            assert shown == preparing
+        if size[0] >= 1600:
+            assert QtWidgets.QLabel.text(window.status_message) == waiting
+        message = "integration window 25 s refused; allowed: 0.01 to 10 s, or unlimited (1 M points) " * 3
+        settle(message)
+        assert window.status_message.width() >= 300  # the message keeps its share
+        assert not widget_rect(label, window).intersects(widget_rect(window.status_message, window))
+    finally:
+        window._jobs.clear()
+        window.close()
+
+
 def test_the_help_dialog_lists_every_key_inside_the_screen(window, qtbot) -> None:
     from livox_viz.widgets.keys import KEYS
 
@@ -875,3 +991,202 @@ def test_the_window_gives_none_back_what_a_leaky_binding_took(window, monkeypatc
     window.tick()
     assert window.none_reserve.given >= 400 * 50
     assert lowest >= window.none_reserve.floor - 200, (lowest, window.none_reserve.floor)
+
+
+# The ROS 2 bag export ----------------------------------------------------------------------------------
+def bag_messages(path: Path) -> tuple[list, list]:
+    """The bag as its reader gives it: its connections (topic, type, offered QoS) and every message (topic,
+    log time, serialized bytes), in order."""
+    from rosbags.rosbag2 import Reader
+
+    with Reader(path) as reader:
+        connections = sorted((c.topic, c.msgtype, str(c.ext.offered_qos_profiles)) for c in reader.connections)
+        messages = [(c.topic, stamp, bytes(data)) for c, stamp, data in reader.messages()]
+    return connections, messages
+
+
+def export_bag_from_menu(window, qtbot, monkeypatch: pytest.MonkeyPatch, target: Path, seconds: float) -> None:
+    """File > Export ROS 2 bag..., the dialogs answered with ``seconds`` and ``target``; waits for the worker."""
+    from qtpy import QtWidgets
+
+    monkeypatch.setattr(QtWidgets.QInputDialog, "getDouble", staticmethod(lambda *a, **k: (seconds, True)))
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getSaveFileName", staticmethod(lambda *a, **k: (str(target), "")))
+    file_menu = window.menuBar().actions()[0].menu()
+    entry = next(action for action in file_menu.actions() if action.text() == "Export ROS 2 bag...")
+    entry.trigger()
+    qtbot.waitUntil(lambda: (window.tick(), not window._jobs)[1], timeout=120_000)
+
+
+@pytest.mark.parametrize("case", ["ideal", "datasheet", "moving"])
+def test_a_bag_exported_from_the_window_is_the_scan_commands_bag(urban, qtbot, tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch, case: str) -> None:
+    """The bag File > Export ROS 2 bag writes holds, message for message and byte for byte, what ``livox-viz scan
+    --rosbag`` writes for the window's preset, return model, scene, motion and seed."""
+    pytest.importorskip("rosbags")
+    from livox_viz.widgets.mainwindow import MainWindow
+    from livox_viz.widgets.session import Session
+
+    from livox_viz import load_preset
+    from livox_viz.cli import main
+    from livox_viz.motion.flights import builtin_trajectory
+    from livox_viz.motion.tum import load_tum, save_tum
+
+    seconds = 0.3
+    options = []
+    trajectory = None
+    if case == "moving":  # a flight of the bag's length: the command reads it whole, as the window does
+        tum = tmp_path / "flight.tum"
+        save_tum(builtin_trajectory("circle", 5.0, urban.vehicle_pose, seconds), tum)
+        trajectory = load_tum(tum)
+        options = ["--trajectory", str(tum)]
+    session = Session(load_preset("livox_mid70"), urban, seed=3, preset_name="livox_mid70", trajectory=trajectory)
+    window = MainWindow(session, size=(1280, 720), warm=False)
+    qtbot.addWidget(window)
+    try:
+        window.show()
+        qtbot.waitExposed(window)
+        if case == "datasheet":
+            window.run(lambda: window.controller.set_returns_model("datasheet"))
+            options = ["--returns", "datasheet"]
+        assert session.config.returns_model == ("datasheet" if case == "datasheet" else "ideal")
+        window.run(window.controller.toggle_pause)  # a 0.3 s flight ends at once: its end would be the message
+        ours = tmp_path / "window_bag"
+        export_bag_from_menu(window, qtbot, monkeypatch, ours, seconds)
+        assert not window._error and f"to {ours}" in window.status_message.text(), window.status_message.text()
+        theirs = tmp_path / "scan_bag"
+        assert main(["scan", "--preset", "livox_mid70", "--scene", "urban", "--seed", "3", "--seconds", f"{seconds}",
+                     "--rosbag", str(theirs), *options]) == 0
+        connections, messages = bag_messages(ours)
+        assert (connections, messages) == bag_messages(theirs)
+        topics = {topic for topic, _, _ in messages}
+        assert {"/livox/lidar", "/livox/points", "/livox/imu", "/odom", "/tf", "/tf_static"} <= topics
+        assert sum(topic == "/livox/lidar" for topic, _, _ in messages) == 3  # 10 Hz frames
+    finally:
+        window.close()
+
+
+def test_the_bag_is_written_on_a_worker_while_the_window_plays_and_closing_gives_it_up(
+        window, qtbot, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every frame goes into the bag on a worker thread: held at its first frame, the window keeps ticking and
+    playing, the status bar says how far the export is, and the bag does not exist yet (atomic). Closing the window
+    gives the bag up: nothing is left, not even its temporary folder."""
+    import threading
+
+    from livox_viz.widgets import files as window_files
+
+    from livox_viz.files import scan_bag
+
+    main_thread = threading.get_ident()
+    writers: list[int] = []
+    gate = threading.Event()
+    original_write = scan_bag.BagSink.write
+
+    def held_write(sink, frame) -> None:
+        writers.append(threading.get_ident())
+        gate.wait(60)
+        original_write(sink, frame)
+
+    monkeypatch.setattr(scan_bag.BagSink, "write", held_write)
+    original_cancel = window_files.BagExport.cancel
+
+    def cancel_and_go_on(export) -> None:
+        original_cancel(export)
+        gate.set()
+
+    monkeypatch.setattr(window_files.BagExport, "cancel", cancel_and_go_on)
+    session = window.controller.session
+    target = tmp_path / "held_bag"
+    window.run(lambda: window.export_bag(str(target), 2.0))
+    assert len(window._jobs) == 1
+    qtbot.waitUntil(lambda: bool(writers), timeout=60_000)
+    start = session.scan_time
+    for _ in range(10):
+        window.tick()
+        qtbot.wait(20)
+    assert session.scan_time > start and not session.playback.paused  # the window played on
+    assert "exporting held_bag 0 %" in window.status_busy.text()
+    assert not target.exists() and window._jobs
+    job = window._jobs[0]
+    window.close()
+    assert isinstance(job.future.exception(timeout=30), scan_bag.ScanCancelled)
+    assert writers and main_thread not in writers
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name != "shots") == []
+
+
+def test_a_refused_bag_path_or_a_full_disk_is_one_line_and_nothing_is_left(window, qtbot, tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    import errno
+
+    from livox_viz.files import rosbag
+
+    folder = tmp_path / "bags"
+    folder.mkdir()
+    (folder / "taken").mkdir()
+    (folder / "a_file").write_text("x")
+    for path, words in ((folder / "taken", "exists (a folder)"), (folder / "a_file" / "bag", "does not exist")):
+        window.run(lambda p=path: window.export_bag(str(p), 0.3))
+        text = window.status_message.text()
+        assert window._error and words in text and "\n" not in text, text
+        assert not window._jobs
+    window.run(lambda: window.export_bag(str(folder / "long"), 1e6))
+    assert window._error and "allowed" in window.status_message.text() and not window._jobs
+
+    def disk_full(self, frame) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device", str(folder / "long"))
+
+    monkeypatch.setattr(rosbag.RosbagWriter, "write_frame", disk_full)
+    window.run(lambda: window.export_bag(str(folder / "full"), 0.3))
+    qtbot.waitUntil(lambda: (window.tick(), not window._jobs)[1], timeout=60_000)
+    text = window.status_message.text()
+    assert window._error and "exporting full failed" in text and "No space left on device" in text, text
+    assert "\n" not in text
+    assert sorted(p.name for p in folder.iterdir()) == ["a_file", "taken"]  # no bag, no temporary folder
+    window.tick()
+    assert window.isVisible()
+
+
+# The scene camera's presets ------------------------------------------------------------------------------
+def drawn_inside(renderer, points_display: np.ndarray, box: tuple[float, float, float, float]) -> np.ndarray:
+    """Whether each display-frame point (n, 3) is drawn in front of the camera and inside ``box`` = (left, right,
+    bottom, top), shares of the view's width and height (VTK's pixels: origin bottom left)."""
+    width, height = renderer.GetSize()
+    camera = renderer.GetActiveCamera()
+    eye, focal = np.array(camera.GetPosition()), np.array(camera.GetFocalPoint())
+    # VTK's own projection: world -> normalized view coordinates, -1 to 1 across the view.
+    matrix = camera.GetCompositeProjectionTransformMatrix(width / height, -1, 1)
+    projection = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+    homogeneous = np.column_stack([points_display, np.ones(len(points_display))]) @ projection.T
+    x = (homogeneous[:, 0] / homogeneous[:, 3] + 1) / 2
+    y = (homogeneous[:, 1] / homogeneous[:, 3] + 1) / 2
+    ahead = (points_display - eye) @ (focal - eye) > 0
+    left, right, bottom, top = box
+    return ahead & (left <= x) & (x <= right) & (bottom <= y) & (y <= top)
+
+
+@pytest.mark.parametrize("size", [(1280, 720), (1600, 900)])
+def test_each_scene_camera_shows_the_sensor_and_the_cloud(urban, qtbot, size) -> None:
+    """A first-use trial's "side" camera left the sensor off the view's edge (it looked at a point 15 m ahead from
+    40 m away, in a view narrower than tall). From every preset camera the sensor is drawn inside the view, 5 % in
+    from its edges, clear of the colour bar (right) and the text (top); from the side, the cloud too."""
+    from livox_viz.widgets.views import CAMERA_PRESETS, NED_TO_DISPLAY, SCALAR_BAR_LEFT
+
+    window = make_window(urban, qtbot, size=size)
+    try:
+        session, controller = window.controller.session, window.controller
+        session.advance_to(0.5)
+        window.tick()
+        renderer = controller.scene_view.renderer
+        ring = session.scene_ring
+        cloud = ring.ordered(ring.positions).astype(float) @ NED_TO_DISPLAY[:3, :3].T
+        assert len(cloud) > 10_000
+        for preset in CAMERA_PRESETS:
+            window.run(lambda p=preset: controller.set_scene_camera(p))
+            window.tick()
+            sensor = NED_TO_DISPLAY[:3, :3] @ session.sensor_pose.origin
+            text_band = 52 / renderer.GetSize()[1]
+            assert drawn_inside(renderer, sensor[None], (0.05, SCALAR_BAR_LEFT, 0.05, 1 - text_band))[0], preset
+            if preset == "side":
+                share = drawn_inside(renderer, cloud, (0.0, SCALAR_BAR_LEFT, 0.0, 1 - text_band)).mean()
+                assert share > 0.9, share
+    finally:
+        window.close()

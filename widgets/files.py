@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import threading
 from collections.abc import Callable
 from datetime import datetime
 from pathlib import Path
@@ -14,6 +16,10 @@ from livox_viz.config.presets import user_preset_dir
 from livox_viz.config.sensor import save_config
 from livox_viz.core.atomic import atomic_path, write_text_atomic
 from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.portable import usable_cores
+from livox_viz.core.workload import POINT_BUDGET, check_points
+from livox_viz.files.scan_bag import BagWritten, write_scan_bag
+from livox_viz.patterns.stream import points_before
 
 from .session import Session
 
@@ -151,3 +157,80 @@ def window_export(session: Session, target: Path) -> Callable[[], int]:
         return written
 
     return work
+
+
+#: Scan seconds a ROS 2 bag exported from the window holds unless the user types another (from t = 0): enough for
+#: an odometry to settle, a few seconds' work.
+BAG_SECONDS = 10.0
+#: The shortest bag the window exports, seconds (one frame of the slowest sensor).
+BAG_SHORTEST = 0.1
+
+
+def bag_longest(session: Session) -> float:
+    """The most scan seconds a bag of the session's scan may hold: the point budget's (as ``scan`` checks it), and
+    the trajectory's end (there is no pose after it)."""
+    longest = POINT_BUDGET / session.config.point_rate
+    if session.trajectory is not None:
+        longest = min(longest, session.trajectory.span[1])
+    return longest
+
+
+def check_bag_folder(path: Path) -> Path:
+    """Refuse a bag folder before any work: it must be a new name in a folder that exists and is writable.
+
+    Raises
+    ------
+    LivoxVizError
+        Naming the path and what is allowed.
+    """
+    if not str(path).strip():
+        raise LivoxVizError("bag not exported: an empty name; allowed: a new folder name")
+    if os.path.lexists(path):
+        what = "a symbolic link" if path.is_symlink() else "a folder" if path.is_dir() else "a file"
+        raise LivoxVizError(f"bag not exported: {path} exists ({what}); allowed: a new folder name (nothing is "
+                            "replaced)")
+    folder = path.absolute().parent
+    if not folder.is_dir():
+        raise LivoxVizError(f"bag not exported: the folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise LivoxVizError(f"bag not exported: the folder {folder} is not writable; allowed: a folder you can "
+                            "write in")
+    return path
+
+
+class BagExport:
+    """The work of exporting the session's scan as a ROS 2 bag: the scan from t = 0 for ``seconds``, with the
+    session's configuration (its return model), scene, vehicle pose, motion and seed, into the bag ``livox-viz
+    scan --rosbag`` writes for them (:func:`~livox_viz.files.scan_bag.write_scan_bag`). A worker calls it; the
+    window reads :attr:`fraction` and may :meth:`cancel` it (closing: the bag is given up, nothing is kept).
+
+    Raises (on creation)
+    --------------------
+    LivoxVizError
+        A bag the point budget cannot hold, or longer than the trajectory.
+    """
+
+    def __init__(self, session: Session, target: Path, seconds: float) -> None:
+        check_points(points_before(seconds, session.config.point_rate), f"a bag of {seconds:g} s", can_force=False)
+        if session.trajectory is not None:
+            session.trajectory.check_covers(0.0, seconds)
+        self.target = target
+        self.seconds = seconds
+        self._scan = (session.config, session.caster, session.vehicle_pose, session.trajectory, session.seed)
+        #: The share of the scan written so far, 0 to 1.
+        self.fraction = 0.0
+        self._cancel = threading.Event()
+
+    def __call__(self) -> BagWritten:
+        config, caster, pose, trajectory, seed = self._scan
+        # One core left to the window: the scan is the same whatever the count.
+        return write_scan_bag(self.target, config, caster, pose, trajectory, seed, self.seconds,
+                              workers=max(1, usable_cores() - 1), progress=self._progress,
+                              cancelled=self._cancel.is_set)
+
+    def _progress(self, scan_time: float) -> None:
+        self.fraction = min(scan_time / self.seconds, 1.0)
+
+    def cancel(self) -> None:
+        """Give the bag up after the frame in hand."""
+        self._cancel.set()

@@ -58,6 +58,10 @@ KEY_OF_METHOD = {method: key for row in KEYS for key, method in row.bindings}
 EXPORT_FORMATS = (("PLY", ".ply"), ("PCD", ".pcd"), ("LAS 1.4", ".las"), ("NumPy NPZ", ".npz"), ("CSV", ".csv"))
 #: Points a refilled integration window casts per tick: about 40 ms of the ideal model's work on one core.
 FILL_PER_TICK = 40_000
+#: Seconds closing the window waits for a job it gave up to remove what it was writing (one frame's work).
+CANCEL_WAIT_S = 10.0
+#: Pixels of the status bar the message keeps beside what is being prepared (less when it needs less).
+STATUS_MESSAGE_SHARE = 300
 #: Pixels a click may move between press and release and still be a click (not a drag of the camera).
 CLICK_SLOP = 4
 
@@ -99,6 +103,12 @@ class ElidedLabel(QtWidgets.QLabel):
     def text(self) -> str:
         return self._whole
 
+    def set_widest(self, widest: int) -> None:
+        """Ask for at most ``widest`` pixels from now on."""
+        if widest != self._widest:
+            self._widest = widest
+            self.updateGeometry()
+
     def shown_text(self) -> str:
         """What the label shows now (the text, or its start and an ellipsis)."""
         return super().text()
@@ -138,6 +148,13 @@ class _Job:
     future: Future
     done: Callable[[Any], None]
     started: float
+    #: The share done, 0 to 1, when the job can tell.
+    fraction: Callable[[], float] | None = None
+    #: Gives the job up (when the window closes), when it can be.
+    cancel: Callable[[], None] | None = None
+
+    def describe(self) -> str:
+        return self.what if self.fraction is None else f"{self.what} {100 * self.fraction():.0f} %"
 
 
 class MainWindow(QtWidgets.QMainWindow):
@@ -304,9 +321,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self.busy.setMaximumHeight(14)
         self.busy.setVisible(False)
         # Both give way to the permanent figures at the right, with an ellipsis and the whole text as tooltip; what
-        # is being prepared asks for a quarter of a 1280 px bar at most, the message (feedback to what was just done)
-        # for the rest.
-        self.status_busy = ElidedLabel(widest=320)
+        # is being prepared takes the room it needs, but leaves the message (feedback to what was just done) its
+        # share (_share_status_room): capped at 320 px, its note on the first compile was cut with 600 px to spare.
+        self.status_busy = ElidedLabel()
         self.status_message = ElidedLabel()
         self.status_message.setObjectName("message")
         self.status_message.setTextInteractionFlags(QtCore.Qt.TextInteractionFlag.TextSelectableByMouse)
@@ -331,7 +348,11 @@ class MainWindow(QtWidgets.QMainWindow):
         bar.addWidget(self.scrub_label)
         bar.addWidget(self.scrubber)
         self.addToolBar(QtCore.Qt.ToolBarArea.BottomToolBarArea, bar)
-        self._played = 0.0
+
+    @property
+    def _played(self) -> float:
+        """The scan time the scrubber spans: as far as the scan played since it last restarted, seconds."""
+        return self.controller.session.played
 
     def _action(self, menu: QtWidgets.QMenu, text: str, slot: Callable[[], Any], shortcut: str | None = None,
                 checkable: bool = False, group: QtGui.QActionGroup | None = None, data: Any = None) -> QtGui.QAction:
@@ -383,6 +404,7 @@ class MainWindow(QtWidgets.QMainWindow):
         export = file.addMenu("Export the window's cloud")
         for label, suffix in EXPORT_FORMATS:
             self._action(export, f"{label} ({suffix})...", lambda s=suffix: self.export_cloud(s))
+        self._action(file, "Export ROS 2 bag...", self.export_bag)
         self._action(file, "Screenshot (views and sidecar)", c.take_screenshot)
         file.addSeparator()
         self._action(file, "Quit", self.close, "Ctrl+Q")
@@ -431,6 +453,10 @@ class MainWindow(QtWidgets.QMainWindow):
                                                     checkable=True, group=group)
                                 for model, text in (("ideal", "Ideal (each ray's exact first hit, as RflySim)"),
                                                     ("datasheet", "Datasheet (noise, footprint, returns, tags)"))}
+        # The d key switches between the two: its own entry shows it, as v's does in the Pattern menu (a key is one
+        # action's only shortcut, so neither choice above can hold it).
+        self._action(returns, "Switch ideal / datasheet", c.toggle_returns_model)
+        returns.addSeparator()
         self._action(returns, "Show the return model's sheet in the panel", c.toggle_slider_page)
 
         pattern = bar.addMenu("P&attern")
@@ -521,8 +547,11 @@ class MainWindow(QtWidgets.QMainWindow):
                 if not self._error:
                     self.say(f"{what}: ready" if what else "ready")
 
-    def _background(self, what: str, work: Callable[[], Any], done: Callable[[Any], None]) -> None:
-        """Run ``work`` on a worker thread and ``done(result)`` on the UI thread after; the status bar shows it."""
+    def _background(self, what: str, work: Callable[[], Any], done: Callable[[Any], None],
+                    fraction: Callable[[], float] | None = None, cancel: Callable[[], None] | None = None) -> None:
+        """Run ``work`` on a worker thread and ``done(result)`` on the UI thread after; the status bar shows it
+        (with ``fraction()`` done as a percentage, when given). ``cancel``: gives the work up when the window
+        closes."""
         future: Future = Future()
 
         def run() -> None:
@@ -533,7 +562,7 @@ class MainWindow(QtWidgets.QMainWindow):
                 future.set_exception(exc)
 
         threading.Thread(target=run, daemon=True, name=f"livox-viz-{what.split()[0]}").start()
-        self._jobs.append(_Job(what, future, done, time.monotonic()))
+        self._jobs.append(_Job(what, future, done, time.monotonic(), fraction, cancel))
 
     def _finish_jobs(self) -> None:
         for job in [j for j in self._jobs if j.future.done()]:
@@ -568,7 +597,6 @@ class MainWindow(QtWidgets.QMainWindow):
                 self.controller.session.start_casting()
         self._finish_jobs()
         self._run_deferred()
-        session = self.controller.session
         try:
             if self._playing_allowed:
                 self.controller.tick()
@@ -576,7 +604,6 @@ class MainWindow(QtWidgets.QMainWindow):
                 self.controller.refresh()
         except LivoxVizError as exc:
             self.say(str(exc), error=True)
-        self._played = max(self._played, session.scan_time)
         self._follow_view_sizes()
         self.controller.render(draw=QtWidgets.QWidget.update)
         if self._first_frame is None and self._playing_allowed:
@@ -613,7 +640,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.status_points.setText(f"window {window_label(session.window)}: {held:,} of {fired:,} points")
         self.status_fps.setText(f"{self.controller.fps:4.1f} fps")
         self.status_returns.setText(f"returns: {session.config.returns_model}")
-        busy = [job.what for job in self._jobs]
+        busy = [job.describe() for job in self._jobs]
         if self.warmer is not None and self.warmer.working:
             busy.append(self.warmer.describe())
         if not self.controller.session.casting:
@@ -629,12 +656,24 @@ class MainWindow(QtWidgets.QMainWindow):
             message = self.controller.pick_text
         self.status_message.setText(message)
         self.status_message.setStyleSheet("color: #d9534f;" if self._error and message else "")
+        self._share_status_room()
         paused = session.playback.paused
         self.scrubber.setEnabled(paused and self._played > 0)
         if paused and self._played > 0 and not self.scrubber.isSliderDown():
             with signals_blocked(self.scrubber):
                 self.scrubber.setValue(round(1000 * session.shown_time / self._played))
         self.scrub_label.setText(f" scan time {session.shown_time:8.3f} s ")
+
+    def _share_status_room(self) -> None:
+        """What is being prepared gets the room the permanent figures leave, but for the message's share: the
+        message's own width, up to 300 px or 40 % of the room (none when there is no message)."""
+        busy, message = self.status_busy, self.status_message
+        if not busy.isVisible() or not message.isVisible():
+            return
+        spacing = max(self.statusBar().layout().spacing(), 0)
+        room = message.geometry().right() - busy.geometry().left() + 1 - spacing
+        share = min(message.sizeHint().width(), max(STATUS_MESSAGE_SHARE, int(0.4 * room))) if message.text() else 0
+        busy.set_widest(max(room - share, busy.minimumSizeHint().width()))
 
     def _sync_menus(self) -> None:
         session = self.controller.session
@@ -870,6 +909,35 @@ class MainWindow(QtWidgets.QMainWindow):
         self._background(f"exporting {target.name}", work, lambda count: self.say(f"exported {count:,} points to "
                                                                                    f"{target}"))
 
+    def export_bag(self, path: str | None = None, seconds: float | None = None) -> None:
+        """File > Export ROS 2 bag: the scan from t = 0 of the window's configuration, return model, scene, pose,
+        motion and seed, for the seconds the user asks, into the bag ``livox-viz scan --rosbag`` writes for them
+        (its topics and messages: CustomMsg, PointCloud2, Imu, Odometry, /tf); written on a worker, atomically."""
+        session = self.controller.session
+        if session.source is not None:
+            raise LivoxVizError("a live view is not exported as a bag here; record it with 'livox-viz listen "
+                                "--record FILE'")
+        longest = math.floor(10 * files.bag_longest(session)) / 10  # as the box shows it, to its one decimal
+        if seconds is None:
+            seconds, accepted = QtWidgets.QInputDialog.getDouble(
+                self, "Export a ROS 2 bag", f"scan seconds from t = 0 ({files.BAG_SHORTEST:g} to {longest:g}):",
+                min(files.BAG_SECONDS, longest), files.BAG_SHORTEST, longest, 1)
+            if not accepted:
+                return
+        if path is None:
+            name = f"{session.preset_name or 'custom'}_{seconds:g}s_bag"
+            path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Export a ROS 2 bag (a new folder)",
+                                                            str(Path.cwd() / name), "ROS 2 bag folder (*)")
+        if not path:
+            return
+        target = files.check_bag_folder(Path(path))
+        work = files.BagExport(session, target, seconds)
+
+        def done(written) -> None:
+            self.say(f"exported a {seconds:g} s bag ({written.frames} frames, {written.points:,} points) to {target}")
+
+        self._background(f"exporting {target.name}", work, done, fraction=lambda: work.fraction, cancel=work.cancel)
+
     # Closing -------------------------------------------------------------------------------------
     def closeEvent(self, event: QtGui.QCloseEvent) -> None:
         if self._closing:
@@ -877,6 +945,16 @@ class MainWindow(QtWidgets.QMainWindow):
             return
         self._closing = True
         self.timer.stop()
+        # A bag being written is given up (nothing is kept) rather than left half-made by the process's end.
+        for job in self._jobs:
+            if job.cancel is not None:
+                job.cancel()
+        for job in self._jobs:
+            if job.cancel is not None:
+                try:
+                    job.future.exception(timeout=CANCEL_WAIT_S)
+                except TimeoutError:
+                    pass
         if self.warmer is not None:
             self.warmer.close()
         if self.help_dialog is not None:

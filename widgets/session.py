@@ -301,6 +301,9 @@ class Session:
         self.pattern = make_pattern(self.config, seed=self.seed)
         self.mounted = MountedCaster(self.config, self.caster, self.vehicle_pose, self.trajectory, self.seed)
         self.scan_time = 0.0
+        #: The farthest scan time this scan has reached, seconds: what the time scrubber spans (a restart, by a
+        #: preset, a parameter or x, begins another scan: the times before it are not this one's).
+        self.played = 0.0
         self.playback.restart()
         self.frame_index = 0
         self.skipped_points = 0
@@ -447,6 +450,7 @@ class Session:
         index = np.arange(self._received_points, self._received_points + count)
         self._received_points += count
         self.scan_time = frame.timestamp + 1.0 / self.config.data_check_freq
+        self.played = max(self.played, self.scan_time)
         self.frame_index = frame.index
         xyz = np.zeros((count, 3), dtype=np.float32)
         xyz[:, :2] = frame.xy_deg
@@ -476,9 +480,11 @@ class Session:
             missing = keep
         if missing <= 0:
             self.scan_time = max(self.scan_time, scan_time)
+            self.played = max(self.played, self.scan_time)
             return 0
         chunk = self.pattern.take(missing)
         self.scan_time = scan_time
+        self.played = max(self.played, scan_time)
         self.overlay.advance_to(scan_time)
         self._add_pattern(chunk)
         if self.casting:

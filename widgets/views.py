@@ -41,6 +41,13 @@ BACKGROUNDS: dict[str, tuple[str, str | None]] = {"dark": ("#10141c", None), "gr
 REFERENCE_COLOUR = "#8fd3ff"
 #: Pixels at the top of the pattern view that its text's lines take (kept free of the drawing).
 TEXT_BAND_PX = 84
+#: The share of the pattern view's width left of the colour bar's strip.
+PATTERN_USABLE_WIDTH = 0.78
+#: Pixels between the field of view's edge and an axis's name, and the rows the names take below it and above it
+#: (the gap, a 12-point line, a little air).
+NAME_GAP_PX = 6
+NAME_BELOW_PX = 30
+NAME_ABOVE_PX = 28
 REFERENCE_DEPTH = -0.5
 SCENE_UNITS = {"range": "range, m", "height": "height, m", "time": "time, s",
                "reflectivity": "reflectivity",
@@ -179,6 +186,13 @@ def pattern_categories(session: Session) -> list[str]:
 
 def _address(array: np.ndarray) -> int:
     return int(array.__array_interface__["data"][0])
+
+
+#: Where the colour bar's strip begins, a share of the view's width from its left (its title, centred on the bar,
+#: reaches a little to the left of the bar).
+SCALAR_BAR_LEFT = 0.82
+#: Pixels at the top of the scene view its text's three lines take.
+SCENE_TEXT_BAND_PX = 52
 
 
 def add_scalar_bar(plotter: pv.Plotter, title: str, mapper) -> object:
@@ -350,9 +364,8 @@ class PatternView(_View):
         """
         plotter = self.plotter
         plotter.subplot(*self.subplot)
-        for name in ("grid-labels", "axis-labels"):
-            if name in self._guides:  # pyvista names a label actor after its name, "-labels" added
-                plotter.remove_actor(f"{name}-labels", render=False)
+        if "grid-labels" in self._guides:  # pyvista names a label actor after its name, "-labels" added
+            plotter.remove_actor("grid-labels-labels", render=False)
         self._guides = []
         fov = self.session.config.field_of_view
         self._guides_fov = fov
@@ -380,22 +393,39 @@ class PatternView(_View):
             plotter.add_point_labels(positions, labels, font_size=12, text_color="#9aa6b8", shape=None,
                                      show_points=False, name="grid-labels", always_visible=True, reset_camera=False)
             self._guides.append("grid-labels")
-        x0, x1, y0, y1 = fov.bounds
+        self.place_axis_names()
+
+    def place_axis_names(self) -> None:
+        """The axes' names, clear of what is drawn at the view's scale now (:meth:`reset_camera` calls it).
+
+        The boresight plane's: x's under the drawn field of view, ending at its right edge (beside it, at 1280x720
+        it ran into the colour bar's marks), y's above it, each :data:`NAME_GAP_PX` pixels off its edge. Placed
+        a share of the field's height away, the HAP's flat band had "x right, deg" drawn over its bottom.
+        """
+        plotter = self.plotter
+        plotter.subplot(*self.subplot)
+        fov = self.session.config.field_of_view
         if fov.plane == "panorama":
-            low, high = y0 * stretch, y1 * stretch
+            x0, x1, y0, y1 = fov.bounds
+            low, high = y0 * self.stretch, y1 * self.stretch
             height = high - low
             names = ["azimuth, deg (x right)", "elevation, deg"]
             places = [(-20.0, low - 0.30 * height, 0.0), (-200.0, high + 0.10 * height, 0.0)]
+            justified = {}
         else:
-            names = ["x right, deg", "y up, deg"]
+            x0, x1, y0, y1 = self._content_bounds()
+            _, height = self.renderer.GetSize()
+            per_pixel = 2.0 * self.renderer.camera.parallel_scale / max(height, 1)  # degrees
+            gap = NAME_GAP_PX * per_pixel
             centre_x = 0.0 if x0 < 0 < x1 else (x0 + x1) / 2
-            # x's name under the field of view, at its right: beside it, at 1280x720 it ran into the colour bar's
-            # marks.
-            places = [(x0 + 0.68 * (x1 - x0), y0 - 0.085 * (y1 - y0), 0.0),
-                      (centre_x + 0.01 * (x1 - x0), y1 + 0.02 * (y1 - y0), 0.0)]
-        plotter.add_point_labels(places, names, font_size=12, text_color="#9aa6b8", shape=None, show_points=False,
-                                 name="axis-labels", always_visible=True, reset_camera=False)
-        self._guides.append("axis-labels")
+            names = ["x right, deg", "y up, deg"]
+            places = [(x1, y0 - gap, 0.0), (centre_x + gap, y1 + gap, 0.0)]
+            # x's anchor is its box's top right corner, y's its bottom left.
+            justified = {"justification_horizontal": ["right", "left"], "justification_vertical": ["top", "bottom"]}
+        for k, name in enumerate(names):
+            plotter.add_point_labels([places[k]], [name], font_size=12, text_color="#9aa6b8", shape=None,
+                                     show_points=False, name=f"axis-label-{k}", always_visible=True,
+                                     reset_camera=False, **{key: value[k] for key, value in justified.items()})
 
     def azimuth_mark_step(self) -> int:
         """Degrees between the panorama's azimuth marks: 45, or 90 where the view is too narrow for "-135°" to
@@ -409,22 +439,35 @@ class PatternView(_View):
         if self.session.config.field_of_view.plane == "panorama" and self.azimuth_mark_step() != self._azimuth_marks:
             self.draw_guides()
 
-    def drawn_bounds(self) -> tuple[float, float, float, float]:
-        """``(x0, x1, y0, y1)`` in the view's coordinates of what :meth:`reset_camera` fits: the field of view,
-        the reference's when one is shown (a wide reference, the HAP's band against the Mid-70, ran past the view's
-        edges), and the guides' marks around them."""
+    def _content_bounds(self) -> tuple[float, float, float, float]:
+        """``(x0, x1, y0, y1)`` in the view's coordinates of the field of view and the reference's when one is
+        shown (a wide reference, the HAP's band against the Mid-70, ran past the view's edges)."""
         x0, x1, y0, y1 = self.session.config.field_of_view.bounds
         overlay = self.session.overlay
         if overlay.source is not None and overlay.visible and overlay.source.plane == self.session.config.pattern_plane:
             r0, r1, s0, s1 = overlay.source.fov.bounds
             x0, x1, y0, y1 = min(x0, r0), max(x1, r1), min(y0, s0), max(y1, s1)
-        y0, y1 = y0 * self.stretch, y1 * self.stretch
+        return x0, x1, y0 * self.stretch, y1 * self.stretch
+
+    def drawn_bounds(self) -> tuple[float, float, float, float]:
+        """``(x0, x1, y0, y1)`` in the view's coordinates of what :meth:`reset_camera` fits: the field of view,
+        the reference's when one is shown, and the guides' marks and the axes' names around them."""
+        x0, x1, y0, y1 = self._content_bounds()
         if self.session.config.pattern_plane == "panorama":
             height = y1 - y0
             # Elevation marks on the left, azimuth marks and the axis name below, the elevation name above.
             return x0 - 28.0, x1 + 4.0, y0 - 0.36 * height, y1 + 0.18 * height
+        # The names' rows, in pixels, at the scale the view will have: a share of the height was a few pixels for
+        # a flat band. The scale follows from fitting the rest and the rows into the view (see _fitted_height).
         width, height = x1 - x0, y1 - y0
-        return x0 - 0.02 * width, x1 + 0.03 * width, y0 - 0.11 * height, y1 + 0.07 * height
+        pixels_w, pixels_h = self.renderer.GetSize()
+        aspect = max(pixels_w, 1) / max(pixels_h, 1)
+        top = min(0.3, TEXT_BAND_PX / max(pixels_h, 1))
+        rows = 1.02 * (NAME_BELOW_PX + NAME_ABOVE_PX) / max(pixels_h, 1)
+        visible = max(height / max(1.0 - top - rows, 0.05), 1.05 * width / (aspect * PATTERN_USABLE_WIDTH))
+        per_pixel = 1.02 * visible / max(pixels_h, 1)  # degrees
+        return (x0 - 0.02 * width, x1 + 0.03 * width, y0 - NAME_BELOW_PX * per_pixel,
+                y1 + NAME_ABOVE_PX * per_pixel)
 
     def reset_camera(self) -> None:
         """Look straight at the pattern plane, orthographic, everything drawn (the reference too) in the view, with
@@ -441,6 +484,7 @@ class PatternView(_View):
         camera.up = (0, 1, 0)
         camera.parallel_scale = visible / 2 * 1.02
         self.renderer.ResetCameraClippingRange()
+        self.place_axis_names()
 
     def _fitted_height(self) -> tuple[float, float, float]:
         """``(visible, usable, top)``: the height of the plane :meth:`reset_camera` shows (degrees, before its 2 %
@@ -449,7 +493,7 @@ class PatternView(_View):
         x0, x1, y0, y1 = self.drawn_bounds()
         width, height = self.renderer.GetSize()
         aspect = max(width, 1) / max(height, 1)
-        usable = 0.78
+        usable = PATTERN_USABLE_WIDTH
         top = min(0.3, TEXT_BAND_PX / max(height, 1))
         return max((y1 - y0) / (1 - top), (x1 - x0) / (aspect * usable)), usable, top
 
@@ -649,6 +693,16 @@ def fov_wire(fov, length: float = 1.6) -> pv.PolyData:
 #: The scene view's camera presets (View menu): behind the sensor looking along its boresight, from above, from
 #: the front, from the side; "follow" keeps the user's angle and zoom and moves with the vehicle.
 CAMERA_PRESETS = ("behind", "top", "front", "side")
+#: The scene camera's vertical view angle, degrees.
+SCENE_VIEW_ANGLE = 50.0
+#: The side camera: how far ahead it frames before there is a cloud (m), the cloud's points it needs to frame
+#: them instead, its elevation (radians), the share of the view's half-angle the framed box may fill, and its
+#: least distance (m).
+SIDE_REACH_M = 30.0
+SIDE_FIT_POINTS = 100
+SIDE_ELEVATION = math.radians(15.0)
+SIDE_MARGIN = 0.85
+SIDE_NEAREST_M = 8.0
 
 
 class SceneView(_View):
@@ -824,18 +878,52 @@ class SceneView(_View):
             eye_ned = sensor.origin + flat * 40.0 + np.array([0, 0, -6.0])
             target_ned = sensor.origin
         else:
-            eye_ned = sensor.origin + left * 40.0 + flat * 15.0 + np.array([0, 0, -6.0])
-            target_ned = sensor.origin + flat * 15.0
+            eye_ned, target_ned = self._side_camera(sensor.origin, flat, left)
         to_display = NED_TO_DISPLAY[:3, :3]
         camera = self.renderer.camera
         camera.disable_parallel_projection()
         camera.position = tuple(to_display @ eye_ned)
         camera.focal_point = tuple(to_display @ target_ned)
         camera.up = up
-        camera.view_angle = 50
+        camera.view_angle = SCENE_VIEW_ANGLE
         self.renderer.ResetCameraClippingRange()
         vehicle = self.session.vehicle_pose_now
         self._followed = (NED_TO_DISPLAY[:3, :3] @ vehicle.origin, _heading(vehicle.rotation))
+
+    def _side_camera(self, origin: np.ndarray, flat: np.ndarray, left: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(eye, target)``, NED metres, of the side camera: from the sensor's left and a little above, at the
+        middle of the box that holds the sensor and the cloud (its 2nd to 98th percentiles each way, stray far
+        points left out), far enough that the whole box is in the view, with a margin, at the view's own shape.
+
+        A fixed eye 40 m off, looking 15 m ahead, left the sensor off the edge of a view narrower than tall.
+        """
+        up = np.array([0.0, 0.0, -1.0])
+        axes = np.stack([flat, left, up])  # rows: ahead, left, up
+        ring = self.session.scene_ring
+        low, high = np.array([-2.0, -3.0, -2.0]), np.array([SIDE_REACH_M, 3.0, 3.0])  # before any cloud
+        if ring.count >= SIDE_FIT_POINTS:
+            local = (ring.ordered(ring.positions).astype(np.float64) - origin) @ axes.T
+            low, high = np.percentile(local, [2.0, 98.0], axis=0)
+        low, high = np.minimum(low, 0.0) - 1.0, np.maximum(high, 0.0) + 1.0  # the sensor in the box too
+        centre = origin + ((low + high) / 2) @ axes
+        corners = np.array([[a, b, c] for a in (low[0], high[0]) for b in (low[1], high[1])
+                            for c in (low[2], high[2])]) @ axes + origin - centre
+        back = left * math.cos(SIDE_ELEVATION) + up * math.sin(SIDE_ELEVATION)  # from the target to the eye
+        view = -back
+        right = np.cross(view, up)
+        right /= np.linalg.norm(right)
+        screen_up = np.cross(right, view)
+        # The box goes into the part of the view the colour bar (right) and the text (top) leave free.
+        width, height = self.renderer.GetSize()
+        free_x, free_y = SCALAR_BAR_LEFT, 1.0 - min(0.3, SCENE_TEXT_BAND_PX / max(height, 1))
+        tan_v = math.tan(math.radians(SCENE_VIEW_ANGLE / 2))
+        tan_h = tan_v * max(width, 1) / max(height, 1)
+        depth = corners @ view
+        distance = max(np.max(np.abs(corners @ right) / (tan_h * free_x * SIDE_MARGIN) - depth),
+                       np.max(np.abs(corners @ screen_up) / (tan_v * free_y * SIDE_MARGIN) - depth), SIDE_NEAREST_M)
+        # Moved right and up, the camera draws the box's middle in the middle of the free part.
+        shift = right * (1.0 - free_x) * tan_h * distance + screen_up * (1.0 - free_y) * tan_v * distance
+        return centre + back * distance + shift, centre + shift
 
     def mark_picks(self, points_ned: list) -> None:
         """Mark the points picked (NED, metres): a ring round each, and the line between two."""

@@ -27,6 +27,10 @@ from collections.abc import Iterable
 
 from livox_viz.casting.warm import STAGES, warm
 
+#: What the status bar adds while the datasheet loops compile: short, so that it stays whole beside a message in a
+#: 1280 px window (the first time only: numba's cache has them after).
+FIRST_COMPILE_NOTE = " (first time only: 1-2 min)"
+
 #: The child compiles at a lower priority than the window (on 2 cores the window's frames come first): Windows sets
 #: it as it starts the child, elsewhere the child lowers its own (``--background``).
 _BELOW_NORMAL: dict = {}
@@ -97,8 +101,7 @@ class LoopWarmer:
             return ""
         stage, since = next(iter(working.items()))
         age = time.monotonic() - since
-        first = " (compiled once, 1-2 min on 2 cores, then loaded from the cache)" if stage == "datasheet" and age > 8 \
-            else ""
+        first = FIRST_COMPILE_NOTE if stage == "datasheet" and age > 8 else ""
         return f"preparing the {stage} loops, {age:.0f} s{first}"
 
     def close(self) -> None:

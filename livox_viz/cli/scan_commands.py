@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
@@ -17,9 +17,8 @@ from livox_viz.core.progress import Progress
 from livox_viz.core.workload import check_points
 from livox_viz.files.export import FORMATS, PointCloudWriter, sidecar_path
 from livox_viz.files.overlap import OverlappedWriting
-from livox_viz.motion.flights import builtin_trajectory
-from livox_viz.motion.imu import IMU_FRAMES, MAX_RATE, MIN_RATE, ImuNoise, ImuStream
-from livox_viz.motion.trajectory import Trajectory
+from livox_viz.files.scan_bag import DEFAULT_IMU_FRAME, DEFAULT_IMU_RATE, open_scan_bag
+from livox_viz.motion.imu import IMU_FRAMES, MAX_RATE, MIN_RATE, ImuNoise
 from livox_viz.patterns.stream import points_before
 from livox_viz.scene.scenes import list_scenes
 
@@ -170,7 +169,7 @@ def _frames(count: int) -> str:
 
 
 #: The bag options and their defaults (given without --rosbag they would be ignored: refused instead).
-BAG_OPTIONS = {"imu_rate": 200.0, "imu_noise": None, "imu_frame": "body"}
+BAG_OPTIONS = {"imu_rate": DEFAULT_IMU_RATE, "imu_noise": None, "imu_frame": DEFAULT_IMU_FRAME}
 
 
 def _check_bag_options(args: argparse.Namespace) -> None:
@@ -180,51 +179,18 @@ def _check_bag_options(args: argparse.Namespace) -> None:
                          "into the bag only)")
 
 
-class _BagSink:
-    """Frames into a bag, with the IMU samples and the ground truth of the same time written alongside.
-
-    The IMU is made a frame at a time (:class:`~livox_viz.motion.imu.ImuStream`): memory stays flat.
-    """
-
-    def __init__(self, writer, imu: ImuStream, flight: Trajectory, end: float) -> None:
-        self.writer = writer
-        self.imu = imu
-        self.flight = flight
-        #: Where the IMU and ground truth end, seconds: the scan's end, or its last frame's when it stopped early.
-        self.end = end
-
-    def write(self, frame) -> None:
-        self.writer.write_frame(frame)
-        self.motion_until(frame.end_time)
-
-    def motion_until(self, stop: float, inclusive: bool = False) -> None:
-        """IMU and ground-truth samples before ``stop`` seconds (and at it, with ``inclusive``)."""
-        samples = self.imu.until(stop, inclusive)
-        if samples.t.size:
-            self.writer.write_imu(samples)
-            self.writer.write_motion(self.flight, samples.t)
-
-
-@contextmanager
 def _open_bag(args, cfg, scanner, trajectory, pose):
-    from livox_viz.files.rosbag import RosbagWriter, RosNames
+    """The bag ``--rosbag`` and its options ask for (:func:`~livox_viz.files.scan_bag.open_scan_bag`)."""
+    from livox_viz.files.rosbag import RosNames
 
     def option(name: str):
         value = getattr(args, name)
         return BAG_OPTIONS[name] if value is None else value
 
-    flight = trajectory if trajectory is not None else builtin_trajectory("hover", 0.0, pose, args.seconds)
-    noise = ImuNoise(*args.imu_noise) if args.imu_noise else ImuNoise()
-    mount = scanner.mounted.mount_pose
-    imu_frame = option("imu_frame")
-    imu = ImuStream(flight, option("imu_rate"), noise, seed=args.seed, start=0.0,
-                    mount=mount if imu_frame == "lidar" else None)
-    names = RosNames.parse(args.ros_names) if args.ros_names else RosNames()
-    with RosbagWriter(args.rosbag, mount, names, lasers=cfg.lasers, imu_frame=imu_frame,
-                      imu_variances=noise.sample_variances(option("imu_rate"))) as writer:
-        sink = _BagSink(writer, imu, flight, args.seconds)
-        yield sink
-        sink.motion_until(sink.end, inclusive=True)  # the samples at its very end (the last frame's when stopped)
+    return open_scan_bag(args.rosbag, cfg, scanner.mounted.mount_pose, pose, trajectory, args.seconds, args.seed,
+                         imu_rate=option("imu_rate"), imu_noise=ImuNoise(*args.imu_noise) if args.imu_noise else None,
+                         imu_frame=option("imu_frame"),
+                         names=RosNames.parse(args.ros_names) if args.ros_names else None)
 
 
 def _imu_noise(text: str) -> tuple[float, float, float, float]:
