@@ -524,3 +524,50 @@ def test_the_local_pool_takes_jobs_as_it_has_room(tmp_path: Path) -> None:
         runner.stop()
     assert record["status"] == "done" and record["job"] == grid[0].name, record
     assert taken[0] == 2
+
+
+def test_a_job_whose_input_files_changed_runs_again(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A job's name hashes its parameters, file paths among them, not what the files hold: its record keeps each
+    input file's SHA-256 (the sensor config, the scene JSON, its mesh, the mesh's sidecar, the TUM flight), and a
+    rerun runs a job again when one of them changed, without --retry (a broken scene fixed runs; touching a file
+    without changing it does not)."""
+    config = tmp_path / "sensor.json"
+    config.write_text((Path(__file__).parents[1] / "presets" / "livox_mid40.json").read_text(encoding="utf-8"))
+    wall = tmp_path / "wall.obj"
+    wall.write_text("o wall\nv 0 0 0\nv 1 0 0\nf 1 2 3\n")  # degenerate: the scene fails to load
+    sidecar = tmp_path / "wall.materials.json"
+    flight = tmp_path / "flight.tum"
+    flight.write_text("".join(f"{t / 10} {t / 10} 0 -1.5 0 0 0 1\n" for t in range(20)))
+    (tmp_path / "scene.json").write_text(json.dumps({"objects": [{"type": "mesh", "path": "wall.obj"}]}))
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.replace('["livox_mid70"]', '["sensor.json"]').replace('["urban"]', '["scene.json"]').replace(
+        '"none", "line", "circle"', '"flight.tum"').replace('"npz", "las+rosbag"', '"npz"'))
+    out = tmp_path / "out"
+
+    def run() -> tuple[str, int]:
+        status = main(["batch", str(spec), "--out", str(out), "--jobs", "1"])
+        (row,) = _manifest(out)
+        assert status == (row["status"] != "done")
+        return row["status"], next(out.glob("jobs/*/job.json")).stat().st_mtime_ns
+
+    assert run()[0] == "failed"
+    first = run()
+    assert first[0] == "failed" and "1 failed: --retry runs it again" in capsys.readouterr().err
+    wall.write_text("o wall\nv 10 -5 -5\nv 10 5 -5\nv 10 0 5\nf 1 2 3\n")  # fixed: a wall ahead
+    fixed = run()
+    assert fixed[0] == "done" and fixed[1] != first[1]
+    record = json.loads(next(out.glob("jobs/*/job.json")).read_text())
+    assert set(record["inputs"]) == {str(config), str(tmp_path / "scene.json"), str(wall), str(sidecar), str(flight)}
+    assert record["inputs"][str(sidecar)] is None
+    os.utime(wall)  # touched, not changed
+    assert run() == fixed
+    last = fixed
+    for edit in (lambda: sidecar.write_text('{"wall": 0.2}'),  # a sidecar that appears changes the scene too
+                 lambda: sidecar.write_text('{"wall": 0.9}'),
+                 lambda: flight.write_text(flight.read_text() + "2.0 2.0 0 -1.5 0 0 0 1\n"),
+                 lambda: config.write_text(config.read_text() + "\n")):
+        edit()
+        again = run()
+        assert again[0] == "done" and again[1] != last[1], edit
+        last = again
+    assert run() == last

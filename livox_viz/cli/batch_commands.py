@@ -47,8 +47,10 @@ from livox_viz.core.atomic import atomic_path, resolve_destination, write_text_a
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.portable import process_alive, usable_cores
 from livox_viz.files.export import sidecar_path
+from livox_viz.motion.flights import BUILTIN_TRAJECTORIES
+from livox_viz.scene.scenes import scene_files
 
-from .batch_spec import EXAMPLE, MAX_JOBS, Grid, Job, SpecError, read_spec, scan_argv
+from .batch_spec import EXAMPLE, MAX_JOBS, NO_TRAJECTORY, Grid, Job, SpecError, read_spec, scan_argv
 from .common import PROG, Command, UsageError, whole_number
 from .signals import StopRequests, signal_name, signal_status
 
@@ -92,6 +94,7 @@ def run_job(job: Job, root: str, workers: int | None) -> dict[str, Any]:
         _clear(folder, job)
         if workers is None:
             workers = _workers_in_dask()
+        record["inputs"] = input_digests(job)  # before the scan: a file edited while it runs makes it run again
         parser = _ScanParser(prog=f"{PROG} scan")
         _scan_arguments(parser)
         report = run_scan(parser.parse_args(scan_argv(job, folder, workers)[1:]), progress=io.StringIO())
@@ -165,8 +168,42 @@ def _ignore_interrupts() -> None:
 
 
 # Records and the manifest ----------------------------------------------------------------------------
+def input_digests(job: Job) -> dict[str, str | None]:
+    """The SHA-256 of each file the job reads (its sensor config, its scene's files, its TUM trajectory; none for
+    a preset or a built-in), None for one that is missing: a record keeps them, and an edited file makes the job
+    run again (its name hashes the paths, not what they hold)."""
+    files = [Path(job.sensor)] if job.sensor.endswith(".json") else []
+    files += scene_files(job.scene)
+    if job.trajectory != NO_TRAJECTORY and job.trajectory not in BUILTIN_TRAJECTORIES:
+        files.append(Path(job.trajectory))
+    return {str(path): _file_digest(path) for path in dict.fromkeys(files)}
+
+
+#: Digests of input files by (path, size, modification time): a batch asks the same few files of every job.
+_DIGESTS: dict[tuple[str, int, int], str] = {}
+
+
+def _file_digest(path: Path) -> str | None:
+    """A file's SHA-256, None when it is missing or unreadable."""
+    try:
+        status = path.stat()
+        key = (str(path), status.st_size, status.st_mtime_ns)
+        if key not in _DIGESTS:
+            digest = hashlib.sha256()
+            with open(path, "rb") as handle:
+                while block := handle.read(1 << 20):
+                    digest.update(block)
+            if len(_DIGESTS) > 4096:
+                _DIGESTS.clear()
+            _DIGESTS[key] = digest.hexdigest()
+        return _DIGESTS[key]
+    except OSError:
+        return None
+
+
 def finished_record(root: Path, name: str) -> dict[str, Any] | None:
-    """The job ``name``'s record from an earlier run, when its files are all there with their sizes (else None)."""
+    """The job ``name``'s record from an earlier run, when its files are all there with their sizes and the files
+    it read are as they were (else None: the job runs again)."""
     try:
         # Strings, not Paths: a rerun asks this of every job of the grid, most of them without a record yet.
         with open(os.path.join(root, "jobs", name, "job.json"), "rb") as handle:
@@ -174,6 +211,9 @@ def finished_record(root: Path, name: str) -> dict[str, Any] | None:
     except (OSError, ValueError):
         return None
     if not isinstance(record, dict) or record.get("job") != name:
+        return None
+    inputs = record.get("inputs", {})  # a record of an older version has none: its files are taken as they were
+    if not isinstance(inputs, dict) or any(_file_digest(Path(path)) != digest for path, digest in inputs.items()):
         return None
     if record.get("status") == "done":
         for file_name, about in record.get("files", {}).items():

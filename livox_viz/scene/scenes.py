@@ -24,6 +24,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+from urllib.parse import unquote
 
 import numpy as np
 
@@ -167,6 +168,55 @@ def open_scene(name_or_path: str | os.PathLike[str] = DEFAULT_SCENE, up: str = "
         raise LivoxVizError(f"scene {quoted(text)} is neither a scene preset ({', '.join(names)}) nor an existing file")
     return Scene(path.name, load_mesh_file(path, up, reflectance, triangles=triangles), Pose((0.0, 0.0, -1.5)),
                  f"mesh file {path}")
+
+
+def scene_files(name_or_path: str | os.PathLike[str]) -> list[Path]:
+    """The files a scene is read from: none for a built-in scene; a scene JSON and its objects' mesh files; each
+    mesh file with its materials sidecar's path (whether there is one or not: one that comes changes the scene)
+    and what trimesh reads beside it (an OBJ's material libraries, a glTF's external buffers and images). Files
+    named but missing are listed too. What changes any of them can change the scene (a batch job runs again
+    when one of them changed).
+    """
+    text = os.fspath(name_or_path)
+    if text in {name for name, _ in list_scenes()}:
+        return []
+    path = Path(text)
+    if path.suffix.lower() != ".json":
+        return _mesh_files(path)
+    files = [path]
+    try:
+        data = read_json_file(path, "scene JSON")
+    except LivoxVizError:
+        return files
+    for obj in data.get("objects", []) if isinstance(data, dict) and isinstance(data.get("objects"), list) else []:
+        if isinstance(obj, dict) and obj.get("type") == "mesh":
+            try:
+                files += _mesh_files(path_in_file(str(obj.get("path", "")), path.parent))
+            except LivoxVizError:
+                continue
+    return list(dict.fromkeys(files))
+
+
+def _mesh_files(path: Path) -> list[Path]:
+    """A mesh file, its materials sidecar's path, and the files it names that trimesh reads beside it."""
+    files = [path, path.with_name(path.stem + SIDECAR_SUFFIX)]  # the sidecar even when there is none: one may come
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".obj":
+            with open(path, "rb") as handle:
+                for line in handle:
+                    if line.startswith(b"mtllib"):
+                        files += [path.parent / name.decode("utf-8", "replace") for name in line.split()[1:]]
+        elif suffix == ".gltf":
+            data = read_json_file(path, "glTF")
+            for key in ("buffers", "images"):
+                for item in data.get(key, []) if isinstance(data, dict) and isinstance(data.get(key), list) else []:
+                    uri = item.get("uri") if isinstance(item, dict) else None
+                    if isinstance(uri, str) and uri and not uri.startswith("data:"):
+                        files.append(path.parent / unquote(uri))
+    except (OSError, LivoxVizError):
+        pass  # an unreadable mesh is the scene's own error, when it loads
+    return files
 
 
 def load_scene_preset(name: str, reflectance: float = DEFAULT_REFLECTANCE,
