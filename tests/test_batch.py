@@ -526,7 +526,22 @@ def test_the_local_pool_takes_jobs_as_it_has_room(tmp_path: Path) -> None:
     assert taken[0] == 2
 
 
-def test_a_job_whose_input_files_changed_runs_again(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+class _InProcess:
+    """A runner of each job in this process (a pool's process takes seconds to start, eight times here)."""
+
+    def __init__(self, processes: int) -> None:
+        self.where = "this process"
+
+    def run(self, jobs, root: Path, workers: int | None):
+        for job in jobs:
+            yield batch_commands.run_job(job, str(root), 1)
+
+    def stop(self) -> None:
+        pass
+
+
+def test_a_job_whose_input_files_changed_runs_again(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
     """A job's name hashes its parameters, file paths among them, not what the files hold: its record keeps each
     input file's SHA-256 (the sensor config, the scene JSON, its mesh, the mesh's sidecar, the TUM flight), and a
     rerun runs a job again when one of them changed, without --retry (a broken scene fixed runs; touching a file
@@ -543,6 +558,7 @@ def test_a_job_whose_input_files_changed_runs_again(tmp_path: Path, capsys: pyte
     spec.write_text(SPEC.replace('["livox_mid70"]', '["sensor.json"]').replace('["urban"]', '["scene.json"]').replace(
         '"none", "line", "circle"', '"flight.tum"').replace('"npz", "las+rosbag"', '"npz"'))
     out = tmp_path / "out"
+    monkeypatch.setattr(batch_commands, "LocalRunner", _InProcess)
 
     def run() -> tuple[str, int]:
         status = main(["batch", str(spec), "--out", str(out), "--jobs", "1"])

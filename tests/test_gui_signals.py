@@ -177,9 +177,21 @@ def test_density_axis_follows_the_curves_after_a_change(small_app: LivoxVizApp, 
         app.on_param("jitter_max_deg", 8.0)
     elif change == "preset":
         app.next_preset()
-    else:
+    elif change == "reference":
         app.cycle_reference()
-    if change == "fit":  # f: the rosette fitted to the reference moves every slider at once
+    else:
+        # A table of other parameters, 1.5 s of it (a preset's 4 s reference took a 20 s fit; the fit itself is
+        # tested in test_gui), for f: the rosette fitted to the reference moves every slider at once.
+        from livox_viz.widgets.overlay import TableSource
+
+        from livox_viz import ScanPattern
+        from livox_viz.fitting.reference import ReferencePattern
+
+        truth = app.session.config.with_param("petal_height", 4.0).with_param("spacing_exponent", 1.7)
+        xy = ScanPattern(truth, seed=3).take(150_000).xy_deg
+        app.session.overlay.set_source(TableSource(ReferencePattern("truth", xy, np.arange(len(xy)) / 1e5, 1e5)),
+                                       0.0)
+    if change == "fit":
         app.refresh()
         app.charts.finish()
         app.fit_to_reference()
