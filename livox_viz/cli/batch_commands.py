@@ -139,12 +139,17 @@ def _hashes(folder: Path, job: Job) -> dict[str, dict[str, Any]]:
     for path in _written(folder, job):
         for file in sorted(path.rglob("*")) if path.is_dir() else [path]:
             if file.is_file():
-                digest = hashlib.sha256()
-                with open(file, "rb") as handle:
-                    while block := handle.read(1 << 20):
-                        digest.update(block)
-                found[str(file.relative_to(folder))] = {"bytes": file.stat().st_size, "sha256": digest.hexdigest()}
+                found[str(file.relative_to(folder))] = {"bytes": file.stat().st_size, "sha256": _sha256(file)}
     return found
+
+
+def _sha256(path: Path) -> str:
+    """A file's SHA-256, read a MiB at a time."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        while block := handle.read(1 << 20):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def _workers_in_dask() -> int | None:
@@ -189,13 +194,9 @@ def _file_digest(path: Path) -> str | None:
         status = path.stat()
         key = (str(path), status.st_size, status.st_mtime_ns)
         if key not in _DIGESTS:
-            digest = hashlib.sha256()
-            with open(path, "rb") as handle:
-                while block := handle.read(1 << 20):
-                    digest.update(block)
             if len(_DIGESTS) > 4096:
                 _DIGESTS.clear()
-            _DIGESTS[key] = digest.hexdigest()
+            _DIGESTS[key] = _sha256(path)
         return _DIGESTS[key]
     except OSError:
         return None
