@@ -504,6 +504,26 @@ def test_a_second_batch_in_a_folder_is_refused_while_the_first_runs(tmp_path: Pa
     assert len(_manifest(out)) == 6 and not lock.exists()
 
 
+def test_a_lock_whose_process_id_another_process_took_is_stale(tmp_path: Path) -> None:
+    """A batch killed long ago left its lock; its process id now belongs to a live process started later (the
+    lock's start differs): the lock is stale. The same lock with that process's own start is held, and so is
+    one from an older version, which wrote no start."""
+    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    lock = batch_commands.BatchLock(tmp_path)
+    try:
+        started = batch_commands.process_start(other.pid)
+        for written, held in ((None, True), (started, True), ("an-earlier-boot:12345", False)):
+            fields = {"pid": other.pid, "host": socket.gethostname(), "started": "2026-01-02 03:04:05"}
+            lock.path.write_text(json.dumps({**fields, **({} if written is None else {"process_start": written})}))
+            assert (lock.holder() is not None) == (held or started is None), written
+        lock.acquire()  # the stale one taken over
+        assert json.loads(lock.path.read_text())["process_start"] == batch_commands.process_start(os.getpid())
+        lock.release()
+    finally:
+        other.kill()
+        other.wait()
+
+
 def test_the_local_pool_takes_jobs_as_it_has_room(tmp_path: Path) -> None:
     """A pool of one process holds at most two jobs (one running, one queued): of a grid of 200,000, it has
     taken no more than that when the first ends (it took all of them, each queued in the pool, before)."""

@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import platformdirs
@@ -89,6 +90,25 @@ def test_process_alive() -> None:
     child = subprocess.Popen([sys.executable, "-c", "pass"])
     child.wait()
     assert not portable.process_alive(child.pid)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="read from Linux's /proc")
+def test_a_process_start_stays_while_it_runs_and_differs_from_another_process() -> None:
+    """The start of a process is the same each time it is asked, another process's (started later) differs,
+    and a process that is gone has none: a lock's holder is told from a later process given its id."""
+    mine = portable.process_start(os.getpid())
+    assert mine is not None and mine == portable.process_start(os.getpid())
+    boot, ticks = mine.rsplit(":", 1)
+    assert boot == Path("/proc/sys/kernel/random/boot_id").read_text().strip() and int(ticks) > 0
+    time.sleep(0.05)  # a clock tick (10 ms) later at least
+    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    try:
+        theirs = portable.process_start(child.pid)
+        assert theirs is not None and theirs != mine and int(theirs.rsplit(":", 1)[1]) > int(ticks)
+    finally:
+        child.kill()
+        child.wait()
+    assert portable.process_start(child.pid) is None
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="zombies are read from Linux's /proc")

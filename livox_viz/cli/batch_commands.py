@@ -45,7 +45,7 @@ import numpy as np
 
 from livox_viz.core.atomic import atomic_path, resolve_destination, write_text_atomic
 from livox_viz.core.errors import LivoxVizError
-from livox_viz.core.portable import process_alive, usable_cores
+from livox_viz.core.portable import process_alive, process_start, usable_cores
 from livox_viz.files.export import sidecar_path
 from livox_viz.motion.flights import BUILTIN_TRAJECTORIES
 from livox_viz.scene.scenes import scene_files
@@ -492,7 +492,9 @@ class BatchLock:
     the names of the jobs it has handed out (rewritten atomically as they change): a batch killed with jobs in
     flight leaves them there, and the rerun puts the rows of those that finished into the manifest before it
     counts what is done. A lock whose process is gone (or ended and not yet reaped: :func:`process_alive`) is
-    stale and taken over; one made on another host (a shared folder) cannot be probed and is taken as held.
+    stale and taken over, and so is one whose process id another process now has (its start differs from the one
+    written: :func:`process_start`); one made on another host (a shared folder) cannot be probed and is taken as
+    held.
     """
 
     def __init__(self, root: Path) -> None:
@@ -522,7 +524,11 @@ class BatchLock:
             return {"pid": "?", "host": socket.gethostname(), "started": "just now"} if young else None
         if host != socket.gethostname():
             return data
-        return data if pid != os.getpid() and process_alive(pid) else None
+        if pid == os.getpid() or not process_alive(pid):
+            return None
+        # A process id is reused: another process now holding the dead batch's id started at another time.
+        written, now = data.get("process_start"), process_start(pid)
+        return None if written is not None and now is not None and written != now else data
 
     def refuse_if_held(self) -> None:
         """Raise the one line naming the other batch, when a live one holds the folder."""
@@ -572,7 +578,8 @@ class BatchLock:
         aside.unlink(missing_ok=True)
 
     def _text(self) -> str:
-        return json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "started": self._started,
+        return json.dumps({"pid": os.getpid(), "process_start": process_start(os.getpid()),
+                           "host": socket.gethostname(), "started": self._started,
                            "running": sorted(self.running)}) + "\n"
 
     def save(self) -> None:

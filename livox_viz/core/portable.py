@@ -13,6 +13,8 @@ where it does not:
 * :func:`process_alive`: ``os.kill(pid, 0)`` probes a process on POSIX, but on
   Windows signal 0 is ``CTRL_C_EVENT`` and any other number terminates the
   process: there the process is opened and asked whether it still runs.
+* :func:`process_start`: when a process started (Linux's ``/proc``, Windows' ``GetProcessTimes``), so that a
+  process id reused by another process is not taken for the one that wrote it down; None elsewhere.
 * :func:`write_at`: ``os.pwrite`` is POSIX; a seek and a write do the same on a
   file object everywhere.
 * :func:`path_in_file`: a path written inside a file (a scene's mesh) may come from
@@ -116,7 +118,43 @@ def _ended_unreaped(pid: int) -> bool:
     return stat[end + 2:end + 3] == b"Z"
 
 
+def process_start(pid: int) -> str | None:
+    """When process ``pid`` started, as a text that is the same for as long as it runs and differs for a later
+    process given the same id; None where that cannot be told (no such process, macOS, no access).
+
+    Linux: the boot's id and the start in clock ticks since boot (``/proc/PID/stat`` field 22). Windows: the
+    creation time (``GetProcessTimes``, 100 ns since 1601).
+    """
+    if sys.platform == "win32":
+        return _windows_process_start(pid)
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as handle:
+            stat = handle.read()
+        with open("/proc/sys/kernel/random/boot_id", encoding="ascii") as handle:
+            boot = handle.read().strip()
+    except OSError:
+        return None
+    fields = stat[stat.rfind(b")") + 2:].split()  # fields 3 on (the name before them may hold anything)
+    return f"{boot}:{int(fields[19])}" if len(fields) > 19 else None
+
+
 if sys.platform == "win32":  # pragma: no cover - Windows only
+
+    def _windows_process_start(pid: int) -> str | None:
+        import ctypes
+
+        query_limited_information = 0x1000
+        kernel32 = ctypes.WinDLL("kernel32", use_last_error=True)
+        handle = kernel32.OpenProcess(query_limited_information, False, pid)
+        if not handle:
+            return None
+        try:
+            times = [ctypes.c_ulonglong() for _ in range(4)]  # creation, exit, kernel, user (FILETIMEs)
+            if not kernel32.GetProcessTimes(handle, *(ctypes.byref(t) for t in times)):
+                return None
+            return str(times[0].value)
+        finally:
+            kernel32.CloseHandle(handle)
 
     def _windows_process_alive(pid: int) -> bool:
         import ctypes
