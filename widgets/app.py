@@ -518,6 +518,9 @@ class LivoxVizApp:
 
         picker = vtkPointPicker()
         picker.SetTolerance(0.008)
+        # Only points the vertex cells draw: the view's point list is the whole ring, dropped slots (the time
+        # window) and those the level of detail leaves out included, and those must not answer a click.
+        picker.UseCellsOn()
         picker.PickFromListOn()
         picker.AddPickList(self.scene_view.actor)
         if not picker.Pick(x_px, y_px, 0.0, self.scene_view.renderer) or picker.GetPointId() < 0:
