@@ -569,6 +569,36 @@ def test_after_a_restart_the_scrubber_spans_only_the_new_scans_times(window, qtb
     assert session.scan_time == pytest.approx(0.5 * played, abs=1e-3)
 
 
+@pytest.mark.parametrize("switch", ["n key", "x key", "a parameter"])
+def test_a_restart_takes_the_picks_and_their_marks_away(window, qtbot, switch: str) -> None:
+    """A first-use trial clicked a point, pressed n: the pink mark and the point's values stayed over the new
+    preset's cloud, a point of a scan that was no more. Every restart forgets the picks."""
+    session, controller = window.controller.session, window.controller
+    session.advance_to(0.6)
+    window.tick()
+    renderer = controller.scene_view.renderer
+    ring = session.scene_ring
+    for slot in ring.live_slots()[:: max(1, ring.count // 50)]:
+        renderer.SetWorldPoint(*(ring.positions[slot].astype(float) * [1, -1, -1]), 1.0)
+        renderer.WorldToDisplay()
+        x, y, _ = renderer.GetDisplayPoint()
+        if controller.pick_scene(x, y) is not None:
+            break
+    assert controller.picks and "picks" in controller.scene_view.plotter.actors
+    window.tick()
+    assert controller.picks  # a tick alone keeps them
+    if switch == "n key":
+        press(qtbot, window, "n")
+    elif switch == "x key":
+        press(qtbot, window, "x")
+    else:
+        assert session.set_param("data_check_freq", 20.0), session.message
+    window.tick()
+    assert not controller.picks and controller.pick_text == ""
+    assert "picks" not in controller.scene_view.plotter.actors
+    assert "range " not in window.status_message.text()
+
+
 def test_a_seek_with_no_pick_made_says_no_error_and_a_seek_takes_the_marks_away(window) -> None:
     """A first-use trial paused and dragged the scrubber before clicking any point: the status bar said, in red,
     pyvista's "Empty meshes cannot be plotted ..." (forgetting no picks drew an empty mesh), on every seek."""

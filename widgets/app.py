@@ -115,6 +115,7 @@ class LivoxVizApp:
         #: The last picks in the scene view (at most two: a distance), and the last answer of any pick, in words.
         self.picks: list[dict[str, Any]] = []
         self.pick_text = ""
+        self._picks_scan = session.scan_number
         #: ``defer(stages, action, what, kind) -> bool``: True when the compiled loops of ``stages`` are loaded (the
         #: action runs now); otherwise the window keeps ``action`` for when they are, says so, and returns False.
         #: None runs every action at once (renders and tests compile what they need on first use).
@@ -527,6 +528,7 @@ class LivoxVizApp:
             self.pick_text = "no point of the cloud there"
             return None
         found = self.session.scene_point(int(picker.GetPointId()))
+        self._picks_scan = self.session.scan_number
         self.picks = [*self.picks[-1:], found]
         text = (f"range {found['range_m']:.3f} m, azimuth {found['azimuth_deg']:.2f} deg, elevation "
                 f"{found['elevation_deg']:.2f} deg, reflectivity {found['reflectivity']}, tag 0x{found['tag']:02x}, "
@@ -714,6 +716,11 @@ class LivoxVizApp:
         """Bring every actor and text up to date with the session (no render)."""
         if not getattr(self, "_ready", False):
             return
+        if self._picks_scan != self.session.scan_number:
+            # A restart (a preset, a parameter, a scene, x) began another scan: its points are not the ones picked.
+            self._picks_scan = self.session.scan_number
+            if self.picks or self.pick_text:
+                self.forget_picks()
         for view in (self.pattern_view, self.scene_view, self.charts):
             if view is not None:
                 view.update()
