@@ -144,6 +144,28 @@ def test_a_batch_killed_half_way_is_finished_by_running_it_again(tmp_path: Path,
     assert not [p for p in out.rglob("*") if ".livox-viz-" in p.name]  # the killed job's temporaries are gone
 
 
+def test_ctrl_c_leaves_no_temporary_of_the_job_in_flight(tmp_path: Path) -> None:
+    """Ctrl-C while a worker writes a job's cloud: the batch kills its pool, and then removes that job's work folder
+    (its raw columns can be gigabytes) at once, not only when the batch is run again."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.replace("seconds = 0.1", "seconds = 30.0"))
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "livox_viz", "batch", str(spec), "--out", str(out), "--jobs", "1"]
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and not [p for p in out.glob("jobs/*/*") if ".livox-viz-" in p.name]:
+            time.sleep(0.02)
+        assert [p for p in out.glob("jobs/*/*") if ".livox-viz-" in p.name], "no job was writing"
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert process.returncode == 130, err
+    assert "Traceback" not in err and "batch stopped by Ctrl-C" in err.splitlines()[-1], err
+    assert not [p for p in out.rglob("*") if ".livox-viz-" in p.name]
+
+
 def test_a_job_with_a_broken_scene_fails_alone_with_its_message(tmp_path: Path,
                                                                 capsys: pytest.CaptureFixture[str]) -> None:
     broken = tmp_path / "broken.obj"

@@ -43,7 +43,7 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from livox_viz.core.atomic import atomic_path, resolve_destination, write_text_atomic
+from livox_viz.core.atomic import atomic_path, remove_dead_leftovers, resolve_destination, write_text_atomic
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.portable import process_alive, process_start, usable_cores
 from livox_viz.files.export import sidecar_path
@@ -664,7 +664,7 @@ class LocalRunner:
             self._pool.join()
 
     def stop(self) -> None:
-        """Kill the workers (their jobs' temporaries go at the next run in those folders) and the pool."""
+        """Kill the workers and the pool (the batch then removes the temporaries of the jobs they were writing)."""
         if self._pool is not None:
             for worker in multiprocessing.active_children():
                 worker.kill()
@@ -891,6 +891,8 @@ def _run(args: argparse.Namespace, grid: Grid, spec: str, root: Path, lock: Batc
                 if stop.requested:  # also when it came while finished jobs were being skipped
                     stopped = stop.signum
                     runner.stop()
+                    if isinstance(runner, LocalRunner):
+                        _remove_killed_temporaries(root, lock.running)
         finally:
             if isinstance(runner, DaskRunner) and stopped is None:
                 runner.close()
@@ -907,6 +909,14 @@ def _run(args: argparse.Namespace, grid: Grid, spec: str, root: Path, lock: Batc
     for record in failures:
         print(f"{PROG}: batch: job {record['job']} failed: {record['error']}", file=sys.stderr)
     return 1 if manifest.failed else 0
+
+
+def _remove_killed_temporaries(root: Path, names: set[str]) -> None:
+    """The temporaries of the jobs the local pool's killed workers were writing (a work folder may hold gigabytes):
+    stopped by Ctrl-C, the batch leaves no half-written file behind, not only until the next run. Their processes
+    are gone, so :func:`remove_dead_leftovers` takes them; a Dask worker's (another host's) are not touched."""
+    for name in names:
+        remove_dead_leftovers(root / "jobs" / name)
 
 
 def _todo(grid: Grid, root: Path, manifest: Manifest, retry: bool, say: _Say, failures: list[dict[str, Any]],
