@@ -191,6 +191,8 @@ class Session:
         self.preset_config = config
         self._fit_display()
         self._make_rings()
+        #: Which scan this is, counted up at each restart: what was picked in an earlier one is not in this one.
+        self.scan_number = 0
         self.restart()
 
     # Listeners ----------------------------------------------------------------------------
@@ -300,8 +302,7 @@ class Session:
         """Start the pattern again from scan time 0."""
         self.pattern = make_pattern(self.config, seed=self.seed)
         self.mounted = MountedCaster(self.config, self.caster, self.vehicle_pose, self.trajectory, self.seed)
-        #: Which scan this is, counted from 1 at each restart: what was picked in an earlier one is not in this one.
-        self.scan_number = getattr(self, "scan_number", 0) + 1
+        self.scan_number += 1
         self.scan_time = 0.0
         #: The farthest scan time this scan has reached, seconds: what the time scrubber spans (a restart, by a
         #: preset, a parameter or x, begins another scan: the times before it are not this one's).

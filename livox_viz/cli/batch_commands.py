@@ -505,6 +505,7 @@ class BatchLock:
         self._written: frozenset[str] = frozenset()
         self._held = False
         self._started = time.strftime("%Y-%m-%d %H:%M:%S")
+        self._process_start = process_start(os.getpid())
 
     def holder(self) -> dict[str, Any] | None:
         """What the lock of a live batch says (its ``pid``, ``host``, ``started``), or None: no lock, or stale."""
@@ -578,7 +579,7 @@ class BatchLock:
         aside.unlink(missing_ok=True)
 
     def _text(self) -> str:
-        return json.dumps({"pid": os.getpid(), "process_start": process_start(os.getpid()),
+        return json.dumps({"pid": os.getpid(), "process_start": self._process_start,
                            "host": socket.gethostname(), "started": self._started,
                            "running": sorted(self.running)}) + "\n"
 
