@@ -733,7 +733,7 @@ class MainWindow(QtWidgets.QMainWindow):
     def toggle_help(self) -> None:
         """The keys and the mouse, in a dialog beside the window (h)."""
         if self.help_dialog is None:
-            dialog = QtWidgets.QDialog(self)
+            dialog = _HelpDialog(self)
             dialog.setObjectName("help")
             dialog.setWindowTitle("livox-viz - keys and mouse")
             text = QtWidgets.QTextBrowser(dialog)
@@ -961,6 +961,17 @@ class MainWindow(QtWidgets.QMainWindow):
             self.help_dialog.close()
         self.controller.close()
         event.accept()
+
+
+class _HelpDialog(QtWidgets.QDialog):
+    """The keys' dialog: h closes it from the dialog too (it has the focus once shown; a first-use run pressed h
+    again there and it stayed), as Esc does."""
+
+    def keyPressEvent(self, event: QtGui.QKeyEvent) -> None:
+        if event.key() == QtCore.Qt.Key.Key_H and event.modifiers() == QtCore.Qt.KeyboardModifier.NoModifier:
+            self.hide()
+            return
+        super().keyPressEvent(event)
 
 
 def run_window(session: Session, size: tuple[int, int], stop: Callable[[], bool] | None = None,
