@@ -22,13 +22,18 @@ $(STAMP): pyproject.toml
 run: venv
 	$(BIN)/livox-viz gui
 
+# The suite's processes: the machine's cores, 2 to 4 (each holds its own numba, VTK and Xvfb: about 1 GB).
+# `make test TEST_WORKERS=1` runs it in one process, as `.venv/bin/python -m pytest` does. The tests that start
+# X servers share one worker (their xdist_group): servers of two workers raced for a display number.
+TEST_WORKERS ?= $(shell $(PYTHON) -c 'import os; print(min(4, max(2, os.cpu_count() or 2)))')
+
 test: venv
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadgroup
 
 # The suite again as another CPU would run it (another OpenBLAS kernel family, numba for a generic CPU): a test
 # that holds only by this machine's rounding fails here, not on a user's machine. CI runs it after `make test`.
 test-other-cpu: venv
-	$(BIN)/python scripts/other_cpu.py -q
+	$(BIN)/python scripts/other_cpu.py -q -n $(TEST_WORKERS) --dist loadgroup
 
 lint: venv
 	$(BIN)/ruff check livox_viz widgets tests benchmarks

@@ -23,7 +23,8 @@ products are several times slower with BLAS's default threads on this shared
 ``--terrain`` alone: the dense terrain's datasheet scan against its ideal scan with the broad phase's tiles tested
 by their boxes only and by their cells' boxes too (issue 34, item 4: target >= 0.3 x), in turns, same run; then
 how many pulses a perfect broad phase would still name (a footprint ray really meets another tile), and each step's
-cost on one thread.
+cost on one thread, with beside it a scan whose broad phase names only those pulses: the bound of any exact broad
+phase; and the same bound as ``scan`` runs it. ``--terrain-perfect`` runs only the perfect broad phase's parts.
 """
 
 from __future__ import annotations
@@ -110,35 +111,76 @@ def scan_speed(preset: str, scene_name: str, seconds: float = 4.0, runs: int = 1
             "paired": float(np.median(times[:, 0] / times[:, 1]))}
 
 
-def one_thread_parts(preset: str, scene_name: str, runs: int = 9) -> None:
+def one_thread_parts(preset: str, scene_name: str, runs: int = 9, must_name: list[np.ndarray] | None = None) -> None:
     """Each step's cost on one thread (frames cast inline, as each worker of ``scan`` casts its frame), against
-    the ideal scan's on one thread: ms per second of scan, best of ``runs`` interleaved."""
+    the ideal scan's on one thread: ms per second of scan, best of ``runs`` interleaved.
+
+    With ``must_name`` (per frame, what :func:`terrain_met` found), a third scan runs beside them with a perfect
+    broad phase: what ours names is cut to those pulses, the others go on as if named by nothing. Its speed, with
+    and without the broad phase's own time, bounds what any exact broad phase can reach.
+    """
+    from livox_viz.casting.beam import TileProxy
     from livox_viz.scene.raycast import casting_in_this_thread
 
     config = load_preset(preset)
     scene = open_scene(scene_name)
     caster = EmbreeCaster(scene.mesh)
-    mounted = {m: MountedCaster(config.with_returns_model(m), caster, scene.vehicle_pose, seed=1)
-               for m in ("ideal", "datasheet")}
+    models = ("ideal", "datasheet") + (("perfect broad phase",) if must_name is not None else ())
+    mounted = {m: MountedCaster(config.with_returns_model("ideal" if m == "ideal" else "datasheet"), caster,
+                                scene.vehicle_pose, seed=1) for m in models}
     returns = mounted["datasheet"].returns
+    frame, cut = [0], [False]  # the frame being cast; whether the broad phase is the perfect one (the models share
+    real_near = TileProxy.near  # their caster's proxy)
+
+    def perfect_near(self, *args, **kwargs):
+        near = real_near(self, *args, **kwargs)
+        return near & must_name[frame[0]] if cut[0] else near
+
+    if must_name is not None:
+        TileProxy.near = perfect_near
+        perfect = mounted["perfect broad phase"].returns
+        perfect_stages = dict.fromkeys(perfect.stage_seconds, np.inf)
     pattern = make_pattern(config, seed=1)
     per_frame = config.points_per_frame
     chunks = [pattern.points(k * per_frame, per_frame) for k in range(round(SECONDS * config.data_check_freq))]
     best = dict.fromkeys(mounted, np.inf)
     stages = dict.fromkeys(returns.stage_seconds, np.inf)
-    with casting_in_this_thread():
-        for chunk in chunks:
-            mounted["datasheet"].cast(chunk)
-        for _ in range(runs):
-            for model, caster_of_model in mounted.items():
-                before = dict(returns.stage_seconds)
-                start = time.perf_counter()
-                for chunk in chunks:
-                    caster_of_model.cast(chunk)
-                best[model] = min(best[model], time.perf_counter() - start)
-                if model == "datasheet":
-                    for name in stages:
-                        stages[name] = min(stages[name], returns.stage_seconds[name] - before[name])
+    try:
+        with casting_in_this_thread():
+            for model in models[1:]:
+                cut[0] = model == "perfect broad phase"
+                for frame[0], chunk in enumerate(chunks):
+                    mounted[model].cast(chunk)
+            for _ in range(runs):
+                for model, caster_of_model in mounted.items():
+                    cut[0] = model == "perfect broad phase"
+                    model_returns = caster_of_model.returns
+                    before = dict(model_returns.stage_seconds) if model != "ideal" else {}
+                    start = time.perf_counter()
+                    for frame[0], chunk in enumerate(chunks):
+                        caster_of_model.cast(chunk)
+                    best[model] = min(best[model], time.perf_counter() - start)
+                    kept = stages if model == "datasheet" else perfect_stages if model != "ideal" else {}
+                    for name in kept:
+                        kept[name] = min(kept[name], model_returns.stage_seconds[name] - before[name])
+            if must_name is not None:
+                cut[0] = True
+                named = 0
+                for frame[0], chunk in enumerate(chunks):
+                    mounted["perfect broad phase"].cast(chunk)
+                    named += perfect.last_counts["named"]
+    finally:
+        TileProxy.near = real_near
+    if must_name is not None:
+        print(f"  the perfect broad phase named {named:,} pulses of {sum(m.size for m in must_name):,}")
+        ideal_best, perfect_best = best["ideal"], best["perfect broad phase"]
+        free = perfect_best - perfect_stages["broad phase"]
+        print(f"{preset} in {scene_name} on one thread with a perfect broad phase (names only the pulses a "
+              f"footprint ray truly meets another tile for): datasheet {perfect_best / SECONDS * 1e3:.1f}"
+              f" ms per second of scan ({ideal_best / perfect_best:.2f} x the ideal's speed); "
+              f"with the broad phase free as well {free / SECONDS * 1e3:.1f} ms ({ideal_best / free:.2f} x); ours "
+              f"{best['datasheet'] / SECONDS * 1e3:.1f} ms ({best['ideal'] / best['datasheet']:.2f} x). Its steps: "
+              + ", ".join(f"{name} {seconds / SECONDS * 1e3:.1f}" for name, seconds in perfect_stages.items()))
     rest = best["datasheet"] - sum(stages.values())
     print(f"{preset} in {scene_name} on one thread (each frame as a worker of scan casts it): ideal "
           f"{best['ideal'] / SECONDS * 1e3:.1f}, datasheet {best['datasheet'] / SECONDS * 1e3:.1f} ms per second of "
@@ -200,12 +242,14 @@ def terrain_broad_phase(runs: int = 3) -> None:
     TileProxy.tight = True
 
 
-def terrain_met(preset: str = "livox_mid70_risley", scene_name: str = "dense_terrain") -> None:
+def terrain_met(preset: str = "livox_mid70_risley", scene_name: str = "dense_terrain",
+                seconds: float = SECONDS) -> list[np.ndarray]:
     """What a perfect broad phase would name on the terrain, against what ours names: over one second of scan,
     the pulses one of whose footprint rays (72 over the footprint's cone: 24 on each of three circles, the
     largest its half-angle) first meets, before the pulse's reach, a triangle of a tile other than its hit's own
     (by Embree). A lower bound of what any broad phase keeping the cloud exact must name; most of them are
-    footprints running on into the next tile of the same ground, not cover."""
+    footprints running on into the next tile of the same ground, not cover. Returns, per frame, the ``(n,)`` bool
+    mask of those pulses (:func:`one_thread_parts`' ``must_name``)."""
     import math
 
     from livox_viz.casting import returns as returns_module
@@ -228,13 +272,14 @@ def terrain_met(preset: str = "livox_mid70_risley", scene_name: str = "dense_ter
     per_frame = config.points_per_frame
     try:
         with casting_in_this_thread():
-            for k in range(round(SECONDS * config.data_check_freq)):
+            for k in range(round(seconds * config.data_check_freq)):
                 mounted.cast(pattern.points(k * per_frame, per_frame))
     finally:
         returns_module.ReturnModel._covered = covered
     proxy, tan_half = mounted.returns.proxy, mounted.returns.footprint.tan_half_max
     angles = np.linspace(0.0, 2.0 * math.pi, 24, endpoint=False)
     pulses = named = met = 0
+    must_name = []
     for near, triangle, directions, origins, reach in seen:
         pulses += near.size
         named += int(near.sum())
@@ -255,9 +300,67 @@ def terrain_met(preset: str = "livox_mid70_risley", scene_name: str = "dense_ter
         tile = np.where(first >= 0, proxy.triangle_tile[np.maximum(first, 0)], -1)
         other = (tile >= 0) & (tile != proxy.triangle_tile[triangle[pulse]]) & (far <= reach[pulse])
         met += np.unique(pulse[other]).size
-    print(f"{scene_name}, one second of scan ({pulses:,} pulses): the broad phase names {named:,} "
+        frame_mask = np.zeros(near.size, dtype=np.bool_)
+        frame_mask[pulse[other]] = True
+        must_name.append(frame_mask)
+    print(f"{scene_name}, {seconds:g} s of scan ({pulses:,} pulses): the broad phase names {named:,} "
           f"({100 * named / pulses:.1f} %); a footprint ray truly meets another tile's triangle before the reach for "
           f"at least {met:,} ({100 * met / pulses:.1f} %): what any exact broad phase must name")
+    return must_name
+
+
+def terrain_perfect_speed(preset: str = "livox_mid70_risley", scene_name: str = "dense_terrain",
+                          seconds: float = 4.0, runs: int = 9) -> None:
+    """Item 4's figure as ``scan`` runs it (frames side by side, one a core) with a perfect broad phase beside
+    ours: one that names only the pulses :func:`terrain_met` finds a footprint ray of truly meeting another tile
+    (its own cost is still ours). Interleaved with the ideal scan and ours, same run; the best of ``runs`` each and
+    the median of the runs' paired ratios."""
+    import threading
+
+    from livox_viz.casting.beam import TileProxy
+    from livox_viz.casting.returns import ReturnModel
+
+    must_name = np.concatenate(terrain_met(preset, scene_name, seconds))  # by the pulses' stream index
+    config = load_preset(preset)
+    scene = open_scene(scene_name)
+    caster = EmbreeCaster(scene.mesh)
+    part = threading.local()
+    perfect = [False]
+    real_run, real_near = ReturnModel._cast_run, TileProxy.near
+
+    def run_part(self, start, xy_deg, *rest):
+        part.rows = (start, xy_deg.shape[0])
+        return real_run(self, start, xy_deg, *rest)
+
+    def near(self, *args, **kwargs):
+        found = real_near(self, *args, **kwargs)
+        if perfect[0]:
+            start, n = part.rows
+            found &= must_name[start:start + n]
+        return found
+
+    def run(model: str) -> float:
+        perfect[0] = model == "perfect"
+        returns = "ideal" if model == "ideal" else "datasheet"
+        start = time.perf_counter()
+        for _ in LidarScanner(config.with_returns_model(returns), caster, scene.vehicle_pose, seed=1).frames(seconds):
+            pass
+        return (time.perf_counter() - start) / seconds
+
+    models = ("ideal", "ours", "perfect")
+    ReturnModel._cast_run, TileProxy.near = run_part, near
+    try:
+        for model in models:
+            run(model)
+        times = np.array([[run(model) for model in models] for _ in range(runs)])
+    finally:
+        ReturnModel._cast_run, TileProxy.near = real_run, real_near
+    best = times.min(axis=0)
+    for k, label in ((1, "ours"), (2, "a perfect broad phase")):
+        print(f"{scene_name}, {seconds:g} s as scan casts it (frames side by side), {label}: datasheet "
+              f"{best[k] * 1e3:.0f} ms per second of scan ({1 / best[k]:.0f} x real time), {best[0] / best[k]:.2f} x "
+              f"the ideal's {best[0] * 1e3:.0f} ms (best of {runs}); median of the paired ratios "
+              f"{float(np.median(times[:, 0] / times[:, k])):.2f}")
 
 
 def speed_counts(preset: str, scene_name: str) -> dict[str, int]:
@@ -292,10 +395,14 @@ def main() -> None:
     if "--memory" in sys.argv:
         memory()
         return
+    if "--terrain-perfect" in sys.argv:
+        terrain_perfect_speed()
+        one_thread_parts("livox_mid70_risley", "dense_terrain", must_name=terrain_met())
+        return
     if "--terrain" in sys.argv:
         terrain_broad_phase()
-        terrain_met()
-        one_thread_parts("livox_mid70_risley", "dense_terrain")
+        must_name = terrain_met()
+        one_thread_parts("livox_mid70_risley", "dense_terrain", must_name=must_name)
         return
     if "--child" in sys.argv:
         print(json.dumps(speed(sys.argv[2], sys.argv[3])))

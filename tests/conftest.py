@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import subprocess
 import sys
+import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -36,8 +39,8 @@ def pytest_sessionstart(session: pytest.Session) -> None:
     whichever tests use them first, on the suite's one busy core. With a warm cache the child only loads them
     (seconds). ``LIVOX_VIZ_TESTS_NO_WARM=1`` leaves it out.
     """
-    if os.environ.get("LIVOX_VIZ_TESTS_NO_WARM"):
-        return
+    if os.environ.get("LIVOX_VIZ_TESTS_NO_WARM") or hasattr(session.config, "workerinput"):
+        return  # with pytest-xdist, once for the run (its controller), not again in each worker
     session.config.stash[_WARMER] = subprocess.Popen(
         [sys.executable, "-m", "livox_viz.casting.warm", "--background", "datasheet", "risley", "motion"],
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -103,33 +106,57 @@ def free_udp_port() -> int:
         return int(probe.getsockname()[1])
 
 
+#: The UDP ports a :class:`UdpReceiver` of this process holds right now (its ``__init__`` bound it, its ``close``
+#: not yet run), with a condition to wait on: how tests know a listener in a thread is ready.
+_BOUND_PORTS: set[int] = set()
+_BOUND_CHANGED = threading.Condition()
+
+
+def _receivers_say_their_ports() -> None:
+    """Make every :class:`UdpReceiver` note its port in ``_BOUND_PORTS`` once bound, and drop it once closed."""
+    from livox_viz.wire.transport import UdpReceiver
+
+    bind, close = UdpReceiver.__init__, UdpReceiver.close
+
+    @functools.wraps(bind)
+    def bound(self, *args, **kwargs) -> None:
+        bind(self, *args, **kwargs)
+        with _BOUND_CHANGED:
+            _BOUND_PORTS.add(self.port)
+            _BOUND_CHANGED.notify_all()
+
+    @functools.wraps(close)
+    def closed(self) -> None:
+        with _BOUND_CHANGED:
+            _BOUND_PORTS.discard(self.port)
+        close(self)
+
+    UdpReceiver.__init__, UdpReceiver.close = bound, closed  # type: ignore[method-assign]
+
+
+_receivers_say_their_ports()
+
+
 def wait_until_bound(port: int, alive, seconds: float = 60.0) -> None:
-    """Return once something holds UDP ``port`` on the loopback (a probe can no longer bind it).
+    """Return once a receiver of this process (a listener in a thread) holds UDP ``port``.
 
     A fixed sleep lost the first frames on a loaded CI machine, where the listener's imports took longer than
-    the sleep; ``alive()`` says whether the listener still runs, so a listener that failed ends the wait.
+    the sleep. Probing the port by binding it raced the listener: a probe holding the port for a moment made the
+    listener's own bind fail as "in use" (once in CI). ``alive()`` says whether the listener still runs, so a
+    listener that failed ends the wait.
     """
-    import errno
-    import socket
-    import time
-
     deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline and alive():
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-            try:
-                probe.bind(("127.0.0.1", port))
-            except OSError as exc:
-                if exc.errno == errno.EADDRINUSE:
-                    return
-                raise
-        time.sleep(0.02)
-    raise AssertionError(f"nothing listened on UDP port {port} within {seconds:.0f} s")
+    with _BOUND_CHANGED:
+        while port not in _BOUND_PORTS:
+            if not alive():
+                raise AssertionError(f"the listener ended before it held UDP port {port}")
+            if time.monotonic() > deadline:
+                raise AssertionError(f"nothing listened on UDP port {port} within {seconds:.0f} s")
+            _BOUND_CHANGED.wait(0.05)
 
 
 def start_listening(argv: list[str]):
     """Run ``livox-viz listen ARGV`` (with ``--port`` in it) in a thread, once it has bound; returns the thread."""
-    import threading
-
     from livox_viz.cli import main
 
     listener = threading.Thread(target=main, args=(["listen", *argv],))

@@ -161,9 +161,36 @@ def test_ctrl_c_leaves_no_temporary_of_the_job_in_flight(tmp_path: Path) -> None
         _, err = process.communicate(timeout=120)
     finally:
         process.kill()
+        process.wait()
+        process.stdout.close()  # not left to the collector when the test failed before communicate()
+        process.stderr.close()
     assert process.returncode == 130, err
     assert "Traceback" not in err and "batch stopped by Ctrl-C" in err.splitlines()[-1], err
     assert not [p for p in out.rglob("*") if ".livox-viz-" in p.name]
+
+
+def test_a_finished_job_without_its_row_counts_in_the_progress_lines(tmp_path: Path,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """A batch killed after a job's files were written but before its row: the next run writes the row, and its
+    points are in the progress lines as in the summary (the lines said fewer)."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.replace('"none", "line", "circle"', '"none"').replace('"npz", "las+rosbag"', '"npz"')
+                    .replace("seeds = [3]", "seeds = [3, 4]"))
+    out = tmp_path / "out"
+    assert main(["batch", str(spec), "--out", str(out), "--jobs", "1"]) == 0
+    first, second = _manifest(out)
+    with open(out / "manifest.csv", newline="") as handle:
+        header = handle.readline()
+    (out / "manifest.csv").write_text(header)  # neither row written
+    for path in sorted((out / "jobs" / second["job"]).rglob("*"), reverse=True):  # the second job runs again
+        path.unlink() if path.is_file() else path.rmdir()
+    capsys.readouterr()
+    assert main(["batch", str(spec), "--out", str(out), "--jobs", "1"]) == 0
+    summary, err = capsys.readouterr()
+    total = int(first["points"]) + int(second["points"])
+    assert f"[2/2] done {second['job']} ({int(second['points']):,} points" in err, err
+    assert f"0 failed, {total:,} points, about" in err.splitlines()[-1], err
+    assert f"2 of 2 jobs done, 0 failed, {total:,} points" in summary
 
 
 def test_a_job_with_a_broken_scene_fails_alone_with_its_message(tmp_path: Path,
@@ -339,15 +366,53 @@ def test_an_address_that_is_not_a_scheduler_is_one_line_before_any_job(
 def test_dask_local_workers_leave_ctrl_c_to_the_batch() -> None:
     """A terminal's Ctrl-C reaches every process of its group: a LocalCluster's workers printed their
     KeyboardInterrupt tracebacks while the batch was stopping them itself."""
+    import socket
+    import warnings
+
     pytest.importorskip("distributed")
     before = signal.getsignal(signal.SIGINT)
-    runner = batch_commands.DaskRunner("local:1")
+    # A user's own Dask holds the dashboard's port: the cluster warned "Port 8787 is already in use" (a full suite
+    # failed on it while another Dask ran on the machine).
+    dashboard = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     try:
-        ignored = runner.client.run(lambda: signal.getsignal(signal.SIGINT) == signal.SIG_IGN)
+        dashboard.bind(("0.0.0.0", 8787))
+        dashboard.listen()
+    except OSError:
+        pass  # held already
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            runner = batch_commands.DaskRunner("local:1")
+        try:
+            ignored = runner.client.run(lambda: signal.getsignal(signal.SIGINT) == signal.SIG_IGN)
+        finally:
+            runner.close()
     finally:
-        runner.close()
+        dashboard.close()
     assert list(ignored.values()) == [True]
     assert signal.getsignal(signal.SIGINT) is before  # this process takes Ctrl-C as before
+
+
+def test_dask_local_workers_stopped_with_a_job_in_hand_say_nothing(capfd: pytest.CaptureFixture[str]) -> None:
+    """Ctrl-C stops a LocalCluster whose worker runs a job: its worker and nanny printed Dask's warnings ("Async
+    instruction ... ended with CancelledError", "Worker process still alive after 4.0 seconds, killing") under
+    the batch's one line."""
+    pytest.importorskip("distributed")
+    runner = batch_commands.DaskRunner("local:1")
+    try:
+        future = runner.client.submit(time.sleep, 60, pure=False)
+        runner._futures[future] = None
+        for _ in range(1200):  # until the worker has started it
+            if any(runner.client.processing().values()) and runner.client.run(
+                    lambda dask_worker: len(dask_worker.state.executing)).popitem()[1]:
+                break
+            time.sleep(0.05)
+        else:
+            pytest.fail("the worker never started the task")
+    finally:
+        runner.stop()
+    err = capfd.readouterr().err
+    assert "WARNING" not in err and "CancelledError" not in err and "Traceback" not in err, err
 
 
 @pytest.mark.parametrize("encoding", ["utf-8-sig", "utf-16"])
@@ -544,6 +609,23 @@ def test_a_lock_whose_process_id_another_process_took_is_stale(tmp_path: Path) -
     finally:
         other.kill()
         other.wait()
+
+
+def test_stopping_the_local_pool_does_not_wait_on_a_lock_a_killed_worker_held(tmp_path: Path) -> None:
+    """A worker killed while it put a result keeps the result queue's lock held, and Pool.terminate waited on it for
+    ever (a CI run hung 300 s in stop). Here this process holds the lock, as the dead worker did."""
+    import threading
+
+    grid = read_spec(_huge_spec(tmp_path), force=True)
+    runner = batch_commands.LocalRunner(1)
+    running = runner.run(iter(grid), tmp_path / "out", 1)
+    next(running)  # the pool is up
+    assert runner._pool._outqueue._wlock.acquire(timeout=10)
+    stopping = threading.Thread(target=runner.stop, daemon=True)
+    stopping.start()
+    stopping.join(60)
+    assert not stopping.is_alive(), "stop() waited on the result queue's lock"
+    running.close()
 
 
 def test_the_local_pool_takes_jobs_as_it_has_room(tmp_path: Path) -> None:

@@ -101,6 +101,28 @@ def test_a_reflectance_is_allowed_from_0_to_1_both_ends_included(text: str, allo
         (["pattern", "--seconds", "nan", "--out", "x.npz"], "allowed: a finite number > 0"),
         (["pattern", "--out", "x.txt"], "allowed: .npz, .csv"),
         (["coverage", "--cell-deg", "0"], "allowed: a finite number > 0"),
+        # int() takes "1_000", "+1" and other scripts' digits: listen bound port 1000, request went to window 1.
+        (["listen", "--port", "1_000", "--seconds", "0.1"], "'1_000' is not a whole number (digits 0-9)"),
+        (["listen", "--port", "\u0669\u0669\u0669\u0669", "--seconds", "0.1"], "is not a whole number (digits 0-9)"),
+        (["request", "--to", "127.0.0.1", "--window", "+1", "--dry-run"], "'+1' is not a whole number"),
+        (["pattern", "--seed", " 7", "--out", "x.npz"], "' 7' is not a whole number"),
+        # --seq-id picks a sensor of --config's Config.json: without one it was ignored.
+        (["info", "--seq-id", "3"], "--seq-id 3 without --config; allowed: with --config Config.json"),
+        (["info", "--preset", "livox_avia", "--seq-id", "-1"], "--seq-id -1 without --config"),
+        (["listen", "--seq-id", "3", "--seconds", "0.1"], "--seq-id 3 without --config"),
+        # Options the receiver would not use: --shm read shared memory, --shm-dir alone listened on UDP.
+        (["listen", "--shm", "--port", "5000", "--seconds", "0.1"], "--port with --shm; allowed: --host and --port "
+                                                                    "for UDP, or --shm"),
+        (["listen", "--shm", "--host", "127.0.0.1", "--seconds", "0.1"], "--host with --shm; allowed"),
+        (["listen", "--shm-dir", ".", "--seconds", "0.1"], "--shm-dir without --shm; allowed: with --shm"),
+        (["publish", "--to", "127.0.0.1:9", "--shm-dir", ".", "--seconds", "0.1"], "--shm-dir with --to; allowed: "
+                                                                                   "one of them"),
+        # --speed was ignored with --unpaced: a run meant at 2x went as fast as possible.
+        (["publish", "--to", "127.0.0.1:9", "--seconds", "0.1", "--unpaced", "--speed", "2"],
+         "--speed 2 with --unpaced; allowed: one of them"),
+        # "HOST:" (HOST:$PORT with PORT unset) was sent to the default port.
+        (["request", "--to", "127.0.0.1:", "--dry-run"], "port '' in '127.0.0.1:'; allowed: HOST alone for the "
+                                                         "default port, or HOST:PORT"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(

@@ -112,7 +112,7 @@ def test_config_json_without_livox(tmp_path: Path) -> None:
         ({"CameraFOV": "wide"}, r"CameraFOV = 'wide'; allowed: a finite number"),
         ({"otherParams": [600, 2.9, 1.4, 1.18, 10, 5]}, r"otherParams has 6 values; allowed: 7 or 8"),
         ({"otherParams": [600, 2.9, 1.4, 1.18, 10, 5, 1, 0, 9]}, r"otherParams has 9 values"),
-        ({"otherParams": [0, 2.9, 1.4, 1.18, 10, 5, 1, 0]}, r"otherParams\[0\] \(maximum range, m\)"),
+        ({"otherParams": [0, 2.9, 1.4, 1.18, 10, 5, 1, 0]}, r"otherParams\[0\] \(max range, m\)"),
         ({"otherParams": [600, 0, 1.4, 1.18, 10, 5, 1, 0]}, r"otherParams\[1\] .* allowed: \(0, 45\]"),
         ({"otherParams": [600, 2.9, -1, 1.18, 10, 5, 1, 0]}, r"otherParams\[2\]"),
         ({"otherParams": [600, 2.9, 1.4, 0, 10, 5, 1, 0]}, r"otherParams\[3\]"),
@@ -123,6 +123,14 @@ def test_config_json_without_livox(tmp_path: Path) -> None:
         ({"otherParams": "600"}, r"otherParams = '600'; allowed: a JSON list"),
         ({"SendProtocol": [0, 127, 0, 0, 1]}, r"SendProtocol = .*allowed: a list of 8 integers"),
         ({"SensorPosXYZ": [0, 0]}, r"SensorPosXYZ has 2 values; allowed: 3"),
+        # 1e308 overflowed the float32 ray casts: a warning, then "no ray hit anything".
+        ({"SensorPosXYZ": [1e308, 0, 0]}, r"SensorPosXYZ = .*; allowed: .* each within 1e\+07 m"),
+        ({"SensorPosXYZ": [0, 0, -1.0001e7]}, r"SensorPosXYZ = .*; allowed: .* each within 1e\+07 m"),
+        # RflySim's request carries these as uint16: info described them, the request failed.
+        ({"SeqID": -1}, r"SeqID = -1; allowed: an integer from 0 to 65535"),
+        ({"SeqID": 10**30}, r"SeqID = 1000000000000000000000000000000; allowed: an integer from 0 to 65535"),
+        ({"TargetCopter": 65536}, r"TargetCopter = 65536; allowed: an integer from 0 to 65535"),
+        ({"TargetMountType": -2}, r"TargetMountType = -2; allowed: an integer from 0 to 65535"),
         ({"TypeID": 1}, r"TypeID = 1 is not a Livox lidar; allowed: the Livox TypeIDs are 6 in RflySim SDK v2"),
         ({JITTER_SCOPE_KEY: "petal"}, r"LivoxVizJitterScope = 'petal'; allowed: flower or figure"),
     ],
@@ -210,3 +218,17 @@ def test_frame_layout_takes_the_width_asked_up_to_rflysims_limits() -> None:
         w, h, f = frame_layout(rate, lasers)
         assert w * h * f == rate and w <= 5000 and h <= 2000 and f <= 1000
         assert (w * h) % lasers == 0 or rate % lasers != 0  # whole firing groups where the rate allows
+
+
+def test_a_refusal_names_the_parameter_as_the_panel_does() -> None:
+    """The panel said "[1] petal height h" and its refusal "otherParams[1] (petal half-width, deg)": a first-use
+    trial took them for two parameters. Each otherParams field's refusal now uses the panel's name."""
+    import re
+
+    from livox_viz.config.param_docs import param_doc
+
+    for name, spec in PARAM_RANGES.items():
+        if not spec.name.startswith("otherParams"):
+            continue
+        shown = re.sub(r"^\[\d+\] ", "", param_doc(name).title)
+        assert spec.label.split(",")[0] == shown, (name, spec.label, shown)

@@ -20,7 +20,7 @@ from livox_viz.widgets.controls import FRAME_PARAMS, PATTERN_PARAMS  # noqa: E40
 from livox_viz.widgets.overlay import WINDOWS, TableSource  # noqa: E402
 from livox_viz.widgets.session import Session  # noqa: E402
 
-from livox_viz import PARAM_RANGES, SensorConfig, load_preset  # noqa: E402
+from livox_viz import PARAM_RANGES, LivoxVizError, SensorConfig, load_preset  # noqa: E402
 from livox_viz.config.param_docs import value_bounds  # noqa: E402
 from livox_viz.scene.materials import face_materials  # noqa: E402
 from livox_viz.scene.scenes import open_scene  # noqa: E402
@@ -160,6 +160,23 @@ def test_colour_modes_set_scalars(app: LivoxVizApp) -> None:
     app.cycle_scene_colour()
     app.refresh()
     assert session.display.scene_colour == "height"
+
+
+def test_the_unlimited_window_s_time_bar_spans_the_points_it_holds(app: LivoxVizApp) -> None:
+    """The unlimited window holds the last million points (10 s of the Mid-70): at 12.5 s its time bar ran from
+    0 s, and a first-use run's two minutes of scan were one flat red."""
+    session = app.session
+    app.on_window(WINDOWS.index(None))
+    session.display.pattern_colour = session.display.scene_colour = "time"
+    session.advance_to(12.5)
+    app.refresh()
+    for ring, bar in ((session.scene_ring, session.scene_scalar_range()),
+                      (session.pattern_ring, session.pattern_scalar_range())):
+        live = ring.ordered(ring.times)
+        assert bar == (pytest.approx(live.min()), pytest.approx(12.5))
+        values = ring.scalars[ring.live_slots()]
+        assert values.min() >= bar[0] - 1e-3 and values.max() <= bar[1] + 1e-3
+    assert bar[0] > 2.0  # the first seconds are no longer held
 
 
 def test_screenshot_and_sidecar_round_trip(app: LivoxVizApp, tmp_path: Path) -> None:
@@ -335,6 +352,7 @@ def test_the_gui_cloud_is_the_scan_commands_cloud(urban, tmp_path: Path) -> None
     np.testing.assert_array_equal(ring.ordered(ring.times), data["t"])
 
 
+@pytest.mark.xdist_group("x-server")  # one X server at a time (see tests/test_window.py)
 def test_real_window_under_xvfb(tmp_path: Path) -> None:
     _, xdotool = x_tools()
     with private_display("1600x900x24") as display:
@@ -441,6 +459,53 @@ def test_received_frames_feed_the_views(app: LivoxVizApp) -> None:
     assert session.frame_index == 2 and session.scan_time == pytest.approx(0.3)
 
 
+@pytest.mark.parametrize("background", ["white", "dark"])
+def test_the_density_image_s_empty_cells_show_the_background_and_what_is_behind(app: LivoxVizApp,
+                                                                               background: str) -> None:
+    """Empty cells were painted the dark background's colour: an opaque square hid the reference drawn behind
+    (a first-use trial), and stood dark on a white background. A corner of the image, outside the rosette's
+    circle, must be the background itself."""
+    import pyvista as pv
+    import vtk
+    from livox_viz.widgets.views import BACKGROUNDS
+
+    session = app.session
+    session.display.drawing = "density"
+    session.advance_to(0.5)
+    app.pattern_view.set_background(background)
+    app.refresh()
+    assert app.pattern_view.density_actor.GetVisibility()
+    x0, x1, y0, y1 = session.density.bounds
+    corner = vtk.vtkCoordinate()
+    corner.SetCoordinateSystemToWorld()
+    corner.SetValue(x0 + 0.03 * (x1 - x0), y0 + 0.03 * (y1 - y0), 0.0)
+    px, py = corner.GetComputedDisplayValue(app.pattern_view.renderer)
+    image = app.plotters["pattern"].screenshot(None, return_img=True)
+    drawn = image[image.shape[0] - 1 - py, px, :3].astype(float)
+    expected = np.array(pv.Color(BACKGROUNDS[background][0]).int_rgb, dtype=float)
+    assert np.abs(drawn - expected).max() <= 3, (drawn, expected)
+
+
+def test_a_parameter_changed_while_paused_shows_the_new_scan_at_the_time_shown(app: LivoxVizApp, urban) -> None:
+    """Tuning while paused: the scan restarted at t = 0, still paused, and the view stayed empty until play (a
+    first-use trial). Now it holds what the new configuration's scan played to the time shown holds."""
+    session = app.session
+    session.advance_to(1.0)
+    session.playback.paused = True
+    assert app.on_param("petal_height", 4.0)
+    while session.filling is not None:  # a window filled over ticks
+        session.tick()
+    assert session.playback.paused and session.shown_time == pytest.approx(1.0)
+    fresh = Session(session.config, urban, seed=0, preset_name="livox_mid70")
+    fresh.advance_to(1.0)
+    assert session.pattern_ring.count == fresh.pattern_ring.count > 0
+    for ring, again in ((session.pattern_ring, fresh.pattern_ring), (session.scene_ring, fresh.scene_ring)):
+        np.testing.assert_array_equal(ring.ordered(ring.positions), again.ordered(again.positions))
+    session.playback.paused = False  # playing, a change starts from t = 0 as before
+    assert app.on_param("petal_height", 3.0)
+    assert session.scan_time == 0.0 and session.pattern_ring.count == 0
+
+
 def test_density_image_follows_the_window(app: LivoxVizApp) -> None:
     from livox_viz.patterns.metrics import coverage
 
@@ -524,6 +589,66 @@ def test_risley_preset_parameters_and_model_switch(app: LivoxVizApp) -> None:
     assert session.config.pattern_model == "risley" and session.config.risley.deflection_deg[0] == 8.0
 
 
+def test_the_reference_is_drawn_in_a_colour_no_pattern_colouring_uses(app: LivoxVizApp) -> None:
+    """A first-use trial could not tell the reference (light blue) from our older points (the time map's blues).
+    It is a neutral grey now, in the view, the charts and the header's words; no colouring of ours is grey."""
+    import pyvista as pv
+    from livox_viz.widgets.views import CATEGORY_COLOURS
+
+    app.cycle_reference()
+    app.refresh()
+    drawn = np.array(app.pattern_view.reference_actor.prop.color.float_rgb)
+    assert drawn.max() - drawn.min() < 0.02 and drawn.min() > 0.8  # light and without hue
+    lut = pv.LookupTable(cmap=app.pattern_view.colour_map, n_values=256)
+    for colour in [*(np.array(lut.values[k, :3]) / 255 for k in range(256)),
+                   *(np.array(pv.Color(c).float_rgb) for c in CATEGORY_COLOURS)]:
+        assert np.abs(colour - drawn).max() > 0.15, colour
+    line = np.array(pv.Color(app.charts.reference_coverage.color).float_rgb)
+    assert line.max() - line.min() < 0.02
+    app.pattern_view.set_background("white")  # there the light grey vanished: a dark one
+    assert max(app.pattern_view.reference_actor.prop.color.float_rgb) < 0.4
+    app.pattern_view.set_background("dark")
+    assert np.allclose(app.pattern_view.reference_actor.prop.color.float_rgb, drawn)
+    assert f"reference {app.session.overlay.source.name} (grey)" in app.hud.pattern_text(app.session)
+
+
+def _contrast(first, second) -> float:
+    """WCAG's contrast ratio of two RGB colours (0-1 each): 1 (the same) to 21 (black on white)."""
+    def luminance(rgb) -> float:
+        linear = [c / 12.92 if c <= 0.03928 else ((c + 0.055) / 1.055) ** 2.4 for c in rgb]
+        return 0.2126 * linear[0] + 0.7152 * linear[1] + 0.0722 * linear[2]
+
+    high, low = sorted((luminance(first), luminance(second)), reverse=True)
+    return (high + 0.05) / (low + 0.05)
+
+
+@pytest.mark.parametrize("background", ["dark", "gradient", "black", "white"])
+def test_the_grid_marks_and_colour_bars_read_on_every_background(app: LivoxVizApp,
+                                                                  background: str) -> None:
+    """A first-use trial could not read "20°" over a dense rosette: the marks were bare grey text among the
+    points. Each now stands on a mostly opaque patch of the background, its text legible on it (WCAG's 4.5:1)."""
+    import pyvista as pv
+    from livox_viz.widgets.views import BACKGROUNDS
+
+    app.pattern_view.set_background(background)
+    app.refresh()
+    actor = app.pattern_view.renderer.actors["grid-labels-labels"]
+    placer = actor.GetMapper()
+    assert placer.GetShape() != placer.NONE and placer.GetStyle() == placer.FILLED
+    patch = placer.GetBackgroundColor()
+    assert np.allclose(patch, pv.Color(BACKGROUNDS[background][0]).float_rgb)
+    assert placer.GetBackgroundOpacity() >= 0.7
+    text = placer.GetInputAlgorithm().GetTextProperty().GetColor()
+    assert _contrast(text, patch) >= 4.5, (background, text, patch)
+    assert app.pattern_view.guide_labels == ["10°", "20°", "30°"]
+    # The colour bars' words too: light grey, "points/cell" vanished on white.
+    for view in (app.pattern_view, app.scene_view):
+        view.set_background(background)
+        bar = view.scalar_bar
+        for words in (bar.GetTitleTextProperty(), bar.GetLabelTextProperty(), bar.GetAnnotationTextProperty()):
+            assert _contrast(words.GetColor(), patch) >= 4.5, (background, words.GetColor())
+
+
 def test_charts_follow_the_parameters_and_the_reference(app: LivoxVizApp) -> None:
     from livox_viz.widgets.overlay import PresetSource
 
@@ -569,6 +694,27 @@ def test_e_offers_the_reference_table_again_in_its_round(app: LivoxVizApp) -> No
         seen.append(None if source is None else source.name)
     assert seen[-2] is None and session.overlay.source is table  # round: presets, none, the table again
     assert seen[:-2] == app.reference_choices()
+
+
+def test_a_reference_preset_waits_only_for_its_pattern_s_loops(app: LivoxVizApp) -> None:
+    """A reference plays only its pattern: the Avia's, a preset with datasheet returns, waited in a first-use
+    run for the datasheet loops (a minute on an empty cache) it never uses."""
+    asked: dict[str, set[str]] = {}
+
+    def defer(stages: set[str], action, what: str, kind: str) -> bool:
+        asked[what] = set(stages)
+        return True  # as if loaded: e goes on to the next
+
+    app.defer = defer
+    try:
+        for _ in app.reference_choices():
+            app.cycle_reference()
+    finally:
+        app.defer = None
+    assert set(asked) == {f"reference {name}" for name in app.reference_choices()}
+    assert load_preset("livox_avia").returns_model == "datasheet"
+    assert asked["reference livox_avia"] == {"risley"}
+    assert all(stages <= {"risley"} for stages in asked.values()), asked
 
 
 def test_fit_key_moves_the_parameters_to_the_reference(app: LivoxVizApp) -> None:
@@ -751,9 +897,23 @@ def test_categorical_colourings_get_a_legend_of_categories(app: LivoxVizApp, mod
     colours = {tuple(table.values[k]) for k in range(count)}
     assert len(colours) == count  # distinct colours, not a ramp's neighbours
     names = [table.GetAnnotation(k) for k in range(table.GetNumberOfAnnotatedValues())]
-    assert names[0].startswith(mode if mode != "arc" else "1 ") and len(names) <= 12
+    assert names[0] == ("1 UL out" if mode == "arc" else "1") and len(names) <= 12
+    assert bar.GetTitle().startswith(mode)  # "figure-8 in flower": what the numbers count
+    # The marks stand left of the bar, between it and the pattern: "figure-8 17" ran into both (a first-use trial).
+    assert max(len(name) for name in names) <= 8
     values = app.session.pattern_ring.scalars[app.session.pattern_ring.live_slots()]
     assert set(np.unique(values)) <= set(range(count))
+
+
+def test_the_coverage_of_a_window_drawn_in_part_says_it_is_that_of_the_points_shown(
+        app: LivoxVizApp, monkeypatch: pytest.MonkeyPatch) -> None:
+    """At 5 M pts/s the same pattern read 98.5 % drawn as points and 100 % as a density image (fewer points
+    dropped): a trial took it for the pattern's. Holding fewer than fired, the figure says "of these"."""
+    session = app.session
+    session.advance_to(0.3)
+    assert "coverage of these" not in app.hud.pattern_text(session) and "coverage " in app.hud.pattern_text(session)
+    monkeypatch.setattr(session, "points_fired_in_window", lambda: session.pattern_ring.count + 1000)
+    assert "coverage of these " in app.hud.pattern_text(session)
 
 
 def test_reflectivity_under_ideal_returns_says_why_it_is_one_colour(app: LivoxVizApp) -> None:
@@ -840,6 +1000,23 @@ def test_the_panoramas_azimuth_marks_stand_clear_of_each_other_in_a_narrow_view(
         # "-135°" is about 36 pixels wide at the marks' 12 points.
         assert min(np.diff(pixels)) >= 40, (marks, pixels)
         assert (45 in marks) == (width >= 640)
+    finally:
+        app.close()
+
+
+@pytest.mark.parametrize(("size", "every_line"), [((240, 636), False), ((700, 700), True)])
+def test_the_panoramas_elevation_marks_stand_clear_of_each_other_in_a_short_band(urban, size, every_line) -> None:
+    """In an 1100 px window the Mid-360's band was about 150 pixels wide and 60 tall: "50°40°30°" ran into one
+    another (a first-use trial). Where a line's mark would not stand clear, only every 2nd (3rd, ...) is marked."""
+    session = Session(load_preset("livox_mid360"), urban, seed=0, preset_name="livox_mid360")
+    app = LivoxVizApp(session, off_screen=True, window_size=size, views="pattern")
+    try:
+        view = app.pattern_view
+        labels = view.guide_labels
+        marks = [int(t[:-1]) for t in labels[labels.index("180°") + 1:]]  # the azimuths' marks come first
+        pixels = [on_screen(view.renderer, (-180.0, elevation * view.stretch, 0.0))[1] for elevation in marks]
+        assert len(marks) >= 2 and min(np.diff(pixels)) >= 16, (marks, pixels)
+        assert (marks == [0, 10, 20, 30, 40, 50]) == every_line, marks
     finally:
         app.close()
 
@@ -942,3 +1119,28 @@ def test_the_views_text_keeps_its_lines_short_so_vtk_does_not_shrink_it(app: Liv
             assert "fired" in text and max(len(line) for line in text.splitlines()) > LINE_CHARS  # the long line
             assert " ".join(drawn.split()) == " ".join(text.split())
     assert wrapped("a " * 50).count("\n") == 1 and wrapped("short\nlines") == "short\nlines"
+    # A number keeps its unit: "coverage 44.1" and " %" came out on two lines in the README's picture.
+    line = wrapped("reference livox_mid70_risley (grey), window 0.5 s: coverage 44.1 %")
+    assert "44.1 %" in line and all(part.strip() not in ("%", "s") for part in line.splitlines())
+    assert max(len(part) for part in line.splitlines()) <= LINE_CHARS
+
+
+def test_the_heads_up_field_of_view_is_the_panels_number(app: LivoxVizApp) -> None:
+    """The panel's box shows CameraFOV at its parameter's decimals; the text beside it read '70.1232' against the
+    box's '70.123', two values to a first-use trial."""
+    from livox_viz.config.param_docs import param_doc
+
+    app.on_param("camera_fov", 70.1232)
+    decimals = param_doc("camera_fov").decimals
+    assert f"FOV {70.1232:.{decimals}f} deg\n" in app.hud.pattern_text(app.session)
+
+
+def test_a_sidecars_background_is_drawn_again_and_a_strange_one_named(app: LivoxVizApp) -> None:
+    """A sidecar keeps each view's background: a trial's white screenshot was drawn again dark."""
+    state = app.drawing_state()
+    state["pattern"]["background"] = "white"
+    app.apply_drawing_state(state)
+    assert app.pattern_view.background_name == "white" and app.scene_view.background_name == "gradient"
+    state["scene"]["background"] = "purple"
+    with pytest.raises(LivoxVizError, match=r"scene view's background 'purple'; allowed: dark, gradient, black, white"):
+        app.apply_drawing_state(state)

@@ -115,7 +115,6 @@ BAD_INPUTS: list[tuple[list[str], str]] = [
     (["publish", "--config", "huge.json", "--to", "127.0.0.1:9", "--seconds", "1"], "allowed: at most"),
     (["coverage", "--cell-deg", "100"], "larger than the FOV's half-angle"),
     (["publish", "--speed", "1e-9", "--to", "127.0.0.1:9"], "allowed: 0.01 to 1000"),
-    (["publish", "--to", "255.255.255.255:9999", "--seconds", "0.2", "--unpaced"], "nothing could be sent"),
     (["request", "--to", "127.0.0.1", "--window", "99999", "--dry-run"], "allowed: 0 to 45525"),
     (["gui", "--listen", "--port", "0"], "needs a display"),
     (["scan", "--seconds", "2", "--trajectory", "nowhere.txt", "--out", "m.npz"], "no such TUM trajectory"),
@@ -145,6 +144,25 @@ def test_bad_input_is_one_line_exit_2_and_leaves_nothing(
     assert len(lines) == 1 and "Traceback" not in err and re.match(r"livox-viz( [a-z]+)?: error: ", lines[0]), err
     assert re.search(message if "|" in message else re.escape(message), lines[0]), lines[0]
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_publish_where_every_send_is_refused_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """A network that refuses every datagram (a firewall; the broadcast address was this test's case until the
+    sender allowed broadcasts) ends publish with one line, not a frame counter that counts nothing sent."""
+    import socket
+
+    def refused(self, data, address):
+        raise PermissionError(errno.EACCES, "Permission denied")
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(socket.socket, "sendto", refused)
+    code = main(["publish", "--to", "127.0.0.1:9", "--seconds", "0.2", "--unpaced"])
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if not line.startswith(("publishing", "  1 frames"))]
+    assert code == 2 and "Traceback" not in err, err
+    assert lines == ["livox-viz: error: nothing could be sent to udp 127.0.0.1:9 (Permission denied)"], lines
+    assert not list(tmp_path.iterdir())
 
 
 def test_disk_full_is_one_line_and_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,

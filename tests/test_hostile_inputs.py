@@ -136,6 +136,11 @@ HOSTILE: list[tuple[list[str], str]] = [
     (["publish", "--trajectory", "ages.tum", "--to", "127.0.0.1:9"],
      r"trajectory ages.tum: pose 1 is at t = -1e\+308 s; allowed: times within 1e\+10 s of the scan start"),
     (["render", "--pose=200000,0,-2,0,0,0", "--seconds", "0.1", "--out", "s.png"], r"the vehicle's pose takes the"),
+    # A value starting with a minus and a digit is a value (before, "argument --size: expected one argument")
+    (["render", "--size", "-5x10", "--seconds", "0.1", "--out", "s.png"],
+     r"--size '-5x10'; allowed: 64 to 8192 pixels each way$"),
+    (["scan", "--pose", "200000,0,-2,0,0,0", "--seconds", "0.1", "--out", "s.ply"], r"the vehicle's pose takes the"),
+    (["scan", "--pose", "-200000,0,-2,0,0,0", "--seconds", "0.1", "--out", "s.ply"], r"the vehicle's pose takes the"),
     # 7: sizes a float cannot make triangles of
     (["scan", "--scene", "tiny_sphere.json", "--seconds", "0.1", "--out", "s.ply"],
      r"object 0 \(sphere\): 'radius' = 1e-300; allowed: a number from 0.001 to 100000 m"),

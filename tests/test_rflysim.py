@@ -249,6 +249,17 @@ def test_send_protocol_and_addresses(mid70: SensorConfig) -> None:
     for bad in ("127.0.0.1:x", "127.0.0.1:0", ":80", "host"):
         with pytest.raises(LivoxVizError):
             parse_host_port(bad)
+    # An empty port ("HOST:$PORT" with PORT unset) went to the default port; int() took signs, "_" and any script's
+    # digits.
+    for bad in ("127.0.0.1:", "127.0.0.1: ", "127.0.0.1:+5", "127.0.0.1:1_000", "127.0.0.1: 80", "127.0.0.1:\u0663"):
+        with pytest.raises(LivoxVizError, match="allowed: HOST alone for the default port, or HOST:PORT"):
+            parse_host_port(bad, 20010)
+        with pytest.raises(LivoxVizError, match="; allowed: HOST:PORT with PORT a number 1-65535"):
+            parse_host_port(bad)
+    # Split at the last colon, an IPv6 address was host ":" and port 1, and the request went nowhere.
+    for ipv6 in ("::1", "[::1]:9999", "fe80::1"):
+        with pytest.raises(LivoxVizError, match="is IPv6; allowed: an IPv4 address or a host name"):
+            parse_host_port(ipv6, 20010)
 
 
 def test_shared_memory_round_trip(tmp_path: Path, mid70: SensorConfig) -> None:
@@ -294,10 +305,50 @@ def test_listen_on_a_port_in_use(capsys: pytest.CaptureFixture[str]) -> None:
     assert code == 2 and "in use" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("host", ["::1", "192.0.2.1"])
+def test_listen_on_an_address_it_cannot_bind_says_what_it_can(host: str, capsys: pytest.CaptureFixture[str]) -> None:
+    # An IPv6 address, and another machine's (TEST-NET-1, never this machine's).
+    code = main(["listen", "--host", host, "--port", "0", "--frames", "1"])
+    err = capsys.readouterr().err
+    assert code == 2 and f"cannot listen on {host}:0" in err and "allowed: an IPv4 address of this machine" in err
+    assert "Traceback" not in err
+
+
+def test_listen_on_a_port_the_system_refuses_names_the_port_not_the_address(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """Port 80 for a user who is not root (or a reserved port on Windows): the message blamed the address."""
+    import errno
+
+    def refuse(_sock: socket.socket, _address: object) -> None:
+        raise PermissionError(errno.EACCES, "Permission denied")
+
+    monkeypatch.setattr(socket.socket, "bind", refuse)
+    code = main(["listen", "--host", "127.0.0.1", "--port", "80", "--frames", "1"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "cannot listen on 127.0.0.1:80 (Permission denied): ports below 1024 need administrator rights" in err
+    assert "allowed: a port from 1024 to 65535, or 0 for any free one" in err and "IPv4 address" not in err
+
+
 def test_request_dry_run(capsys: pytest.CaptureFixture[str], mid70: SensorConfig) -> None:
     assert main(["request", "--to", "127.0.0.1", "--dry-run"]) == 0
     out = capsys.readouterr().out
     assert bytes.fromhex(out.split()[-1]) == sensor_request(mid70)
+
+
+def test_request_to_the_broadcast_address_reaches_a_listener(capsys: pytest.CaptureFixture[str],
+                                                             mid70: SensorConfig) -> None:
+    # Without SO_BROADCAST the send was refused: "cannot send to 255.255.255.255:20010 (Permission denied)".
+    listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    listener.bind(("0.0.0.0", 0))
+    listener.settimeout(5.0)
+    try:
+        port = listener.getsockname()[1]
+        assert main(["request", "--to", f"255.255.255.255:{port}"]) == 0, capsys.readouterr().err
+        data, _ = listener.recvfrom(4096)
+    finally:
+        listener.close()
+    assert data == sensor_request(mid70)
 
 
 def test_a_frame_whose_point_count_lies_is_counted_once_and_the_next_arrives() -> None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -50,16 +51,25 @@ def test_no_help_text_names_the_development_folder() -> None:
     assert not [t for t in texts if SIBLING in t or "shared" + "/reference" in t]
 
 
+#: What a build reads from the checkout is copied, never these: setuptools writes build/ and *.egg-info in the
+#: tree it builds, so two test processes building this checkout at once broke each other's build (CI, -n 2).
+NOT_COPIED = shutil.ignore_patterns(".*", "build", "*.egg-info", "offscreen", "__pycache__")
+
+
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The wheel ``pip`` builds from this checkout (no download: the venv's own setuptools)."""
+    """The wheel ``pip`` builds from a copy of this checkout (no download: the venv's own setuptools)."""
+    source = tmp_path_factory.mktemp("source") / "livox-viz"
+    shutil.copytree(ROOT, source, ignore=NOT_COPIED)
     out = tmp_path_factory.mktemp("wheel")
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
-                    "-w", str(out), str(ROOT)], check=True, capture_output=True, timeout=600)
+    result = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
+                             "-w", str(out), str(source)], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, f"pip wheel failed:\n{result.stdout}\n{result.stderr}"
     (built,) = out.glob("livox_viz-*.whl")
     return built
 
 
+@pytest.mark.xdist_group("wheel")
 def test_the_wheel_carries_presets_scenes_tables_and_the_window(wheel: Path) -> None:
     names = set(zipfile.ZipFile(wheel).namelist())
     tables = json.loads((ROOT / "presets" / "tables" / "index.json").read_text())
@@ -72,6 +82,7 @@ def test_the_wheel_carries_presets_scenes_tables_and_the_window(wheel: Path) -> 
     assert "livox_viz/widgets/app.py" in names and not any(n.startswith("widgets/") for n in names)
 
 
+@pytest.mark.xdist_group("wheel")
 def test_the_installed_wheel_names_its_tables_without_the_checkout(wheel: Path, tmp_path: Path) -> None:
     """Unpacked away from the checkout, the wheel's own package loads the named tables and presets."""
     site = tmp_path / "site"

@@ -20,6 +20,8 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 FINDING = re.compile(r"^(?P<path>[^:\n]+):(?P<line>\d+): error: (?P<message>.*)$", re.MULTILINE)
 PLATFORMS = ("linux", "win32", "darwin")
+#: Both tests keep mypy's caches in the same folders: they run on one test process, one after the other.
+pytestmark = pytest.mark.xdist_group("mypy-cache")
 
 
 def _mypy(platform: str, *paths: str, cwd: Path = ROOT) -> subprocess.Popen[str]:

@@ -8,11 +8,13 @@ empty compile cache (it takes a minute or two: the return model's first compile)
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import subprocess
 import sys
 import textwrap
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +23,11 @@ import pytest
 pytest.importorskip("pyvistaqt")
 
 from .xserver import private_display
+
+#: The tests that start X servers run on one worker of pytest-xdist, one server at a time: a server of one worker
+#: stopping while another worker's started on the same display number took that one's socket away ("could not
+#: connect to display :0" in CI's run on two workers).
+pytestmark = pytest.mark.xdist_group("x-server")
 
 SCREEN = "1920x1200x24"
 
@@ -44,6 +51,21 @@ def qapp():
             os.environ.pop("DISPLAY", None)
         else:
             os.environ["DISPLAY"] = previous
+
+
+@pytest.fixture(autouse=True)
+def _windows_destroyed_in_their_own_test(qtbot):
+    """Each test's windows are destroyed at its own end. pytest-qt closes them and asks Qt to delete them later,
+    which happened inside the next test's first wait, with its new window's events: twice in full runs the
+    process died there (a segmentation fault in the event loop while the next window was set up)."""
+    import gc
+
+    from qtpy import QtCore
+
+    yield
+    QtCore.QCoreApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete.value)
+    gc.collect()
+    QtCore.QCoreApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete.value)
 
 
 @pytest.fixture(scope="module")
@@ -107,9 +129,15 @@ def assert_panel_holds(window, expected: set[str]) -> None:
     content = window.panel.findChildren(QtWidgets.QWidget, "panel-content")
     assert len(content) == 1
     rects = [widget_rect(row, window.panel) for row in rows]
+    # Rows wider than the dock shows can be scrolled to: a first-use trial saw the track's ranges and reset
+    # buttons cut off in an 1100 px window, with no scroll bar.
+    scroll = window.dock.widget()
+    sideways = scroll.horizontalScrollBar()
     for k, first in enumerate(rects):
         assert first.width() > 200 and first.height() >= 40
         assert window.panel.rect().contains(first), (rows[k].name, first, window.panel.rect())
+        if first.right() >= scroll.viewport().width():
+            assert sideways.isVisible() and sideways.maximum() >= first.right() - scroll.viewport().width()
         for second in rects[k + 1 :]:
             assert not first.intersects(second)
 
@@ -129,7 +157,7 @@ def press(qtbot, window, key: str) -> None:
 
 
 # The window ------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("size", [(1280, 720), (1920, 1080)])
+@pytest.mark.parametrize("size", [(1100, 700), (1280, 720), (1920, 1080)])
 def test_the_window_lays_out_readably_at_common_sizes(urban, qtbot, size: tuple[int, int]) -> None:
     window = make_window(urban, qtbot, size=size)
     try:
@@ -139,7 +167,9 @@ def test_the_window_lays_out_readably_at_common_sizes(urban, qtbot, size: tuple[
             assert rect.width() >= 240 and rect.height() >= 300, (name, rect)
             assert window.rect().contains(rect)
         assert not rects["pattern"].intersects(rects["scene"]) and not rects["scene"].intersects(rects["charts"])
-        assert rects["pattern"].width() > rects["charts"].width()
+        # At 1100 px every view is at its 240 px minimum; from 1280 the pattern gets the largest share.
+        assert rects["pattern"].width() >= rects["charts"].width()
+        assert size[0] < 1280 or rects["pattern"].width() > rects["charts"].width()
         dock = widget_rect(window.dock, window)
         assert not dock.intersects(rects["pattern"])
         assert_panel_holds(window, {"camera_fov", "petal_height", "spacing_exponent", "tip_exponent",
@@ -267,6 +297,45 @@ def test_every_menu_action_runs(window, qtbot, user_presets: Path, monkeypatch: 
     assert window.isVisible()
 
 
+def test_the_preset_and_scene_menus_fit_the_screen_and_mark_what_is_shown(window, qtbot) -> None:
+    """File > Open preset named each preset with its whole description (200+ characters): the submenu ran past a
+    1600-pixel screen. Now the start of it, the whole in the entry's tooltip; and neither menu said which entry
+    was shown."""
+    from qtpy import QtWidgets
+
+    file_menu = next(a.menu() for a in window.menuBar().actions() if a.text().replace("&", "") == "File")
+    menus = {a.text(): a.menu() for a in file_menu.actions() if a.menu() is not None}
+    presets, scenes = menus["Open preset"], menus["Open built-in scene"]
+    presets.aboutToShow.emit()
+    scenes.aboutToShow.emit()
+    entries = [a for a in presets.actions() if not a.isSeparator()]
+    assert entries and all(len(a.text()) <= 100 for a in entries)
+    assert all(a.toolTip() and a.text().split("  (")[1].rstrip(")\u2026") in a.toolTip()
+               for a in entries if "  (" in a.text())
+    assert presets.toolTipsVisible()
+    width = QtWidgets.QApplication.primaryScreen().availableGeometry().width()
+    assert presets.sizeHint().width() <= width - file_menu.sizeHint().width()
+    assert [a.text().split("  ")[0] for a in entries if a.isChecked()] == ["livox_mid70"]
+    assert [a.text() for a in scenes.actions() if a.isChecked()] == ["urban"]
+
+
+def test_the_shipped_tables_open_by_name_from_the_file_menu(window, qtbot) -> None:
+    """File > Open reference wanted a table's path, which a user cannot know (a first-use trial typed "avia" and got
+    "File not found"): the shipped tables are a submenu by name, those of another plane shown but not offered."""
+    from livox_viz.widgets.overlay import TableSource
+
+    file_menu = next(a.menu() for a in window.menuBar().actions() if a.text().replace("&", "") == "File")
+    tables = next(a.menu() for a in file_menu.actions() if a.text() == "Open shipped reference table")
+    tables.aboutToShow.emit()
+    entries = {a.text().split("  ")[0]: a for a in tables.actions()}
+    assert {"mid40", "mid70", "avia", "horizon", "tele15", "mid360"} <= set(entries)
+    assert not entries["mid360"].isEnabled() and "panorama plane" in entries["mid360"].toolTip()
+    entries["avia"].trigger()
+    source = window.controller.session.overlay
+    qtbot.waitUntil(lambda: (window.tick(), source.source is not None)[1], timeout=20_000)
+    assert isinstance(source.source, TableSource) and source.source.name == "avia"
+
+
 def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot) -> None:
     """The menus named no key (a first-use trial): an entry whose action has a key in the key table shows it at
     its right as Qt does, and the key, pressed in a view, still runs its action once (Up doubles the speed once,
@@ -290,8 +359,12 @@ def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot
                 "Reference overlay on / off": "O", "Reference's own window": "L",
                 "Fit the rosette to the reference": "F", "Cloud in the world / sensor frame": "W",
                 "Screenshot (views and sidecar)": "S", "Save as user preset": "P",
-                "Reset cameras (fit everything drawn)": "R", "Keys and mouse": "H", "Quit": "Ctrl+Q"}
+                "Reset cameras (fit everything drawn)": "R", "Keys and mouse": "H", "Quit": "Q",
+                "Next built-in scene": "M"}
     assert {text: shown.get(text) for text in expected} == expected
+    # A trial found m in no menu and q only as Ctrl+Q; Ctrl+Q still quits too.
+    quit_action = next(a for top in window.menuBar().actions() for a in actions(top.menu()) if a.text() == "Quit")
+    assert [k.toString() for k in quit_action.shortcuts()] == ["Q", "Ctrl+Q"]
     table_keys = {key.upper() if len(key) == 1 else key.capitalize() for row in KEYS for key, _ in row.bindings}
     assert {key for key in shown.values() if key and "+" not in key} <= table_keys
     session = window.controller.session
@@ -343,12 +416,37 @@ def test_the_menus_check_the_current_choices_from_the_start(window) -> None:
     assert checked(window.scene_colour_actions) == [session.display.scene_colour]
     assert checked(window.drawing_actions) == [session.display.drawing]
     assert checked(window.window_actions) == [session.window] == [0.5]
+    # View > Colour map, Point size and Background had no mark at all (a first-use trial).
+    assert checked(window.colour_map_actions) == [window.controller.pattern_view.colour_map] == ["turbo"]
+    assert checked(window.point_size_actions) == [2]
+    assert checked(window.background_actions) == ["dark"]
+    window.background_actions["white"].trigger()
+    window.point_size_actions[4].trigger()
+    assert checked(window.background_actions) == ["white"] and checked(window.point_size_actions) == [4]
+    assert window.controller.pattern_view.point_size == 4
     window.panel._set_window(1.0)
     session.set_config(session.config.with_returns_model("datasheet"))
     for top in window.menuBar().actions():
         top.menu().aboutToShow.emit()
     assert checked(window.window_actions) == [1.0]
     assert checked(window.returns_actions) == ["datasheet"]
+
+
+def test_save_configuration_suggests_the_preset_s_name_and_writes_json(window, tmp_path: Path,
+                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The dialog offered only the folder (a first-use trial); a name typed without .json is written as .json."""
+    from qtpy import QtWidgets
+
+    from livox_viz import load_config
+
+    suggested: list[str] = []
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getSaveFileName", staticmethod(
+        lambda parent, title, name, *a: (suggested.append(Path(name).name), (str(tmp_path / "mine"), ""))[1]))
+    window.save_config_as()
+    window.controller.on_param("petal_height", 4.0)
+    window.save_config_as()
+    assert suggested == ["livox_mid70.json", "livox_mid70_tuned.json"]
+    assert load_config(tmp_path / "mine.json").petal_height == 4.0 and not (tmp_path / "mine").exists()
 
 
 def test_keys_run_while_the_menu_bar_has_the_focus(window, qtbot) -> None:
@@ -390,6 +488,13 @@ def test_the_panel_shows_the_speed_and_window_the_keys_and_menus_set(window, qtb
     assert panel.window_choice.currentData() == WINDOWS[session.window_index]
     window.window_actions[2.0].trigger()
     assert session.window == 2.0 and panel.window_box.value() == 2.0 and panel.window_choice.currentData() == 2.0
+    window.window_actions[None].trigger()  # unlimited: the greyed box said "0 s"
+    assert session.window is None and not panel.window_box.isEnabled() and panel.window_box.text() == "unlimited"
+    panel.window_choice.setCurrentIndex(panel.window_choice.findData("typed"))
+    panel.window_choice.activated.emit(panel.window_choice.currentIndex())
+    assert panel.window_box.isEnabled() and panel.window_box.value() == 1.0
+    type_into(qtbot, panel.window_box, "0.25")
+    assert session.window == 0.25 and panel.window_box.text().startswith("0.25")
 
 
 def test_a_typed_value_outside_the_range_is_refused_in_the_control(window, qtbot) -> None:
@@ -458,6 +563,52 @@ def test_a_typed_number_in_scientific_notation_is_taken_exactly(window, qtbot) -
     assert session.playback.speed == 0.25
 
 
+def test_a_typed_speed_is_shown_in_its_box_and_answers_a_refusal(window, qtbot) -> None:
+    """A trial typed 0.5, then 2, into the speed box: both ran, the box kept showing 10 x; and the red 'speed -3
+    refused' before them stayed in the status bar."""
+    session = window.controller.session
+    window.run(lambda: window.controller.on_speed(10.0))
+    type_into(qtbot, window.panel.speed_box, "-3")
+    window.tick()
+    assert window._error and "speed -3 refused" in window.status_message.text()
+    type_into(qtbot, window.panel.speed_box, "0.5")
+    window.tick()
+    assert session.playback.speed == 0.5 and window.panel.speed_box.text() == "0.5 x real time"
+    assert not window._error and "speed 0.5 x" in window.status_message.text(), window.status_message.text()
+
+
+def test_a_half_typed_into_a_whole_number_box_is_refused_and_a_whole_one_taken(window, qtbot) -> None:
+    """'150.5' in DataWidth showed 151 (Qt rounds half up) while 150 ran (half to even): a trial saw both."""
+    session = window.controller.session
+    row = window.panel.rows["data_width"]
+    config = session.config
+    type_into(qtbot, row.box, "150.5")
+    assert session.config == config and row.box.value() == config.data_width
+    assert "150.5 refused: not a whole number" in row.refusal_text and "integer" in row.refusal_text
+    type_into(qtbot, row.box, "1.5e2")
+    assert session.config.data_width == 150 and row.box.text().startswith("150")
+
+
+def test_the_wheel_over_a_slider_steps_by_the_parameter_s_step(window, qtbot) -> None:
+    """Three notches over the CameraFOV slider moved it 38.215 to 39.808 deg, in slider units; the README says
+    the wheel steps by the parameter's step, as the box's does (a first-use trial)."""
+    from qtpy import QtCore, QtGui, QtWidgets
+
+    from livox_viz.config.param_docs import param_doc
+
+    session = window.controller.session
+    row = window.panel.rows["camera_fov"]
+    start = session.config.camera_fov
+    centre = QtCore.QPointF(row.slider.width() / 2, row.slider.height() / 2)
+    for delta in (120, 120, 120, 60, 60):  # three notches, then one in two halves (a touchpad's)
+        event = QtGui.QWheelEvent(centre, row.slider.mapToGlobal(centre), QtCore.QPoint(0, 0),
+                                  QtCore.QPoint(0, delta), QtCore.Qt.MouseButton.NoButton,
+                                  QtCore.Qt.KeyboardModifier.NoModifier, QtCore.Qt.ScrollPhase.NoScrollPhase, False)
+        QtWidgets.QApplication.sendEvent(row.slider, event)
+    assert session.config.camera_fov == pytest.approx(start + 4 * param_doc("camera_fov").step)
+    assert row.box.value() == pytest.approx(session.config.camera_fov)
+
+
 def test_a_typed_unit_or_word_is_refused_in_the_control_never_changed(window, qtbot) -> None:
     """'45 rad' became 45 deg without a word (Qt dropped the letters): now it is refused, saying what is taken."""
     session = window.controller.session
@@ -474,6 +625,32 @@ def test_a_typed_unit_or_word_is_refused_in_the_control_never_changed(window, qt
     type_into(qtbot, window.panel.speed_box, "2 times")
     assert session.playback.speed == speed and "'2 times' refused" in session.message
     assert "allowed: 0.01 to 10 x" in session.message
+
+
+def test_enter_and_escape_in_a_box_hand_the_keys_back_to_the_window(window, qtbot) -> None:
+    """A first-use trial typed a value, pressed Enter, then e: "e deg" went into the box, and Escape did nothing.
+    Enter (once the value is taken) and Escape (which puts back the value held) now leave the box."""
+    from qtpy import QtCore, QtWidgets
+
+    session = window.controller.session
+    window.activateWindow()
+    row = window.panel.rows["petal_height"]
+    type_into(qtbot, row.box, "3.5")
+    assert session.config.petal_height == 3.5 and not row.box.hasFocus()
+    colour = session.display.pattern_colour
+    qtbot.keyClick(QtWidgets.QApplication.focusWidget() or window, "c")  # where the user's next key goes
+    assert session.display.pattern_colour != colour and row.box.text() == "3.5 deg"
+    # Escape: the value held comes back, nothing is asked, the keys go back to the window.
+    row.box.setFocus()
+    row.box.lineEdit().selectAll()
+    qtbot.keyClicks(row.box.lineEdit(), "7")
+    qtbot.keyClick(row.box.lineEdit(), QtCore.Qt.Key.Key_Escape)
+    assert row.box.text() == "3.5 deg" and not row.box.hasFocus() and session.config.petal_height == 3.5
+    # A refused text: said, and the box shows the value held.
+    for refused in ("99", "e"):
+        type_into(qtbot, row.box, refused)
+        assert session.config.petal_height == 3.5 and not row.box.hasFocus() and row.box.text() == "3.5 deg"
+        assert row.refusal_text.startswith(f"{refused} refused" if refused == "99" else "'e' refused")
 
 
 def test_enter_in_an_unedited_box_asks_nothing(window, qtbot) -> None:
@@ -529,6 +706,27 @@ def test_the_scrubber_seeks_when_paused_and_forgets_the_picks(window) -> None:
     assert session.filling is None and session.scan_time == pytest.approx(0.4 * played, abs=1e-6)
     assert controller.picks == [] and controller.pick_text == ""
     assert window.status_message.text() != "range 12.000 m"
+
+
+def test_the_scrubber_shows_the_scan_s_end_while_playing_and_a_click_goes_there(window, qtbot) -> None:
+    """A first-use trial saw the handle at 0 while the scan played on (until the first pause), and a click in the
+    middle of the bar moved back only a page step, 1.8 s of a long scan."""
+    from qtpy import QtCore
+
+    session, controller = window.controller.session, window.controller
+    session.advance_to(2.0)
+    window.tick()
+    assert not session.playback.paused and window.scrubber.value() == 1000
+    window.run(controller.toggle_pause)
+    played = window._played
+    groove = window.scrubber.rect()
+    qtbot.mouseClick(window.scrubber, QtCore.Qt.MouseButton.LeftButton,
+                     pos=QtCore.QPoint(groove.center().x(), groove.center().y()))
+    for _ in range(200):
+        if session.filling is None:
+            break
+        window.tick()
+    assert session.scan_time == pytest.approx(0.5 * played, abs=0.05 * played)
 
 
 @pytest.mark.parametrize("switch", ["n key", "preset menu", "x key"])
@@ -923,6 +1121,13 @@ def test_the_help_dialog_lists_every_key_inside_the_screen(window, qtbot) -> Non
     qtbot.waitUntil(dialog.isActiveWindow, timeout=5000)
     qtbot.keyClick(dialog.findChild(__import__("qtpy").QtWidgets.QTextBrowser), "h")
     assert not dialog.isVisible()
+    # And with the mouse: its Close button.
+    press(qtbot, window, "h")
+    buttons = dialog.findChild(__import__("qtpy").QtWidgets.QDialogButtonBox)
+    close = buttons.button(__import__("qtpy").QtWidgets.QDialogButtonBox.StandardButton.Close)
+    assert screen.contains(close.mapToGlobal(close.rect().center()))
+    qtbot.mouseClick(close, __import__("qtpy").QtCore.Qt.MouseButton.LeftButton)
+    assert not dialog.isVisible()
 
 
 def test_broken_files_from_the_menu_leave_the_window_as_it_was(window, qtbot, tmp_path: Path) -> None:
@@ -959,6 +1164,7 @@ def test_a_screenshot_from_the_window_is_drawn_again_by_render(window, qtbot, tm
     window.set_colour_map("plasma")
     window.set_point_size(3)
     window.toggle_grid()
+    window.set_background("white")  # a trial's white screenshot was drawn again on the dark background
     c.set_window_seconds(0.3)
     c.session.advance_to(1.7)
     c.toggle_pause()
@@ -968,6 +1174,7 @@ def test_a_screenshot_from_the_window_is_drawn_again_by_render(window, qtbot, tm
     data = json.loads(path.with_suffix(".json").read_text())
     assert data["returns_model"] == "ideal" and data["drawing"] == "auto" and data["window_s"] == 0.3
     assert data["views"]["scene"]["grid"] and data["views"]["pattern"]["colour_map"] == "plasma"
+    assert data["views"]["pattern"]["background"] == data["views"]["scene"]["background"] == "white"
     again = tmp_path / "again.png"
     # As a user runs it: its own command, in its own process.
     result = subprocess.run([sys.executable, "-m", "livox_viz", "render", "--sidecar", str(path.with_suffix(".json")),
@@ -1129,6 +1336,59 @@ def export_bag_from_menu(window, qtbot, monkeypatch: pytest.MonkeyPatch, target:
     entry = next(action for action in file_menu.actions() if action.text() == "Export ROS 2 bag...")
     entry.trigger()
     qtbot.waitUntil(lambda: (window.tick(), not window._jobs)[1], timeout=120_000)
+
+
+@contextlib.contextmanager
+def answering_number_dialogs(qtbot, answers: list[str]) -> Iterator[list[str]]:
+    """Within the block, type each of ``answers`` (then Enter) into the number dialogs as they open, as a user does;
+    yields the questions the dialogs asked, filled in as they open."""
+    from qtpy import QtCore, QtWidgets
+
+    asked: list[str] = []
+    answered: list[QtWidgets.QInputDialog] = []
+
+    def answer() -> None:
+        dialog = QtWidgets.QApplication.activeModalWidget()
+        if not isinstance(dialog, QtWidgets.QInputDialog) or dialog in answered or len(asked) >= len(answers):
+            return
+        answered.append(dialog)
+        asked.append(dialog.labelText())
+        box = dialog.findChild(QtWidgets.QDoubleSpinBox)
+        box.lineEdit().selectAll()
+        qtbot.keyClicks(box.lineEdit(), answers[len(asked) - 1])
+        qtbot.keyClick(box.lineEdit(), QtCore.Qt.Key.Key_Return)
+
+    timer = QtCore.QTimer()
+    timer.timeout.connect(answer)
+    timer.start(50)
+    try:
+        yield asked
+    finally:
+        timer.stop()
+
+
+def test_a_number_typed_past_a_dialogs_range_is_refused_and_asked_again(window, qtbot,
+                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The bag's seconds: '200' against the longest 120 became 20 (Qt dropped the last keystroke) and a 20 s bag
+    was written without a word (a first-use trial). Now it is refused, the dialog asks again saying why."""
+    from qtpy import QtWidgets
+
+    suggested: list[str] = []
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getSaveFileName",
+                        staticmethod(lambda parent, title, name, *a: (suggested.append(name), ("", ""))[1]))
+    with answering_number_dialogs(qtbot, ["5000", "20"]) as asked:  # the longest here (no trajectory): 1000 s
+        window.export_bag()
+    assert len(asked) == 2 and "5000 s refused" in asked[1], asked
+    assert suggested and suggested[0].endswith("_20s_bag"), suggested
+    assert not window._error  # the refusal was answered: its red line went with it
+    with answering_number_dialogs(qtbot, ["0.05", "0.25"]) as asked:  # one decimal showed 0.05 as "0.0"
+        window.export_bag()
+    assert len(asked) == 2 and "0.05 s refused" in asked[1], asked
+    assert suggested[-1].endswith("_0.25s_bag"), suggested
+    with answering_number_dialogs(qtbot, ["20", "2.5"]) as asked:
+        window.type_window()  # the integration window: 0.01 to 10 s
+    assert len(asked) == 2 and "20 s refused" in asked[1], asked
+    assert window.controller.session.window == 2.5
 
 
 @pytest.mark.parametrize("case", ["ideal", "datasheet", "moving"])
@@ -1304,3 +1564,55 @@ def test_each_scene_camera_shows_the_sensor_and_the_cloud(urban, qtbot, size) ->
                 assert share > 0.9, share
     finally:
         window.close()
+
+
+def test_cycles_are_collected_in_the_windows_thread_only(window) -> None:
+    """A VTK object destroyed by a collection that fell due in a background thread (the loops' loader) waited for
+    the GL context the window's render held, which waited for the interpreter lock: the window froze for good (CI:
+    SIGTERM not taken in 20 s). While the window is open, garbage made in any thread is collected in the window's,
+    at its tick; once closed, Python collects as before."""
+    import gc
+    import threading
+
+    collected_in: list[str] = []
+
+    class Cycle:
+        def __init__(self) -> None:
+            self.itself = self
+
+        def __del__(self) -> None:
+            collected_in.append(threading.current_thread().name)
+
+    kept: list[list] = []
+
+    def make_garbage() -> None:
+        for _ in range(20):
+            Cycle()
+        kept.extend([] for _ in range(3 * gc.get_threshold()[0]))  # live containers past the threshold: one is due
+
+    background = threading.Thread(target=make_garbage, name="background")
+    background.start()
+    background.join()
+    assert collected_in == [], "collected in the background thread"
+    window.tick()
+    assert collected_in and set(collected_in) == {threading.current_thread().name}
+    window.close()
+    assert gc.isenabled()
+
+
+def test_a_window_whose_set_up_fails_leaves_collection_on(urban, qtbot, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Collection is turned off only once the window is made: a set-up that failed left it off in the process."""
+    import gc
+
+    from livox_viz.widgets import mainwindow
+    from livox_viz.widgets.session import Session
+
+    from livox_viz import load_preset
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("set-up failed")
+
+    monkeypatch.setattr(mainwindow, "quiet_vtk", broken)  # the first step after the collector is made
+    with pytest.raises(RuntimeError, match="set-up failed"):
+        mainwindow.MainWindow(Session(load_preset("livox_mid70"), urban), size=(1280, 720), warm=False)
+    assert gc.isenabled()

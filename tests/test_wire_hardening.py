@@ -87,14 +87,14 @@ def _wait_for(condition, seconds: float = 60.0) -> None:
 
 
 # 1. publish --seconds forever ------------------------------------------------------------------
-@pytest.mark.parametrize(("pacing", "signum"), [([], signal.SIGINT), (["--unpaced"], signal.SIGTERM)])
+@pytest.mark.parametrize(("pacing", "signum"), [(["--speed", "4"], signal.SIGINT), (["--unpaced"], signal.SIGTERM)])
 def test_publish_forever_over_udp_runs_until_stopped(tmp_path: Path, pacing: list[str], signum: int) -> None:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sink:
         sink.bind(("127.0.0.1", 0))
         sink.settimeout(30)
         port = sink.getsockname()[1]
         process = subprocess.Popen([sys.executable, "-m", "livox_viz", "publish", "--to", f"127.0.0.1:{port}",
-                                    "--seconds", "forever", "--scene", "open_field", "--speed", "4", *pacing],
+                                    "--seconds", "forever", "--scene", "open_field", *pacing],
                                    cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             reassembler = Reassembler()
@@ -477,3 +477,19 @@ def test_interleaved_senders_are_not_restarts(tmp_path: Path, capsys: pytest.Cap
     np.testing.assert_array_equal(per_frame[:, 1], [0, 1, 0, 1, 0, 1])
     np.testing.assert_allclose(per_frame[:, 3], [10.0, 0.0, 10.1, 0.1, 10.2, 0.2])
 
+
+
+def test_frames_sent_to_the_broadcast_address_arrive() -> None:
+    """``publish --to 255.255.255.255:PORT`` feeds every listener of the LAN; the send was refused before."""
+    receiver = UdpReceiver("0.0.0.0", 0)
+    sender = UdpSender("255.255.255.255", receiver.port)
+    points = random_points(40, 3)
+    try:
+        assert sender.send(0.5, np.zeros(6), points) >= 1 and sender.errors == 0, sender.last_error
+        deadline = time.monotonic() + 10.0
+        frame = next(iter(receiver.frames(lambda: time.monotonic() > deadline)), None)
+    finally:
+        sender.close()
+        receiver.close()
+    assert frame is not None
+    np.testing.assert_array_equal(frame.xyz_int16, points)

@@ -35,7 +35,7 @@ from .hud import HeadsUp
 from .overlay import WINDOWS, PresetSource, TableSource
 from .playback import next_choice
 from .session import CLOUD_FRAMES, DRAWINGS, SCENE_COLOURS, Session, pattern_colours, step_units
-from .views import CAMERA_PRESETS, PatternView, SceneView
+from .views import BACKGROUNDS, CAMERA_PRESETS, PatternView, SceneView
 
 #: The parts of a window, left to right, and their share of its width in an off-screen picture of all of them.
 VIEW_NAMES: tuple[str, ...] = ("pattern", "scene", "charts")
@@ -188,7 +188,9 @@ class LivoxVizApp:
 
     def on_speed(self, speed: float) -> None:
         """The playback speed, in x real time."""
-        self.session.playback.set_speed(speed)
+        taken = self.session.playback.set_speed(speed)
+        # Said, as the integration window is: a refusal's red line stayed after a speed was taken.
+        self.session.message = f"playback speed {taken:g} x real time"
 
     def on_window(self, index: int) -> None:
         """The integration window, an index into :data:`~livox_viz.widgets.overlay.WINDOWS`."""
@@ -301,8 +303,8 @@ class LivoxVizApp:
         elif config.risley is not None:
             model = "risley"
         else:
-            raise LivoxVizError("this configuration has no Risley track; load one with n/b "
-                                "(e.g. livox_mid70_risley or livox_horizon) or --preset")
+            raise LivoxVizError("this configuration has no Risley track; pick a preset that has one with n/b or "
+                                "File > Open preset (e.g. livox_mid70_risley or livox_horizon)")
         if self.apply_config(config.with_pattern_model(model), None, f"pattern model {model}"):
             self.session.message = f"pattern model {model}"
 
@@ -348,8 +350,8 @@ class LivoxVizApp:
 
     def _require_reference(self) -> None:
         if self.session.overlay.source is None:
-            raise LivoxVizError("no reference: press e to pick a Risley preset, or start with --reference "
-                                "FILE|PRESET")
+            raise LivoxVizError("no reference: press e to pick a Risley preset, or File > Open shipped reference "
+                                "table (or start with --reference FILE|PRESET)")
 
     def toggle_reference(self) -> None:
         """Show or hide the reference overlay."""
@@ -412,10 +414,11 @@ class LivoxVizApp:
         if chosen == table_key:
             self.set_reference(table)
             return
-        from livox_viz.casting.warm import stages_for
+        from livox_viz.casting.warm import pattern_stages
 
         config = load_preset(chosen)
-        self.when_ready(stages_for(config) - {"ideal"},
+        # Only its pattern is played: the Avia's datasheet returns made it wait a minute for loops it never uses.
+        self.when_ready(pattern_stages(config),
                         lambda: self.set_reference(PresetSource(config, chosen, self.session.seed)),
                         f"reference {chosen}", "reference")
 
@@ -585,7 +588,7 @@ class LivoxVizApp:
     def save_screenshot(self, folder: Path | None = None) -> Path:
         """Save the views as PNG with a JSON sidecar from which ``render --sidecar`` makes the same picture; returns
         when both are written."""
-        path = files.unused_screenshot_path(Path(folder) if folder is not None else self.screenshot_dir)
+        path = files.unused_screenshot_path(Path(folder) if folder is not None else self.screenshot_dir).absolute()
         image = self.current_image()
         files.write_png(image, path)
         files.write_sidecar(path, self.sidecar())
@@ -598,7 +601,8 @@ class LivoxVizApp:
         Encoding 1600x900 pixels takes 70-250 ms here, which the window would otherwise stand still for. The
         message says "saving", then "saved" (or why not); :meth:`close` waits for the files.
         """
-        path = files.unused_screenshot_path(self.screenshot_dir)
+        # Said whole: "saved screenshots/..." told a user started from a shortcut nothing of where it went.
+        path = files.unused_screenshot_path(self.screenshot_dir).absolute()
         image = self.current_image()
         data = self.sidecar()
         if self._writer is None:
@@ -630,9 +634,11 @@ class LivoxVizApp:
         """How the views draw beyond the session's own state: colour maps, point sizes, panel page, follow."""
         state: dict[str, Any] = {"panel_page": self.page}
         if self.pattern_view is not None:
-            state["pattern"] = {"colour_map": self.pattern_view.colour_map, "point_size": self.pattern_view.point_size}
+            state["pattern"] = {"colour_map": self.pattern_view.colour_map, "point_size": self.pattern_view.point_size,
+                                "background": self.pattern_view.background_name}
         if self.scene_view is not None:
             state["scene"] = {"colour_map": self.scene_view.colour_map, "point_size": self.scene_view.point_size,
+                              "background": self.scene_view.background_name,
                               "follow": self.scene_view.follow, "grid": self.scene_view.grid_actor is not None,
                               "axes": self.scene_view.axes_actor is not None}
         return state
@@ -647,6 +653,13 @@ class LivoxVizApp:
                 view.set_colour_map(str(given["colour_map"]))
             if given.get("point_size"):
                 view.set_point_size(float(given["point_size"]))
+            # A sidecar without one (before it was kept) keeps the view's own: the white one was drawn dark again.
+            background = given.get("background")
+            if background is not None:
+                if background not in BACKGROUNDS:
+                    raise LivoxVizError(f"{name} view's background {background!r}; allowed: "
+                                        f"{', '.join(BACKGROUNDS)}")
+                view.set_background(str(background))
         scene = state.get("scene")
         if self.scene_view is not None and isinstance(scene, Mapping):
             self.scene_view.follow = bool(scene.get("follow", self.scene_view.follow))

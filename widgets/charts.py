@@ -24,7 +24,7 @@ from .overlay import PresetSource, TableSource
 from .session import Session
 
 OURS_COLOUR = "#e0a526"
-REFERENCE_COLOUR = "#2b7bb9"
+REFERENCE_COLOUR = "#8c8c8c"  # grey, as the pattern view draws the reference
 _NOT_SHOWN = object()
 
 

@@ -129,7 +129,7 @@ def cmd_gui(args: argparse.Namespace) -> int:
     from .display import display_problem
 
     size = _size(args.size)
-    problem = display_problem()
+    problem = display_problem(waiting=lambda words: print(f"{PROG}: {words}", file=sys.stderr, flush=True))
     if args.listen and problem:
         raise UsageError(f"gui --listen needs a display ({problem}); record with 'listen --record' instead")
     if problem:

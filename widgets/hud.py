@@ -9,10 +9,13 @@ window's status bar, menus and help live in Qt (:mod:`~livox_viz.widgets.mainwin
 
 from __future__ import annotations
 
+import re
 import textwrap
 import time
 
 import pyvista as pv
+
+from livox_viz.config.param_docs import param_doc
 
 from .overlay import window_label
 from .session import Session
@@ -25,10 +28,21 @@ TEXT_COLOUR = "#e6ebf2"
 LINE_CHARS = 64
 
 
+#: A number and its unit: never broken apart ("coverage 44.1" and " %" came out on two lines).
+_NUMBER_AND_UNIT = re.compile(r"(\d) (%|s|ms|m|deg|Hz|pts/s)(?=[\s,:;)]|$)")
+
+
 def wrapped(text: str, width: int = LINE_CHARS) -> str:
-    """``text`` with each line longer than ``width`` broken at spaces, the rest of it indented."""
-    return "\n".join(textwrap.fill(line, width, subsequent_indent="  ", break_long_words=False) if len(line) > width
-                     else line for line in text.split("\n"))
+    """``text`` with each line longer than ``width`` broken at spaces (not between a number and its unit), the
+    rest of it indented."""
+    lines = []
+    for line in text.split("\n"):
+        if len(line) > width:
+            # textwrap breaks only at ASCII whitespace: a no-break space holds the pair together.
+            line = textwrap.fill(_NUMBER_AND_UNIT.sub("\\1\u00a0\\2", line), width, subsequent_indent="  ",
+                                 break_long_words=False).replace("\u00a0", " ")
+        lines.append(line)
+    return "\n".join(lines)
 
 
 def _text(plotter: pv.Plotter, name: str) -> object:
@@ -54,6 +68,13 @@ def window_line(session: Session) -> str:
         else:
             line += f" of {fired:,} fired"
     return line
+
+
+def coverage_words(session: Session) -> str:
+    """"of these " when the view holds fewer points than its window fired: the coverage is that of the points
+    shown (98.5 % of a 5 M pts/s pattern drawn as points, 100 % as a density image, which drops fewer)."""
+    held = session.pattern_ring.count
+    return "of these " if session.source is None and session.points_fired_in_window() > held else ""
 
 
 class HeadsUp:
@@ -83,21 +104,23 @@ class HeadsUp:
             if now - self._reference_at > 0.5 or session.playback.paused or self._reference_coverage is None:
                 self._reference_at = now
                 self._reference_coverage = overlay.coverage()
-            shown = " (blue)" if overlay.visible else " (hidden)"
+            shown = " (grey)" if overlay.visible else " (hidden)"
             value = self._reference_coverage
             reference = (f"\nreference {overlay.source.name}{shown}, window {window_label(overlay.window)}: "
                          f"coverage {'-' if value is None else f'{100 * value:.1f} %'}")
         model = {"risley": "Risley track", "track": "track"}.get(cfg.pattern_model, "RflySim rosette")
         lasers = f"   {cfg.lasers} lasers" if cfg.lasers > 1 else ""
         fov = cfg.field_of_view
-        fov_text = f"FOV {cfg.camera_fov:g} deg" if fov.shape == "cone" else f"FOV {fov.describe()}"
+        # At the panel's decimals: "70.1232" here beside the box's "70.123" read as two values (a first-use trial).
+        fov_text = (f"FOV {round(cfg.camera_fov, param_doc('camera_fov').decimals):g} deg" if fov.shape == "cone"
+                    else f"FOV {fov.describe()}")
         drawing = "density image" if density_shown else "points"
         return (
             # The field of view on a line of its own: after the rate, a band's "elevation -7.212 to 52.16 deg" ran
             # past a narrow view's edge.
             f"{session.preset_name or 'custom'}   {model}{lasers}   {cfg.point_rate:,} pts/s\n{fov_text}\n"
             f"t = {session.shown_time:8.3f} s   frame {max(session.shown_frame, 0)}   {state}\n"
-            f"{window_line(session)}, coverage {100 * session.visible_coverage():.1f} %"
+            f"{window_line(session)}, coverage {coverage_words(session)}{100 * session.visible_coverage():.1f} %"
             f"{reference}\n"
             f"colour: {session.display.pattern_colour}   drawn as {drawing} ({session.display.drawing})"
             + (f"   jitter per {cfg.jitter_scope}" if cfg.pattern_model == "rflysim" else "")

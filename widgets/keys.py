@@ -40,10 +40,10 @@ KEYS: tuple[KeyRow, ...] = (
     KeyRow("c / k", "pattern colours (time, figure-8, petal, flower, arc; laser for Risley) / scene colours "
            "(range, height, time, reflectivity, return/tag)", (("c", "cycle_pattern_colour"),
                                                                ("k", "cycle_scene_colour")), "colours"),
-    KeyRow("d / t", "return model: ideal (each ray's exact first hit, as RflySim) / datasheet (the sensor's sheet: "
-           "noise, detection range, beam footprint, returns, reflectivity, tags) / the panel shows the pattern's "
-           "parameters or the return model's", (("d", "toggle_returns_model"), ("t", "toggle_slider_page")),
-           "returns"),
+    KeyRow("d / t", "d: the return model, ideal (each ray's exact first hit, as RflySim) or datasheet (the "
+           "sensor's sheet: noise, detection range, beam footprint, returns, reflectivity, tags); t: the panel "
+           "shows the pattern's parameters or the return model's sheet",
+           (("d", "toggle_returns_model"), ("t", "toggle_slider_page")), "returns"),
     KeyRow("j", "add the random rotation after each flower / after each figure", (("j", "toggle_jitter_scope"),)),
     KeyRow("v", "pattern model: RflySim's rosette / the track (a configuration with Risley or track parameters)",
            (("v", "toggle_pattern_model"),), "model"),

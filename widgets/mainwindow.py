@@ -41,6 +41,7 @@ from livox_viz.config.sensor import save_config
 
 from . import files
 from .app import VIEW_NAMES, LivoxVizApp, quiet_vtk
+from .collector import MainThreadCollector
 from .keys import KEYS, help_html
 from .nonerefs import NoneReserve, binding_drops_none
 from .overlay import WINDOWS, PresetSource, TableSource, window_label
@@ -157,6 +158,38 @@ class _Job:
         return self.what if self.fraction is None else f"{self.what} {100 * self.fraction():.0f} %"
 
 
+def short_description(text: str, most: int = 60) -> str:
+    """``text`` up to its first "; " or ". " (its first clause), cut at a word and ended with an ellipsis past
+    ``most`` characters."""
+    for stop in ("; ", ". "):
+        text = text.split(stop, 1)[0]
+    if len(text) <= most:
+        return text
+    return text[: text.rfind(" ", 0, most - 1)].rstrip(",:;") + "\u2026"
+
+
+class _ScrubSlider(QtWidgets.QSlider):
+    """A slider whose bar, clicked outside the handle, moves the handle there, as a media player's does (Qt's
+    default: a page step, 1.8 s of a long scan, which a first-use trial took for a broken bar). A subclass, not a
+    proxy style: a widget does not own its style, and one that died before the slider left it a dangling one."""
+
+    def mousePressEvent(self, event: QtGui.QMouseEvent) -> None:
+        if event.button() == QtCore.Qt.MouseButton.LeftButton and self.isEnabled():
+            option = QtWidgets.QStyleOptionSlider()
+            self.initStyleOption(option)
+            style = self.style()
+            handle = style.subControlRect(QtWidgets.QStyle.ComplexControl.CC_Slider, option,
+                                          QtWidgets.QStyle.SubControl.SC_SliderHandle, self)
+            x = round(event.position().x())
+            if not handle.contains(event.position().toPoint()):
+                span = max(self.width() - handle.width(), 1)
+                self.setValue(QtWidgets.QStyle.sliderValueFromPosition(
+                    self.minimum(), self.maximum(), x - handle.width() // 2, span, option.upsideDown))
+                event.accept()
+                return
+        super().mousePressEvent(event)
+
+
 class MainWindow(QtWidgets.QMainWindow):
     """The window.
 
@@ -185,6 +218,9 @@ class MainWindow(QtWidgets.QMainWindow):
         if self.none_reserve is not None:
             print("livox-viz: this PySide6 drops references to None on Python 3.11 (a bug of PySide6 6.12.0); the "
                   "window makes up for it, installing PySide6-Essentials<6.12 avoids it", file=sys.stderr)
+        # Cycles are collected in this thread, at each tick: see widgets/collector.py (a frozen window). Started
+        # last, once the window is made: a set-up that failed would have left collection off in the process.
+        self.collector = MainThreadCollector()
         quiet_vtk()
         self.setObjectName("livox-viz")
         self.resize(*size)
@@ -227,7 +263,9 @@ class MainWindow(QtWidgets.QMainWindow):
         scroll = QtWidgets.QScrollArea()
         scroll.setWidgetResizable(True)
         scroll.setWidget(self.panel)
-        scroll.setHorizontalScrollBarPolicy(QtCore.Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        # Sideways too when the dock is narrower than the rows (a small window): with no bar, an 1100 px window
+        # cut the track's range labels and reset buttons off with no way to reach them (a first-use trial).
+        scroll.setHorizontalScrollBarPolicy(QtCore.Qt.ScrollBarPolicy.ScrollBarAsNeeded)
         self.dock = QtWidgets.QDockWidget("Parameters", self)
         self.dock.setObjectName("parameters")
         self.dock.setWidget(scroll)
@@ -269,6 +307,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.timer.start()
         self._update_title()
         self._update_status()
+        self.collector.start()
 
     # Set-up ---------------------------------------------------------------------------------------
     def _quiet_vtk_keys(self, interactor: QtInteractor) -> None:
@@ -339,10 +378,10 @@ class MainWindow(QtWidgets.QMainWindow):
         bar.setObjectName("time-bar")
         bar.setMovable(False)
         self.scrub_label = QtWidgets.QLabel(" scan time ")
-        self.scrubber = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
+        self.scrubber = _ScrubSlider(QtCore.Qt.Orientation.Horizontal)
         self.scrubber.setObjectName("scrubber")
         self.scrubber.setRange(0, 1000)
-        self.scrubber.setToolTip("pause (space), then drag to look back at any scan time played so far")
+        self.scrubber.setToolTip("pause (space), then click or drag to look back at any scan time played so far")
         self.scrubber.sliderReleased.connect(self._scrubbed)
         self.scrubber.valueChanged.connect(self._scrub_moved)
         bar.addWidget(self.scrub_label)
@@ -397,7 +436,10 @@ class MainWindow(QtWidgets.QMainWindow):
         self._action(file, "Open scene or mesh file...", self.open_scene)
         scenes = file.addMenu("Open built-in scene")
         scenes.aboutToShow.connect(lambda: self._fill_scenes(scenes))
+        self._action(file, "Next built-in scene", self.cycle_scene)
         self._action(file, "Open reference table or preset...", self.open_reference)
+        tables = file.addMenu("Open shipped reference table")
+        tables.aboutToShow.connect(lambda: self._fill_tables(tables))
         file.addSeparator()
         self._action(file, "Save as user preset", c.save_preset)
         self._action(file, "Save configuration as...", self.save_config_as, "Ctrl+S")
@@ -407,15 +449,19 @@ class MainWindow(QtWidgets.QMainWindow):
         self._action(file, "Export ROS 2 bag...", self.export_bag)
         self._action(file, "Screenshot (views and sidecar)", c.take_screenshot)
         file.addSeparator()
-        self._action(file, "Quit", self.close, "Ctrl+Q")
+        # q, the key table's, shown at the entry; Ctrl+Q as well, as every program has it.
+        quit_action = self._action(file, "Quit", self.quit)
+        quit_action.setShortcuts([*quit_action.shortcuts(), QtGui.QKeySequence("Ctrl+Q")])
 
         view = bar.addMenu("&View")
         self.pattern_colour_menu = view.addMenu("Colour the pattern by")
         self.pattern_colour_menu.aboutToShow.connect(self._fill_pattern_colours)
         self.scene_colour_actions = self._choices(view, "Colour the cloud by", SCENE_COLOURS, c.set_scene_colour)
-        self._choices(view, "Colour map (time, range, height)", COLOUR_MAPS, self.set_colour_map)
-        self._choices(view, "Point size", (1, 2, 3, 4, 6, 8), self.set_point_size, label="{} px".format)
-        self._choices(view, "Background", BACKGROUNDS, self.set_background)
+        self.colour_map_actions = self._choices(view, "Colour map (time, range, height)", COLOUR_MAPS,
+                                                self.set_colour_map)
+        self.point_size_actions = self._choices(view, "Point size", (1, 2, 3, 4, 6, 8), self.set_point_size,
+                                                label="{} px".format)
+        self.background_actions = self._choices(view, "Background", BACKGROUNDS, self.set_background)
         self.drawing_actions = self._choices(view, "Pattern drawing", DRAWINGS, self.set_drawing)
         view.addSeparator()
         self.grid_action = self._action(view, "Ground grid in the scene", self.toggle_grid, checkable=True)
@@ -580,6 +626,7 @@ class MainWindow(QtWidgets.QMainWindow):
         """Advance the scan by the wall time passed, apply what became ready, redraw."""
         if self.none_reserve is not None:
             self.none_reserve.top_up()
+        self.collector.collect_due()
         if self._stop is not None and self._stop():
             self.close()
             return
@@ -659,7 +706,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._share_status_room()
         paused = session.playback.paused
         self.scrubber.setEnabled(paused and self._played > 0)
-        if paused and self._played > 0 and not self.scrubber.isSliderDown():
+        # Playing, it shows where the scan is too (at its end): it sat at 0 until the first pause.
+        if self._played > 0 and not self.scrubber.isSliderDown():
             with signals_blocked(self.scrubber):
                 self.scrubber.setValue(round(1000 * session.shown_time / self._played))
         self.scrub_label.setText(f" scan time {session.shown_time:8.3f} s ")
@@ -685,6 +733,14 @@ class MainWindow(QtWidgets.QMainWindow):
             action.setChecked(window == session.window)
         for model, action in self.returns_actions.items():
             action.setChecked(model == session.config.returns_model)
+        pattern_view = self.controller.pattern_view
+        if pattern_view is not None:  # what the keys change too: each submenu checks what is shown
+            for name, action in self.colour_map_actions.items():
+                action.setChecked(name == pattern_view.colour_map)
+            for pixels, action in self.point_size_actions.items():
+                action.setChecked(pixels == pattern_view.point_size)
+            for name, action in self.background_actions.items():
+                action.setChecked(name == pattern_view.background_name)
         view = self.controller.scene_view
         if view is not None:
             self.follow_action.setChecked(view.follow)
@@ -709,18 +765,57 @@ class MainWindow(QtWidgets.QMainWindow):
             action.setChecked(unit == display.step_unit)
 
     def _fill_presets(self, menu: QtWidgets.QMenu) -> None:
+        """The presets by name and the start of their description, the whole of it in the entry's tooltip: whole,
+        the entries ran past a 1600-pixel screen. The one shown is checked."""
         menu.clear()
+        menu.setToolTipsVisible(True)
+        group = QtGui.QActionGroup(menu)
+        current = self.controller.session.preset_name
         for info in list_presets():
-            self._action(menu, f"{info.name}  ({info.description})" if info.description else info.name,
-                         lambda i=info: self.load_preset_file(i.path, i.name))
+            action = self._described_action(menu, info.name, info.description,
+                                            lambda i=info: self.load_preset_file(i.path, i.name), group)
+            action.setChecked(info.name == current)
+
+    def _described_action(self, menu: QtWidgets.QMenu, name: str, description: str, slot: Callable[[], Any],
+                          group: QtGui.QActionGroup | None = None) -> QtGui.QAction:
+        """An entry named ``name`` and the start of ``description``, the whole of it in its tooltip (checkable in
+        ``group`` when one is given)."""
+        label = f"{name}  ({short_description(description)})" if description else name
+        action = self._action(menu, label, slot, checkable=group is not None, group=group)
+        action.setToolTip(description)
+        return action
+
+    def _fill_tables(self, menu: QtWidgets.QMenu) -> None:
+        """The scan tables livox-viz ships, by name (the file dialog wanted their path, which a user cannot know);
+        a table of another plane than the configuration's is shown but not offered."""
+        from livox_viz import load_preset
+        from livox_viz.fitting.reference import shipped_tables
+
+        menu.clear()
+        menu.setToolTipsVisible(True)
+        plane = self.controller.session.config.pattern_plane
+        for name, entry in shipped_tables().items():
+            description = entry.get("description", "")
+            action = self._described_action(menu, name, description, lambda n=name: self.load_reference(n))
+            try:
+                table_plane = load_preset(entry["preset"]).pattern_plane
+            except (KeyError, LivoxVizError, OSError):
+                continue
+            if table_plane != plane:
+                action.setEnabled(False)
+                action.setToolTip(f"{description} ({table_plane} plane; this configuration's is {plane})")
 
     def _fill_scenes(self, menu: QtWidgets.QMenu) -> None:
         from livox_viz.scene.scenes import scene_choices
 
         menu.clear()
+        group = QtGui.QActionGroup(menu)
+        session = self.controller.session
+        current = session.sources.get("scene") or session.scene.name
         for choice in scene_choices():
-            self._action(menu, Path(choice).name if os.sep in choice else choice,
-                         lambda c=choice: self.load_scene(c))
+            action = self._action(menu, Path(choice).name if os.sep in choice else choice,
+                                  lambda c=choice: self.load_scene(c), checkable=True, group=group)
+            action.setChecked(choice == current)  # the scene shown
 
     def _panel_follow(self) -> None:
         self.panel.follow()
@@ -740,6 +835,10 @@ class MainWindow(QtWidgets.QMainWindow):
             text.setHtml(help_html())
             layout = QtWidgets.QVBoxLayout(dialog)
             layout.addWidget(text)
+            # A button as well as h and Esc: a trial found no way to close it with the mouse without a title bar.
+            buttons = QtWidgets.QDialogButtonBox(QtWidgets.QDialogButtonBox.StandardButton.Close, dialog)
+            buttons.rejected.connect(dialog.hide)
+            layout.addWidget(buttons)
             dialog.resize(min(760, self.width() - 40), min(640, self.height() - 40))
             self.help_dialog = dialog
         if self.help_dialog.isVisible():
@@ -785,10 +884,31 @@ class MainWindow(QtWidgets.QMainWindow):
         view.show_axes(view.axes_actor is None)
         self.axes_action.setChecked(view.axes_actor is not None)
 
+    def ask_seconds(self, title: str, question: str, value: float, low: float, high: float,
+                    decimals: int) -> float | None:
+        """Seconds from a dialog, from ``low`` to ``high``; None if cancelled.
+
+        A number outside is refused and asked for again, the dialog saying why. Given Qt's own range, its box
+        dropped the keystroke that left it: "200" against 120 became 20, and a 20 s bag was written without a word.
+        """
+        note = ""
+        while True:
+            value, accepted = QtWidgets.QInputDialog.getDouble(
+                self, title, f"{note}{question} ({low:g} to {high:g}):", value, -1e9, 1e9, decimals)
+            if not accepted:
+                return None
+            if low <= value <= high:
+                if note and self._error:  # the refusal is answered: its red line would outlive it
+                    self.say("")
+                return value
+            note = f"{value:g} s refused: allowed {low:g} to {high:g} s.\n"
+            self.say(f"{title}: {value:g} s refused; allowed: {low:g} to {high:g} s", error=True)
+            value = min(max(value, low), high)
+
     def type_window(self) -> None:
-        value, accepted = QtWidgets.QInputDialog.getDouble(
-            self, "Integration window", "seconds (0.01 to 10):", self.controller.session.window or 1.0, 0.01, 10.0, 3)
-        if accepted:
+        value = self.ask_seconds("Integration window", "seconds", self.controller.session.window or 1.0, 0.01, 10.0,
+                                 3)
+        if value is not None:
             self.controller.set_window_seconds(value)
 
     def pick(self, view: str, x: int, y: int) -> None:
@@ -829,12 +949,18 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def save_config_as(self, path: str | None = None) -> None:
         """Write the configuration in use as a sensor JSON RflySim reads."""
+        session = self.controller.session
         if path is None:
-            path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Save the configuration", str(Path.cwd()),
-                                                            "Sensor JSON (*.json)")
+            # A name to start from, as the exports have: the preset's, marked when its values were changed.
+            name = Path(session.preset_name).name.removesuffix(".json") if session.preset_name else "sensor"
+            if session.preset_config is not None and session.config != session.preset_config:
+                name += "_tuned"
+            path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Save the configuration",
+                                                            str(Path.cwd() / f"{name}.json"), "Sensor JSON (*.json)")
         if path:
-            save_config(self.controller.session.config, Path(path))
-            self.say(f"saved {path}")
+            target = Path(path if path.lower().endswith(".json") else path + ".json")
+            save_config(session.config, target)
+            self.say(f"saved {target}")
 
     def open_scene(self, path: str | None = None) -> None:
         """File > Open scene or mesh: loaded and its caster built on a worker; the old scene plays meanwhile."""
@@ -867,7 +993,8 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def open_reference(self, path: str | None = None) -> None:
         """File > Open reference: a scan table (.npy, Livox CSV) or a preset file, read on a worker."""
-        path = path or self._ask_open("Open a reference", "Tables and presets (*.npy *.csv *.json);;All files (*)")
+        path = path or self._ask_open("Open a reference",
+                                      "Tables and presets (*.npy *.npz *.csv *.json);;All files (*)")
         if path:
             self.load_reference(path)
 
@@ -917,12 +1044,11 @@ class MainWindow(QtWidgets.QMainWindow):
         if session.source is not None:
             raise LivoxVizError("a live view is not exported as a bag here; record it with 'livox-viz listen "
                                 "--record FILE'")
-        longest = math.floor(10 * files.bag_longest(session)) / 10  # as the box shows it, to its one decimal
+        longest = math.floor(100 * files.bag_longest(session)) / 100  # as the box shows it, to its two decimals
         if seconds is None:
-            seconds, accepted = QtWidgets.QInputDialog.getDouble(
-                self, "Export a ROS 2 bag", f"scan seconds from t = 0 ({files.BAG_SHORTEST:g} to {longest:g}):",
-                min(files.BAG_SECONDS, longest), files.BAG_SHORTEST, longest, 1)
-            if not accepted:
+            seconds = self.ask_seconds("Export a ROS 2 bag", "scan seconds from t = 0",
+                                       min(files.BAG_SECONDS, longest), files.BAG_SHORTEST, longest, 2)
+            if seconds is None:
                 return
         if path is None:
             name = f"{session.preset_name or 'custom'}_{seconds:g}s_bag"
@@ -960,6 +1086,7 @@ class MainWindow(QtWidgets.QMainWindow):
         if self.help_dialog is not None:
             self.help_dialog.close()
         self.controller.close()
+        self.collector.stop()
         event.accept()
 
 

@@ -167,6 +167,21 @@ class ValueBox(QtWidgets.QDoubleSpinBox):
                 self._typed = exc
         return self.value()  # the box shows what the model holds; the commit decides
 
+    def keyPressEvent(self, event: QtGui.QKeyEvent) -> None:
+        """Enter commits and hands the keys back to the window; Escape puts back the value held and hands them
+        back too. The box then shows the value held: the new one, or on a refusal (said in red, with its tooltip)
+        the old one. A first-use trial typed a value, pressed Enter, then e: "e deg" went into the box, and
+        Escape did nothing."""
+        key = event.key()
+        if key == QtCore.Qt.Key.Key_Escape:
+            self._typed = None
+        else:
+            super().keyPressEvent(event)
+            if key not in (QtCore.Qt.Key.Key_Return, QtCore.Qt.Key.Key_Enter):
+                return
+        self.lineEdit().setText(f"{self.prefix()}{self.textFromValue(self.value())}{self.suffix()}")
+        self.clearFocus()
+
     def take_typed(self) -> float | None:
         """The number typed since the last call (exact, not rounded to the decimals shown), or None.
 
@@ -197,6 +212,25 @@ class ValueBox(QtWidgets.QDoubleSpinBox):
         if "." in text:
             text = text.rstrip("0").rstrip(".")
         return text
+
+
+class _ParamSlider(QtWidgets.QSlider):
+    """A parameter's slider whose wheel steps the value by the parameter's step, as its box's does: in slider
+    units, three notches moved CameraFOV 38.215 to 39.808 deg (a first-use trial)."""
+
+    def __init__(self, step_value: Callable[[int], None]) -> None:
+        super().__init__(QtCore.Qt.Orientation.Horizontal)
+        self._step_value = step_value
+        self._wheel_rest = 0
+
+    def wheelEvent(self, event: QtGui.QWheelEvent) -> None:
+        # A notch is 120; a touchpad sends less at a time: whole notches are stepped, the rest kept for the next.
+        self._wheel_rest += event.angleDelta().y() or event.angleDelta().x()
+        notches = int(self._wheel_rest / 120)
+        self._wheel_rest -= notches * 120
+        if notches:
+            self._step_value(notches)
+        event.accept()
 
 
 class ParamRow(QtWidgets.QWidget):
@@ -238,7 +272,7 @@ class ParamRow(QtWidgets.QWidget):
         self.range_label = QtWidgets.QLabel(f"allowed {spec.describe()}{unit}".replace("an integer in ", ""))
         self.range_label.setObjectName("range")
         self.range_label.setToolTip(tip)
-        self.slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
+        self.slider = _ParamSlider(lambda notches: self.box.stepBy(notches))
         self.slider.setRange(0, SLIDER_STEPS)
         self.slider.setSingleStep(1)
         self.slider.setPageStep(SLIDER_STEPS // 20)
@@ -337,6 +371,12 @@ class ParamRow(QtWidgets.QWidget):
             if self._say is not None:
                 self._say(text)
             self._refuse(text)
+            return
+        spec = PARAM_RANGES[self.name]
+        if value is not None and spec.integer and math.isfinite(value) and not float(value).is_integer():
+            # Rounded, "150.5" showed 151 (Qt's rounding) while 150 ran (Python's, half to even).
+            self._refuse(f"{value:g} refused: not a whole number; allowed: {spec.describe()} "
+                         f"{param_doc(self.name).unit}".strip())
             return
         if value is not None and value != self._shown:
             self._ask(value)
@@ -489,6 +529,8 @@ class ParameterPanel(QtWidgets.QWidget):
         self.window_choice.setToolTip("the integration window: the points of the last so many seconds (i cycles)")
         self.window_box = ValueBox(WINDOW_RANGE, 3, 0.1, 0.01, "s")
         self.window_box.setToolTip(f"any integration window from {WINDOW_RANGE[0]:g} to {WINDOW_RANGE[1]:g} s")
+        # Unlimited, the greyed box said "0 s": it says "unlimited" (shown for its lowest value, kept for that).
+        self.window_box.setSpecialValueText("unlimited")
         row = QtWidgets.QHBoxLayout()
         row.addWidget(self.window_choice, 1)
         row.addWidget(self.window_box)
@@ -527,8 +569,7 @@ class ParameterPanel(QtWidgets.QWidget):
         with signals_blocked(self.window_choice, self.window_box):
             self.window_choice.setCurrentIndex(index if index is not None else len(WINDOWS))
             self.window_box.setEnabled(window is not None)
-            if window is not None:
-                self.window_box.setValue(window)
+            self.window_box.setValue(self.window_box.minimum() if window is None else window)
 
     # Asking ----------------------------------------------------------------------------------------
     def _commit(self, name: str, value: float) -> str | None:
@@ -557,10 +598,14 @@ class ParameterPanel(QtWidgets.QWidget):
                 self.speed_box.setValue(self.controller.session.playback.speed)
             return
         self.controller.on_speed(value)
+        self.show_playback()  # the box kept showing 10 x after 0.5 was taken (a first-use trial)
 
     def _window_chosen(self, index: int) -> None:
         chosen = self.window_choice.itemData(index)
         if chosen == "typed":
+            if self.window_box.value() == self.window_box.minimum():  # from unlimited: a number to start from
+                with signals_blocked(self.window_box):
+                    self.window_box.setValue(1.0)
             self.window_box.setEnabled(True)
             self.window_box.setFocus()
             return

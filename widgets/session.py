@@ -216,7 +216,8 @@ class Session:
         return WINDOWS.index(self._window) if self._window in WINDOWS else None
 
     def set_config(self, config: SensorConfig, preset_name: str | None = None) -> None:
-        """Show another configuration: restart the scan and tell every view.
+        """Show another configuration: restart the scan and tell every view. While paused, the new scan is shown
+        filled to the time that was shown (still paused), not empty at t = 0.
 
         Raises
         ------
@@ -238,7 +239,13 @@ class Session:
             self.overlay.set_source(None, 0.0)
             self.message = f"reference {source.name} removed: it is a {source.plane} pattern"
         self._fit_display()
+        shown = self.shown_time
         self.restart()
+        if self.playback.paused and self.source is None and shown > 0:
+            # Tuning while paused: the new scan is shown as it stands at the time that was shown, still paused.
+            # From t = 0 the view stayed empty until play (a first-use trial).
+            self.played = shown
+            self._refill(shown)
         self._changed("config")
 
     def _fit_display(self) -> None:
@@ -548,7 +555,7 @@ class Session:
         """Colour range of the pattern view for the current mode."""
         mode = self.display.pattern_colour
         if mode == "time":
-            return self._time_range()
+            return self._time_range(self.pattern_ring)
         if mode == "laser":
             top = self.config.lasers
         else:
@@ -585,15 +592,19 @@ class Session:
             return 1.0, 255.0
         if mode == "return/tag":
             return -0.5, len(TAG_CLASSES) - 0.5
-        return self._time_range()
+        return self._time_range(self.scene_ring)
 
-    def _time_range(self) -> tuple[float, float]:
-        """The time colours' range: the integration window up to now; before any point, the window's length from 0
-        (a bar from 0 to 1e-06 s said nothing)."""
+    def _time_range(self, ring: PointRing) -> tuple[float, float]:
+        """The time colours' range: the integration window up to now, or the times ``ring`` holds of the unlimited
+        one (its last million points: a bar from 0 s made 2 minutes' scan one flat red); before any point, the
+        window's length from 0 (a bar from 0 to 1e-06 s said nothing)."""
         if self.scan_time <= 0.0:
             return 0.0, self.window if self.window is not None else 1.0
-        low = self.scan_time - self.window if self.window is not None else 0.0
-        return max(0.0, low), self.scan_time
+        if self.window is not None:
+            low = self.scan_time - self.window
+        else:
+            low = float(ring.times[ring.tail]) if ring.count else 0.0
+        return max(0.0, min(low, self.scan_time)), self.scan_time
 
     def recolour(self) -> None:
         """Recompute all scalars after a colour mode change.

@@ -26,19 +26,28 @@ PATTERN_UNITS = {"time": "time, s", "figure-8": "figure-8 in flower", "petal": "
                  "flower": "flower in figure", "arc": "arc in figure-8", "laser": "laser"}
 #: The pattern colourings that name a category (a petal, a laser), drawn with a legend of distinct colours.
 CATEGORICAL_PATTERN_COLOURS = ("figure-8", "petal", "flower", "arc", "laser")
-#: The four arcs of a figure-8 in the order they are traced (scan-model.md section 3).
-ARC_NAMES = ("1 upper-left, out", "2 lower-left, in", "3 upper-right, out", "4 lower-right, in")
-#: Distinct colours of categories (Tableau 20's strong half first, then its light half), cycled past twenty.
-CATEGORY_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+#: The four arcs of a figure-8 in the order they are traced (scan-model.md section 3: upper-left out, lower-left
+#: in, upper-right out, lower-right in), short: a legend's marks stand left of its bar, between it and the pattern.
+ARC_NAMES = ("1 UL out", "2 LL in", "3 UR out", "4 LR in")
+#: Distinct colours of categories (Tableau 20's strong half first, then its light half, its two greys replaced by
+#: Tableau 20b's olive and plum: grey is the reference's), cycled past twenty.
+CATEGORY_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#637939",
                     "#bcbd22", "#17becf", "#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94",
-                    "#f7b6d2", "#c7c7c7", "#dbdb8d", "#9edae5")
+                    "#f7b6d2", "#7b4173", "#dbdb8d", "#9edae5")
 #: Colour maps a user may pick for the continuous colourings (time, range, height).
 COLOUR_MAPS = ("turbo", "viridis", "plasma", "inferno", "cividis", "gray")
 #: Backgrounds a user may pick for the views: (name, bottom colour, top colour or None).
 BACKGROUNDS: dict[str, tuple[str, str | None]] = {"dark": ("#10141c", None), "gradient": ("#1a1f29", "#3b4a63"),
                                                   "black": ("#000000", None), "white": ("#ffffff", None)}
-#: The reference overlay's look: light blue, translucent, drawn behind our own points.
-REFERENCE_COLOUR = "#8fd3ff"
+#: The reference overlay's look: light grey, translucent, drawn behind our own points. No colouring but the "gray"
+#: map has grey; a light blue read as turbo's blues.
+REFERENCE_COLOUR = "#e6e6e6"
+#: The reference's grey on a white background, where the light one vanished.
+REFERENCE_COLOUR_ON_WHITE = "#4d4d4d"
+#: The degree grid's marks and the axes' names, and theirs on a white background (where the first is faint).
+GRID_MARK_COLOUR, GRID_MARK_COLOUR_ON_WHITE = "#9aa6b8", "#4a5568"
+#: The least height between two marked elevation lines of a panorama, pixels (a 12-point mark is about 14 tall).
+ELEVATION_MARK_PX = 16.0
 #: Pixels at the top of the pattern view that its text's lines take (kept free of the drawing).
 TEXT_BAND_PX = 84
 #: The share of the pattern view's width left of the colour bar's strip.
@@ -175,13 +184,15 @@ def pattern_categories(session: Session) -> list[str]:
     """The category names of the session's categorical pattern colouring, in scalar order."""
     mode = session.display.pattern_colour
     config = session.config
+    # Numbers under the bar's title ("figure-8 in flower", "laser"): "figure-8 17" ran into the pattern and over
+    # the axis name (a first-use trial), the legend's marks standing left of its bar.
     if mode == "laser":
-        return [f"laser {k + 1}" for k in range(config.lasers)]
+        return [str(k + 1) for k in range(config.lasers)]
     if mode == "arc":
         return list(ARC_NAMES)
     unit, within = PATTERN_COLOURS[mode]
     count = config.unit_points[within] // config.unit_points[unit]
-    return [f"{mode} {k + 1}" for k in range(count)]
+    return [str(k + 1) for k in range(count)]
 
 
 def _address(array: np.ndarray) -> int:
@@ -200,8 +211,28 @@ def add_scalar_bar(plotter: pv.Plotter, title: str, mapper) -> object:
     "range, m", centred on the bar, stays whole in a 280-pixel view)."""
     return plotter.add_scalar_bar(
         title, mapper=mapper, vertical=True, position_x=0.86, position_y=0.2, width=0.05, height=0.6,
-        title_font_size=12, label_font_size=11, color="#dde3ea", n_labels=5, fmt="%.3g",
+        title_font_size=12, label_font_size=11, color=BAR_TEXT_COLOURS["dark"], n_labels=5, fmt="%.3g",
     )
+
+
+#: The colour bars' words and marks by background: light on the dark ones; on white, where they vanished, dark.
+BAR_TEXT_COLOURS = {"dark": "#dde3ea", "white": "#2d3440"}
+
+
+#: The opacity of the patch of background behind a colour bar's words: bare, the scene's "255 retro" and "150"
+#: were lost on the grey buildings and the cloud (a first-use trial), as the grid's marks were.
+BAR_TEXT_BACKING_OPACITY = 0.75
+
+
+def colour_bar_text(bar, background: str) -> None:
+    """Colour a colour bar's title, labels and annotations for ``background`` (a key of :data:`BACKGROUNDS`), each
+    on a patch of that background."""
+    rgb = pv.Color(BAR_TEXT_COLOURS["white" if background == "white" else "dark"]).float_rgb
+    backing = pv.Color(BACKGROUNDS.get(background, BACKGROUNDS["dark"])[0]).float_rgb
+    for words in (bar.GetTitleTextProperty(), bar.GetLabelTextProperty(), bar.GetAnnotationTextProperty()):
+        words.SetColor(rgb)
+        words.SetBackgroundColor(backing)
+        words.SetBackgroundOpacity(BAR_TEXT_BACKING_OPACITY)
 
 
 class _View:
@@ -216,7 +247,13 @@ class _View:
         Where the view lives in the plotter.
     """
 
-    background: tuple[str, str | None] = BACKGROUNDS["dark"]
+    #: The key of :data:`BACKGROUNDS` shown.
+    background_name: str = "dark"
+
+    @property
+    def background(self) -> tuple[str, str | None]:
+        """The background's bottom colour and its gradient's top one (None: plain)."""
+        return BACKGROUNDS[self.background_name]
 
     def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int] = (0, 0)) -> None:
         self.plotter = plotter
@@ -230,8 +267,10 @@ class _View:
     def set_background(self, name: str) -> None:
         """One of :data:`BACKGROUNDS`."""
         bottom, top = BACKGROUNDS[name]
+        self.background_name = name
         self.plotter.subplot(*self.subplot)
         self.plotter.set_background(bottom, top=top)
+        colour_bar_text(self.scalar_bar, name)
 
     def set_point_size(self, pixels: float) -> None:
         """The cloud's points, in pixels (1-10)."""
@@ -257,6 +296,13 @@ class PatternView(_View):
     width at a readable height; its marks still read true degrees, and :meth:`plane_point` undoes the stretch.
     """
 
+    def set_background(self, name: str) -> None:
+        """One of :data:`BACKGROUNDS`; the reference's grey darkens on white."""
+        super().set_background(name)
+        self.reference_actor.prop.color = REFERENCE_COLOUR_ON_WHITE if name == "white" else REFERENCE_COLOUR
+        if self._guides_fov is not None:
+            self.draw_guides()  # the marks' backing takes the new background's colour
+
     def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int] = (0, 0)) -> None:
         super().__init__(plotter, session, subplot)
         self._guides: list = []
@@ -276,6 +322,7 @@ class PatternView(_View):
             name="reference", reset_camera=False, lighting=False, scalars=None,
         )
         self.scalar_bar = add_scalar_bar(plotter, PATTERN_UNITS[session.display.pattern_colour], self.actor.mapper)
+        colour_bar_text(self.scalar_bar, self.background_name)
         self._density_grid = None
         self.density_actor = None
         self._guides_fov = None
@@ -332,7 +379,7 @@ class PatternView(_View):
         self.density_lut = pv.LookupTable(cmap="inferno", n_values=256)
         self.density_lut.scalar_range = (0.0, 1.0)
         colours = np.array(self.density_lut.values)
-        colours[0] = (16, 20, 28, 255)  # empty cells in the view's background colour
+        colours[0] = (0, 0, 0, 0)  # empty cells see-through: the background, and a reference drawn behind, show
         self.density_lut.values = colours
         texture = pv.Texture()
         texture.SetInputData(image)
@@ -356,6 +403,10 @@ class PatternView(_View):
         width, height = self.renderer.GetSize()
         return self.session.pattern_ring.count > max(width * height, 1)
 
+    def mark_colour(self) -> str:
+        """The grid marks' and axis names' colour on the background shown."""
+        return GRID_MARK_COLOUR_ON_WHITE if self.background_name == "white" else GRID_MARK_COLOUR
+
     def draw_guides(self) -> None:
         """The field of view's outline, a degree grid, cross hairs, and the axis names.
 
@@ -371,7 +422,9 @@ class PatternView(_View):
         self._guides_fov = fov
         stretch = self.stretch
         self._azimuth_marks = self.azimuth_mark_step()
-        grid_lines, labels, positions = (_panorama_grid(fov, stretch, self._azimuth_marks) if fov.plane == "panorama"
+        self._elevation_marks = self.elevation_mark_every()
+        grid_lines, labels, positions = (_panorama_grid(fov, stretch, self._azimuth_marks, self._elevation_marks)
+                                         if fov.plane == "panorama"
                                          else _boresight_grid(fov))
         # The grid and the outline are one mesh each, handed to the same two actors on every change.
         grid = one_mesh(grid_lines)
@@ -390,8 +443,11 @@ class PatternView(_View):
         #: The grid's marks as drawn (degrees), for tests and the curious.
         self.guide_labels = list(labels)
         if labels:
-            plotter.add_point_labels(positions, labels, font_size=12, text_color="#9aa6b8", shape=None,
-                                     show_points=False, name="grid-labels", always_visible=True, reset_camera=False)
+            # Each mark on a patch of the background: drawn bare, "20°" was lost in a dense pattern's colours.
+            plotter.add_point_labels(positions, labels, font_size=12, text_color=self.mark_colour(),
+                                     shape="rounded_rect", shape_color=self.background[0], shape_opacity=0.75,
+                                     margin=2, show_points=False, name="grid-labels", always_visible=True,
+                                     reset_camera=False)
             self._guides.append("grid-labels")
         self.place_axis_names()
 
@@ -423,7 +479,7 @@ class PatternView(_View):
             # x's anchor is its box's top right corner, y's its bottom left.
             justified = {"justification_horizontal": ["right", "left"], "justification_vertical": ["top", "bottom"]}
         for k, name in enumerate(names):
-            plotter.add_point_labels([places[k]], [name], font_size=12, text_color="#9aa6b8", shape=None,
+            plotter.add_point_labels([places[k]], [name], font_size=12, text_color=self.mark_colour(), shape=None,
                                      show_points=False, name=f"axis-label-{k}", always_visible=True,
                                      reset_camera=False, **{key: value[k] for key, value in justified.items()})
 
@@ -434,9 +490,23 @@ class PatternView(_View):
         pixels_per_degree = height / (1.02 * self._fitted_height()[0])
         return 45 if 45.0 * pixels_per_degree >= 40.0 else 90
 
+    def elevation_mark_every(self) -> int:
+        """Which of the panorama's elevation lines are marked: every one, or every 2nd, 3rd, ... where the band is
+        too short in pixels for a mark a line (in an 1100 px window "50°40°30°" ran into one another)."""
+        fov = self.session.config.field_of_view
+        if fov.plane != "panorama":
+            return 1
+        low, high = fov.bounds[2:]
+        _, height = self.renderer.GetSize()
+        pixels_per_degree = height / (1.02 * self._fitted_height()[0])
+        pixels_apart = _ring_step((high - low) * 4 / 6) * self.stretch * pixels_per_degree
+        return max(1, math.ceil(ELEVATION_MARK_PX / max(pixels_apart, 1e-6)))
+
     def refit_guides(self) -> None:
-        """Draw the guides again when the view's new width changes which azimuth marks fit."""
-        if self.session.config.field_of_view.plane == "panorama" and self.azimuth_mark_step() != self._azimuth_marks:
+        """Draw the guides again when the view's new size changes which azimuth or elevation marks fit."""
+        if self.session.config.field_of_view.plane == "panorama" and (
+                self.azimuth_mark_step() != self._azimuth_marks
+                or self.elevation_mark_every() != self._elevation_marks):
             self.draw_guides()
 
     def _content_bounds(self) -> tuple[float, float, float, float]:
@@ -455,8 +525,9 @@ class PatternView(_View):
         x0, x1, y0, y1 = self._content_bounds()
         if self.session.config.pattern_plane == "panorama":
             height = y1 - y0
-            # Elevation marks on the left, azimuth marks and the axis name below, the elevation name above.
-            return x0 - 28.0, x1 + 4.0, y0 - 0.36 * height, y1 + 0.18 * height
+            # Elevation marks on the left, azimuth marks and the axis name below, the elevation name above; on the
+            # right as much room as on the left: with 4 degrees, "180°" ran into the colour bar's marks ("61.00").
+            return x0 - 28.0, x1 + 28.0, y0 - 0.36 * height, y1 + 0.18 * height
         # The names' rows, in pixels, at the scale the view will have: a share of the height was a few pixels for
         # a flat band. The scale follows from fitting the rest and the rows into the view (see _fitted_height).
         width, height = x1 - x0, y1 - y0
@@ -607,7 +678,7 @@ def _boresight_grid(fov) -> tuple[list[pv.PolyData], list[str], list[tuple[float
     return lines, labels, positions
 
 
-def _panorama_grid(fov, stretch: float = 1.0, marked_every: int = 45
+def _panorama_grid(fov, stretch: float = 1.0, marked_every: int = 45, elevation_every: int = 1
                    ) -> tuple[list[pv.PolyData], list[str], list[tuple[float, float, float]]]:
     """Lines of azimuth every 45 degrees and of elevation every 10 (or 5, 20) across the band, marked (the
     azimuths every ``marked_every`` degrees, below the band; every elevation, left of it) at the view's
@@ -621,10 +692,11 @@ def _panorama_grid(fov, stretch: float = 1.0, marked_every: int = 45
             labels.append(f"{azimuth}°")
             positions.append((azimuth - 6.0, low * stretch - 0.14 * height, 0.0))
     step = _ring_step((high - low) * 4 / 6)  # about six lines across the band: every 10 degrees for the Mid-360
-    for elevation in np.arange(math.ceil(low / step) * step, high + 1e-9, step):
+    for index, elevation in enumerate(np.arange(math.ceil(low / step) * step, high + 1e-9, step)):
         lines.append(pv.Line((-180, elevation, 0), (180, elevation, 0)))
-        labels.append(f"{elevation:g}°")
-        positions.append((-206.0, elevation * stretch - 0.03 * height, 0.0))
+        if index % elevation_every == 0:
+            labels.append(f"{elevation:g}°")
+            positions.append((-206.0, elevation * stretch - 0.03 * height, 0.0))
     return lines, labels, positions
 
 
@@ -714,7 +786,7 @@ class SceneView(_View):
         As :class:`_View`.
     """
 
-    background = BACKGROUNDS["gradient"]
+    background_name = "gradient"
 
     def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int] = (0, 0)) -> None:
         super().__init__(plotter, session, subplot)
@@ -733,6 +805,7 @@ class SceneView(_View):
         )
         self.actor.user_matrix = NED_TO_DISPLAY
         self.scalar_bar = add_scalar_bar(plotter, SCENE_UNITS[session.display.scene_colour], self.actor.mapper)
+        colour_bar_text(self.scalar_bar, self.background_name)
         self.grid_actor = None
         self.axes_actor = None
         self.draw_vehicle()
@@ -972,7 +1045,7 @@ class SceneView(_View):
             self.scalar_bar.SetLookupTable(table)
             self.scalar_bar.SetNumberOfLabels(0 if annotated else 5)
             self.scalar_bar.SetDrawAnnotations(annotated)
-            self.scalar_bar.GetAnnotationTextProperty().SetColor(0.87, 0.89, 0.92)
+            colour_bar_text(self.scalar_bar, self.background_name)
         table = self.actor.mapper.lookup_table
         table.scalar_range = (low, high if high > low else low + 1e-6)
         if mode == "time":

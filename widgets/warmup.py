@@ -146,13 +146,20 @@ class LoopWarmer:
                 command = [sys.executable, "-m", "livox_viz.casting.warm", "--background", *pending]
                 self._child = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=errors, text=True,
                                                **_BELOW_NORMAL)
-                for line in self._child.stdout:
-                    words = line.split()
-                    if len(words) >= 2 and words[0] == "ready" and words[1] in pending and not self._closed:
-                        with self._lock:
-                            self.working.pop(words[1], None)
-                        self._load(words[1])
-                        pending.remove(words[1])
+                try:
+                    for line in self._child.stdout:
+                        words = line.split()
+                        if len(words) >= 2 and words[0] == "ready" and words[1] in pending and not self._closed:
+                            pending.remove(words[1])
+                            with self._lock:
+                                self.working.pop(words[1], None)
+                                if pending:
+                                    # The child makes them one after another: the next is begun now ("preparing the
+                                    # motion loops, 57 s" counted the datasheet's minute before it).
+                                    self.working[pending[0]] = time.monotonic()
+                            self._load(words[1])
+                finally:
+                    self._child.stdout.close()  # closed here, not by the collector whenever (a ResourceWarning)
                 self._child.wait()
         except OSError:
             pass

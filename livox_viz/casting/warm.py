@@ -36,6 +36,17 @@ from livox_viz.config.sensor import SERIES_MODELS, SensorConfig
 STAGES: tuple[str, ...] = ("ideal", "risley", "datasheet", "motion")
 
 
+def pattern_stages(config: SensorConfig) -> set[str]:
+    """The stages ``config``'s pattern alone uses (a reference overlay plays only the pattern): ``{"risley"}`` for
+    a series track, none for the rosette.
+
+    Parameters
+    ----------
+    config : SensorConfig
+    """
+    return {"risley"} if config.pattern_model in SERIES_MODELS else set()
+
+
 def stages_for(config: SensorConfig, moving: bool = False) -> set[str]:
     """The stages a scan of ``config`` uses (``moving``: with a trajectory).
 
@@ -44,9 +55,7 @@ def stages_for(config: SensorConfig, moving: bool = False) -> set[str]:
     config : SensorConfig
     moving : bool
     """
-    needed = {"ideal"}
-    if config.pattern_model in SERIES_MODELS:
-        needed.add("risley")
+    needed = {"ideal", *pattern_stages(config)}
     if config.returns_model == "datasheet":
         needed.add("datasheet")
     if moving:

@@ -27,6 +27,7 @@ import csv
 import hashlib
 import io
 import json
+import logging
 import multiprocessing
 import os
 import shutil
@@ -669,8 +670,19 @@ class LocalRunner:
         if self._pool is not None:
             for worker in multiprocessing.active_children():
                 worker.kill()
+            _free_if_its_holder_died(getattr(self._pool._outqueue, "_wlock", None))
             self._pool.terminate()
             self._pool.join()
+
+
+def _free_if_its_holder_died(lock) -> None:
+    """Free the pool's result-queue lock if a killed worker held it: killed while it put a result, it held the lock
+    for ever, and ``Pool.terminate`` (which puts its own sentinel there) waited on it: a stopped batch hung (once in
+    CI). Not taken within a second, its holder is dead: a multiprocessing lock may be released by any process."""
+    if lock is None:  # Windows' queues have none
+        return
+    lock.acquire(timeout=1.0)  # taken (then given back) or not (then its dead holder's): either way released
+    lock.release()
 
 
 @contextmanager
@@ -722,8 +734,14 @@ class DaskRunner:
             saved = dict(os.environ)
             try:
                 with _workers_ignore_interrupts():
+                    # Errors only from Dask's own loggers: stopped by Ctrl-C, each worker closing with a job in hand
+                    # said "Async instruction ... ended with CancelledError" and its nanny "Worker process still
+                    # alive after 4.0 seconds, killing", under the batch's one line.
+                    # No dashboard, and the scheduler's own HTTP server on any free port: on 8787, the dashboard's,
+                    # it warned "Port 8787 is already in use" next to a user's own Dask.
                     self._cluster = LocalCluster(n_workers=self.processes, threads_per_worker=1, processes=True,
-                                                 dashboard_address=None)
+                                                 dashboard_address=None, scheduler_kwargs={"dashboard_address": ":0"},
+                                                 silence_logs=logging.ERROR)
             finally:
                 _restore_environment(saved)
             self.client = Client(self._cluster)
@@ -936,7 +954,10 @@ def _todo(grid: Grid, root: Path, manifest: Manifest, retry: bool, say: _Say, fa
         record = finished_record(root, name)
         if record is not None and (record["status"] == "done" or not retry):
             if previous is None or previous[0] != record["status"]:
+                # Its points count in the progress lines too (they said fewer than the summary after a killed run).
+                before = manifest.points
                 manifest.append(record)
+                say.points += manifest.points - before
             say.kept += not counted
             if record["status"] == "failed" and len(failures) < SHOWN_FAILURES:
                 failures.append(record)

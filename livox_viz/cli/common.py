@@ -84,10 +84,10 @@ def whole_number(low: int, high: int, meaning: str = "") -> Callable[[str], int]
     """argparse type: a whole number in [low, high]; ``meaning`` says what the ends mean."""
 
     def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{quoted(text)} is not a whole number") from None
+        # int() also takes "+5", "1_000", " 5 " and other scripts' digits ("٣"): "--port 1_000" listened on 1000.
+        if not (text.isascii() and text.removeprefix("-").isdigit()):
+            raise argparse.ArgumentTypeError(f"{quoted(text)} is not a whole number (digits 0-9)")
+        value = int(text)
         if not low <= value <= high:
             raise argparse.ArgumentTypeError(f"{text}: allowed: {meaning or f'{low} to {high}'}")
         return value
@@ -152,9 +152,18 @@ def config_from_args(args: argparse.Namespace) -> SensorConfig:
     if getattr(args, "config", None):
         config = load_config(args.config, seq_id=args.seq_id)
     else:
+        refuse_seq_id_without_config(args)
         config = load_preset(getattr(args, "preset", None) or DEFAULT_PRESET)
     returns = getattr(args, "returns", None)
     return config.with_returns_model(returns) if returns else config
+
+
+def refuse_seq_id_without_config(args: argparse.Namespace) -> None:
+    """``--seq-id`` picks a sensor out of ``--config``'s Config.json: without one it was ignored (``info --seq-id 3``
+    described the default preset's SeqID 0 sensor), so it is refused."""
+    if getattr(args, "seq_id", None) is not None and not getattr(args, "config", None):
+        raise UsageError(f"--seq-id {args.seq_id} without --config; allowed: with --config Config.json (it picks "
+                         "the Livox sensor of that SeqID there)")
 
 
 def config_label(args: argparse.Namespace) -> str:
@@ -170,7 +179,7 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", default="urban", help="scene preset name or mesh file (default urban)")
     parser.add_argument("--up", choices=("z", "y"), default="z", help="up axis of a mesh file (default z)")
     parser.add_argument("--pose", help="vehicle pose x,y,z,roll,pitch,yaw in metres/radians, NED "
-                                       "(default: the scene's own); write --pose=-5,0,... when it starts with -")
+                                       "(default: the scene's own)")
     parser.add_argument("--exact", action="store_true",
                         help="recompute every range in float64 from its triangle's plane (about 10 %% slower; "
                              "the default float32 ranges are good to 1e-7 of the scene's size)")

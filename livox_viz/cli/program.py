@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import signal
 import sys
 from collections.abc import Iterable, Sequence
@@ -31,7 +32,14 @@ __all__ = ["ENTRY_POINT_GROUP", "MODEL_COMMANDS", "build_parser", "installed_com
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse that exits 2 with a one-line message (argparse's own usage dump is long)."""
+    """argparse that exits 2 with a one-line message (argparse's own usage dump is long), and takes a value
+    that starts with a minus and a digit as a value (Python 3.13's rule): before 3.13 only a plain number did, so
+    ``--size -5x10`` and ``--pose -5,0,-2,0,0,0`` said "expected one argument". No option here is named like that.
+    """
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"-\.?\d")
 
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(2, f"{self.prog}: error: {bounded_message(message)}\n")
@@ -49,7 +57,8 @@ def build_parser(commands: Iterable[Command]) -> argparse.ArgumentParser:
     """The whole command line; each subcommand has ``--help`` with an example."""
     parser = _Parser(
         prog=PROG,
-        description="Visualise and tune the simulated Livox lidar of RflySim (TypeID 6).",
+        description="Visualise and tune the simulated Livox lidars of RflySim: the rosette (TypeID 6 in SDK v2, 22 in "
+                    "v3) and the Mid-360 (TypeID 23).",
         epilog="Run 'livox-viz COMMAND --help' for a command's options.",
     )
     parser.add_argument("--version", action="version", version=f"{PROG} {_version()}")

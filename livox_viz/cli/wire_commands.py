@@ -51,6 +51,7 @@ from .common import (
     config_label,
     port_value,
     positive_float,
+    refuse_seq_id_without_config,
     scene_from_args,
     trajectory_from_args,
     whole_number,
@@ -116,6 +117,12 @@ def _publish_seconds(args: argparse.Namespace) -> float | None:
 
 
 def cmd_publish(args: argparse.Namespace) -> int:
+    if args.unpaced and args.speed is not None:
+        raise UsageError(f"--speed {args.speed:g} with --unpaced; allowed: one of them (--unpaced sends as fast as "
+                         "possible, --speed paces at that many times real time)")
+    if args.to and args.shm_dir is not None:
+        raise UsageError("--shm-dir with --to; allowed: one of them (--to sends over UDP, --shm-dir is the folder of "
+                         "the shared memory block a configuration's SendProtocol[0] = 0 writes)")
     cfg = config_from_args(args)
     seconds = _publish_seconds(args)
     if seconds is not None:
@@ -133,6 +140,9 @@ def cmd_publish(args: argparse.Namespace) -> int:
     else:
         destination = send_protocol_destination(cfg)
         if destination.transport == "udp":
+            if args.shm_dir is not None:
+                raise UsageError(f"--shm-dir with a configuration that sends over UDP (SendProtocol[0] = 1, to "
+                                 f"{destination.host}:{destination.port}); allowed: --shm-dir with SendProtocol[0] = 0")
             sender = UdpSender(destination.host, destination.port, wire)
             where = f"udp {destination.host}:{destination.port} (SendProtocol)"
         else:
@@ -145,7 +155,7 @@ def cmd_publish(args: argparse.Namespace) -> int:
         frames, until = scanner.frames(trajectory.span[1]), f"to the trajectory's end at {trajectory.span[1]:g} s"
     else:
         frames, until = endless_frames(scanner), "until stopped (Ctrl-C)"
-    speed = None if args.unpaced else args.speed
+    speed = None if args.unpaced else args.speed or 1.0
     print(f"publishing {cfg.points_per_frame:,}-ray frames at {cfg.data_check_freq} Hz "
           f"({'unpaced' if speed is None else f'{speed:g}x real time'}) to {where}, {until}; RflySim SDK "
           f"{cfg.sdk} (TypeID {cfg.type_id}): {wire.describe()}", file=sys.stderr)
@@ -185,9 +195,9 @@ def _publish_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seconds", type=_seconds_or_forever,
                         help=f"scan time, or 'forever' (default {DEFAULT_PUBLISH_SECONDS:g}; with a TUM "
                              "--trajectory, to its end)")
-    parser.add_argument("--speed", type=_speed, default=1.0,
+    parser.add_argument("--speed", type=_speed,
                         help=f"times real time, {SPEED_RANGE[0]:g} to {SPEED_RANGE[1]:g} (default 1)")
-    parser.add_argument("--unpaced", action="store_true", help="send as fast as possible")
+    parser.add_argument("--unpaced", action="store_true", help="send as fast as possible (not with --speed)")
     parser.add_argument("--shm-dir", help="folder of the shared memory block's file (default /dev/shm, the "
                                           "temporary folder on macOS; Windows uses RflySim's named mapping)")
     parser.add_argument("--force", action="store_true",
@@ -195,20 +205,39 @@ def _publish_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 # listen --------------------------------------------------------------------------------------
+#: Where ``listen`` (and the window's ``--listen``) binds without ``--host``/``--port``.
+DEFAULT_LISTEN_HOST, DEFAULT_LISTEN_PORT = "0.0.0.0", 9999
+
+
 def open_receiver(args: argparse.Namespace, config) -> tuple[UdpReceiver | ShmReceiver, str]:
-    """The receiver ``--port``/``--host``/``--shm`` name, and where it listens in words."""
+    """The receiver ``--port``/``--host``/``--shm`` name, and where it listens in words.
+
+    An option the receiver would not use is refused: ``--shm --port 5000`` read shared memory, and ``--shm-dir``
+    without ``--shm`` listened on UDP, without a word.
+    """
     if args.shm:
+        given = [f"--{name}" for name in ("host", "port") if getattr(args, name) is not None]
+        if given:
+            raise UsageError(f"{' and '.join(given)} with --shm; allowed: --host and --port for UDP, or --shm (and "
+                             "--shm-dir) for shared memory")
         shm = ShmReceiver(config, args.shm_dir)
         waiting = "" if shm.link is not None else ", waiting for a publisher to make it"
         return shm, f"shared memory {shm.path}{waiting}"
-    udp = UdpReceiver(args.host, args.port, "world" if WireFormat.of(config).world_points else "sensor")
-    return udp, f"udp {args.host}:{udp.port}"
+    if args.shm_dir is not None:
+        raise UsageError("--shm-dir without --shm; allowed: with --shm (the folder of the shared memory block), "
+                         "or --host and --port for UDP")
+    host = DEFAULT_LISTEN_HOST if args.host is None else args.host
+    port = DEFAULT_LISTEN_PORT if args.port is None else args.port
+    udp = UdpReceiver(host, port, "world" if WireFormat.of(config).world_points else "sensor")
+    return udp, f"udp {host}:{udp.port}"
+
 
 
 def add_receiver_arguments(parser: argparse.ArgumentParser) -> None:
     """``--host``, ``--port``, ``--shm``, ``--shm-dir`` (shared with the GUI's live view)."""
-    parser.add_argument("--host", default="0.0.0.0", help="address to bind (default 0.0.0.0)")
-    parser.add_argument("--port", type=port_value, default=9999, help="UDP port, 0 for any free one (default 9999)")
+    parser.add_argument("--host", help=f"address to bind (default {DEFAULT_LISTEN_HOST})")
+    parser.add_argument("--port", type=port_value,
+                        help=f"UDP port, 0 for any free one (default {DEFAULT_LISTEN_PORT})")
     parser.add_argument("--shm", action="store_true", help="read RflySim3DImg_<SeqID> (a file in /dev/shm; on Windows "
                                                            "RflySim's named mapping) instead of UDP")
     parser.add_argument("--shm-dir", help="folder of the shared memory block's file (default /dev/shm, the temporary "
@@ -254,6 +283,7 @@ RECORDING_NPZ_RULE = ("xyz_int16: the points as received (sensor FRD; world NED 
 
 
 def cmd_listen(args: argparse.Namespace) -> int:
+    refuse_seq_id_without_config(args)
     cfg = load_config(args.config, seq_id=args.seq_id) if args.config else load_preset(DEFAULT_PRESET)
     out = check_output_path(args.record, FORMATS) if args.record else None
     clock = RecordingClock(cfg.range_max, cfg.data_check_freq)
@@ -338,6 +368,8 @@ def cmd_request(args: argparse.Namespace) -> int:
         print(data.hex())
         return 0
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        # RflySim on another machine of the LAN may be asked through its broadcast address.
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
         try:
             sock.sendto(data, (host, port))
         except OSError as exc:

@@ -47,7 +47,7 @@ from livox_viz.config.track_params import TRACK_KEY, TrackParams
 from livox_viz.core.atomic import write_text_atomic
 from livox_viz.core.errors import ConfigError, quoted
 from livox_viz.core.jsonfile import dumps_readable, read_json_file
-from livox_viz.core.poses import pose_from_quaternion
+from livox_viz.core.poses import MAX_ANGLE_RAD, MAX_POSITION_M, pose_from_quaternion
 from livox_viz.core.rotations import euler_matrix, quat_from_matrix
 
 JitterScope = Literal["flower", "figure"]
@@ -187,13 +187,13 @@ PARAM_RANGES: dict[str, ParamRange] = {
     "data_height": ParamRange("DataHeight", "arcs per frame", 1, 2000, integer=True),
     "data_check_freq": ParamRange("DataCheckFreq", "frames per second", 1, 1000, integer=True),
     "camera_fov": ParamRange("CameraFOV", "full field of view, deg", 0, 180, True, True),
-    "range_max": ParamRange("otherParams[0]", "maximum range, m", 0, 10000, low_open=True),
-    "petal_height": ParamRange("otherParams[1]", "petal half-width, deg", 0, 45, low_open=True),
-    "spacing_exponent": ParamRange("otherParams[2]", "point-spacing exponent", 0, 10, low_open=True),
-    "tip_exponent": ParamRange("otherParams[3]", "tip-side calibration exponent", 0, 10, low_open=True),
-    "figure8_per_flower": ParamRange("otherParams[4]", "figure-8s per flower", 1, 360, integer=True),
-    "flowers_per_figure": ParamRange("otherParams[5]", "flowers per figure", 1, 360, integer=True),
-    "jitter_max_deg": ParamRange("otherParams[6]", "maximum random rotation, deg", 0, 360),
+    "range_max": ParamRange("otherParams[0]", "max range, m", 0, 10000, low_open=True),
+    "petal_height": ParamRange("otherParams[1]", "petal height h, deg", 0, 45, low_open=True),
+    "spacing_exponent": ParamRange("otherParams[2]", "spacing exponent p", 0, 10, low_open=True),
+    "tip_exponent": ParamRange("otherParams[3]", "tip exponent q", 0, 10, low_open=True),
+    "figure8_per_flower": ParamRange("otherParams[4]", "figure-8s per flower N8", 1, 360, integer=True),
+    "flowers_per_figure": ParamRange("otherParams[5]", "flowers per figure Nf", 1, 360, integer=True),
+    "jitter_max_deg": ParamRange("otherParams[6]", "random rotation, deg", 0, 360),
     "prism_rpm_a": ParamRange("LivoxVizRisley prism A", "prism A speed, rpm", -20000, 20000),
     "prism_rpm_b": ParamRange("LivoxVizRisley prism B", "prism B speed, rpm", -20000, 20000),
     "deflection_a": ParamRange("LivoxVizRisley deflection A", "prism A deflection, deg", 0, 45, low_open=True),
@@ -368,7 +368,13 @@ class SensorConfig:
                 f"allowed: at most {MAX_POINTS_PER_FRAME}"
             )
         _check_vector("SensorPosXYZ", self.sensor_pos_xyz, 3)
+        if not all(abs(v) <= MAX_POSITION_M for v in self.sensor_pos_xyz):  # 1e308 overflowed the float32 ray casts
+            raise ConfigError(f"SensorPosXYZ = {quoted(list(self.sensor_pos_xyz))}; allowed: the mount's offset "
+                              f"from the vehicle, each within {MAX_POSITION_M:g} m")
         _check_vector(self.euler_key, self.sensor_ang_euler, 3)
+        if not all(abs(v) <= MAX_ANGLE_RAD for v in self.sensor_ang_euler):
+            raise ConfigError(f"{self.euler_key} = {quoted(list(self.sensor_ang_euler))}; allowed: roll, pitch, yaw, "
+                              f"each within {MAX_ANGLE_RAD:g} rad")
         if len(self.send_protocol) != 8 or not all(_is_int(v) for v in self.send_protocol):
             raise ConfigError(
                 f"SendProtocol = {quoted(list(self.send_protocol))}; allowed: a list of 8 integers"
@@ -403,9 +409,14 @@ class SensorConfig:
             raise ConfigError(
                 f"euler_key = {quoted(self.euler_key)}; allowed: {EULER_KEY_RFLYSIM} or {EULER_KEY_DOCUMENT}"
             )
-        for name in ("seq_id", "target_copter", "target_mount_type"):
-            if not _is_int(getattr(self, name)):
-                raise ConfigError(f"{name} = {quoted(getattr(self, name))}; allowed: an integer")
+        for name, key in (("seq_id", "SeqID"), ("target_copter", "TargetCopter"),
+                          ("target_mount_type", "TargetMountType")):
+            value = getattr(self, name)
+            # RflySim's request carries them as uint16: -1 or 10**30 was described by info, and failed only when
+            # sent (or named a shared memory block RflySim3DImg_-1).
+            if not _is_int(value) or not 0 <= value <= 0xFFFF:
+                raise ConfigError(f"{key} = {quoted(value)}; allowed: an integer from 0 to 65535 (RflySim sends "
+                                  "it as a uint16)")
         # Normalise sequences to tuples of floats so equal configs compare equal.
         padded = max(len(params), 8)
         object.__setattr__(self, "other_params", tuple(float(v) for v in params) + (0.0,) * (padded - len(params)))

@@ -16,6 +16,9 @@ from livox_viz.core.rotations import euler_matrix, matrix_to_euler, quat_from_ma
 
 #: The farthest a ``--pose`` may place the vehicle from the world origin, metres (beyond the Earth's radius).
 MAX_POSITION_M = 1e7
+#: The largest angle a pose or a mount may give, radians: some 1,600 turns, where a float64 still holds an angle to
+#: 2e-12 rad. At 1e20 rad the spacing of floats is 16,000 rad: the orientation would be noise, said as a number.
+MAX_ANGLE_RAD = 1e4
 
 
 @dataclass(frozen=True)
@@ -96,7 +99,8 @@ class Pose:
             The value in the user's terms, e.g. ``"scene.json: 'vehicle_pose' = [...]"``.
         """
         allowed = ("allowed: x, y, z (m, NED, each within "
-                   f"{MAX_POSITION_M:g} m of the origin) and roll, pitch, yaw (rad): 6 finite numbers")
+                   f"{MAX_POSITION_M:g} m of the origin) and roll, pitch, yaw (rad, each within {MAX_ANGLE_RAD:g}): "
+                   "6 finite numbers")
         if not isinstance(values, (list, tuple)) or len(values) != 6 or any(
                 isinstance(v, bool) or not isinstance(v, (int, float)) for v in values):
             raise LivoxVizError(f"{where}: {allowed}")
@@ -106,6 +110,9 @@ class Pose:
         if not all(abs(v) <= MAX_POSITION_M for v in numbers[:3]):  # 1e300 would overflow the float32 ray casts
             raise LivoxVizError(f"{where}: a position beyond {MAX_POSITION_M:g} m; allowed: |x|, |y|, |z| "
                                 f"<= {MAX_POSITION_M:g} m (a local NED frame)")
+        if not all(abs(v) <= MAX_ANGLE_RAD for v in numbers[3:]):
+            raise LivoxVizError(f"{where}: an angle beyond {MAX_ANGLE_RAD:g} rad; allowed: |roll|, |pitch|, |yaw| "
+                                f"<= {MAX_ANGLE_RAD:g} rad")
         return cls(tuple(numbers[:3]), *numbers[3:])  # type: ignore[arg-type]
 
 

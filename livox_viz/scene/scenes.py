@@ -110,6 +110,8 @@ def list_scenes() -> list[tuple[str, str]]:
 
 
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off", ".json")
+#: The mesh formats, as messages name them.
+MESH_FORMATS = "OBJ, STL, PLY, GLB, glTF or OFF"
 
 
 def user_scene_dir() -> Path:
@@ -272,7 +274,9 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: flo
     try:
         loaded = trimesh.load(path, force="scene", process=False, **options)
     except Exception as exc:  # trimesh raises many types for unreadable files
-        raise LivoxVizError(f"{path}: not a mesh trimesh can read ({type(exc).__name__}: {exc})") from None
+        # trimesh's own words are kept for the detail (a face naming vertex 9 of 8 is an IndexError), after ours.
+        raise LivoxVizError(f"{path}: not a mesh trimesh can read; allowed: a well-formed {MESH_FORMATS} file "
+                            f"(trimesh said {type(exc).__name__}: {exc})") from None
     parts = []
     names_seen: list[str] = []
     triangles.add(sum(len(getattr(loaded.geometry.get(loaded.graph[node][1]), "faces", ()))
@@ -293,7 +297,7 @@ def load_mesh_file(path: str | os.PathLike[str], up: str = "z", reflectance: flo
                                         own, gain, np.full(len(geometry.faces), len(parts))))
     if not parts:
         raise LivoxVizError(
-            f"{path}: holds no triangles; allowed: a mesh with at least one face (OBJ, STL, PLY, GLB, OFF)"
+            f"{path}: holds no triangles; allowed: a mesh with at least one face ({MESH_FORMATS})"
         )
     if table is not None:
         table.require_matches(names_seen, str(path))

@@ -537,17 +537,24 @@ def send_protocol_destination(config: SensorConfig) -> Destination:
 
 def parse_host_port(text: str, default_port: int | None = None) -> tuple[str, int]:
     """``HOST:PORT`` (or ``HOST`` with a default port) -> (host, port)."""
-    host, _, port_text = text.rpartition(":") if ":" in text else (text, "", "")
+    if text.count(":") > 1 or text.startswith("["):
+        # Split at its last colon, "::1" was host ":" and port 1. RflySim's frames and requests go over IPv4.
+        raise LivoxVizError(f"address {quoted(text)} is IPv6; allowed: an IPv4 address or a host name, as HOST:PORT, "
+                            "e.g. 127.0.0.1:9999")
+    host, colon, port_text = text.rpartition(":") if ":" in text else (text, "", "")
     if not host:
         raise LivoxVizError(f"address {quoted(text)}; allowed: HOST:PORT, e.g. 127.0.0.1:9999")
-    if not port_text:
+    if not colon:
         if default_port is None:
             raise LivoxVizError(f"address {quoted(text)} has no port; allowed: HOST:PORT")
         return host, default_port
-    try:
-        port = int(port_text)
-    except ValueError:
-        raise LivoxVizError(f"port {quoted(port_text)}; allowed: a number 1-65535") from None
+    # A colon and no port ("127.0.0.1:" from "HOST:$PORT" with PORT unset) went to the default port, and int() takes
+    # "+5", "1_000", " 5" and other scripts' digits ("٣"): only ASCII digits are a port.
+    if not (port_text.isascii() and port_text.isdigit()):
+        allowed = "HOST alone for the default port, or " if default_port is not None else ""
+        raise LivoxVizError(f"port {quoted(port_text)} in {quoted(text)}; allowed: {allowed}HOST:PORT with PORT a "
+                            "number 1-65535")
+    port = int(port_text)
     if not 1 <= port <= 65535:
         raise LivoxVizError(f"port {port}; allowed: 1-65535")
     return host, port

@@ -97,6 +97,8 @@ class UdpSender:
         self.address = infos[0][4]
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 8 << 20)
+        # A LAN's broadcast address (every listener on the network) is refused without it: "Permission denied".
+        self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
         self.errors = 0
         self.last_error = ""
 
@@ -233,7 +235,16 @@ class UdpReceiver:
             self.socket.close()
             if exc.errno == errno.EADDRINUSE:
                 raise LivoxVizError(f"port {port} on {host} is in use by another program") from None
-            raise LivoxVizError(f"cannot listen on {host}:{port} ({exc.strerror})") from None
+            if exc.errno == errno.EACCES:
+                # The address is fine (it named the address as the fault): the system refuses the port to this user.
+                raise LivoxVizError(f"cannot listen on {host}:{port} ({exc.strerror}): ports below 1024 need "
+                                    "administrator rights (on Windows, a port held exclusively or reserved is "
+                                    "refused too); allowed: a port from 1024 to 65535, or 0 for any free one"
+                                    ) from None
+            # RflySim sends over IPv4: an IPv6 address, a name without an IPv4 address or another machine's
+            # address cannot be bound.
+            raise LivoxVizError(f"cannot listen on {host}:{port} ({exc.strerror}); allowed: an IPv4 address of "
+                                "this machine, a name that has one, or 0.0.0.0 for all") from None
         self.socket.settimeout(0.2)
         #: The port bound (the one the system chose when asked for port 0).
         self.port = int(self.socket.getsockname()[1])

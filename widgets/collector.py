@@ -1,0 +1,50 @@
+"""Python's cyclic garbage collected on the window's thread only, while the window is open.
+
+Python collects cycles in whichever thread happens to allocate when a generation's threshold is passed. The
+window's background threads (the compiled loops' loader, fits, exports) allocate a great deal, so VTK and Qt
+objects of the window that had become garbage were destroyed there. A VTK object's C++ destructor releases its
+OpenGL resources, and one destroyed in the loader's thread while the window's thread was rendering waited for
+the GL context or the display the render held, while the render waited for the interpreter lock the collecting
+thread held: the window froze for good (CI caught it: SIGTERM not taken in 20 s; the faulthandler dump showed
+the loader's thread "Garbage-collecting" inside numba's import and the window's thread entering pyvistaqt's
+make-current callback). Qt objects have the same rule: they are destroyed in their own thread.
+
+As Qt applications written in Python do (Spyder's and GitFourchette's garbage collectors), automatic
+collection is turned off while the window runs and the window's tick collects what the thresholds call for.
+"""
+
+from __future__ import annotations
+
+import gc
+
+
+class MainThreadCollector:
+    """Collect cycles only when :meth:`collect_due` is called (from the window's thread), while started."""
+
+    def __init__(self) -> None:
+        self._was_enabled: bool | None = None
+
+    def start(self) -> None:
+        """Turn automatic collection off (remembering whether it was on)."""
+        if self._was_enabled is None:
+            self._was_enabled = gc.isenabled()
+            gc.disable()
+
+    def collect_due(self) -> int:
+        """Collect the generations whose thresholds are passed, as the interpreter would have; the objects found
+        unreachable (0 when none was due)."""
+        if self._was_enabled is None:
+            return 0
+        counts, thresholds = gc.get_count(), gc.get_threshold()
+        if thresholds[0] == 0 or counts[0] <= thresholds[0]:  # a threshold of 0: the user turned collection off
+            return 0
+        generation = 0
+        while generation < 2 and counts[generation + 1] > thresholds[generation + 1]:
+            generation += 1
+        return gc.collect(generation)
+
+    def stop(self) -> None:
+        """Give automatic collection back as it was before :meth:`start`."""
+        if self._was_enabled:
+            gc.enable()
+        self._was_enabled = None
