@@ -29,6 +29,7 @@ import io
 import json
 import logging
 import multiprocessing
+import multiprocessing.pool
 import os
 import shutil
 import signal
@@ -666,13 +667,29 @@ class LocalRunner:
             self._pool.join()
 
     def stop(self) -> None:
-        """Kill the workers and the pool (the batch then removes the temporaries of the jobs they were writing)."""
-        if self._pool is not None:
-            for worker in multiprocessing.active_children():
-                worker.kill()
-            _free_if_its_holder_died(getattr(self._pool._outqueue, "_wlock", None))
-            self._pool.terminate()
-            self._pool.join()
+        """Kill the workers and the pool (the batch then removes the temporaries of the jobs they were writing).
+
+        The pool's own handler starts a new worker for each one that dies, so it is stopped first: a worker it
+        started after the kill took ``terminate``'s SIGTERM as a scan takes one (stop after the frame in hand),
+        then waited for ever on the task queue's lock that ``terminate`` holds while it drains the queue, and the
+        batch hung joining it (issue 47: a full disk during a local batch; CI's suite hung the same way).
+        """
+        pool = self._pool
+        if pool is None:
+            return
+        handler = getattr(pool, "_worker_handler", None)
+        if handler is not None:
+            handler._state = multiprocessing.pool.TERMINATE
+            pool._change_notifier.put(None)
+            handler.join(timeout=10)
+        for worker in list(getattr(pool, "_pool", ())) or multiprocessing.active_children():
+            worker.kill()
+            worker.join(timeout=10)
+        # A worker killed while it held a queue's lock holds it for ever; terminate takes both.
+        _free_if_its_holder_died(getattr(pool._outqueue, "_wlock", None))
+        _free_if_its_holder_died(getattr(pool._inqueue, "_rlock", None))
+        pool.terminate()
+        pool.join()
 
 
 def _free_if_its_holder_died(lock) -> None:
