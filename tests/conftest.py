@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import faulthandler
 import functools
 import json
 import os
@@ -54,6 +55,61 @@ def pytest_sessionfinish(session: pytest.Session) -> None:
 
 
 _WARMER = pytest.StashKey[subprocess.Popen]()
+
+#: Seconds past a test's own limit (pytest-timeout's ``timeout``, or its ``timeout`` mark) after which the hang
+#: guard ends the test's process: pytest-timeout's signal cannot end a test stuck in compiled code that holds the
+#: GIL (a Qt or VTK call that never returns, a numba loop), whose Python signal handler never runs.
+HANG_GUARD_MARGIN = 30.0
+_GUARD_FD = pytest.StashKey[int]()
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    # The real standard error, duplicated while pytest's capture is suspended (as its own faulthandler does): the
+    # guard's dump must reach the log, not a capture file that dies with the process.
+    config.stash[_GUARD_FD] = os.dup(sys.__stderr__.fileno() if sys.__stderr__ is not None else 2)
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    faulthandler.cancel_dump_traceback_later()
+    if _GUARD_FD in config.stash:
+        os.close(config.stash[_GUARD_FD])
+        del config.stash[_GUARD_FD]
+
+
+def hang_limit(item: pytest.Item) -> float:
+    """Seconds after which the hang guard ends ``item``'s process: its pytest-timeout limit plus the margin."""
+    marker = item.get_closest_marker("timeout")
+    limit = None
+    if marker is not None:
+        limit = marker.kwargs.get("timeout", marker.args[0] if marker.args else None)
+    if limit is None:
+        limit = item.config.getini("timeout") or 0
+    return float(limit) + HANG_GUARD_MARGIN
+
+
+def _arm_hang_guard(item: pytest.Item) -> None:
+    """From now, ``hang_limit(item)`` seconds without :func:`faulthandler.cancel_dump_traceback_later` dump every
+    thread's stack to the log and end this process (exit 1): a C watchdog thread that needs no GIL does it. Under
+    pytest-xdist the controller then reports the test as failed ("worker crashed while running ...") and starts
+    another worker, so the run goes on."""
+    faulthandler.dump_traceback_later(hang_limit(item), exit=True, file=item.config.stash[_GUARD_FD])
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
+    _arm_hang_guard(item)
+    try:
+        return (yield)
+    finally:
+        faulthandler.cancel_dump_traceback_later()
+
+
+@pytest.hookimpl(wrapper=True, tryfirst=True)
+def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None):
+    # pytest's faulthandler plugin cancels any watchdog when a test fails (pytest_exception_interact): the
+    # teardown after a failure is guarded again, with a whole limit of its own.
+    _arm_hang_guard(item)
+    return (yield)
 
 
 @pytest.fixture(autouse=True)

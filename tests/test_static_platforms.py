@@ -63,7 +63,7 @@ def test_the_check_finds_what_windows_lacks(tmp_path: Path) -> None:
     assert found["darwin"] == [], found
 
 
-@pytest.mark.timeout(1200)
+@pytest.mark.timeout(300)
 def test_no_platform_findings_for_windows_and_macos() -> None:
     found = platform_findings()
     assert found == {"win32": [], "darwin": []}, found
