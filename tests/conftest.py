@@ -112,6 +112,27 @@ def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None):
     return (yield)
 
 
+#: The test modules whose results are the model's numbers (patterns, tracks, fits, casting, returns, motion, the
+#: wire's and the files' encodings): marked ``arithmetic``, they are what the other-CPU pass runs again
+#: (``make test-other-cpu``), since only arithmetic changes with a BLAS kernel or a CPU's instructions. The window,
+#: the command line's messages, signals, batches and static checks do not, and run once.
+ARITHMETIC_MODULES = frozenset({
+    "test_bag_conformance", "test_beam", "test_codec_directions_metrics", "test_config", "test_config_v3",
+    "test_deliberate_bugs", "test_edges", "test_fit", "test_fit_inputs", "test_fit_tables", "test_materials",
+    "test_motion", "test_motion_cli", "test_one_motion", "test_other_cpu", "test_pattern", "test_ray_kernels",
+    "test_raycast_parts", "test_return_loops", "test_returns", "test_returns_files", "test_rflysim", "test_risley",
+    "test_risley_frames", "test_rosbag", "test_scan", "test_scan_steps", "test_scan_workers", "test_speed",
+    "test_terrain_broad_phase", "test_track", "test_wire_v3", "test_blind_zone_and_outline",
+})
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    for item in items:
+        module = getattr(item, "module", None)
+        if module is not None and module.__name__.rsplit(".", 1)[-1] in ARITHMETIC_MODULES:
+            item.add_marker(pytest.mark.arithmetic)
+
+
 @pytest.fixture(autouse=True)
 def _environment_kept():
     """Each test leaves ``os.environ`` as it found it: a library that set variables in this process (Dask's
