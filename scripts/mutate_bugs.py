@@ -67,4 +67,16 @@ DELIBERATE_BUGS: list[dict[str, str]] = [
         "old": 'body_velocity = flu_from_frd(np.einsum("nji,nj->ni", rotation, velocity))',
         "new": "body_velocity = flu_from_frd(velocity)",
     },
+    {
+        "name": "returns: a whole pulse's range compared as its square against the blind zone (issue 43)",
+        "path": "livox_viz/casting/return_kernels.py",
+        "old": "if triangle[i] >= 0 and distance[i] >= blind:",
+        "new": "if triangle[i] >= 0 and distance[i] * distance[i] >= blind:",
+    },
+    {
+        "name": "field of view: a polygon's outline left open, its last side not drawn (issue 43)",
+        "path": "livox_viz/config/fov.py",
+        "old": "return np.vstack([self.outline_deg, self.outline_deg[:1]])",
+        "new": "return self.outline_deg",
+    },
 ]
