@@ -63,7 +63,23 @@ HANG_GUARD_MARGIN = 30.0
 _GUARD_FD = pytest.StashKey[int]()
 
 
+def _signals_as_a_terminal_gives_them() -> None:
+    """SIGINT, SIGHUP and SIGTERM handled as in a terminal's foreground, however the suite was started.
+
+    An ignored signal stays ignored through fork and exec: under ``nohup`` (SIGHUP) or as a background job of a
+    script (``make test &``: SIGINT) every child the tests start ignored the signal the test sent it, and 17 tests
+    of signals failed, the suite's result depending on how it was launched.
+    """
+    import signal
+
+    for number in ("SIGINT", "SIGHUP", "SIGTERM"):
+        if hasattr(signal, number) and signal.getsignal(getattr(signal, number)) == signal.SIG_IGN:
+            signal.signal(getattr(signal, number),
+                          signal.default_int_handler if number == "SIGINT" else signal.SIG_DFL)
+
+
 def pytest_configure(config: pytest.Config) -> None:
+    _signals_as_a_terminal_gives_them()
     # The real standard error, duplicated while pytest's capture is suspended (as its own faulthandler does): the
     # guard's dump must reach the log, not a capture file that dies with the process.
     config.stash[_GUARD_FD] = os.dup(sys.__stderr__.fileno() if sys.__stderr__ is not None else 2)
