@@ -89,6 +89,20 @@ def test_a_writer_thread_writes_every_frame_in_order_and_bounds_what_waits(frame
     assert sink.got == [frame.index for frame in frames * 5]
 
 
+def test_empty_frames_wait_for_a_slow_writer_in_a_bounded_number() -> None:
+    """Frames of no point were never held back (the bound counted points): a 1 x 1 x 1000 Hz scan queued them
+    without end behind its writer (issue 47)."""
+    empty = [type("Frame", (), {"index": k, "__len__": lambda self: 0})() for k in range(200)]
+    sink = SlowSink()
+    thread = WriterThread(sink, waiting_frames=8)
+    for frame in empty:
+        thread.write(frame)
+        with thread._changed:
+            assert len(thread._frames) <= 8
+    thread.finish()
+    assert sink.got == list(range(200))
+
+
 def test_a_failed_writer_stops_the_scan_with_its_error_and_the_others_finish(frames: list) -> None:
     good, bad = SlowSink(), SlowSink(fail_at=2)
     with pytest.raises(export.WritingStopped, match="disk is full"):

@@ -67,3 +67,29 @@ def test_usable_cores_follow_the_affinity_mask() -> None:
     pinned = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert pinned.stdout.strip() == "1"
     assert usable_cores() == len(os.sched_getaffinity(0))
+
+
+def test_frames_of_one_ray_are_cast_a_bounded_number_at_a_time(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A 1 x 1 x 1000 Hz configuration: batches of at least TASK_RAYS rays were 65 536 frames each, and the
+    scan held some 200 000 frames in flight (1.16 GB at 741,786 frames, issue 47). At most TASK_FRAMES a batch
+    now, whatever the rays, and the cloud is the one frame-by-frame casting gives."""
+    from dataclasses import replace
+
+    cfg = replace(load_preset("livox_mid70"), data_width=1, data_height=1, data_check_freq=1000)
+    scene = open_scene("urban")
+    batches: list[int] = []
+    cast_in_worker = LidarScanner._cast_in_worker
+
+    def counted(self, chunk, stops):
+        batches.append(len(stops))
+        return cast_in_worker(self, chunk, stops)
+
+    monkeypatch.setattr(LidarScanner, "_cast_in_worker", counted)
+    batched = [(f.index, f.range_m.tobytes()) for f in
+               LidarScanner(cfg, scene.mesh, scene.vehicle_pose, seed=1, workers=2).frames(3.0)]
+    assert len(batched) == 3000
+    assert max(batches) == scan.TASK_FRAMES and sum(batches) == 3000
+    monkeypatch.setattr(scan, "TASK_FRAMES", 1)
+    single = [(f.index, f.range_m.tobytes()) for f in
+              LidarScanner(cfg, scene.mesh, scene.vehicle_pose, seed=1, workers=2).frames(3.0)]
+    assert single == batched

@@ -55,6 +55,10 @@ IDEAL_TAG = 0x10
 #: hand-over wakes a worker, a tenth of a millisecond on virtual CPUs; 65 536 rather than 4096 took the whole
 #: scan of a million Mid-70 rays from 183 to 154 ms).
 TASK_RAYS = 65536
+#: Frames a worker casts at most per hand-over, however few rays they hold: every frame is a record and arrays of a
+#: few kilobytes even when empty, and a 1 x 1 x 1000 Hz configuration's batches of 65 536 one-ray frames held
+#: 200 000 frames in flight (issue 47: the scan's memory grew to 1.16 GB).
+TASK_FRAMES = 256
 
 
 @dataclass(frozen=True)
@@ -459,8 +463,8 @@ class LidarScanner:
         """Frames until ``seconds`` of scan time (the last one partial if it does not fit).
 
         The frames are cast side by side, one per worker thread (:attr:`workers`; small
-        frames a few to a thread, at least :data:`TASK_RAYS` rays), and the next is cut
-        from the pattern while they run, so every core is busy with everything a frame
+        frames a few to a thread, at least :data:`TASK_RAYS` rays, at most :data:`TASK_FRAMES` frames), and the
+        next is cut from the pattern while they run, so every core is busy with everything a frame
         needs (directions, cast, encoding) while the caller writes the frame it was handed.
         Frames are handed out in order. The stream runs ahead of the caller by the frames in
         flight; if the caller stops early, it is put back after the last frame handed out.
@@ -469,7 +473,7 @@ class LidarScanner:
         if self.mounted.trajectory is not None:
             self.mounted.trajectory.check_covers(self.pattern.time, total / self.config.point_rate)
         per_frame = self.config.points_per_frame
-        per_task = max(1, -(-TASK_RAYS // per_frame))
+        per_task = max(1, min(TASK_FRAMES, -(-TASK_RAYS // per_frame)))
         workers = self.workers
         pool = _frame_pool(workers)
         in_flight: deque[tuple[Future[tuple[list[ScanFrame], Exception | None]], list[int]]] = deque()
