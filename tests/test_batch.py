@@ -711,3 +711,47 @@ def test_a_job_whose_input_files_changed_runs_again(tmp_path: Path, monkeypatch:
         assert again[0] == "done" and again[1] != last[1], edit
         last = again
     assert run() == last
+
+
+def _file_size_limit(limit: int):
+    """A child's preexec: files no larger than ``limit`` bytes, a write past it failing with EFBIG (as a full disk's
+    ENOSPC) rather than killing the process with SIGXFSZ."""
+    def limited() -> None:
+        import resource
+
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.RLIM_INFINITY))
+    return limited
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGXFSZ"), reason="file size limits are POSIX's")
+def test_a_batch_whose_disk_fills_ends_with_one_line_naming_the_file_and_leaves_no_worker(tmp_path: Path) -> None:
+    """Issue 47: a full disk under a local batch printed the system's words, then the pool's finaliser sent its
+    workers SIGTERM, which a worker took as a scan takes one, and the batch waited on it for ever."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.replace("seconds = 0.1", "seconds = 0.05").replace("seeds = [3]", f"seeds = {list(range(24))}")
+                    .replace('"none", "line", "circle"', '"none"').replace('["npz", "las+rosbag"]', '["ply"]'))
+    process = subprocess.Popen([sys.executable, "-m", "livox_viz", "batch", str(spec), "--out", str(tmp_path / "out"),
+                                "--jobs", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True, preexec_fn=_file_size_limit(3000))
+    try:
+        _out, err = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.communicate()
+    assert process.returncode == 2, err[-2000:]
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("livox-viz: error: ") and "manifest.csv: cannot add job" in last, err[-2000:]
+    assert "Traceback" not in err
+    # Every worker of the pool is gone with the batch (a session of its own: nothing of it is left; the resource
+    # tracker ends once the batch's end of its pipe is closed).
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        try:
+            os.killpg(process.pid, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.1)
+    left = subprocess.run(["ps", "-o", "pid,args", "-g", str(process.pid)], capture_output=True, text=True).stdout
+    raise AssertionError(f"processes of the batch left running:\n{left}")

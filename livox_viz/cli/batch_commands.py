@@ -39,14 +39,14 @@ import threading
 import time
 from array import array
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any, BinaryIO
 
 import numpy as np
 
 from livox_viz.core.atomic import atomic_path, remove_dead_leftovers, resolve_destination, write_text_atomic
-from livox_viz.core.errors import LivoxVizError
+from livox_viz.core.errors import LivoxVizError, os_error_reason
 from livox_viz.core.portable import process_alive, process_start, usable_cores
 from livox_viz.files.export import sidecar_path
 from livox_viz.motion.flights import BUILTIN_TRAJECTORIES
@@ -388,8 +388,12 @@ class Manifest:
             self._late[record["job"]] = (status, points)
         text = io.StringIO()
         csv.writer(text, lineterminator="\n").writerow(_row(record))
-        self._handle.write(text.getvalue())
-        self._handle.flush()
+        try:
+            self._handle.write(text.getvalue())
+            self._handle.flush()
+        except OSError as error:  # a full disk: the message names the file (it said only the system's words)
+            raise LivoxVizError(f"{self.path}: cannot add job {record['job']}'s row ({os_error_reason(error)}); "
+                                "the rows before it are kept, and a rerun adds it from the job's record") from error
 
     def _count(self, status: str, points: int, sign: int) -> None:
         if status == "done":
@@ -910,6 +914,7 @@ def _run(args: argparse.Namespace, grid: Grid, spec: str, root: Path, lock: Batc
         say = _Say(grid.total, kept, manifest.points)
         failures: list[dict[str, Any]] = []
         stopped = None
+        stopped_by_error = False
         try:
             with StopRequests() as stop:
                 todo = _todo(grid, root, manifest, args.retry, say, failures, lock, stop)
@@ -929,10 +934,24 @@ def _run(args: argparse.Namespace, grid: Grid, spec: str, root: Path, lock: Batc
                     runner.stop()
                     if isinstance(runner, LocalRunner):
                         _remove_killed_temporaries(root, lock.running)
+        except BaseException:
+            # A failure of the batch itself (a full disk under the manifest): its workers are killed here, not
+            # left to the pool's own finaliser at exit, whose SIGTERM a worker took as a scan takes one and which
+            # then waited on it for ever (issue 47: the batch hung on a full disk).
+            if stopped is None:
+                stopped_by_error = True
+                runner.stop()
+                if isinstance(runner, LocalRunner):
+                    _remove_killed_temporaries(root, lock.running)
+            raise
         finally:
-            if isinstance(runner, DaskRunner) and stopped is None:
+            if isinstance(runner, DaskRunner) and stopped is None and not stopped_by_error:
                 runner.close()
-            manifest.tidy()
+            if stopped_by_error:  # the failure is what the user is told, not a tidy that failed after it
+                with suppress(OSError, LivoxVizError):
+                    manifest.tidy()
+            else:
+                manifest.tidy()
     finally:
         manifest.close()
     summary = (f"{manifest.done:,} of {_count(grid.total, 'job')} done, {manifest.failed:,} failed, "
