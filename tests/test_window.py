@@ -592,21 +592,78 @@ def test_a_half_typed_into_a_whole_number_box_is_refused_and_a_whole_one_taken(w
 def test_the_wheel_over_a_slider_steps_by_the_parameter_s_step(window, qtbot) -> None:
     """Three notches over the CameraFOV slider moved it 38.215 to 39.808 deg, in slider units; the README says
     the wheel steps by the parameter's step, as the box's does (a first-use trial)."""
-    from qtpy import QtCore, QtGui, QtWidgets
 
     from livox_viz.config.param_docs import param_doc
 
     session = window.controller.session
     row = window.panel.rows["camera_fov"]
     start = session.config.camera_fov
-    centre = QtCore.QPointF(row.slider.width() / 2, row.slider.height() / 2)
+    row.slider.setFocus()  # clicked or tabbed into: the wheel is the slider's (unfocused, it scrolls the panel)
+    qtbot.waitUntil(row.slider.hasFocus)
     for delta in (120, 120, 120, 60, 60):  # three notches, then one in two halves (a touchpad's)
-        event = QtGui.QWheelEvent(centre, row.slider.mapToGlobal(centre), QtCore.QPoint(0, 0),
-                                  QtCore.QPoint(0, delta), QtCore.Qt.MouseButton.NoButton,
-                                  QtCore.Qt.KeyboardModifier.NoModifier, QtCore.Qt.ScrollPhase.NoScrollPhase, False)
-        QtWidgets.QApplication.sendEvent(row.slider, event)
+        roll(row.slider, delta)
     assert session.config.camera_fov == pytest.approx(start + 4 * param_doc("camera_fov").step)
     assert row.box.value() == pytest.approx(session.config.camera_fov)
+
+
+def roll(widget, delta: int) -> str:
+    """A wheel event of ``delta`` eighths of a degree (a notch is 120) over ``widget``'s centre; returns the class
+    of the widget that took it. Qt hands a real (spontaneous) wheel event that a widget ignored on to its parents,
+    but not a synthesized one: here each parent is offered it in turn, as Qt does for the real one."""
+    from qtpy import QtCore, QtGui, QtWidgets
+
+    target = widget
+    while target is not None:
+        centre = QtCore.QPointF(target.mapFromGlobal(widget.mapToGlobal(QtCore.QPoint(widget.width() // 2,
+                                                                                       widget.height() // 2))))
+        event = QtGui.QWheelEvent(centre, QtCore.QPointF(target.mapToGlobal(centre.toPoint())), QtCore.QPoint(0, 0),
+                                  QtCore.QPoint(0, delta), QtCore.Qt.MouseButton.NoButton,
+                                  QtCore.Qt.KeyboardModifier.NoModifier, QtCore.Qt.ScrollPhase.NoScrollPhase, False)
+        event.setAccepted(True)
+        QtWidgets.QApplication.sendEvent(target, event)
+        if event.isAccepted():
+            return type(target).__name__
+        target = target.parentWidget()
+    return ""
+
+
+def test_the_wheel_over_the_panel_scrolls_it_and_changes_no_value_until_a_control_is_clicked(urban, qtbot) -> None:
+    """Issue 45: rolling the wheel to scroll the parameter panel moved whichever slider came under the cursor
+    (DataWidth 250 to 116, the scan restarted, no word). Unfocused, sliders, boxes and the window's choice leave
+    the wheel to the panel, which scrolls."""
+    from qtpy import QtWidgets
+
+    window = make_window(urban, qtbot, size=(1280, 720))
+    try:
+        session = window.controller.session
+        config, speed, span = session.config, session.playback.speed, window.panel.window_choice.currentIndex()
+        window.setFocus()
+        scroll = window.dock.widget()
+        assert isinstance(scroll, QtWidgets.QScrollArea)
+        bar = scroll.verticalScrollBar()
+        assert bar.maximum() > 0, "the panel fits at 1280x720: nothing to scroll (make the test's window smaller)"
+        bar.setValue(0)
+        row = window.panel.rows["data_width"]
+        for control in (row.slider, row.box, window.panel.speed_box, window.panel.window_choice):
+            before = bar.value()
+            assert roll(control, -120) == "QWidget", control  # the scroll area's viewport took it
+            assert session.config == config and session.playback.speed == speed, control
+            assert window.panel.window_choice.currentIndex() == span
+            assert bar.value() > before or bar.value() == bar.maximum(), control
+            bar.setValue(0)
+        assert row.box.value() == config.data_width
+        row.box.setFocus()
+        qtbot.waitUntil(row.box.hasFocus)
+        roll(row.box, 120)
+        assert session.config.data_width == config.data_width + param_step("data_width")
+    finally:
+        window.close()
+
+
+def param_step(name: str) -> float:
+    from livox_viz.config.param_docs import param_doc
+
+    return param_doc(name).step
 
 
 def test_a_typed_unit_or_word_is_refused_in_the_control_never_changed(window, qtbot) -> None:

@@ -119,6 +119,31 @@ def read_typed(text: str, unit: str) -> float:
     raise TypedTextError(f"'{text.strip()}' refused: only a number{in_unit} is taken (as 12, 2.5 or 1e1)")
 
 
+def wheel_is_for_the_panel(control: QtWidgets.QWidget, event: QtGui.QWheelEvent) -> bool:
+    """True (and the event left to the panel, which scrolls) when ``control`` has not the keyboard focus.
+
+    A first-use trial rolled the wheel to scroll the parameter panel: whichever slider or box came under the
+    cursor took the notches (DataWidth 250 to 116, the scan restarted, no word). As in Qt Creator, Blender and
+    ParaView, a control takes the wheel only once clicked or tabbed into.
+    """
+    if control.hasFocus():
+        return False
+    event.ignore()
+    return True
+
+
+class NoWheelUnlessFocused(QtWidgets.QComboBox):
+    """A combo box that leaves the wheel to the panel unless it has the focus (see :func:`wheel_is_for_the_panel`)."""
+
+    def __init__(self, parent: QtWidgets.QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setFocusPolicy(QtCore.Qt.FocusPolicy.StrongFocus)
+
+    def wheelEvent(self, event: QtGui.QWheelEvent) -> None:
+        if not wheel_is_for_the_panel(self, event):
+            super().wheelEvent(event)
+
+
 class ValueBox(QtWidgets.QDoubleSpinBox):
     """A spin box that takes any typed number and leaves judging it to the model (the range is shown, not clamped
     silently); arrows and the wheel step by ``step``, by ``fine_step`` with Shift or Ctrl, within ``bounds``.
@@ -147,6 +172,11 @@ class ValueBox(QtWidgets.QDoubleSpinBox):
         self.unit = unit
         #: What the last commit's text held: a number, a refusal, or None (the text was the value shown).
         self._typed: float | TypedTextError | None = None
+        self.setFocusPolicy(QtCore.Qt.FocusPolicy.StrongFocus)  # the wheel does not take the focus
+
+    def wheelEvent(self, event: QtGui.QWheelEvent) -> None:
+        if not wheel_is_for_the_panel(self, event):
+            super().wheelEvent(event)
 
     def validate(self, text: str, pos: int) -> tuple[QtGui.QValidator.State, str, int]:
         # Every keystroke is let in: the text is judged whole on commit, and a refusal is said, not swallowed.
@@ -222,8 +252,11 @@ class _ParamSlider(QtWidgets.QSlider):
         super().__init__(QtCore.Qt.Orientation.Horizontal)
         self._step_value = step_value
         self._wheel_rest = 0
+        self.setFocusPolicy(QtCore.Qt.FocusPolicy.StrongFocus)
 
     def wheelEvent(self, event: QtGui.QWheelEvent) -> None:
+        if wheel_is_for_the_panel(self, event):
+            return
         # A notch is 120; a touchpad sends less at a time: whole notches are stepped, the rest kept for the next.
         self._wheel_rest += event.angleDelta().y() or event.angleDelta().x()
         notches = int(self._wheel_rest / 120)
@@ -522,7 +555,7 @@ class ParameterPanel(QtWidgets.QWidget):
         self.speed_box.setValue(session.playback.speed)
         self.speed_box.editingFinished.connect(self._commit_speed)
         form.addRow("speed", self.speed_box)
-        self.window_choice = QtWidgets.QComboBox()
+        self.window_choice = NoWheelUnlessFocused()
         for window in WINDOWS:
             self.window_choice.addItem("unlimited (1 M points)" if window is None else f"{window:g} s", window)
         self.window_choice.addItem("typed", "typed")
