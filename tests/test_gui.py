@@ -1126,13 +1126,12 @@ def test_the_views_text_keeps_its_lines_short_so_vtk_does_not_shrink_it(app: Liv
 
 
 def test_the_heads_up_field_of_view_is_the_panels_number(app: LivoxVizApp) -> None:
-    """The panel's box shows CameraFOV at its parameter's decimals; the text beside it read '70.1232' against the
-    box's '70.123', two values to a first-use trial."""
-    from livox_viz.config.param_docs import param_doc
-
+    """The text beside the views read '70.1232' against the box's '70.123', two values to a first-use trial; both
+    show the value the scan uses (issue 45: a box showed 180 for a typed 179.9999)."""
     app.on_param("camera_fov", 70.1232)
-    decimals = param_doc("camera_fov").decimals
-    assert f"FOV {70.1232:.{decimals}f} deg\n" in app.hud.pattern_text(app.session)
+    assert "FOV 70.1232 deg\n" in app.hud.pattern_text(app.session)
+    app.on_param("camera_fov", 179.9999)
+    assert "FOV 179.9999 deg\n" in app.hud.pattern_text(app.session)
 
 
 def test_a_sidecars_background_is_drawn_again_and_a_strange_one_named(app: LivoxVizApp) -> None:

@@ -589,6 +589,17 @@ def test_a_half_typed_into_a_whole_number_box_is_refused_and_a_whole_one_taken(w
     assert session.config.data_width == 150 and row.box.text().startswith("150")
 
 
+def test_a_box_shows_every_decimal_of_the_value_the_scan_uses(window, qtbot) -> None:
+    """Issue 45: 179.9999 typed into CameraFOV was taken and shown as "180 deg", while 180 is refused."""
+    session = window.controller.session
+    row = window.panel.rows["camera_fov"]
+    type_into(qtbot, row.box, "179.9999")
+    assert session.config.camera_fov == 179.9999
+    assert row.box.text() == "179.9999 deg" and row.box.value() == 179.9999
+    type_into(qtbot, row.box, "70.43218")
+    assert session.config.camera_fov == 70.43218 and row.box.text() == "70.43218 deg"
+
+
 def test_the_wheel_over_a_slider_steps_by_the_parameter_s_step(window, qtbot) -> None:
     """Three notches over the CameraFOV slider moved it 38.215 to 39.808 deg, in slider units; the README says
     the wheel steps by the parameter's step, as the box's does (a first-use trial)."""

@@ -15,9 +15,8 @@ import time
 
 import pyvista as pv
 
-from livox_viz.config.param_docs import param_doc
-
 from .overlay import window_label
+from .panel import number_text
 from .session import Session
 
 #: The views' text: large enough to read at 1280 x 720, light on a dark band so it reads over any point.
@@ -111,9 +110,9 @@ class HeadsUp:
         model = {"risley": "Risley track", "track": "track"}.get(cfg.pattern_model, "RflySim rosette")
         lasers = f"   {cfg.lasers} lasers" if cfg.lasers > 1 else ""
         fov = cfg.field_of_view
-        # At the panel's decimals: "70.1232" here beside the box's "70.123" read as two values (a first-use trial).
-        fov_text = (f"FOV {round(cfg.camera_fov, param_doc('camera_fov').decimals):g} deg" if fov.shape == "cone"
-                    else f"FOV {fov.describe()}")
+        # As the panel's box shows it: "70.1232" here beside the box's "70.123" read as two values (a first-use
+        # trial); both now show the value the scan uses.
+        fov_text = f"FOV {number_text(cfg.camera_fov)} deg" if fov.shape == "cone" else f"FOV {fov.describe()}"
         drawing = "density image" if density_shown else "points"
         return (
             # The field of view on a line of its own: after the rate, a band's "elevation -7.212 to 52.16 deg" ran

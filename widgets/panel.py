@@ -119,6 +119,21 @@ def read_typed(text: str, unit: str) -> float:
     raise TypedTextError(f"'{text.strip()}' refused: only a number{in_unit} is taken (as 12, 2.5 or 1e1)")
 
 
+#: Decimals a value box holds and shows at most: enough for any value a user types (12 significant digits of a
+#: value near 100), with the zeros after the last one left out.
+HELD_DECIMALS = 10
+
+
+def number_text(value: float) -> str:
+    """``value`` as a value box and the heads-up text show it: plain digits, as many decimals as it has (to
+    :data:`HELD_DECIMALS`), never ``1.095e+04``. A box that showed its parameter's three decimals showed 180 for
+    a typed 179.9999 that the scan used, while 180 itself was refused (issue 45)."""
+    text = f"{value:.{HELD_DECIMALS}f}"
+    if "." in text:
+        text = text.rstrip("0").rstrip(".")
+    return "0" if text == "-0" else text
+
+
 def wheel_is_for_the_panel(control: QtWidgets.QWidget, event: QtGui.QWheelEvent) -> bool:
     """True (and the event left to the panel, which scrolls) when ``control`` has not the keyboard focus.
 
@@ -160,7 +175,10 @@ class ValueBox(QtWidgets.QDoubleSpinBox):
         self.bounds = bounds
         self.step = step
         self.fine_step = fine_step
-        self.setDecimals(decimals)
+        # The box holds every decimal a typed value has (Qt rounds what it holds to the decimals set): what it shows
+        # is what the scan uses. ``decimals`` is the parameter's usual precision, kept for callers.
+        self.shown_decimals = decimals
+        self.setDecimals(HELD_DECIMALS)
         # Wide enough to type any number: a value outside the allowed range is refused on commit, with the range.
         self.setRange(-1e12, 1e12)
         self.setKeyboardTracking(False)
@@ -237,11 +255,7 @@ class ValueBox(QtWidgets.QDoubleSpinBox):
         self.editingFinished.emit()
 
     def textFromValue(self, value: float) -> str:
-        # Plain digits, never 1.095e+04, and no trailing zeros beyond what the value needs.
-        text = f"{value:.{self.decimals()}f}"
-        if "." in text:
-            text = text.rstrip("0").rstrip(".")
-        return text
+        return number_text(value)
 
 
 class _ParamSlider(QtWidgets.QSlider):
