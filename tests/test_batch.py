@@ -755,3 +755,79 @@ def test_a_batch_whose_disk_fills_ends_with_one_line_naming_the_file_and_leaves_
         time.sleep(0.1)
     left = subprocess.run(["ps", "-o", "pid,args", "-g", str(process.pid)], capture_output=True, text=True).stdout
     raise AssertionError(f"processes of the batch left running:\n{left}")
+
+
+@pytest.mark.parametrize("damage", [None, [], {"cloud.npz": None}, "deep"])
+def test_a_hand_damaged_record_is_a_job_to_run_again_not_a_crash(local_run: tuple[Path, Path], tmp_path: Path,
+                                                                 damage: object) -> None:
+    """Issue 47: such a job.json crashed the rerun with AttributeError or RecursionError."""
+    import shutil
+
+    _, out = local_run
+    copy = tmp_path / "out"
+    shutil.copytree(out, copy)
+    name = _manifest(copy)[0]["job"]
+    record_path = copy / "jobs" / name / "job.json"
+    assert batch_commands.finished_record(copy, name) is not None
+    if damage == "deep":
+        record_path.write_text("[" * 100_000 + "]" * 100_000)
+    else:  # still JSON, and still this job's: damaged in meaning only
+        record_path.write_text(json.dumps({**json.loads(record_path.read_text()), "files": damage}))
+    assert batch_commands.finished_record(copy, name) is None
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="FIFOs are POSIX's")
+def test_a_fifo_or_an_endless_file_in_place_of_a_record_or_the_lock_blocks_nothing(tmp_path: Path) -> None:
+    """Issue 47: a FIFO as a job's job.json or as OUT/.batch.lock blocked the batch in open() past SIGINT and
+    SIGTERM; a link to /dev/zero was read until the memory ran out."""
+    import threading
+
+    (tmp_path / "jobs" / "a").mkdir(parents=True)
+    (tmp_path / "jobs" / "b").mkdir()
+    os.mkfifo(tmp_path / "jobs" / "a" / "job.json")
+    os.symlink("/dev/zero", tmp_path / "jobs" / "b" / "job.json")
+    os.mkfifo(tmp_path / batch_commands.LOCK)
+    answers: dict[str, object] = {}
+
+    def ask() -> None:
+        answers["a"] = batch_commands.finished_record(tmp_path, "a")
+        answers["b"] = batch_commands.finished_record(tmp_path, "b")
+        answers["lock"] = batch_commands.BatchLock(tmp_path).holder()
+
+    asking = threading.Thread(target=ask, daemon=True)
+    asking.start()
+    asking.join(10)
+    assert not asking.is_alive(), "a read blocked"
+    assert answers["a"] is None and answers["b"] is None
+    # A FIFO at the lock is no lock of a live batch: taken as held only while it is young, as a half-written one.
+    assert answers["lock"] is None or answers["lock"]["pid"] == "?"
+
+
+def test_a_lock_the_disk_cannot_hold_is_removed_and_named(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 47: a full disk while the lock was written left an empty .batch.lock and said only 'No space left on
+    device'; a rerun was then refused for 10 s as 'another batch is running there (process ?, since just now)'."""
+    import errno
+
+    lock = batch_commands.BatchLock(tmp_path)
+    real_fdopen = os.fdopen
+
+    class Full:
+        def __init__(self, handle) -> None:
+            self.handle = handle
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc) -> None:
+            self.handle.close()
+
+        def write(self, text: str) -> int:
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(batch_commands.os, "fdopen", lambda *a, **k: Full(real_fdopen(*a, **k)))
+    with pytest.raises(batch_commands.LivoxVizError, match=r"cannot write its lock .*\.batch\.lock \(No space left "
+                                                           r"on device\); nothing was run"):
+        lock.acquire()
+    monkeypatch.undo()
+    assert not (tmp_path / batch_commands.LOCK).exists()
+    assert lock.holder() is None

@@ -34,6 +34,7 @@ import os
 import shutil
 import signal
 import socket
+import stat
 import sys
 import threading
 import time
@@ -204,19 +205,57 @@ def _file_digest(path: Path) -> str | None:
         return None
 
 
+#: Bytes a job's record or the folder's lock may hold: both are a few hundred bytes; anything bigger is not ours.
+MAX_OWN_FILE_BYTES = 1 << 20
+
+
+def read_own_file(path: str | os.PathLike[str]) -> bytes | None:
+    """The bytes of a small file the batch itself wrote (a job's record, the folder's lock), or None when there is
+    no such regular file or it is larger than :data:`MAX_OWN_FILE_BYTES`.
+
+    Opened without blocking and judged by what was opened (issue 47): a FIFO in its place blocked the batch in
+    ``open()`` past SIGINT and SIGTERM, and a link to ``/dev/zero`` was read until the memory ran out.
+    """
+    try:
+        descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+    except OSError:
+        return None
+    with os.fdopen(descriptor, "rb") as handle:
+        try:
+            status = os.fstat(descriptor)
+            if not stat.S_ISREG(status.st_mode) or status.st_size > MAX_OWN_FILE_BYTES:
+                return None
+            data = handle.read(MAX_OWN_FILE_BYTES + 1)
+        except OSError:
+            return None
+    return data if len(data) <= MAX_OWN_FILE_BYTES else None
+
+
+def _is_files_record(files: Any) -> bool:
+    """A record's ``files``: each output's name with its ``bytes`` and ``sha256``."""
+    return isinstance(files, dict) and all(
+        isinstance(name, str) and isinstance(about, dict) and isinstance(about.get("bytes"), int)
+        and isinstance(about.get("sha256"), str) for name, about in files.items())
+
+
 def finished_record(root: Path, name: str) -> dict[str, Any] | None:
     """The job ``name``'s record from an earlier run, when its files are all there with their sizes and the files
     it read are as they were (else None: the job runs again)."""
-    try:
-        # Strings, not Paths: a rerun asks this of every job of the grid, most of them without a record yet.
-        with open(os.path.join(root, "jobs", name, "job.json"), "rb") as handle:
-            record = json.loads(handle.read().decode("utf-8"))
-    except (OSError, ValueError):
+    # Strings, not Paths: a rerun asks this of every job of the grid, most of them without a record yet.
+    data = read_own_file(os.path.join(root, "jobs", name, "job.json"))
+    if data is None:
         return None
-    if not isinstance(record, dict) or record.get("job") != name:
+    try:
+        record = json.loads(data.decode("utf-8"))
+    except (ValueError, RecursionError):  # a record nested 100,000 deep is no record (it crashed the rerun)
+        return None
+    # A record damaged by hand ("files": null, [], {"cloud.npz": null}) is no record either: the job runs again.
+    if (not isinstance(record, dict) or record.get("job") != name or record.get("status") not in _STATUSES
+            or not _is_files_record(record.get("files", {}))):
         return None
     inputs = record.get("inputs", {})  # a record of an older version has none: its files are taken as they were
-    if not isinstance(inputs, dict) or any(_file_digest(Path(path)) != digest for path, digest in inputs.items()):
+    if not isinstance(inputs, dict) or any(not isinstance(path, str) or _file_digest(Path(path)) != digest
+                                           for path, digest in inputs.items()):
         return None
     if record.get("status") == "done":
         for file_name, about in record.get("files", {}).items():
@@ -515,14 +554,16 @@ class BatchLock:
 
     def holder(self) -> dict[str, Any] | None:
         """What the lock of a live batch says (its ``pid``, ``host``, ``started``), or None: no lock, or stale."""
+        if not os.path.lexists(self.path):
+            return None
         try:
-            text = self.path.read_text(encoding="utf-8")
-            data = json.loads(text)
+            text = read_own_file(self.path)
+            if text is None:
+                raise ValueError(f"{self.path} is no lock this program wrote")
+            data = json.loads(text.decode("utf-8"))
             pid = int(data["pid"])
             host = str(data.get("host", ""))
-        except FileNotFoundError:
-            return None
-        except (OSError, ValueError, KeyError, TypeError):
+        except (OSError, ValueError, KeyError, TypeError, AttributeError, RecursionError):
             # Being written this instant, or a batch killed while it wrote it: stale once it is a few seconds old.
             try:
                 young = time.time() - self.path.stat().st_mtime < STALE_EMPTY_LOCK_SECONDS
@@ -559,8 +600,16 @@ class BatchLock:
             except OSError as error:
                 raise UsageError(f"--out {self.path.parent}: cannot make its lock {self.path} ({error.strerror}); "
                                  "allowed: a folder this user can write") from None
-            with os.fdopen(descriptor, "w", encoding="utf-8") as handle:
-                handle.write(self._text())
+            try:
+                with os.fdopen(descriptor, "w", encoding="utf-8") as handle:
+                    handle.write(self._text())
+            except OSError as error:
+                # A full disk: an empty lock left behind made the rerun say "another batch is running there
+                # (process ?, since just now)" for 10 s (issue 47).
+                with suppress(OSError):
+                    os.unlink(self.path)
+                raise LivoxVizError(f"--out {self.path.parent}: cannot write its lock {self.path} "
+                                    f"({os_error_reason(error)}); nothing was run") from None
             self._held = True
             return
         self.refuse_if_held()
@@ -578,11 +627,17 @@ class BatchLock:
             raise UsageError(f"--out {self.path.parent}: cannot take over the stale lock {self.path} "
                              f"({error.strerror}); allowed: remove it") from None
         try:
-            running = json.loads(aside.read_text(encoding="utf-8")).get("running", [])
+            running = json.loads((read_own_file(aside) or b"{}").decode("utf-8")).get("running", [])
             self.left_running = [name for name in running if isinstance(name, str)]
-        except (OSError, ValueError, AttributeError):
+        except (OSError, ValueError, AttributeError, TypeError, RecursionError):
             pass
-        aside.unlink(missing_ok=True)
+        try:
+            aside.unlink(missing_ok=True)
+        except IsADirectoryError:  # a folder named as the lock: moved aside, then removed if empty
+            with suppress(OSError):
+                aside.rmdir()
+        except OSError:
+            pass
 
     def _text(self) -> str:
         return json.dumps({"pid": os.getpid(), "process_start": self._process_start,
