@@ -628,6 +628,23 @@ def test_stopping_the_local_pool_does_not_wait_on_a_lock_a_killed_worker_held(tm
     running.close()
 
 
+def test_a_worker_that_dies_on_its_own_ends_the_batch_with_one_line(tmp_path: Path) -> None:
+    """The pool starts another process for one that died (a signal, the out-of-memory killer), but the job it
+    ran is lost, and the batch waited for that job's result for ever (a full run of the suite hung 120 s here)."""
+    grid = read_spec(_huge_spec(tmp_path), force=True)
+    runner = batch_commands.LocalRunner(1)
+    running = runner.run(iter(grid), tmp_path / "out", 1)
+    next(running)  # the pool is up, a job in hand
+    worker = next(iter(runner._pool._pool))
+    os.kill(worker.pid, signal.SIGKILL)
+    started = time.monotonic()
+    with pytest.raises(batch_commands.LivoxVizError, match=rf"process {worker.pid}\) died \(killed by SIGKILL\) "
+                                                           r"while it ran a job; .* run the batch again"):
+        for _ in running:
+            assert time.monotonic() - started < 30, "still waiting for the dead worker's job"
+    runner.stop()
+
+
 def test_the_local_pool_takes_jobs_as_it_has_room(tmp_path: Path) -> None:
     """A pool of one process holds at most two jobs (one running, one queued): of a grid of 200,000, it has
     taken no more than that when the first ends (it took all of them, each queued in the pool, before)."""

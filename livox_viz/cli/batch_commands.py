@@ -698,6 +698,7 @@ class LocalRunner:
         self.in_flight = 2 * processes
         self.where = f"a local pool of {_count(processes, 'process')}"
         self._pool: Any = None
+        self._workers: dict[int, Any] = {}  # every worker process the pool has had, by process id
 
     def run(self, jobs: Iterator[Job], root: Path, workers: int | None) -> Iterator[dict[str, Any] | None]:
         """Each job's record as it ends (None every 0.2 s meanwhile: a chance to notice a stop)."""
@@ -718,12 +719,29 @@ class LocalRunner:
             try:
                 return [done.get(timeout=0.2)]
             except queue.Empty:
+                self._check_workers()
                 return []
 
         yield from _bounded(jobs, self.in_flight, submit, finished)
         if self._pool is not None:
             self._pool.close()
             self._pool.join()
+
+    def _check_workers(self) -> None:
+        """Raise when a worker of the pool died on its own (a signal, the system's out-of-memory killer): the pool
+        starts another in its place but the job it ran is lost, and the batch waited for its result for ever (a
+        test run hung that way). Its jobs have no record, so a rerun runs them."""
+        pool = self._pool
+        if pool is None:
+            return
+        for worker in list(getattr(pool, "_pool", ())):
+            self._workers.setdefault(worker.pid, worker)
+        for pid, worker in self._workers.items():
+            code = worker.exitcode
+            if code is not None and code != 0:
+                how = f"killed by {signal_name(-code)}" if code < 0 else f"exit status {code}"
+                raise LivoxVizError(f"batch: a process of the local pool (process {pid}) died ({how}) while it ran "
+                                    "a job; the jobs in flight did not finish: run the batch again to run them")
 
     def stop(self) -> None:
         """Kill the workers and the pool (the batch then removes the temporaries of the jobs they were writing).
