@@ -3,6 +3,7 @@ a broken job fails alone; a bad spec is one line before any job starts."""
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
@@ -848,3 +849,40 @@ def test_a_lock_the_disk_cannot_hold_is_removed_and_named(tmp_path: Path, monkey
     monkeypatch.undo()
     assert not (tmp_path / batch_commands.LOCK).exists()
     assert lock.holder() is None
+
+
+def test_a_killed_batch_takes_its_pool_with_it(tmp_path: Path) -> None:
+    """Issue 47: SIGKILL of a local batch left its workers running (re-parented to init); they finished their jobs
+    beside the rerun's. Each worker now leaves when the batch is gone."""
+    from .conftest import SEED_JSON
+
+    # Jobs of a minute each (10 minutes of a 1 x 1 x 1000 Hz sensor): a worker left running is still there later.
+    (tmp_path / "slow.json").write_text(json.dumps({**SEED_JSON, "DataWidth": 1, "DataHeight": 1,
+                                                   "DataCheckFreq": 1000}))
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.replace("seconds = 0.1", "seconds = 600").replace('["livox_mid70"]', '["slow.json"]')
+                    .replace('"none", "line", "circle"', '"none"').replace('["npz", "las+rosbag"]', '["ply"]')
+                    .replace("seeds = [3]", "seeds = [1, 2]"))
+    process = subprocess.Popen([sys.executable, "-m", "livox_viz", "batch", str(spec), "--out", str(tmp_path / "out"),
+                                "--jobs", "2"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                               start_new_session=True, cwd=tmp_path)
+    try:
+        deadline = time.monotonic() + 120
+        while len(list((tmp_path / "out").glob("jobs/*/"))) < 2:  # both jobs under way
+            assert time.monotonic() < deadline and process.poll() is None, "the jobs did not start"
+            time.sleep(0.1)
+        time.sleep(1.0)
+        process.kill()
+        process.wait()
+        deadline = time.monotonic() + 15
+        while time.monotonic() < deadline:
+            try:
+                os.killpg(process.pid, 0)
+            except ProcessLookupError:
+                return
+            time.sleep(0.1)
+        left = subprocess.run(["ps", "-o", "pid,args", "-g", str(process.pid)], capture_output=True, text=True).stdout
+        raise AssertionError(f"the batch's processes outlived it:\n{left}")
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGKILL)

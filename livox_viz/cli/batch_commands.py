@@ -175,6 +175,26 @@ def _ignore_interrupts() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+def _local_worker_start() -> None:
+    """A local pool's worker: Ctrl-C left to the batch (:func:`_ignore_interrupts`), and it ends when the batch does.
+
+    A batch killed with SIGKILL left its workers running, re-parented to init: they finished their jobs, printed
+    BrokenPipeError tracebacks, and a rerun started at once ran the same jobs beside them (issue 47). The worker
+    watches its parent's sentinel (a pipe's end on POSIX, the process handle on Windows) and leaves at once when
+    the batch is gone; its job's temporaries are left to the rerun, which removes a dead process's.
+    """
+    _ignore_interrupts()
+    parent = multiprocessing.parent_process()
+    if parent is None:
+        return
+
+    def watch() -> None:
+        parent.join()
+        os._exit(1)
+
+    threading.Thread(target=watch, name="livox-viz-batch-parent", daemon=True).start()
+
+
 # Records and the manifest ----------------------------------------------------------------------------
 def input_digests(job: Job) -> dict[str, str | None]:
     """The SHA-256 of each file the job reads (its sensor config, its scene's files, its TUM trajectory; none for
@@ -711,7 +731,7 @@ class LocalRunner:
             if self._pool is None:  # made for the first job only: a rerun with nothing left starts no process
                 # spawn: workers start from a clean interpreter (the batch's own threads are not forked half-held).
                 self._pool = multiprocessing.get_context("spawn").Pool(self.processes,
-                                                                       initializer=_ignore_interrupts)
+                                                                       initializer=_local_worker_start)
             self._pool.apply_async(run_job, (job, str(root), per_job), callback=done.put,
                                    error_callback=lambda error, job=job: done.put(_lost(job, error)))
 
