@@ -126,6 +126,11 @@ def test_a_quaternion_mount_is_the_rotation_it_names(tmp_path: Path) -> None:
                      r"in RflySim SDK v2 \(the rosette\) and 22 \(the rosette\) or 23 \(the Mid-360\) in SDK v3"),
     ({"TypeID": 21}, r"TypeID = 21 \(a mechanical lidar .*\) is not a Livox lidar; allowed: the Livox TypeIDs"),
     ({"TypeID": 6}, r"TypeID = 6 with EularOrQuat .* sound sensor of SDK v3.*allowed: the Livox TypeIDs are 6 in"),
+    # Issue 47: accepted by info and save, then a traceback in request ("float too large to pack with f format").
+    ({"EularOrQuat": 1e300, "SensorAngQuat": [1, 0, 0, 0]},
+     r"EularOrQuat = 1e\+300; allowed: a number .* within the 32-bit float RflySim reads it as, \+-3\.403e\+38"),
+    ({"EularOrQuat": 1, "SensorAngQuat": [1e300, 1e300, 0, 0]},
+     r"SensorAngQuat\[0\] = 1e\+300 does not fit the 32-bit float RflySim reads it as; allowed: a number within"),
 ])
 def test_bad_v3_input_is_one_line_naming_the_field(tmp_path: Path, change: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=message) as caught:

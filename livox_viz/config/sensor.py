@@ -445,13 +445,15 @@ class SensorConfig:
             raise ConfigError(f"TypeID = 6 with {EULAR_OR_QUAT_KEY} (an RflySim v3 configuration) is the sound sensor "
                               f"of SDK v3, not a Livox lidar; allowed: {named}")
         if isinstance(self.eular_or_quat, bool) or not isinstance(self.eular_or_quat, (int, float)) \
-                or not math.isfinite(self.eular_or_quat):
+                or not math.isfinite(self.eular_or_quat) or abs(self.eular_or_quat) > FLOAT32_MAX:
             raise ConfigError(f"{EULAR_OR_QUAT_KEY} = {quoted(self.eular_or_quat)}; allowed: a number (> 0.5: the "
-                              f"mount is {QUATERNION_KEY}, else {self.euler_key})")
+                              f"mount is {QUATERNION_KEY}, else {self.euler_key}) within the 32-bit float RflySim "
+                              f"reads it as, +-{FLOAT32_MAX:.4g}")
         if self.sensor_ang_quat is None:
             raise ConfigError(f"missing key {QUATERNION_KEY!r}; a configuration with {EULAR_OR_QUAT_KEY} (RflySim "
                               "v3) needs it: the mounting quaternion [w, x, y, z]")
         _check_vector(QUATERNION_KEY, self.sensor_ang_quat, 4)
+        _check_float32(QUATERNION_KEY, self.sensor_ang_quat)
         if self.eular_or_quat > 0.5 and math.hypot(*self.sensor_ang_quat) < _MIN_QUATERNION_NORM:
             raise ConfigError(f"{QUATERNION_KEY} = {quoted(list(self.sensor_ang_quat))} has zero length, and "
                               f"{EULAR_OR_QUAT_KEY} > 0.5 mounts the sensor with it; allowed: a rotation "
@@ -976,9 +978,22 @@ def _check_int(spec: ParamRange, value: Any) -> None:
     spec.check(value)
 
 
+#: The largest float32: RflySim reads the mount's numbers (and ``request`` sends them) as 32-bit floats.
+FLOAT32_MAX = 3.4028234663852886e38
+
+
 def _check_finite(name: str, value: Any) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ConfigError(f"{name} = {quoted(value)}; allowed: a finite number")
+
+
+def _check_float32(name: str, values: tuple[float, ...]) -> None:
+    """Numbers that RflySim's float32 holds: 1e300 passed ``info`` and ``save`` here, then failed ``request`` with
+    a traceback ("float too large to pack with f format"). (The other fields' own ranges are narrower.)"""
+    for index, value in enumerate(values):
+        if abs(value) > FLOAT32_MAX:
+            raise ConfigError(f"{name}[{index}] = {quoted(value)} does not fit the 32-bit float RflySim reads it as; "
+                              f"allowed: a number within +-{FLOAT32_MAX:.4g}")
 
 
 def _check_vector(name: str, values: Any, length: int) -> None:
