@@ -399,9 +399,8 @@ def _outputs(value: Any, where: str) -> tuple[str, ...]:
 
 
 def _check_points(sensors: list[str], seconds: float, where: str, force: bool) -> None:
-    """Each sensor's scan within the scan's point budget (a config that does not load fails in its jobs)."""
-    if force:
-        return
+    """Each sensor's scan holds a point and keeps within the scan's point budget (a config that does not load fails
+    in its jobs). ``seconds = 1e-300`` passed here, and then every job failed with "holds no point" (issue 47)."""
     for sensor in sensors:
         try:
             config = load_config(sensor) if sensor.endswith(".json") else None
@@ -412,7 +411,10 @@ def _check_points(sensors: list[str], seconds: float, where: str, force: bool) -
         except LivoxVizError:
             continue
         points = points_before(seconds, config.point_rate)
-        if points > POINT_BUDGET:
+        if points < 1:
+            raise SpecError(f"{where}: seconds = {seconds:g} holds no point of {Path(sensor).stem}'s scan; allowed: at "
+                            f"least one point's time, {1 / config.point_rate:.3g} s (1 / its point rate)")
+        if points > POINT_BUDGET and not force:
             raise SpecError(f"{where}: seconds = {seconds:g} asks {points:,} points of {Path(sensor).stem}'s scan; "
                             f"allowed: at most {POINT_BUDGET:,} a job (pass --force to go on anyway)")
 
