@@ -24,8 +24,8 @@ DELIBERATE_BUGS: list[dict[str, str]] = [
     {
         "name": "publish: pacing multiplied by the speed instead of divided",
         "path": "livox_viz/wire/transport.py",
-        "old": "due = start + frame.timestamp / speed",
-        "new": "due = start + frame.timestamp * speed",
+        "old": "due = anchor_wall + (frame.timestamp - anchor_scan) / speed",
+        "new": "due = anchor_wall + (frame.timestamp - anchor_scan) * speed",
     },
     {
         "name": "PCD: the header's WIDTH is one short",

@@ -190,6 +190,37 @@ def test_publish_does_not_drift_and_never_waits_when_late() -> None:
     assert unpaced_clock.sleeps == []
 
 
+def test_frames_after_a_slow_first_one_leave_at_their_own_intervals_not_in_a_burst() -> None:
+    """Issue 44: the clock started before the first frame was ready (its scan compiled its loops), and the frames
+    late by then all left at once: the first five within 16 ms, then 10 Hz; RflySim's own v3 client, which keeps
+    the latest frame, showed 7 of 10. Each frame now leaves at its own interval from the late one."""
+    clock = _FakeClock()
+    frames = list(LidarScanner(small_config(), open_scene("open_field").mesh, seed=0).frames(1.0))
+
+    def slow_start():
+        clock.now += 0.45  # the first frame's compile
+        yield from frames
+
+    sender = _RecordingSender(clock, cost=0.001)
+    report = publish(slow_start(), sender, 1.0, clock=clock, sleep=clock.sleep)
+    gaps = np.diff(sender.sent_at)
+    np.testing.assert_allclose(gaps, np.diff([f.timestamp for f in frames]), atol=1e-9)  # 0.1 s each, no burst
+    assert report.late_frames == 1 and report.late_seconds == pytest.approx(0.45 - frames[0].timestamp)
+    # A machine that falls behind once: the frames after it keep their intervals, and the report says so.
+    clock = _FakeClock()
+    sender = _RecordingSender(clock, cost=0.001)
+
+    def stall_at_five():
+        for frame in frames:
+            if frame.index == 5:
+                clock.now += 0.3
+            yield frame
+
+    report = publish(stall_at_five(), sender, 1.0, clock=clock, sleep=clock.sleep)
+    gaps = np.diff(sender.sent_at)
+    assert gaps.min() > 0.09 and report.late_frames == 1
+
+
 # Point-cloud files read by third-party readers ---------------------------------------------------
 @pytest.fixture(scope="module")
 def scanned_frames() -> list:

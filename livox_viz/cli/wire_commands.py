@@ -177,6 +177,11 @@ def cmd_publish(args: argparse.Namespace) -> int:
     print(f"sent {report.frames} frames, {report.points:,} points in {report.wall_seconds:.2f} s: "
           f"{report.frames / max(report.wall_seconds, 1e-9):.1f} frames/s = "
           f"{report.scan_seconds / max(report.wall_seconds, 1e-9):.1f} x real time{error}")
+    if report.late_frames:
+        print(f"{PROG}: publish: {report.late_frames} of {report.frames} frames were not ready at their time (late by "
+              f"{report.late_seconds:.2f} s in all): each left when ready and the next at its interval from it; "
+              f"{'the first compiled the scan loops; ' if report.late_frames == 1 else ''}a lower --speed keeps up",
+              file=sys.stderr)
     if report.frames and report.datagrams == 0:
         raise UsageError(f"nothing could be sent to {where} ({sender.last_error or 'every send failed'})")
     if stop.signum is not None:
