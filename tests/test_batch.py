@@ -887,3 +887,28 @@ def test_a_killed_batch_takes_its_pool_with_it(tmp_path: Path) -> None:
     finally:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(process.pid, signal.SIGKILL)
+
+
+def test_a_rerun_after_the_outputs_went_counts_them_as_jobs_to_run(local_run: tuple[Path, Path], tmp_path: Path,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 47: with every output deleted, a rerun said '6 already finished; 0 to run on a local pool of 1
+    process', ran all six on that one process, showed '[5/6]' five times and counted twice the points of the
+    summary."""
+    import re
+    import shutil
+
+    spec, out = local_run
+    copy = tmp_path / "out"
+    shutil.copytree(out, copy)
+    points = sum(int(row["points"]) for row in _manifest(copy))
+    for output in copy.glob("jobs/*/*"):
+        if output.name != "job.json":
+            shutil.rmtree(output) if output.is_dir() else output.unlink()
+    capsys.readouterr()
+    assert main(["batch", str(spec), "--out", str(copy), "--jobs", "2"]) == 0
+    captured = capsys.readouterr()
+    assert "6 jobs from spec.toml: 0 already finished; 6 to run on a local pool of 2 processes" in captured.err
+    progress = re.findall(r"batch: \[(\d+)/6\] done .*?; 0 failed, ([\d,]+) points", captured.err)
+    assert [int(k) for k, _ in progress] == [1, 2, 3, 4, 5, 6]
+    assert int(progress[-1][1].replace(",", "")) == points
+    assert f"6 of 6 jobs done, 0 failed, {points:,} points" in captured.out

@@ -995,6 +995,12 @@ def _run(args: argparse.Namespace, grid: Grid, spec: str, root: Path, lock: Batc
                 if record is not None and grid.place_of(name, record) is not None:
                     manifest.append(record, again=True)
         kept = manifest.done + (0 if args.retry else manifest.failed)
+        # A grid of at most MAX_JOBS is checked job by job before the first line: a job the manifest counts whose
+        # files went or whose inputs changed runs again, and was counted as finished in the opening line, in the
+        # size of the pool (24 such jobs ran on a pool of one process) and in the progress lines (issue 47).
+        stale, stale_points = _no_longer_finished(grid, root, manifest, args.retry) if grid.total <= MAX_JOBS \
+            else (None, 0)
+        kept -= stale or 0
         to_run = grid.total - kept
         workers = dict(grid.options).get("workers_per_job")
         if runner is None:
@@ -1004,13 +1010,13 @@ def _run(args: argparse.Namespace, grid: Grid, spec: str, root: Path, lock: Batc
                    if manifest.failed and not args.retry else "")
         print(f"batch: {_count(grid.total, 'job')} from {spec}: {kept:,} already finished{earlier}{retried}; "
               f"{to_run:,} to run on {runner.where}", file=sys.stderr)
-        say = _Say(grid.total, kept, manifest.points)
+        say = _Say(grid.total, kept, manifest.points - stale_points)
         failures: list[dict[str, Any]] = []
         stopped = None
         stopped_by_error = False
         try:
             with StopRequests() as stop:
-                todo = _todo(grid, root, manifest, args.retry, say, failures, lock, stop)
+                todo = _todo(grid, root, manifest, args.retry, say, failures, lock, stop, rechecked=stale is not None)
                 for record in runner.run(todo, root, workers):
                     if record is not None:
                         lock.running.discard(record["job"])
@@ -1067,12 +1073,28 @@ def _remove_killed_temporaries(root: Path, names: set[str]) -> None:
         remove_dead_leftovers(root / "jobs" / name)
 
 
+def _no_longer_finished(grid: Grid, root: Path, manifest: Manifest, retry: bool) -> tuple[int, int]:
+    """The jobs the manifest counts as finished whose own records no longer say so (files gone, inputs changed),
+    and the points the manifest counts for them: they run again."""
+    stale = points = 0
+    for job in grid:
+        previous = manifest.previous(job.name)
+        if previous is None or not (previous[0] == "done" or not retry):
+            continue
+        record = finished_record(root, job.name)
+        if record is None or (retry and record["status"] != "done"):
+            stale += 1
+            points += previous[1] if previous[0] == "done" else 0
+    return stale, points
+
+
 def _todo(grid: Grid, root: Path, manifest: Manifest, retry: bool, say: _Say, failures: list[dict[str, Any]],
-          lock: BatchLock, stop: StopRequests) -> Iterator[Job]:
+          lock: BatchLock, stop: StopRequests, rechecked: bool = False) -> Iterator[Job]:
     """The grid's jobs to run, named one at a time as the runner takes them; a stop ends them.
 
     A job is finished when its own record says so (its files all there), whatever the manifest says: one whose
-    files went is run again, one finished whose row a killed batch never wrote gets its row now.
+    files went is run again, one finished whose row a killed batch never wrote gets its row now. ``rechecked``:
+    :func:`_no_longer_finished` has already taken the jobs that run again out of the count of finished ones.
     """
     for job in grid:
         if stop.requested:
@@ -1091,7 +1113,8 @@ def _todo(grid: Grid, root: Path, manifest: Manifest, retry: bool, say: _Say, fa
             if record["status"] == "failed" and len(failures) < SHOWN_FAILURES:
                 failures.append(record)
             continue
-        say.kept -= counted
+        if not rechecked:
+            say.kept -= counted
         lock.running.add(name)
         yield job
 
