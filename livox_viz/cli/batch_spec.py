@@ -337,12 +337,22 @@ def _file(text: str, base: Path) -> Path:
     return path if path.is_absolute() else base / path
 
 
+def _what_it_is(path: Path) -> str:
+    """Why ``path`` is no input file, in words: "does not exist", "is a folder" or "is a device, FIFO or socket"
+    (``/dev/zero`` as a sensor was said not to exist, the output folder as a scene to be no existing file)."""
+    if path.is_dir():
+        return "is a folder"
+    if path.exists():
+        return "is not a regular file (a device, FIFO or socket)"
+    return "does not exist"
+
+
 def _sensor(value: Any, base: Path, where: str) -> str:
     text = _text(value, "sensors", where)
     if text.lower().endswith(".json") or "/" in text or "\\" in text:
         path = _file(text, base)
         if not path.is_file():
-            raise SpecError(f"{where}: grid.sensors: {text!r} does not exist; allowed: a preset name "
+            raise SpecError(f"{where}: grid.sensors: {text!r} {_what_it_is(path)}; allowed: a preset name "
                             "(livox-viz presets) or a sensor JSON file (relative to the spec)")
         return str(path.resolve())
     names = sorted({info.name for info in list_presets()})
@@ -359,8 +369,10 @@ def _scene(value: Any, base: Path, where: str) -> str:
         return text
     path = _file(text, base)
     if not path.is_file():
+        what = "" if not path.exists() else f" ({_what_it_is(path).removeprefix('is ')})"
         raise SpecError(f"{where}: grid.scenes: {text!r} is neither a built-in scene ({', '.join(names)}) nor an "
-                        "existing file; allowed: a scene name, a scene JSON or a mesh file (relative to the spec)")
+                        f"existing file{what}; allowed: a scene name, a scene JSON or a mesh file (relative to the "
+                        "spec)")
     return str(path.resolve())
 
 
@@ -370,7 +382,7 @@ def _trajectory(value: Any, base: Path, where: str) -> str:
         return text
     path = _file(text, base)
     if not path.is_file():
-        raise SpecError(f"{where}: grid.trajectories: {text!r} does not exist; allowed: {NO_TRAJECTORY} (a fixed "
+        raise SpecError(f"{where}: grid.trajectories: {text!r} {_what_it_is(path)}; allowed: {NO_TRAJECTORY} (a fixed "
                         f"sensor), {', '.join(BUILTIN_TRAJECTORIES)}, or a TUM file (relative to the spec)")
     return str(path.resolve())
 
