@@ -283,6 +283,7 @@ class UdpReceiver:
             cpu = time.process_time()
             self.report.datagrams += 1
             done = self.assembler.feed(bytes(buffer[:size]), address)
+            self.report.bad_payloads = self.assembler.drops["bad payload"]
             ready: list[LivoxFrame] = []
             while done is not None:  # one datagram may free frames that waited for the one it completed
                 sender = self.assembler.source
@@ -290,8 +291,7 @@ class UdpReceiver:
                 try:
                     frame = unpack_payload(done[1], done[0], f"{sender[0]}:{sender[1]}", self.assembler.frame_id,
                                            self.points_frame)
-                except LivoxVizError as exc:
-                    self.report.bad_payloads += 1
+                except LivoxVizError as exc:  # (the reassembler drops most bad payloads itself)
                     self.assembler.drops["bad payload"] += 1
                     self.assembler.last_error = str(exc)
                 frame = _usable(frame, self.assembler)
