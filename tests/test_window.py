@@ -1688,3 +1688,22 @@ def test_a_window_whose_set_up_fails_leaves_collection_on(urban, qtbot, monkeypa
     with pytest.raises(RuntimeError, match="set-up failed"):
         mainwindow.MainWindow(Session(load_preset("livox_mid70"), urban), size=(1280, 720), warm=False)
     assert gc.isenabled()
+
+
+def test_the_window_opens_within_the_screen_s_available_area(urban, qtbot) -> None:
+    """Issue 45: on a 1280x720 screen the window opened at 1600x900, its charts, status bar, scrubber and speed box
+    off the screen. Asked for more than this X server's 1920x1200, it opens inside it, every part reachable."""
+    from livox_viz.widgets.mainwindow import FRAME_ALLOWANCE, fit_to_screen
+
+    assert fit_to_screen((1600, 900), (1280, 720)) == (1280 - FRAME_ALLOWANCE[0], 720 - FRAME_ALLOWANCE[1])
+    assert fit_to_screen((1600, 900), (1920, 1080)) == (1600, 900)
+    assert fit_to_screen((1600, 900), None) == (1600, 900)
+    window = make_window(urban, qtbot, size=(2600, 1700))
+    try:
+        area = window.screen().availableGeometry()
+        assert window.width() <= area.width() and window.height() <= area.height()
+        for part in (window.statusBar(), window.panel.speed_box):
+            rect = widget_rect(part, window)
+            assert rect.bottom() <= window.height() and rect.right() <= window.width(), part
+    finally:
+        window.close()

@@ -223,7 +223,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.collector = MainThreadCollector()
         quiet_vtk()
         self.setObjectName("livox-viz")
-        self.resize(*size)
+        self.resize(*fit_to_screen(size, self._available_area()))
         self._stop = stop
         self._jobs: list[_Job] = []
         #: Changes waiting for their compiled loops, by kind: (stages, action, what).
@@ -392,6 +392,14 @@ class MainWindow(QtWidgets.QMainWindow):
     def _played(self) -> float:
         """The scan time the scrubber spans: as far as the scan played since it last restarted, seconds."""
         return self.controller.session.played
+
+    def _available_area(self) -> tuple[int, int] | None:
+        """The size of the screen's area a window may take (without task bars), pixels; None without a screen."""
+        screen = self.screen() or QtGui.QGuiApplication.primaryScreen()
+        if screen is None:
+            return None
+        area = screen.availableGeometry()
+        return area.width(), area.height()
 
     def _action(self, menu: QtWidgets.QMenu, text: str, slot: Callable[[], Any], shortcut: str | None = None,
                 checkable: bool = False, group: QtGui.QActionGroup | None = None, data: Any = None) -> QtGui.QAction:
@@ -1099,6 +1107,20 @@ class _HelpDialog(QtWidgets.QDialog):
             self.hide()
             return
         super().keyPressEvent(event)
+
+
+#: Pixels a window manager's title bar and frame take around the window, at most, on the screens we know.
+FRAME_ALLOWANCE = (16, 48)
+
+
+def fit_to_screen(size: tuple[int, int], available: tuple[int, int] | None) -> tuple[int, int]:
+    """``size`` (pixels), made no larger than the screen's ``available`` area (its size without task bars and
+    docks; None: not known) less :data:`FRAME_ALLOWANCE`: the window opened at 1600x900 on a 1280x720 screen, its
+    charts, status bar (where refusals and picks are said), scrubber and speed box off the screen (issue 45)."""
+    if available is None:
+        return size
+    return (max(64, min(size[0], available[0] - FRAME_ALLOWANCE[0])),
+            max(64, min(size[1], available[1] - FRAME_ALLOWANCE[1])))
 
 
 def run_window(session: Session, size: tuple[int, int], stop: Callable[[], bool] | None = None,
