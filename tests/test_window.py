@@ -1707,3 +1707,35 @@ def test_the_window_opens_within_the_screen_s_available_area(urban, qtbot) -> No
             assert rect.bottom() <= window.height() and rect.right() <= window.width(), part
     finally:
         window.close()
+
+
+def test_paused_and_unchanged_the_window_draws_nothing_and_rests(window, qtbot) -> None:
+    """Issue 45: paused, the window used a whole core (99-119 %) redrawing the same picture 10-14 times a second.
+    Paused and untouched it now draws nothing; a key that changes what is shown draws again."""
+    import time
+
+    rendered: list[float] = []
+    render = window.controller.render
+
+    def counted(*args, **kwargs):
+        rendered.append(time.perf_counter())
+        return render(*args, **kwargs)
+
+    window.controller.render = counted
+    press(qtbot, window, "space")
+    assert window.controller.session.playback.paused
+    qtbot.wait(500)  # the last changes drawn
+    rendered.clear()
+    cpu = time.process_time()
+    qtbot.wait(2000)
+    cpu = time.process_time() - cpu
+    assert rendered == [], f"{len(rendered)} renders in 2 s at rest"
+    assert cpu < 0.1, f"{cpu:.2f} s of CPU in 2 s at rest (this process, all its threads)"
+    press(qtbot, window, "c")  # another colouring: drawn
+    qtbot.waitUntil(lambda: len(rendered) > 0, timeout=2000)
+    rendered.clear()
+    qtbot.wait(500)
+    assert rendered == []
+    press(qtbot, window, "space")  # playing again: drawn every tick
+    qtbot.wait(500)
+    assert len(rendered) >= 3

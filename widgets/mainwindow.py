@@ -51,6 +51,11 @@ from .views import BACKGROUNDS, CAMERA_PRESETS, COLOUR_MAPS
 from .warmup import LoopWarmer
 
 TIMER_MS = 33
+#: The events that may change what the window shows without changing the scan's state (see MainWindow._resting).
+_INPUT_EVENTS = frozenset({QtCore.QEvent.Type.KeyPress, QtCore.QEvent.Type.KeyRelease,
+                           QtCore.QEvent.Type.MouseButtonPress, QtCore.QEvent.Type.MouseButtonRelease,
+                           QtCore.QEvent.Type.MouseButtonDblClick, QtCore.QEvent.Type.Wheel,
+                           QtCore.QEvent.Type.Shortcut, QtCore.QEvent.Type.Resize, QtCore.QEvent.Type.Show})
 #: Qt's names of the key table's VTK key symbols.
 QT_KEYS = {"space": "Space", "Right": "Right", "Up": "Up", "Down": "Down"}
 #: The key table's key of each method it binds (a menu entry calling one shows its key).
@@ -301,6 +306,10 @@ class MainWindow(QtWidgets.QMainWindow):
         self._first_frame: float | None = None
         self.opened = time.perf_counter()
 
+        #: Input events the application took (keys, clicks, the wheel), and what the last tick at rest saw.
+        self._inputs = 0
+        self._rest_signature: tuple | None = None
+        QtWidgets.QApplication.instance().installEventFilter(self)
         self.timer = QtCore.QTimer(self)
         self.timer.setInterval(TIMER_MS)
         self.timer.timeout.connect(self.tick)
@@ -652,6 +661,8 @@ class MainWindow(QtWidgets.QMainWindow):
                 self.controller.session.start_casting()
         self._finish_jobs()
         self._run_deferred()
+        if self._resting():
+            return
         try:
             if self._playing_allowed:
                 self.controller.tick()
@@ -666,6 +677,36 @@ class MainWindow(QtWidgets.QMainWindow):
         if warmer is not None and not warmer.started:  # after the first frame: see widgets/warmup.py
             warmer.start()
         self._update_status()
+
+    def _resting(self) -> bool:
+        """True when the window is paused and nothing changed since the last tick: nothing is brought up to date or
+        drawn (paused, it used a whole core redrawing the same picture 10-14 times a second; issue 45).
+
+        "Nothing changed" is the scan's state (its number, time, configuration, message, the points its rings
+        hold and the casts still coming in), the window's and the views' sizes, the jobs and deferred changes,
+        and every input event the application took (a key, a click, the wheel: a menu, a box or a view's camera
+        may have changed something the views draw). The views' own mouse interaction is drawn by VTK itself.
+        """
+        session = self.controller.session
+        warmer = self.warmer
+        if not (self._playing_allowed and session.playback.paused) or self._jobs or self._pending \
+                or session._filling_to is not None or (warmer is not None and not warmer.is_ready(warmer.now)):
+            self._rest_signature = None
+            return False
+        # The rings' counts: casts finished after the pause still come in (and the time window drops old points).
+        signature = (session.scan_number, session.scan_time, id(session.config), session.message, self._inputs,
+                     self.size().toTuple(), tuple(self.splitter.sizes()), self._error_text, session.filling,
+                     session.pattern_ring.count, session.scene_ring.count)
+        if signature == self._rest_signature:
+            return True
+        self._rest_signature = signature  # drawn once more, then at rest
+        return False
+
+    def eventFilter(self, watched: QtCore.QObject, event: QtCore.QEvent) -> bool:
+        """Counts the application's input events (see :meth:`_resting`); never takes one."""
+        if event.type() in _INPUT_EVENTS:
+            self._inputs += 1
+        return False
 
     def _follow_view_sizes(self) -> None:
         """Refit the pattern view when its size changed (the window or a splitter moved): the field of view stays
@@ -1079,6 +1120,9 @@ class MainWindow(QtWidgets.QMainWindow):
             return
         self._closing = True
         self.timer.stop()
+        app = QtWidgets.QApplication.instance()
+        if app is not None:
+            app.removeEventFilter(self)
         # A bag being written is given up (nothing is kept) rather than left half-made by the process's end.
         for job in self._jobs:
             if job.cancel is not None:
