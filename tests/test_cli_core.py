@@ -144,3 +144,22 @@ def test_invalid_config_file_exits_2_and_writes_nothing(
     code, _, err = run(capsys, "pattern", "--config", str(bad), "--out", str(tmp_path / "p.npz"))
     assert code == 2 and "DataWidth" in err and "allowed" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json"]
+
+
+def test_prepare_compiles_the_stages_asked_and_refuses_others(capsys: pytest.CaptureFixture[str],
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 45: the window's first datasheet use waited 95-128 s for its compiled loops; `livox-viz prepare` (run
+    by make venv) compiles them where the install runs."""
+    from livox_viz.casting import warm
+
+    warmed: list[str] = []
+    monkeypatch.setattr(warm, "warm", lambda stage: warmed.append(stage) or 0.25)
+    status, out, _ = run(capsys, "prepare", "datasheet", "ideal")
+    assert status == 0 and warmed == ["datasheet", "ideal"]
+    assert "prepare: datasheet ... 0.2 s" in out and out.strip().endswith("(numba's cache; prepared again only after "
+                                                                            "an update)")
+    warmed.clear()
+    assert run(capsys, "prepare")[0] == 0 and warmed == list(warm.STAGES)
+    warmed.clear()
+    status, _, err = run(capsys, "prepare", "risley", "bogus")
+    assert status == 2 and warmed == [] and "prepare 'bogus': no such stage; allowed: ideal, risley" in err

@@ -254,8 +254,38 @@ def cmd_scenes(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_prepare(args: argparse.Namespace) -> int:
+    """Compile every loop the casting stages use into numba's cache, once, where the program is installed."""
+    from livox_viz.casting.warm import STAGES, warm
+
+    unknown = [stage for stage in args.stages if stage not in STAGES]
+    if unknown:
+        raise UsageError(f"prepare {quoted(unknown[0])}: no such stage; allowed: {', '.join(STAGES)}, or none for all")
+    stages = args.stages or list(STAGES)
+    total = 0.0
+    for stage in stages:
+        print(f"prepare: {stage} ...", end="", flush=True)
+        seconds = warm(stage)
+        total += seconds
+        print(f" {seconds:.1f} s", flush=True)
+    print(f"prepared {', '.join(stages)} in {total:.0f} s: the window and the commands now load these loops in "
+          "seconds (numba's cache; prepared again only after an update)")
+    return 0
+
+
+def _prepare_arguments(parser: argparse.ArgumentParser) -> None:
+    from livox_viz.casting.warm import STAGES
+
+    parser.add_argument("stages", nargs="*", metavar="STAGE",
+                        help=f"what to prepare: {', '.join(STAGES)} (default all; the datasheet returns take 1-2 "
+                             "minutes on 2 cores the first time)")
+
+
 COMMANDS: tuple[Command, ...] = (
     Command("scan", cmd_scan, "cast the scan into a scene and write the point cloud a client receives",
             "livox-viz scan --scene urban --seconds 1 --out cloud.ply", _scan_arguments),
+    Command("prepare", cmd_prepare, "compile the ray caster's and return models' loops once, after installing (the "
+                                    "window's first datasheet scan is then ready at once)",
+            "livox-viz prepare", _prepare_arguments),
     Command("scenes", cmd_scenes, "list the built-in scenes", "livox-viz scenes", lambda parser: None),
 )
