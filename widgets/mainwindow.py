@@ -41,7 +41,7 @@ from livox_viz.config.sensor import save_config
 
 from . import files
 from .app import VIEW_NAMES, LivoxVizApp, quiet_vtk
-from .collector import MainThreadCollector
+from .collector import MainThreadCollector, give_back_free_memory
 from .keys import KEYS, help_html
 from .nonerefs import NoneReserve, binding_drops_none
 from .overlay import WINDOWS, PresetSource, TableSource, window_label
@@ -306,6 +306,10 @@ class MainWindow(QtWidgets.QMainWindow):
         self._first_frame: float | None = None
         self.opened = time.perf_counter()
 
+        #: The scan a trim of the heap followed last, when the next one is due, and how many were done.
+        self._trimmed_scan = -1
+        self._trim_due: float | None = None
+        self.memory_trims = 0
         #: Input events the application took (keys, clicks, the wheel), and what the last tick at rest saw.
         self._inputs = 0
         self._rest_signature: tuple | None = None
@@ -661,6 +665,7 @@ class MainWindow(QtWidgets.QMainWindow):
                 self.controller.session.start_casting()
         self._finish_jobs()
         self._run_deferred()
+        self._trim_after_restarts()
         if self._resting():
             return
         try:
@@ -677,6 +682,17 @@ class MainWindow(QtWidgets.QMainWindow):
         if warmer is not None and not warmer.started:  # after the first frame: see widgets/warmup.py
             warmer.start()
         self._update_status()
+
+    def _trim_after_restarts(self) -> None:
+        """A second after a restart (a preset, a scene, a parameter, a fit taken), the heap's free pages go back to
+        the system (:func:`~livox_viz.widgets.collector.give_back_free_memory`): once per restart, not per tick."""
+        number = self.controller.session.scan_number
+        if number != self._trimmed_scan:
+            self._trimmed_scan = number
+            self._trim_due = time.monotonic() + 1.0
+        elif self._trim_due is not None and time.monotonic() >= self._trim_due:
+            self._trim_due = None
+            self.memory_trims += give_back_free_memory()
 
     def _resting(self) -> bool:
         """True when the window is paused and nothing changed since the last tick: nothing is brought up to date or
