@@ -85,11 +85,17 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[_GUARD_FD] = os.dup(sys.__stderr__.fileno() if sys.__stderr__ is not None else 2)
 
 
+#: Seconds this process may take to exit once its tests are done, before the hang guard ends it with every
+#: thread's stack: at exit, multiprocessing joins the children a test left (a pool worker blocked on a lock kept a
+#: worker of the suite, and so the run, waiting for ever).
+EXIT_LIMIT = 120.0
+
+
 def pytest_unconfigure(config: pytest.Config) -> None:
     faulthandler.cancel_dump_traceback_later()
     if _GUARD_FD in config.stash:
-        os.close(config.stash[_GUARD_FD])
-        del config.stash[_GUARD_FD]
+        # The descriptor stays open for the watchdog; the process's end closes it.
+        faulthandler.dump_traceback_later(EXIT_LIMIT, exit=True, file=config.stash[_GUARD_FD])
 
 
 def hang_limit(item: pytest.Item) -> float:
