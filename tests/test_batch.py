@@ -769,15 +769,21 @@ def test_a_batch_whose_disk_fills_ends_with_one_line_naming_the_file_and_leaves_
     assert "Traceback" not in err
     # Every worker of the pool is gone with the batch (a session of its own: nothing of it is left; the resource
     # tracker ends once the batch's end of its pipe is closed).
-    deadline = time.monotonic() + 10
+    assert_session_ends(process.pid, 10)
+
+
+def assert_session_ends(session: int, seconds: float) -> None:
+    """Return once no process of the session (process group) ``session`` is left; fail, listing them, after
+    ``seconds``."""
+    deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
         try:
-            os.killpg(process.pid, 0)
+            os.killpg(session, 0)
         except ProcessLookupError:
             return
         time.sleep(0.1)
-    left = subprocess.run(["ps", "-o", "pid,args", "-g", str(process.pid)], capture_output=True, text=True).stdout
-    raise AssertionError(f"processes of the batch left running:\n{left}")
+    left = subprocess.run(["ps", "-o", "pid,args", "-g", str(session)], capture_output=True, text=True).stdout
+    raise AssertionError(f"processes of the batch left running after {seconds:g} s:\n{left}")
 
 
 @pytest.mark.parametrize("damage", [None, [], {"cloud.npz": None}, "deep"])
@@ -879,15 +885,7 @@ def test_a_killed_batch_takes_its_pool_with_it(tmp_path: Path) -> None:
         time.sleep(1.0)
         process.kill()
         process.wait()
-        deadline = time.monotonic() + 15
-        while time.monotonic() < deadline:
-            try:
-                os.killpg(process.pid, 0)
-            except ProcessLookupError:
-                return
-            time.sleep(0.1)
-        left = subprocess.run(["ps", "-o", "pid,args", "-g", str(process.pid)], capture_output=True, text=True).stdout
-        raise AssertionError(f"the batch's processes outlived it:\n{left}")
+        assert_session_ends(process.pid, 15)
     finally:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(process.pid, signal.SIGKILL)
