@@ -78,30 +78,31 @@ class NpzColumns:
         return sum(int(np.prod(np.shape(arrays[name]))) * np.dtype(dtype).itemsize
                    for name, (dtype, _) in self.columns.items())
 
-    def cut_to_rows(self) -> None:
-        """After a failed :meth:`append`: every column cut back to the rows appended whole (the files are closed;
-        a failure to flush the rest of a buffer is what failed, and is not raised)."""
+    def checkpoint(self) -> tuple[int, dict[str, int]]:
+        """The rows appended so far and their CRCs, for :meth:`cut_to_rows` to come back to."""
+        return self.rows, dict(self._crc)
+
+    def cut_to_rows(self, checkpoint: tuple[int, dict[str, int]] | None = None) -> None:
+        """After a failed :meth:`append`: every column cut back to the rows appended whole, or to ``checkpoint``
+        (the files are closed; a failure to flush the rest of a buffer is what failed, and is not raised)."""
+        if checkpoint is not None:
+            self.rows, self._crc = checkpoint[0], dict(checkpoint[1])
         self.discard()
         for name, (dtype, tail) in self.columns.items():
             row_bytes = int(np.prod(tail, dtype=np.int64)) * np.dtype(dtype).itemsize
             os.truncate(self._work / f"{name}.raw", self.rows * row_bytes)
 
-    def finish(self, path: Path, extra: dict[str, np.ndarray] | None = None) -> None:
-        """Write the archive to ``path`` (a temporary file the caller renames): the columns, then ``extra``."""
+    def finish(self, path: Path, extra: dict[str, np.ndarray] | None = None,
+               more: tuple[NpzColumns, ...] = ()) -> None:
+        """Write the archive to ``path`` (a temporary file the caller renames): the columns, the columns of
+        ``more`` (others of their own length, streamed from disk alike), then ``extra``."""
         self.close()
+        for other in more:
+            other.close()
         with open(path, "wb") as archive:
             members = _ZipMembers(archive)
-            for name, (dtype, tail) in self.columns.items():
-                raw = self._work / f"{name}.raw"
-                size = raw.stat().st_size
-                description = {"descr": np.dtype(dtype).str, "fortran_order": False, "shape": (self.rows, *tail)}
-                header_start = archive.tell() + members.local_header_size(f"{name}.npy")
-                header = _npy_header(description, header_start)
-                crc = _crc32_combine(zlib.crc32(header), self._crc[name], size)
-                members.start(f"{name}.npy", len(header) + size, crc)
-                archive.write(header)
-                with open(raw, "rb") as body:
-                    _copy_in(body, archive, size)
+            for columns in (self, *more):
+                columns._write_members(archive, members)
             for name, value in (extra or {}).items():
                 buffer = io.BytesIO()
                 np.save(buffer, np.asarray(value), allow_pickle=False)
@@ -109,6 +110,20 @@ class NpzColumns:
                 members.start(f"{name}.npy", len(data), zlib.crc32(data))
                 archive.write(data)
             members.finish()
+
+    def _write_members(self, archive: BinaryIO, members: _ZipMembers) -> None:
+        """Each column as an ``.npy`` member of the archive, copied from its raw file."""
+        for name, (dtype, tail) in self.columns.items():
+            raw = self._work / f"{name}.raw"
+            size = raw.stat().st_size
+            description = {"descr": np.dtype(dtype).str, "fortran_order": False, "shape": (self.rows, *tail)}
+            header_start = archive.tell() + members.local_header_size(f"{name}.npy")
+            header = _npy_header(description, header_start)
+            crc = _crc32_combine(zlib.crc32(header), self._crc[name], size)
+            members.start(f"{name}.npy", len(header) + size, crc)
+            archive.write(header)
+            with open(raw, "rb") as body:
+                _copy_in(body, archive, size)
 
     def close(self) -> None:
         """Close the raw files (the archive is not written); a failure to flush one (a full disk) is raised."""
