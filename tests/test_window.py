@@ -598,6 +598,26 @@ def test_a_box_shows_every_decimal_of_the_value_the_scan_uses(window, qtbot) -> 
     assert row.box.text() == "179.9999 deg" and row.box.value() == 179.9999
     type_into(qtbot, row.box, "70.43218")
     assert session.config.camera_fov == 70.43218 and row.box.text() == "70.43218 deg"
+    # Nine significant digits at most: a fitted preset's float noise (4663.99999998 rpm) is not shown.
+    from livox_viz.widgets.panel import number_text
+
+    assert number_text(4663.99999998) == "4664" and number_text(-7294.00000002) == "-7294"
+    assert number_text(17.1311452699) == "17.1311453" and number_text(0.0025) == "0.0025"
+
+
+def test_a_whole_number_refused_in_its_box_is_said_in_the_status_bar_with_whole_examples(window, qtbot) -> None:
+    """A trial typed 2.5 into DataWidth: the box flashed red, nothing said why, and an older refusal stayed in the
+    status bar; 'abc' there offered 2.5 as an example of what is taken."""
+    session = window.controller.session
+    type_into(qtbot, window.panel.rows["camera_fov"].box, "190")
+    assert "190" in session.message
+    row = window.panel.rows["data_width"]
+    type_into(qtbot, row.box, "2.5")
+    assert session.config.data_width == 250 and row.box.text() == "250 pts"
+    assert session.message.startswith("2.5 refused: not a whole number; allowed: an integer in [1, 5000]")
+    assert window._error
+    type_into(qtbot, row.box, "abc")
+    assert "only a whole number in pts is taken (as 12 or 1e2)" in session.message
 
 
 def test_the_wheel_over_a_slider_steps_by_the_parameter_s_step(window, qtbot) -> None:

@@ -102,8 +102,9 @@ class TypedTextError(ValueError):
     """Typed text that is not a number of the box's unit: the message says what was wrong and what is taken."""
 
 
-def read_typed(text: str, unit: str) -> float:
-    """The number ``text`` holds: a plain or scientific number, optionally followed by ``unit``.
+def read_typed(text: str, unit: str, whole: bool = False) -> float:
+    """The number ``text`` holds: a plain or scientific number, optionally followed by ``unit`` (``whole``: the
+    parameter takes whole numbers, and the refusal's examples are whole).
 
     Raises
     ------
@@ -116,19 +117,28 @@ def read_typed(text: str, unit: str) -> float:
     if _NUMBER.fullmatch(body):
         return float(body)
     in_unit = f" in {unit}" if unit else ""
-    raise TypedTextError(f"'{text.strip()}' refused: only a number{in_unit} is taken (as 12, 2.5 or 1e1)")
+    examples = "12 or 1e2" if whole else "12, 2.5 or 1e1"
+    kind = "a whole number" if whole else "a number"
+    raise TypedTextError(f"'{text.strip()}' refused: only {kind}{in_unit} is taken (as {examples})")
 
 
 #: Decimals a value box holds and shows at most: enough for any value a user types (12 significant digits of a
 #: value near 100), with the zeros after the last one left out.
 HELD_DECIMALS = 10
+#: Significant digits a value box shows at most.
+SHOWN_DIGITS = 9
 
 
 def number_text(value: float) -> str:
     """``value`` as a value box and the heads-up text show it: plain digits, as many decimals as it has (to
-    :data:`HELD_DECIMALS`), never ``1.095e+04``. A box that showed its parameter's three decimals showed 180 for
-    a typed 179.9999 that the scan used, while 180 itself was refused (issue 45)."""
-    text = f"{value:.{HELD_DECIMALS}f}"
+    :data:`HELD_DECIMALS`, and :data:`SHOWN_DIGITS` significant digits), never ``1.095e+04``. A box that showed
+    its parameter's three decimals showed 180 for a typed 179.9999 that the scan used, while 180 itself was refused
+    (issue 45)."""
+    # Nine significant digits at most: a fitted preset's 4663.99999998 rpm showed its float noise and cut its unit
+    # off (4664 is what it is, to 2e-8).
+    magnitude = math.floor(math.log10(abs(value))) if value else 0
+    decimals = max(0, min(HELD_DECIMALS, SHOWN_DIGITS - 1 - magnitude))
+    text = f"{value:.{decimals}f}"
     if "." in text:
         text = text.rstrip("0").rstrip(".")
     return "0" if text == "-0" else text
@@ -188,6 +198,8 @@ class ValueBox(QtWidgets.QDoubleSpinBox):
         self.setButtonSymbols(QtWidgets.QAbstractSpinBox.ButtonSymbols.UpDownArrows)
         self.setFixedWidth(136)
         self.unit = unit
+        #: Whether the parameter takes whole numbers only (said in a refusal's examples).
+        self.whole = False
         #: What the last commit's text held: a number, a refusal, or None (the text was the value shown).
         self._typed: float | TypedTextError | None = None
         self.setFocusPolicy(QtCore.Qt.FocusPolicy.StrongFocus)  # the wheel does not take the focus
@@ -210,7 +222,7 @@ class ValueBox(QtWidgets.QDoubleSpinBox):
             body = body[len(prefix):] if prefix and body.startswith(prefix) else body
             body = body[: -len(suffix)] if suffix and body.endswith(suffix) else body
             try:
-                self._typed = read_typed(body, self.unit)
+                self._typed = read_typed(body, self.unit, self.whole)
             except TypedTextError as exc:
                 self._typed = exc
         return self.value()  # the box shows what the model holds; the commit decides
@@ -325,6 +337,7 @@ class ParamRow(QtWidgets.QWidget):
         self.slider.setPageStep(SLIDER_STEPS // 20)
         self.slider.setToolTip(tip)
         self.box = ValueBox(value_bounds(name), doc.decimals, doc.step, doc.fine_step, doc.unit)
+        self.box.whole = PARAM_RANGES[name].integer
         self.box.setToolTip(tip)
         self.reset_button = QtWidgets.QToolButton()
         self.reset_button.setText("↺")
@@ -422,8 +435,12 @@ class ParamRow(QtWidgets.QWidget):
         spec = PARAM_RANGES[self.name]
         if value is not None and spec.integer and math.isfinite(value) and not float(value).is_integer():
             # Rounded, "150.5" showed 151 (Qt's rounding) while 150 ran (Python's, half to even).
-            self._refuse(f"{value:g} refused: not a whole number; allowed: {spec.describe()} "
-                         f"{param_doc(self.name).unit}".strip())
+            text = f"{value:g} refused: not a whole number; allowed: {spec.describe()} {param_doc(self.name).unit}"
+            # Said in the status bar too, as every other refusal is (a trial saw only the box flash red, and an
+            # older refusal stay in the status bar).
+            if self._say is not None:
+                self._say(text.strip())
+            self._refuse(text.strip())
             return
         if value is not None and value != self._shown:
             self._ask(value)
