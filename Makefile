@@ -30,15 +30,20 @@ run: venv
 # X servers share one worker (their xdist_group): servers of two workers raced for a display number.
 TEST_WORKERS ?= $(shell $(PYTHON) -c 'import os; print(min(4, max(2, os.cpu_count() or 2)))')
 
+# A worker that crashes (a segmentation fault, or the hang guard of tests/conftest.py ending a stuck test) ends the
+# run with a failure: pytest-xdist's loadgroup scheduler, given a new worker in its place, handed it nothing, and the
+# run waited for ever with every worker idle (how CI's run hung until its 90 minutes).
+XDIST := -n $(TEST_WORKERS) --dist loadgroup --max-worker-restart=0
+
 test: venv
-	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadgroup
+	$(BIN)/python -m pytest $(XDIST)
 
 # The model's numbers again as another CPU would compute them (another OpenBLAS kernel family, numba for a generic
 # CPU): a test that holds only by this machine's rounding fails here, not on a user's machine. Only the tests marked
 # `arithmetic` (tests/conftest.py): the window, messages and signals do not change with a CPU. CI runs it after
 # `make test`.
 test-other-cpu: venv
-	$(BIN)/python scripts/other_cpu.py -q -n $(TEST_WORKERS) --dist loadgroup -m arithmetic
+	$(BIN)/python scripts/other_cpu.py -q $(XDIST) -m arithmetic
 
 lint: venv
 	$(BIN)/ruff check livox_viz widgets tests benchmarks

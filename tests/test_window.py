@@ -60,9 +60,19 @@ def _windows_destroyed_in_their_own_test(qtbot):
     process died there (a segmentation fault in the event loop while the next window was set up)."""
     import gc
 
-    from qtpy import QtCore
+    import shiboken6
+    from livox_viz.widgets.mainwindow import MainWindow
+    from qtpy import QtCore, QtWidgets
 
     yield
+    # Each window destroyed here, at once, while this holds its Python object, and through PySide's parent links
+    # every child's: a full run died (a segmentation fault in Shiboken's releaseWrapper) while Qt's deferred
+    # delete destroyed a window's widget tree, a child's wrapper already gone.
+    held = [widget for widget in QtWidgets.QApplication.topLevelWidgets() if isinstance(widget, MainWindow)]
+    for widget in held:
+        if shiboken6.isValid(widget):
+            shiboken6.delete(widget)
+    del held
     QtCore.QCoreApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete.value)
     gc.collect()
     QtCore.QCoreApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete.value)
