@@ -1783,3 +1783,32 @@ def test_after_a_restart_the_heap_s_free_pages_go_back_to_the_system_once(window
     assert window.memory_trims == trims + 1 and sys.platform.startswith("linux")
     qtbot.wait(1500)
     assert window.memory_trims == trims + 1  # nothing restarted since: no second trim
+
+
+def test_a_double_click_gives_a_view_the_whole_row_and_the_charts_can_go(window, qtbot) -> None:
+    """Issue 45: the scene view got about 300 of 1,600 px; RViz and CloudCompare users maximise a view. A
+    double-click on a view gives it the row, another brings every view back; View > Charts hides the charts."""
+    from qtpy import QtCore, QtGui, QtWidgets
+
+    def double_click(widget) -> None:
+        centre = QtCore.QPointF(widget.width() / 2, widget.height() / 2)
+        event = QtGui.QMouseEvent(QtCore.QEvent.Type.MouseButtonDblClick, centre, widget.mapToGlobal(centre),
+                                  QtCore.Qt.MouseButton.LeftButton, QtCore.Qt.MouseButton.LeftButton,
+                                  QtCore.Qt.KeyboardModifier.NoModifier)
+        QtWidgets.QApplication.sendEvent(widget, event)
+        qtbot.wait(50)
+
+    scene = window.interactors["scene"]
+    narrow = scene.width()
+    double_click(scene)
+    assert window.maximised == "scene"
+    assert [name for name, view in window.interactors.items() if view.isVisible()] == ["scene"]
+    qtbot.waitUntil(lambda: scene.width() > 0.9 * window.splitter.width())
+    assert scene.width() > 2 * narrow and "maximised" in window.controller.session.message
+    double_click(scene)
+    assert window.maximised is None and all(view.isVisible() for view in window.interactors.values())
+    window.charts_action.trigger()
+    assert not window.interactors["charts"].isVisible() and window.interactors["scene"].isVisible()
+    qtbot.waitUntil(lambda: window.interactors["pattern"].width() + scene.width() > 0.95 * window.splitter.width())
+    window.charts_action.trigger()
+    assert window.interactors["charts"].isVisible()

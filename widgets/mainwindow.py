@@ -497,6 +497,12 @@ class MainWindow(QtWidgets.QMainWindow):
         self.dock_action = self.dock.toggleViewAction()
         self.dock_action.setText("Parameter panel")
         view.addAction(self.dock_action)
+        # The charts can go, giving their room to the views; double-clicking a view gives it the whole row (again:
+        # the row back), as ParaView and CloudCompare do: the scene view had about 300 of 1,600 px (issue 45).
+        self.charts_action = self._action(view, "Charts", self.toggle_charts, checkable=True)
+        self.charts_action.setChecked(True)
+        self._action(view, "Maximise the view under the mouse / all views (double-click a view)",
+                     self._maximise_hovered)
 
         play = bar.addMenu("&Playback")
         self._action(play, "Play / pause", c.toggle_pause)
@@ -719,10 +725,48 @@ class MainWindow(QtWidgets.QMainWindow):
         return False
 
     def eventFilter(self, watched: QtCore.QObject, event: QtCore.QEvent) -> bool:
-        """Counts the application's input events (see :meth:`_resting`); never takes one."""
+        """Counts the application's input events (see :meth:`_resting`), and a double-click on a view maximises it
+        (or brings the others back); never takes an event."""
         if event.type() in _INPUT_EVENTS:
             self._inputs += 1
+            if event.type() == QtCore.QEvent.Type.MouseButtonDblClick and watched in self.interactors.values():
+                self.toggle_maximised(watched)
         return False
+
+    @property
+    def maximised(self) -> str | None:
+        """The view that has the whole row (its name), or None when every view shown has its share."""
+        shown = [name for name, view in self.interactors.items() if not view.isHidden()]
+        return shown[0] if len(shown) == 1 and len(self.interactors) > 1 else None
+
+    def toggle_maximised(self, view: QtWidgets.QWidget) -> None:
+        """``view`` alone in the row, or, when it already is, every view back (the charts as the menu says)."""
+        name = next(name for name, widget in self.interactors.items() if widget is view)
+        if self.maximised == name:
+            for other, widget in self.interactors.items():
+                widget.setVisible(other != "charts" or self.charts_action.isChecked())
+            self.say("every view back (double-click a view to give it the whole row)")
+        else:
+            for other, widget in self.interactors.items():
+                widget.setVisible(other == name)
+            self.say(f"the {name} view maximised (double-click it again for every view)")
+
+    def _maximise_hovered(self) -> None:
+        """The menu's way to :meth:`toggle_maximised`: the view under the mouse, else the scene view."""
+        under = QtWidgets.QApplication.widgetAt(QtGui.QCursor.pos())
+        view = next((widget for widget in self.interactors.values()
+                     if under is not None and (under is widget or widget.isAncestorOf(under))),
+                    self.interactors.get("scene"))
+        if view is not None:
+            self.toggle_maximised(view)
+
+    def toggle_charts(self) -> None:
+        """Hide the charts (their room goes to the other views) or show them again."""
+        shown = self.charts_action.isChecked()
+        charts = self.interactors.get("charts")
+        if charts is not None and self.maximised is None:
+            charts.setVisible(shown)
+        self.say("charts shown" if shown else "charts hidden (View > Charts shows them)")
 
     def _follow_view_sizes(self) -> None:
         """Refit the pattern view when its size changed (the window or a splitter moved): the field of view stays
