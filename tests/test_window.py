@@ -60,20 +60,25 @@ def _windows_destroyed_in_their_own_test(qtbot):
     process died there (a segmentation fault in the event loop while the next window was set up)."""
     import gc
 
-    import shiboken6
+    from livox_viz.widgets.collector import destroy_widget_tree
     from livox_viz.widgets.mainwindow import MainWindow
     from qtpy import QtCore, QtWidgets
 
     yield
-    # Each window destroyed here, at once, while this holds its Python object, and through PySide's parent links
-    # every child's: a full run died (a segmentation fault in Shiboken's releaseWrapper) while Qt's deferred
-    # delete destroyed a window's widget tree, a child's wrapper already gone.
+    # Each window destroyed here, at once, while this holds its Python object, and with nothing collected midway
+    # (widgets/collector.py's destroy_widget_tree): a full run died (a segmentation fault in Shiboken's
+    # releaseWrapper) while Qt's deferred delete destroyed a window's widget tree, a child's wrapper already gone.
     held = [widget for widget in QtWidgets.QApplication.topLevelWidgets() if isinstance(widget, MainWindow)]
     for widget in held:
-        if shiboken6.isValid(widget):
-            shiboken6.delete(widget)
+        destroy_widget_tree(widget)
     del held
-    QtCore.QCoreApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete.value)
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        QtCore.QCoreApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete.value)
+    finally:
+        if enabled:
+            gc.enable()
     gc.collect()
     QtCore.QCoreApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete.value)
 
@@ -1812,3 +1817,24 @@ def test_a_double_click_gives_a_view_the_whole_row_and_the_charts_can_go(window,
     qtbot.waitUntil(lambda: window.interactors["pattern"].width() + scene.width() > 0.95 * window.splitter.width())
     window.charts_action.trigger()
     assert window.interactors["charts"].isVisible()
+
+
+def test_a_widget_tree_is_destroyed_with_nothing_collected_midway(qapp) -> None:
+    """A full run died in Shiboken's releaseWrapper while Qt destroyed a closed window's widget tree: a
+    collection started midway by an allocation in a child's destructor can free a wrapper C++ destroys next.
+    destroy_widget_tree destroys the whole tree at once with automatic collection off, and gives it back."""
+    import gc
+
+    from livox_viz.widgets.collector import destroy_widget_tree
+    from qtpy import QtWidgets
+
+    top = QtWidgets.QWidget()
+    seen: list[bool] = []
+    children = [QtWidgets.QWidget(top) for _ in range(3)]
+    for child in children:
+        child.destroyed.connect(lambda *_: seen.append(gc.isenabled()))
+    del children
+    assert gc.isenabled()
+    destroy_widget_tree(top)
+    assert seen == [False, False, False] and gc.isenabled()
+    destroy_widget_tree(top)  # already gone: nothing to do

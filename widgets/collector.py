@@ -70,3 +70,24 @@ def give_back_free_memory() -> bool:
     trim.argtypes = [ctypes.c_size_t]
     trim(0)
     return True
+
+
+def destroy_widget_tree(widget: object) -> None:
+    """Destroy a Qt widget and all its children now, Python's automatic collection off meanwhile.
+
+    A full test run died (a segmentation fault in Shiboken's ``releaseWrapper``) while Qt destroyed a closed
+    window's widget tree: each child's destructor calls back into Python, an allocation there can start a
+    collection in the middle of the tree's destruction, and a cycle of wrappers collected then (a row and the
+    lambda its slider calls) leaves a child that C++ destroys next with a wrapper already freed (KLayout's Qt
+    binding met the same, its issue 1054). Nothing is collected until the whole tree is gone.
+    """
+    import shiboken6
+
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        if shiboken6.isValid(widget):
+            shiboken6.delete(widget)
+    finally:
+        if enabled:
+            gc.enable()

@@ -41,7 +41,7 @@ from livox_viz.config.sensor import save_config
 
 from . import files
 from .app import VIEW_NAMES, LivoxVizApp, quiet_vtk
-from .collector import MainThreadCollector, give_back_free_memory
+from .collector import MainThreadCollector, destroy_widget_tree, give_back_free_memory
 from .keys import KEYS, help_html
 from .nonerefs import NoneReserve, binding_drops_none
 from .overlay import WINDOWS, PresetSource, TableSource, window_label
@@ -1237,4 +1237,6 @@ def run_window(session: Session, size: tuple[int, int], stop: Callable[[], bool]
     app = application()
     window = MainWindow(session, size=size, stop=stop, warmer=warmer)
     window.show()
-    return int(app.exec())
+    status = int(app.exec())
+    destroy_widget_tree(window)  # now, with nothing collected midway: see widgets/collector.py
+    return status
