@@ -49,4 +49,4 @@ def test_a_crashed_worker_ends_the_run_with_a_failure_naming_its_test(tmp_path: 
     assert time.monotonic() - started < 120
     assert re.search(r"crashed while running '.*test_crash.py::test_that_crashes'", run.stdout), run.stdout[-3000:]
     assert re.search(r"worker gw\d crashed and worker restarting disabled", run.stdout)
-    assert re.search(r"=+ 1 failed, \d+ passed in ", run.stdout), run.stdout[-3000:]
+    assert re.search(r"=+ 1 failed, \d+ passed[ ,]", run.stdout), run.stdout[-3000:]  # (", 3 warnings": CI's dash)
