@@ -60,7 +60,7 @@ def _windows_destroyed_in_their_own_test(qtbot):
     process died there (a segmentation fault in the event loop while the next window was set up)."""
     import gc
 
-    from livox_viz.widgets.collector import destroy_widget_tree
+    from livox_viz.widgets.collector import collection_paused, destroy_widget_tree
     from livox_viz.widgets.mainwindow import MainWindow
     from qtpy import QtCore, QtWidgets
 
@@ -72,13 +72,8 @@ def _windows_destroyed_in_their_own_test(qtbot):
     for widget in held:
         destroy_widget_tree(widget)
     del held
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
+    with collection_paused():
         QtCore.QCoreApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete.value)
-    finally:
-        if enabled:
-            gc.enable()
     gc.collect()
     QtCore.QCoreApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete.value)
 

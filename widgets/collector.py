@@ -16,6 +16,8 @@ collection is turned off while the window runs and the window's tick collects wh
 from __future__ import annotations
 
 import gc
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 
 class MainThreadCollector:
@@ -83,11 +85,18 @@ def destroy_widget_tree(widget: object) -> None:
     """
     import shiboken6
 
+    with collection_paused():
+        if shiboken6.isValid(widget):
+            shiboken6.delete(widget)
+
+
+@contextmanager
+def collection_paused() -> Iterator[None]:
+    """Python's automatic collection off inside the block, given back as it was after it."""
     enabled = gc.isenabled()
     gc.disable()
     try:
-        if shiboken6.isValid(widget):
-            shiboken6.delete(widget)
+        yield
     finally:
         if enabled:
             gc.enable()

@@ -712,12 +712,12 @@ class MainWindow(QtWidgets.QMainWindow):
         session = self.controller.session
         warmer = self.warmer
         if not (self._playing_allowed and session.playback.paused) or self._jobs or self._pending \
-                or session._filling_to is not None or (warmer is not None and not warmer.is_ready(warmer.now)):
+                or session.filling is not None or (warmer is not None and not warmer.is_ready(warmer.now)):
             self._rest_signature = None
             return False
         # The rings' counts: casts finished after the pause still come in (and the time window drops old points).
         signature = (session.scan_number, session.scan_time, id(session.config), session.message, self._inputs,
-                     self.size().toTuple(), tuple(self.splitter.sizes()), self._error_text, session.filling,
+                     self.size().toTuple(), tuple(self.splitter.sizes()), self._error_text,
                      session.pattern_ring.count, session.scene_ring.count)
         if signature == self._rest_signature:
             return True
