@@ -78,10 +78,12 @@ def test_the_horizon_table_is_fitted_with_orders_of_both_signs() -> None:
     orders = {term[swinging] for term in params.terms}
     assert {1, -1, 3, -3} <= orders  # lines at +f and -f: the part swings
     assert fit.rms_deg <= 0.01 and fit.max_deg <= 0.02 and fit.rms_per_laser_deg.max() <= 0.01
-    # Against the table, independently: each row's ray from its [theta, phi] against the model's ray.
+    # Against the table, independently: each row's ray from its [theta, phi] against the model's ray, the rows
+    # turned 180 degrees about the boresight as the tables' index says (a real Horizon's lasers run that way).
     raw = np.load(Path(__file__).resolve().parent.parent / "presets" / "tables" / "horizon.npy").astype(float)
     model = track_xy(params, table.t, np.arange(len(table.t)) % 6)
-    distance = angle_deg(frd_rays(raw[:, 0], raw[:, 1]), directions_from_xy(model))
+    assert table.image == "turned 180 degrees"
+    distance = angle_deg(frd_rays(raw[:, 0], raw[:, 1]) * [1.0, -1.0, -1.0], directions_from_xy(model))
     assert math.sqrt(np.mean(distance**2)) == pytest.approx(fit.rms_deg, rel=0.05)
 
 
@@ -310,11 +312,12 @@ def test_density_rings_hold_the_solid_angle_inside_the_field_of_view() -> None:
 
 
 def test_panorama_rays_are_the_tables_own_at_the_wrap_and_the_edges() -> None:
-    """The Mid-360's stream in the azimuth/elevation plane casts the table's own rays, across +-180 too."""
+    """The Mid-360's stream in the azimuth/elevation plane casts the table's own rays, across +-180 too: the
+    table's mirrored left-right (its y negated), as a real Mid-360 turns the other way round."""
     config = load_preset("livox_mid360")
     raw = np.load(PRESETS / "tables" / "mid360.npy").astype(float)
     ours = directions_from_xy(make_pattern(config).take(len(raw)).xy_deg, config.pattern_plane)
-    theirs = frd_rays(raw[:, 0], raw[:, 1])
+    theirs = frd_rays(raw[:, 0], raw[:, 1]) * [1.0, -1.0, 1.0]
     azimuth = np.degrees(raw[:, 0])
     elevation = np.degrees(raw[:, 1])
     boundary = ((np.abs(azimuth - 180) < 1) | (azimuth < 1) | (azimuth > 359) | (elevation < -6.5)

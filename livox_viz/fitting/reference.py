@@ -31,7 +31,7 @@ import numpy as np
 from livox_viz.config.presets import shipped_preset_dir
 from livox_viz.core.errors import LivoxVizError, require_file
 from livox_viz.core.textfile import ENCODINGS, decode_text
-from livox_viz.fitting.table import ReferencePattern
+from livox_viz.fitting.table import PLANE_IMAGES, ReferencePattern
 from livox_viz.patterns.planes import frd_from_zup, xy_from_directions
 
 #: The file forms a table may come in.
@@ -79,7 +79,8 @@ def shipped_table_dir() -> Path:
 
 def shipped_tables() -> dict[str, dict[str, Any]]:
     """The shipped tables by name (``mid40``, ...): each with its ``rate`` (rows/s), ``sensor``, ``preset`` (the
-    sensor's shipped preset) and a ``description``."""
+    sensor's shipped preset), a ``description``, and the ``image`` of the printed rows that is the real sensor's
+    pattern (a key of :data:`~livox_viz.fitting.table.PLANE_IMAGES`) with its ``image_evidence``."""
     try:
         index = json.loads((shipped_table_dir() / "index.json").read_text(encoding="utf-8"))
     except (OSError, json.JSONDecodeError):
@@ -163,9 +164,12 @@ class _FileRows:
 def _as_pattern(table: _FileRows, name: str, rate: float, source: str, slots: np.ndarray | None = None,
                 shipped: str = "") -> ReferencePattern:
     xy, plane = xy_from_zup(table.azimuth, table.elevation)
+    # Some of Livox's tables are mirror images of what the hardware does: their rows are turned as the index says.
+    image = shipped_tables()[shipped].get("image", "as printed") if shipped else "as printed"
+    xy *= np.array(PLANE_IMAGES[image], dtype=np.float64)
     count = xy.shape[0]
     t = (np.arange(count, dtype=np.float64) if slots is None else slots.astype(np.float64)) / rate
-    return ReferencePattern(name, xy, t, float(rate), plane, source, shipped)
+    return ReferencePattern(name, xy, t, float(rate), plane, source, shipped, image)
 
 
 def _read_file(path: Path) -> _FileRows:

@@ -21,6 +21,16 @@ import numpy as np
 from livox_viz.config.fov import FieldOfView
 from livox_viz.core.errors import LivoxVizError
 
+#: The four mirror images of a pattern: the signs of its (x, y) in the pattern plane (x to the right, y up).
+#: Livox's simulation tables of some heads are images of the real sensor's pattern (found by fitting frames the
+#: hardware recorded, :mod:`~livox_viz.fitting.recording_fit`); the shipped tables' index says which.
+PLANE_IMAGES: dict[str, tuple[int, int]] = {
+    "as printed": (1, 1),
+    "mirrored left-right": (-1, 1),
+    "mirrored top-bottom": (1, -1),
+    "turned 180 degrees": (-1, -1),
+}
+
 #: A table whose rows all lie within this many degrees of one direction does not scan.
 STILL_DEG = 1e-3
 
@@ -46,6 +56,9 @@ class ReferencePattern:
         "read off the spectrum: ...").
     shipped : str
         The shipped table this one is or begins as (its name in ``presets/tables/index.json``), else "".
+    image : str
+        How the rows as printed were turned to be the real sensor's (a key of :data:`PLANE_IMAGES`; the
+        shipped tables' index says it for each head, "as printed" for any other table).
     """
 
     name: str
@@ -55,6 +68,7 @@ class ReferencePattern:
     plane: str = "boresight"
     rate_source: str = "given"
     shipped: str = ""
+    image: str = "as printed"
 
     @property
     def alpha_deg(self) -> np.ndarray:

@@ -1,0 +1,401 @@
+"""A preset's track fitted to a frame recorded by a real sensor: phases, clocks, handedness and laser order.
+
+A scan table says where Livox's simulation points the lasers; a recording says
+where the hardware did. Their disagreements are whole symmetries, which a fit of
+the table alone cannot see: a track mirrored left-right, lasers numbered in the
+reverse order, an azimuth that turns the other way. This module takes one
+frame recorded in firing order (row i fired at about ``t0 + i / rate``, a
+no-return kept in its place) and a head's series track (``LivoxVizRisley`` or
+``LivoxVizTrack``), and finds, by search then least squares:
+
+- which of the track's four mirror images the recording is (as printed, mirrored
+  left-right, mirrored top-bottom, turned 180 degrees about the boresight),
+  and whether its lasers fire in the track's order or the reverse;
+- which laser the recording's first row is;
+- the phases of the track's two base motions at the first row;
+- each base motion's speed against the firing clock (a real sensor's motors and
+  clock are not exactly nominal: about 1,500 ppm on a Tele-15).
+
+Its residual is the angle between each returned row and the fitted track's
+sample at the same firing, as the median of each :data:`WINDOW_SECONDS`
+window. A fit is only reported when it is far better than the same track at
+random phases (:data:`NOISE_RATIO`): a frame from another head, with its rows
+sorted, or with almost no returns is refused, not fitted to noise.
+
+The mirror images of a series ``w = sum_j c_j exp(i (m_j A + l_j B))`` are
+exact transforms of its parameters (the pattern's x is to the right, y up):
+left-right ``x -> -x`` is ``c -> -conj(c)`` with both base frequencies and
+phases negated; top-bottom ``y -> -y`` is ``c -> conj(c)`` with the same
+negations; turned 180 degrees is ``c -> -c``. For a spin track (the azimuth is
+``degrees(A) + Re w``) the same transforms hold, the azimuth turning the other
+way with a negated f_A.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from livox_viz.config.sensor import SERIES_MODELS, SensorConfig
+from livox_viz.core.errors import LivoxVizError
+from livox_viz.fitting.table import PLANE_IMAGES
+from livox_viz.patterns.planes import angle_between_deg, xy_from_directions
+
+#: The residual is reported as the median angle in windows of this many seconds.
+WINDOW_SECONDS = 0.002
+#: A fit is refused unless its median residual is at most this fraction of the same track's at random phases.
+NOISE_RATIO = 0.25
+#: Fewest returned rows a recording needs (a tenth of a 10 Hz frame of the slowest head).
+MIN_RETURNS = 1_000
+#: The mirror images, in the order they are tried: the (x, y) sign flips of the pattern plane.
+IMAGES = PLANE_IMAGES
+#: Laser orders tried: the track's own, and the reverse.
+ORDERS: tuple[str, ...] = ("as the track's", "reversed")
+#: Seconds of the recording the first, coarse phase search looks at (the clocks' drift is small within it).
+COARSE_SECONDS = 0.006
+#: Rows the coarse search compares, at most; rows the least-squares refinement uses, at most.
+COARSE_ROWS = 240
+REFINE_ROWS = 6_000
+#: Random phase pairs the noise baseline is the median over.
+NOISE_DRAWS = 24
+#: A coarse distance above this many degrees counts as this many (one wild row must not outweigh the rest).
+CAP_DEG = 3.0
+
+
+@dataclass(frozen=True)
+class RecordedFrame:
+    """One frame of a real sensor in firing order.
+
+    Parameters
+    ----------
+    name : str
+    directions : (n, 3) float64
+        Each row's direction in the sensor's FRD frame (x forward, y right, z down), any length; a no-return
+        row's is ``(0, 0, 0)``.
+    t : (n,) float64, optional
+        Each row's time from the first row, seconds, when the file says it (a driver's per-point offset
+        time). Default: row i at ``i / rate``, ``rate`` the head's nominal rate.
+    """
+
+    name: str
+    directions: np.ndarray
+    t: np.ndarray | None = None
+
+    @property
+    def returned(self) -> np.ndarray:
+        """``(n,)`` bool: the rows with a return."""
+        return np.any(self.directions != 0.0, axis=1)
+
+    @property
+    def rows(self) -> int:
+        """Rows, returned or not."""
+        return int(self.directions.shape[0])
+
+
+@dataclass(frozen=True)
+class _Series:
+    """A track as the fit moves it: base frequencies and phases, terms, per-laser coefficients, the spin."""
+
+    base_hz: np.ndarray
+    phase_rad: np.ndarray
+    order_a: np.ndarray
+    order_b: np.ndarray
+    coefficients: np.ndarray
+    spin: bool
+
+    def image(self, signs: tuple[int, int], reverse: bool, first_laser: int) -> _Series:
+        """The series mirrored by ``signs``, its lasers reversed, relabelled to start at ``first_laser``."""
+        flip = signs[0] * signs[1] < 0
+        return dataclasses.replace(self, base_hz=-self.base_hz if flip else self.base_hz,
+                                   phase_rad=-self.phase_rad if flip else self.phase_rad,
+                                   coefficients=imaged_coefficients(self.coefficients, signs, reverse, first_laser))
+
+
+    def xy(self, t: np.ndarray, laser: np.ndarray, shift: Sequence[float] = (0.0, 0.0),
+           ppm: Sequence[float] = (0.0, 0.0)) -> np.ndarray:
+        """``(n, 2)`` degrees: the series at times ``t`` (seconds) for ``laser``, its phases moved by ``shift``
+        (radians) and its base speeds by ``ppm``."""
+        a = 2.0 * np.pi * self.base_hz[0] * (1.0 + 1e-6 * ppm[0]) * t + self.phase_rad[0] + shift[0]
+        b = 2.0 * np.pi * self.base_hz[1] * (1.0 + 1e-6 * ppm[1]) * t + self.phase_rad[1] + shift[1]
+        w = np.einsum("nj,nj->n", self.coefficients[laser],
+                      np.exp(1j * (np.outer(a, self.order_a) + np.outer(b, self.order_b))))
+        xy = np.column_stack([w.real, w.imag])
+        if self.spin:
+            xy[:, 0] += np.degrees(a)
+            xy[:, 0] = (xy[:, 0] + 180.0) % 360.0 - 180.0
+        return xy
+
+
+def imaged_coefficients(c: np.ndarray, signs: tuple[int, int], reverse: bool, first_laser: int) -> np.ndarray:
+    """``(K, J)`` complex: a series' coefficients mirrored by ``signs`` (with its base motions negated when the
+    image is a reflection), its lasers reversed and relabelled to start at ``first_laser``."""
+    if signs[0] * signs[1] < 0:
+        # A reflection: the conjugate runs every term backwards in time (the base motions are negated with it).
+        c = np.conj(c)
+    if signs[0] < 0:
+        c = -c
+    if reverse:
+        c = c[::-1]
+    return np.roll(c, -first_laser, axis=0)
+
+
+def _series_of(config: SensorConfig) -> _Series:
+    if config.pattern_model not in SERIES_MODELS:
+        raise LivoxVizError(f"{config.name or 'this configuration'} has the {config.pattern_model!r} pattern, "
+                            "which has no fixed track to fit a recording to; allowed: a preset with a series "
+                            "track (risley or track: livox_tele15, livox_horizon, livox_mid360, ...)")
+    if config.pattern_model == "risley":
+        params = config.risley
+        base, phase = params.prism_hz, params.phase_rad
+        spin = False
+    else:
+        params = config.track
+        base, phase = params.base_hz, params.phase_rad
+        spin = params.form == "spin"
+    terms = np.array(params.terms, dtype=np.int64)
+    return _Series(np.array(base, dtype=np.float64), np.array(phase, dtype=np.float64), terms[:, 0].astype(float),
+                   terms[:, 1].astype(float), np.array(params.coefficients, dtype=np.complex128), spin)
+
+
+@dataclass(frozen=True)
+class RecordingFit:
+    """What a recording says of a head's track.
+
+    Parameters
+    ----------
+    config : SensorConfig
+        The head's configuration with its track made the recording's: mirrored and reordered as found, its
+        phases the recording's at its first row (which is laser 0), its base speeds the recording's.
+    image : str
+        Which of :data:`IMAGES` the recording is of the track as it was.
+    laser_order : str
+        One of :data:`ORDERS`.
+    first_laser : int
+        The track's laser (as it was) that fired the recording's first row.
+    ppm : tuple of 2 float
+        Each base motion's speed against the nominal, parts per million.
+    window_start_s : (w,) float64
+        Each residual window's start, seconds from the first row.
+    window_median_deg : (w,) float64
+        Median angle between each returned row and the fitted track's sample in the window, degrees.
+    window_aligned_deg : (w,) float64
+        The same with the track's phases aligned again in each window (its clocks and speeds as fitted):
+        how well the track's shape matches, apart from the motors' drift within the frame.
+    median_deg : float
+        Median over all returned rows, degrees.
+    random_median_deg : float
+        The same track at random phases (the best image and order), degrees: what noise scores.
+    returns : int
+        Returned rows.
+    no_return_share : float
+        Share of rows with no return.
+    seconds : float
+        Time the fit took, wall clock.
+    """
+
+    config: SensorConfig
+    image: str
+    laser_order: str
+    first_laser: int
+    ppm: tuple[float, float]
+    window_start_s: np.ndarray
+    window_median_deg: np.ndarray
+    window_aligned_deg: np.ndarray
+    median_deg: float
+    random_median_deg: float
+    returns: int
+    no_return_share: float
+    seconds: float
+
+
+def recorded_xy(frame: RecordedFrame, plane: str) -> np.ndarray:
+    """``(n, 2)`` degrees: the frame's rows in a pattern plane (no-return rows are meaningless there)."""
+    return xy_from_directions(frame.directions, plane)
+
+
+def _distance(model: np.ndarray, measured: np.ndarray, spin: bool) -> np.ndarray:
+    """Degrees between pattern points, about (the azimuth wrapped and shortened by the elevation for a spin)."""
+    dx = model[..., 0] - measured[..., 0]
+    if spin:
+        dx = (dx + 180.0) % 360.0 - 180.0
+        dx = dx * np.cos(np.radians(measured[..., 1]))
+    return np.hypot(dx, model[..., 1] - measured[..., 1])
+
+
+def _coarse(series: _Series, t: np.ndarray, laser: np.ndarray, measured: np.ndarray, steps_a: int,
+            steps_b: int) -> tuple[float, float, float]:
+    """The best phase shift on a grid: (capped mean distance, shift A, shift B)."""
+    a0 = 2.0 * np.pi * series.base_hz[0] * t + series.phase_rad[0]
+    b0 = 2.0 * np.pi * series.base_hz[1] * t + series.phase_rad[1]
+    rows = series.coefficients[laser] * np.exp(1j * (np.outer(a0, series.order_a) + np.outer(b0, series.order_b)))
+    grid_a = np.arange(steps_a) * (2.0 * np.pi / steps_a)
+    grid_b = np.arange(steps_b) * (2.0 * np.pi / steps_b)
+    turn_b = np.exp(1j * np.outer(series.order_b, grid_b))
+    best = (math.inf, 0.0, 0.0)
+    for shift_a in grid_a:
+        w = (rows * np.exp(1j * series.order_a * shift_a)[None, :]) @ turn_b
+        x = w.real
+        if series.spin:
+            x = x + np.degrees(a0 + shift_a)[:, None]
+            x = (x + 180.0) % 360.0 - 180.0
+        model = np.stack([x, w.imag], axis=-1)
+        score = np.minimum(_distance(model, measured[:, None, :], series.spin), CAP_DEG).mean(axis=0)
+        k = int(np.argmin(score))
+        if score[k] < best[0]:
+            best = (float(score[k]), float(shift_a), float(grid_b[k]))
+    return best
+
+
+def _refine(series: _Series, t: np.ndarray, laser: np.ndarray, measured: np.ndarray,
+            start: Sequence[float]) -> np.ndarray:
+    """Least squares on (shift A, shift B, ppm A, ppm B), robust to the rows that hit something odd."""
+    from scipy.optimize import least_squares
+
+    cos_el = np.cos(np.radians(measured[:, 1])) if series.spin else 1.0
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        model = series.xy(t, laser, x[:2], x[2:])
+        dx = model[:, 0] - measured[:, 0]
+        if series.spin:
+            dx = ((dx + 180.0) % 360.0 - 180.0) * cos_el
+        return np.concatenate([dx, model[:, 1] - measured[:, 1]])
+
+    solution = least_squares(residual, np.asarray(start, dtype=np.float64), loss="soft_l1", f_scale=0.05,
+                             x_scale=np.array([1e-3, 1e-3, 10.0, 10.0]))
+    return solution.x
+
+
+def _aligned_median(series: _Series, t: np.ndarray, laser: np.ndarray, measured: np.ndarray, x: np.ndarray,
+                    plane: str) -> float:
+    """Median angle in one window after its phases alone are fitted again (degrees)."""
+    from scipy.optimize import least_squares
+
+    if t.size < 8:
+        return math.nan
+    cos_el = np.cos(np.radians(measured[:, 1])) if series.spin else 1.0
+
+    def residual(shift: np.ndarray) -> np.ndarray:
+        model = series.xy(t, laser, shift, x[2:])
+        dx = model[:, 0] - measured[:, 0]
+        if series.spin:
+            dx = ((dx + 180.0) % 360.0 - 180.0) * cos_el
+        return np.concatenate([dx, model[:, 1] - measured[:, 1]])
+
+    shift = least_squares(residual, x[:2], loss="soft_l1", f_scale=0.05, x_scale=1e-3).x
+    return float(np.median(angle_between_deg(series.xy(t, laser, shift, x[2:]), measured, plane)))
+
+
+def _spread_rows(indices: np.ndarray, count: int) -> np.ndarray:
+    """At most ``count`` of ``indices``, evenly spread."""
+    if indices.size <= count:
+        return indices
+    return indices[np.linspace(0, indices.size - 1, count).astype(np.int64)]
+
+
+def fit_recording(config: SensorConfig, frame: RecordedFrame, images: Sequence[str] = tuple(IMAGES),
+                  orders: Sequence[str] = ORDERS, seed: int = 0) -> RecordingFit:
+    """Fit a head's track to one recorded frame (see the module's docstring).
+
+    Parameters
+    ----------
+    config : SensorConfig
+        The head (a series-track preset).
+    frame : RecordedFrame
+        Its rows in firing order.
+    images, orders : sequence of str
+        The mirror images (:data:`IMAGES`) and laser orders (:data:`ORDERS`) to try.
+    seed : int
+        Seed of the random phases of the noise baseline.
+
+    Raises
+    ------
+    LivoxVizError
+        A configuration with no series track, too few returns, or a fit no better than random phases.
+    """
+    started = time.perf_counter()
+    series = _series_of(config)
+    plane = config.pattern_plane
+    returned = frame.returned
+    returns = int(returned.sum())
+    if returns < MIN_RETURNS:
+        raise LivoxVizError(f"{frame.name}: {returns:,} of its {frame.rows:,} rows have a return; allowed: at "
+                            f"least {MIN_RETURNS:,} (a frame of a scan in firing order, no-returns as (0, 0, 0))")
+    rate = float(config.point_rate)
+    t = frame.t if frame.t is not None else np.arange(frame.rows, dtype=np.float64) / rate
+    measured = recorded_xy(frame, plane)
+    lasers = series.coefficients.shape[0]
+    row_laser = np.arange(frame.rows) % lasers
+    index = np.flatnonzero(returned)
+    early = _spread_rows(index[t[index] <= t[index[0]] + COARSE_SECONDS], COARSE_ROWS)
+    steps_a = max(48, int(8 * np.abs(series.order_a).max()) + (90 if series.spin else 0))
+    steps_b = max(48, int(8 * np.abs(series.order_b).max()))
+    candidates = []
+    # A spin track's azimuth is degrees(A) + Re w: only its left-right image is a track of the same form.
+    images = [image for image in images if not series.spin or IMAGES[image][1] == 1]
+    for image in images:
+        for order in orders:
+            for first in range(lasers):
+                moved = series.image(IMAGES[image], order == "reversed", first)
+                score, shift_a, shift_b = _coarse(moved, t[early], row_laser[early], measured[early], steps_a,
+                                                  steps_b)
+                candidates.append((score, image, order, first, moved, (shift_a, shift_b)))
+    candidates.sort(key=lambda c: c[0])
+    refine_rows = _spread_rows(index, REFINE_ROWS)
+    best = None
+    for _score, image, order, first, moved, shift in candidates[:3]:
+        x = _refine(moved, t[early], row_laser[early], measured[early], [*shift, 0.0, 0.0])
+        x = _refine(moved, t[refine_rows], row_laser[refine_rows], measured[refine_rows], x)
+        model = moved.xy(t[index], row_laser[index], x[:2], x[2:])
+        angle = angle_between_deg(model, measured[index], plane)
+        median = float(np.median(angle))
+        if best is None or median < best[0]:
+            best = (median, image, order, first, moved, x, angle)
+    median, image, order, first, moved, x, angle = best
+    rng = np.random.default_rng(seed)
+    noise = [float(np.median(angle_between_deg(moved.xy(t[refine_rows], row_laser[refine_rows],
+                                                        rng.uniform(0, 2 * np.pi, 2), x[2:]),
+                                               measured[refine_rows], plane))) for _ in range(NOISE_DRAWS)]
+    random_median = float(np.median(noise))
+    if median > NOISE_RATIO * random_median:
+        raise LivoxVizError(f"{frame.name}: the best fit of {config.name or 'the head'}'s track leaves a median "
+                            f"{median:.3g} deg, and random phases {random_median:.3g} deg: the recording is not "
+                            "this head's scan in firing order (another head, rows sorted or deduplicated, or "
+                            "too few returns); allowed: one frame of this head, rows in firing order with "
+                            "no-returns kept as (0, 0, 0)")
+    window = np.floor((t[index] - t[0]) / WINDOW_SECONDS).astype(np.int64)
+    starts, where = np.unique(window, return_index=True)
+    medians = np.array([np.median(part) for part in np.split(angle, where[1:])])
+    aligned = np.array([_aligned_median(moved, t[rows], row_laser[rows], measured[rows], x, plane)
+                        for rows in np.split(index, where[1:])])
+    fitted = _fitted_config(config, moved, x, (IMAGES[image], order == "reversed", first))
+    return RecordingFit(fitted, image, order, first, (float(x[2]), float(x[3])), starts * WINDOW_SECONDS,
+                        medians, aligned, median, random_median, returns, 1.0 - returns / frame.rows,
+                        time.perf_counter() - started)
+
+
+def imaged_config(config: SensorConfig, image: str, reverse: bool = False, first_laser: int = 0) -> SensorConfig:
+    """A series-track configuration whose pattern is ``image`` (a key of :data:`IMAGES`) of the given one, its
+    lasers reversed when asked and relabelled to start at ``first_laser`` (exact: the parameters are transformed,
+    nothing is fitted)."""
+    moved = _series_of(config).image(IMAGES[image], reverse, first_laser)
+    return _fitted_config(config, moved, np.zeros(4), (IMAGES[image], reverse, first_laser))
+
+
+def _fitted_config(config: SensorConfig, moved: _Series, x: np.ndarray,
+                   how: tuple[tuple[int, int], bool, int]) -> SensorConfig:
+    """The configuration with the fitted series: base speeds scaled, phases moved, coefficients imaged."""
+    base = tuple(float(v) for v in moved.base_hz * (1.0 + 1e-6 * x[2:]))
+    phase = tuple(float(math.remainder(v, 2.0 * math.pi)) for v in moved.phase_rad + x[:2])
+    if config.pattern_model == "risley":
+        params = config.risley
+        # The user's deflections and laser spacing scale the base coefficients; both commute with the images.
+        risley = dataclasses.replace(params, prism_hz=base, phase_rad=phase,
+                                     base_coefficients=imaged_coefficients(params.base_coefficients, *how))
+        return dataclasses.replace(config, risley=risley)
+    track = dataclasses.replace(config.track, base_hz=base, phase_rad=phase, coefficients=moved.coefficients)
+    return dataclasses.replace(config, track=track)
