@@ -330,3 +330,12 @@ def test_scan_writes_lvx2_and_refuses_the_wrong_head(tmp_path: Path, capsys: pyt
     error = capsys.readouterr().err.strip().splitlines()
     assert len(error) == 1 and "a Mid-70 is written as .lvx, not .lvx2" in error[0]
     assert not (tmp_path / "x.lvx2").exists()
+
+
+def test_batch_takes_the_livox_formats_as_outputs() -> None:
+    from livox_viz.cli.batch_spec import OUTPUTS, SpecError, _outputs
+
+    assert {"lvx2", "lvx"} <= set(OUTPUTS)
+    assert _outputs("lvx2+rosbag", "spec") == ("lvx2", "rosbag")
+    with pytest.raises(SpecError, match="allowed: one of npz, ply, pcd, las, csv, lvx2, lvx, rosbag"):
+        _outputs("lvx3", "spec")

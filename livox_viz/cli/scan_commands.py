@@ -166,8 +166,7 @@ def scan_head(out: Path, cfg, name: str, frame: str = "sensor"):
     LivoxVizError
         The configuration is no head the format takes, or ``frame`` is not the sensor's.
     """
-    from livox_viz.config.mount import sensor_mount
-    from livox_viz.files.lvx_format import LIVOX_FORMATS, livox_head
+    from livox_viz.files.lvx_format import LIVOX_FORMATS, head_for_config
 
     suffix = out.suffix.lower()
     if suffix not in LIVOX_FORMATS:
@@ -175,8 +174,7 @@ def scan_head(out: Path, cfg, name: str, frame: str = "sensor"):
     if frame != "sensor":
         raise UsageError(f"--frame {frame} with {out.name}: {suffix} holds the sensor's points (the mount is its "
                          "device's extrinsics); allowed: --frame sensor")
-    echoes = cfg.return_params.returns_per_pulse if cfg.returns_model == "datasheet" else 1
-    return livox_head(suffix, name, cfg.point_rate, cfg.lasers, echoes, sensor_mount(cfg), cfg.type_id)
+    return head_for_config(suffix, cfg, name)
 
 
 def _say_stopping(signum: int) -> None:

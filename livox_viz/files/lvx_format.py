@@ -260,3 +260,13 @@ def livox_head(suffix: str, name: str, rate: int, lasers: int, echoes: int, moun
     if model.suffix != suffix:
         raise LivoxVizError(f"a {model.name} is written as {model.suffix}, not {suffix}; {allowed}")
     return LivoxHead(model, rate, lasers, echoes, mount)
+
+
+def head_for_config(suffix: str, config, name: str) -> LivoxHead:
+    """The head a scan of ``config`` (a :class:`~livox_viz.config.sensor.SensorConfig` named ``name``) is written
+    as in a ``suffix`` file: its point rate, lasers, returns a firing (the datasheet model's, 1 for ideal returns)
+    and mount (:func:`livox_head`)."""
+    from livox_viz.config.mount import sensor_mount
+
+    echoes = config.return_params.returns_per_pulse if config.returns_model == "datasheet" else 1
+    return livox_head(suffix, name, config.point_rate, config.lasers, echoes, sensor_mount(config), config.type_id)
