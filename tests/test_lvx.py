@@ -339,3 +339,74 @@ def test_batch_takes_the_livox_formats_as_outputs() -> None:
     assert _outputs("lvx2+rosbag", "spec") == ("lvx2", "rosbag")
     with pytest.raises(SpecError, match="allowed: one of npz, ply, pcd, las, csv, lvx2, lvx, rosbag"):
         _outputs("lvx3", "spec")
+
+
+def ros1_bag(path: Path, messages: int = 3, points: int = 50, custom_msg: bool = True) -> Path:
+    """A ROS 1 bag as livox_ros_driver records one: CustomMsg on /livox/lidar and its PointCloud2 (x, y, z,
+    intensity float32, tag, line uint8: no time) on /livox/points, 100 ms apart."""
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    from livox_viz.files.rosbag import CUSTOM_MSG, CUSTOM_POINT_MSG
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    types = get_types_from_msg(CUSTOM_POINT_MSG, "livox_ros_driver/msg/CustomPoint")
+    types.update(get_types_from_msg(CUSTOM_MSG.replace("CustomPoint", "livox_ros_driver/CustomPoint"),
+                                    "livox_ros_driver/msg/CustomMsg"))
+    store.register(types)
+    t = store.types
+    with Writer(path) as writer:
+        lidar = writer.add_connection("/livox/lidar", "livox_ros_driver/msg/CustomMsg", typestore=store)
+        cloud = writer.add_connection("/livox/points", "sensor_msgs/msg/PointCloud2", typestore=store)
+        for k in range(messages):
+            base = 1_700_000_000 * 10**9 + k * 100_000_000
+            stamp = t["builtin_interfaces/msg/Time"](sec=base // 10**9, nanosec=base % 10**9)
+            header = t["std_msgs/msg/Header"](seq=k, stamp=stamp, frame_id="livox_frame")
+            custom = [t["livox_ros_driver/msg/CustomPoint"](offset_time=i * 10_000, x=float(k), y=0.5 * i, z=0.0,
+                                                             reflectivity=i % 200, tag=0x10, line=i % 6)
+                      for i in range(points)]
+            message = t["livox_ros_driver/msg/CustomMsg"](header=header, timebase=base, point_num=points, lidar_id=0,
+                                                          rsvd=np.zeros(3, np.uint8), points=custom)
+            if custom_msg:
+                writer.write(lidar, base, store.serialize_ros1(message, lidar.msgtype))
+            rows = np.zeros(points, [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"), ("tag", "u1"),
+                                     ("line", "u1")])
+            rows["x"], rows["y"], rows["intensity"], rows["line"] = k, 0.5 * np.arange(points), 9, np.arange(points) % 6
+            fields = [t["sensor_msgs/msg/PointField"](name=n, offset=o, datatype=d, count=1)
+                      for n, o, d in (("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 12, 7), ("tag", 16, 2),
+                                      ("line", 17, 2))]
+            message = t["sensor_msgs/msg/PointCloud2"](header=header, height=1, width=points, fields=fields,
+                                                       is_bigendian=False, point_step=18, row_step=18 * points,
+                                                       data=np.frombuffer(rows.tobytes(), np.uint8), is_dense=True)
+            writer.write(cloud, base, store.serialize_ros1(message, cloud.msgtype))
+    return path
+
+
+def test_ros1_bags_of_livox_ros_driver(tmp_path: Path) -> None:
+    from livox_viz.files.livox_bag import read_livox_bag
+
+    recording = read_livox_bag(ros1_bag(tmp_path / "drive.bag"))
+    assert recording.source == "ROS 1 bag" and len(recording) == 150
+    k, i = np.divmod(np.arange(150), 50)
+    assert np.allclose(recording.times_s - 1.7e9, k * 0.1 + i * 1e-5, atol=1e-6)
+    assert np.array_equal(recording.lasers, i % 6) and np.array_equal(recording.reflectivity, i % 200)
+    assert np.allclose(recording.points_m[:, 1], 0.5 * i) and recording.no_return.sum() == 1  # k = 0, i = 0
+    # Without the CustomMsg, the PointCloud2 (no time field): point i at the stamp + i * (100 ms / 50 points).
+    clouds = read_livox_bag(ros1_bag(tmp_path / "points.bag", custom_msg=False))
+    assert np.allclose(clouds.times_s - 1.7e9, k * 0.1 + i * 2e-3, atol=1e-6)
+    assert np.array_equal(clouds.lasers, i % 6) and np.allclose(clouds.points_m, recording.points_m)
+    with pytest.raises(LivoxVizError, match="not a bag rosbags reads"):
+        read_livox_bag(_corrupt(tmp_path, b"#ROSBAG V2.0\n" + bytes(100), "broken.bag"))
+
+
+def test_compare_and_fit_take_livox_recordings(tmp_path: Path, mid360_frames) -> None:
+    from livox_viz.fitting.reference import load_reference
+
+    frames, cfg = mid360_frames
+    head = livox_head(".lvx2", "livox_mid360", cfg.point_rate, cfg.lasers, 1, sensor_mount(cfg))
+    table = load_reference(write(tmp_path / "scan.lvx2", frames, head))
+    slots = np.concatenate([f.stream_index for f in frames])
+    assert table.rate == cfg.point_rate and table.plane == "panorama"
+    assert np.array_equal(table.slots, slots - slots[0])  # the no-return firings are the table's gaps
+    bag = load_reference(ros1_bag(tmp_path / "drive.bag", messages=2, points=40))
+    assert len(bag.t) == 79  # the one (0, 0, 0) point is no row
