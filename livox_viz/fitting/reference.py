@@ -28,6 +28,7 @@ import math
 import os
 import re
 import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -198,31 +199,22 @@ def _read_file(path: Path) -> _FileRows:
     return table
 
 
+#: Readers of Livox recordings by suffix, registered by :mod:`livox_viz.files` (a later stage of the pipeline,
+#: which this module may not import): ``reader(path, rows)`` gives the first device's first returns in firing order,
+#: at most ``rows`` of them, as points ``(n, 3)`` (x forward, y left, z up, metres) and times ``(n,)`` seconds.
+RECORDING_READERS: dict[str, Callable[[Path, int], tuple[np.ndarray, np.ndarray]]] = {}
+
+
 def _read_recording(path: Path) -> _FileRows:
-    """A Livox recording's rows: its first device's first returns, in firing order, up to :data:`MAX_TABLE_ROWS`,
-    each with its time (seconds from the first row)."""
-    if path.suffix.lower() == ".bag":
-        from livox_viz.files.livox_bag import read_livox_bag
-
-        recording = read_livox_bag(path, max_points=4 * MAX_TABLE_ROWS)
-        rows = recording.subset(~recording.no_return & (recording.return_number == 1)
-                                & (recording.device_index == 0))
-    else:
-        from livox_viz.files.livox_recording import LivoxRecording
-        from livox_viz.files.lvx_read import iter_lvx, read_layout
-
-        parts, count = [], 0
-        for frame in iter_lvx(path):  # frame by frame: a long recording is read only as far as the rows allowed
-            part = frame.subset(~frame.no_return & (frame.return_number == 1) & (frame.device_index == 0))
-            parts.append(part)
-            count += len(part)
-            if count >= MAX_TABLE_ROWS:
-                break
-        layout = read_layout(path)
-        rows = LivoxRecording.join(parts, layout.devices, layout.source, {}).subset(slice(0, MAX_TABLE_ROWS))
-    x, y, z = rows.points_m.T
-    times = rows.times_s - rows.times_s[0] if len(rows) else rows.times_s
-    return _FileRows(np.arctan2(y, x), np.arctan2(z, np.hypot(x, y)), times, "time", None)
+    """A Livox recording's rows (:data:`RECORDING_READERS`), each with its time from the first row's."""
+    reader = RECORDING_READERS.get(path.suffix.lower())
+    if reader is None:
+        raise LivoxVizError(f"{path}: Livox recordings are read by livox_viz.files; allowed: import livox_viz.files "
+                            "first (the command line and the window do)")
+    points, times = reader(path, MAX_TABLE_ROWS)
+    x, y, z = points.T
+    return _FileRows(np.arctan2(y, x), np.arctan2(z, np.hypot(x, y)), times - times[0] if len(times) else times,
+                     "time", None)
 
 
 def _checked_header(path: Path, what: str, source: Any = None) -> np.ndarray:
