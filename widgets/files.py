@@ -127,6 +127,7 @@ def window_export(session: Session, target: Path) -> Callable[[], int]:
     runs it; it returns the points written)."""
     from livox_viz.casting.scan import MountedCaster
     from livox_viz.files.export import PointCloudWriter
+    from livox_viz.files.lvx_format import LIVOX_FORMATS, head_for_config
     from livox_viz.patterns.factory import make_pattern
     from livox_viz.patterns.stream import points_before
 
@@ -140,13 +141,19 @@ def window_export(session: Session, target: Path) -> Callable[[], int]:
         first = max(first, stop - session.pattern_ring.capacity)
     made = (f"livox-viz window export of {session.preset_name or 'custom'} ({config.returns_model} returns, seed "
             f"{seed}) in {session.scene.name}, t = {first / rate:g} to {stop / rate:g} s")
+    # Livox's files hold the sensor's points with the mount as the device's extrinsics, and only a head they know
+    # (refused here, before the worker, in one line).
+    livox = None
+    if target.suffix.lower() in LIVOX_FORMATS:
+        livox = head_for_config(target.suffix.lower(), config, session.preset_name or "custom")
 
     def work() -> int:
         mounted = MountedCaster(config, caster, pose, trajectory, seed)
         pattern = make_pattern(config, seed)
         pattern.skip(first)
         written = 0
-        with PointCloudWriter(target, coordinates="world", source=made) as writer:
+        with PointCloudWriter(target, coordinates="world" if livox is None else "sensor", source=made,
+                              livox=livox) as writer:
             position = first
             while position < stop:
                 count = min(config.points_per_frame - position % config.points_per_frame, stop - position)

@@ -61,7 +61,10 @@ QT_KEYS = {"space": "Space", "Right": "Right", "Up": "Up", "Down": "Down"}
 #: The key table's key of each method it binds (a menu entry calling one shows its key).
 KEY_OF_METHOD = {method: key for row in KEYS for key, method in row.bindings}
 #: Formats the window's cloud can be exported to (the writers of ``livox-viz scan``).
-EXPORT_FORMATS = (("PLY", ".ply"), ("PCD", ".pcd"), ("LAS 1.4", ".las"), ("NumPy NPZ", ".npz"), ("CSV", ".csv"))
+#: The Livox formats take only their own heads (a preset of another is refused in one line, before any work).
+EXPORT_FORMATS = (("PLY", ".ply"), ("PCD", ".pcd"), ("LAS 1.4", ".las"), ("NumPy NPZ", ".npz"), ("CSV", ".csv"),
+                  ("Livox LVX2: Mid-360, HAP", ".lvx2"),
+                  ("Livox LVX 1.1: Mid-40, Mid-70, Horizon, Avia, Tele-15", ".lvx"))
 #: Points a refilled integration window casts per tick: about 40 ms of the ideal model's work on one core.
 FILL_PER_TICK = 40_000
 #: Seconds closing the window waits for a job it gave up to remove what it was writing (one frame's work).

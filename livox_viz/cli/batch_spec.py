@@ -53,7 +53,7 @@ GRID_KEYS = ("sensors", "scenes", "trajectories", "seeds", "returns", "outputs")
 OPTIONS: dict[str, Any] = {"seconds": 1.0, "frame": "sensor", "trajectory_speed": None, "imu_rate": None,
                            "up": "z", "workers_per_job": None}
 #: What one output of a job may be; several are joined by ``+`` (``"las+rosbag"``), at most one file among them.
-OUTPUTS = ("npz", "ply", "pcd", "las", "csv", "rosbag")
+OUTPUTS = ("npz", "ply", "pcd", "las", "csv", "lvx2", "lvx", "rosbag")
 #: A trajectory that does not move.
 NO_TRAJECTORY = "none"
 #: A return model that is the sensor's own (its LivoxVizReturns, else ideal).
@@ -442,5 +442,5 @@ scenes = ["urban", "open_field"]            # built-in scenes (livox-viz scenes)
 trajectories = ["line"]                     # none (fixed), hover, line, circle, figure8, or TUM files
 seeds = [0, 1]
 returns = ["ideal"]                         # ideal, datasheet, or own (the sensor's own)
-outputs = ["npz"]                           # npz ply pcd las csv rosbag, or a file and rosbag: "las+rosbag"
+outputs = ["npz"]                           # npz ply pcd las csv lvx2 lvx rosbag, or a file and rosbag: "las+rosbag"
 '''

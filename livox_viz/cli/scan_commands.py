@@ -114,6 +114,7 @@ def run_scan(args: argparse.Namespace, progress: TextIO | None = None) -> ScanRe
     elif args.ros_names is not None:
         raise UsageError("--ros-names without --rosbag; allowed: with --rosbag DIR (the names are the bag's)")
     check_points(points_before(args.seconds, cfg.point_rate), f"scan --seconds {args.seconds:g}", force=args.force)
+    livox = scan_head(out, cfg, config_label(args), args.frame) if out is not None else None
     scene, pose, caster = scene_from_args(args, cfg)
     trajectory = trajectory_from_args(args, pose, args.seconds)
     if trajectory is not None:
@@ -133,8 +134,8 @@ def run_scan(args: argparse.Namespace, progress: TextIO | None = None) -> ScanRe
         # scanned until then (a 10-minute flight's bag stopped at minute 8 keeps its 8 minutes), not removed.
         # Entered first, so a second signal while they are being finished is noted too, not raised.
         stop = files.enter_context(StopRequests(_say_stopping))
-        writer = files.enter_context(PointCloudWriter(out, coordinates=args.frame, ascii=args.ascii, source=made)
-                                     ) if out else None
+        writer = files.enter_context(PointCloudWriter(out, coordinates=args.frame, ascii=args.ascii, source=made,
+                                                      livox=livox)) if out else None
         bag = files.enter_context(_open_bag(args, cfg, scanner, trajectory, pose)) if args.rosbag else None
         # Each output is written on a thread of its own while the next frames are cast; leaving this block waits
         # for every frame handed over (a failed writer's error is raised then, and every file is given up).
@@ -154,6 +155,26 @@ def run_scan(args: argparse.Namespace, progress: TextIO | None = None) -> ScanRe
     scanned = frames / cfg.data_check_freq if stop.signum is not None else args.seconds
     return ScanReport(frames, points, scanned, cfg.returns_model, cfg.range_max,
                       tuple(Path(p) for p in (out, args.rosbag) if p), moving, stop.signum)
+
+
+def scan_head(out: Path, cfg, name: str, frame: str = "sensor"):
+    """The Livox head an ``.lvx2`` or ``.lvx`` of configuration ``cfg`` (named ``name``) is written as, checked
+    before any work; None for another format.
+
+    Raises
+    ------
+    LivoxVizError
+        The configuration is no head the format takes, or ``frame`` is not the sensor's.
+    """
+    from livox_viz.files.lvx_format import LIVOX_FORMATS, head_for_config
+
+    suffix = out.suffix.lower()
+    if suffix not in LIVOX_FORMATS:
+        return None
+    if frame != "sensor":
+        raise UsageError(f"--frame {frame} with {out.name}: {suffix} holds the sensor's points (the mount is its "
+                         "device's extrinsics); allowed: --frame sensor")
+    return head_for_config(suffix, cfg, name)
 
 
 def _say_stopping(signum: int) -> None:

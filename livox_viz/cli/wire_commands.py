@@ -18,7 +18,7 @@ from livox_viz.casting.scan import LidarScanner, ScanFrame
 from livox_viz.config.presets import DEFAULT_PRESET, load_preset
 from livox_viz.config.sensor import load_config
 from livox_viz.core.workload import check_points
-from livox_viz.files.export import FORMATS, PointCloudWriter, WritingStopped
+from livox_viz.files.export import CLOUD_FORMATS, PointCloudWriter, WritingStopped
 from livox_viz.wire.received import RECORDING_FIELDS, RECORDING_TABLE_COLUMNS, RecordingClock
 from livox_viz.wire.rflysim import (
     REQUEST_PORT_BASE,
@@ -290,7 +290,7 @@ RECORDING_NPZ_RULE = ("xyz_int16: the points as received (sensor FRD; world NED 
 def cmd_listen(args: argparse.Namespace) -> int:
     refuse_seq_id_without_config(args)
     cfg = load_config(args.config, seq_id=args.seq_id) if args.config else load_preset(DEFAULT_PRESET)
-    out = check_output_path(args.record, FORMATS) if args.record else None
+    out = check_output_path(args.record, CLOUD_FORMATS) if args.record else None
     clock = RecordingClock(cfg.range_max, cfg.data_check_freq)
     # A recording is the user's data: Ctrl-C, SIGTERM and SIGHUP end listening after the frame in hand, and the
     # file is closed properly (the signals stay noted, not raised, until it is in place).

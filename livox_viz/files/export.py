@@ -82,13 +82,18 @@ from livox_viz.core.errors import LivoxVizError, os_error_reason, quoted
 from livox_viz.core.portable import free_disk_bytes, write_at
 from livox_viz.core.rotations import enu_from_ned, flu_from_frd
 from livox_viz.files.las_stream import LasStream, PackedFrame
+from livox_viz.files.lvx_format import LIVOX_FORMATS, LivoxHead, heads_of
+from livox_viz.files.lvx_write import LvxEncoder
 from livox_viz.files.npzstream import NpzColumns
 from livox_viz.files.text_rows import WHOLE, TextRows
 
-FORMATS = (".ply", ".pcd", ".las", ".npz", ".csv")
+FORMATS = (".ply", ".pcd", ".las", ".npz", ".csv", *LIVOX_FORMATS)
+#: The formats that hold any frame (Livox's need a scan's firing order and head).
+CLOUD_FORMATS = tuple(suffix for suffix in FORMATS if suffix not in LIVOX_FORMATS)
 #: Formats written in place: the points go straight into the file, after room kept for the header (PLY, PCD) or
-#: after the header itself (CSV), so finishing one is a rename and needs no free space.
-IN_PLACE = (".ply", ".pcd", ".csv")
+#: after the header itself (CSV, LVX2, LVX), so finishing one is a rename and needs no free space (an LVX's last
+#: 50 ms frame, under a megabyte, is within :data:`FREE_MARGIN`).
+IN_PLACE = (".ply", ".pcd", ".csv", *LIVOX_FORMATS)
 #: Room kept at the start of a PLY or PCD for its header beyond what it holds with no point, bytes: the counts'
 #: digits and a PCD's offset (a header that outgrows it is copied in front of the points instead).
 HEADER_ROOM = 256
@@ -235,9 +240,10 @@ class PointCloudWriter:
     Parameters
     ----------
     path : path-like
-        Destination: ``.ply``, ``.pcd``, ``.las``, ``.npz`` or ``.csv``.
+        Destination: ``.ply``, ``.pcd``, ``.las``, ``.npz``, ``.csv``, or Livox's ``.lvx2`` and ``.lvx``
+        (:mod:`~livox_viz.files.lvx_write`).
     coordinates : {"sensor", "world"}
-        Which points PLY/PCD/LAS/CSV hold (NPZ holds both).
+        Which points PLY/PCD/LAS/CSV hold (NPZ holds both; LVX2 and LVX always the sensor's, Livox's FLU).
     ascii : bool
         ASCII instead of binary PLY/PCD.
     extra_fields : sequence of (name, numpy type)
@@ -250,6 +256,9 @@ class PointCloudWriter:
         record, the NPZ's ``frame_of_reference``); none when empty.
     npz_rule : str
         What the NPZ's arrays are, stated in its ``frame_of_reference`` (default :data:`NPZ_RULE`, a scan's).
+    livox : LivoxHead, optional
+        For ``.lvx2`` and ``.lvx`` (required there): the head, its firing rate and lasers, and the mount
+        (:func:`~livox_viz.files.lvx_format.livox_head`).
 
     Attributes
     ----------
@@ -268,7 +277,8 @@ class PointCloudWriter:
     """
 
     def __init__(self, path: str | os.PathLike[str], coordinates: str = "sensor", ascii: bool = False,
-                 extra_fields: Sequence[tuple[str, str]] = (), source: str = "", npz_rule: str = NPZ_RULE) -> None:
+                 extra_fields: Sequence[tuple[str, str]] = (), source: str = "", npz_rule: str = NPZ_RULE,
+                 livox: LivoxHead | None = None) -> None:
         self.path = Path(path)
         self.source = " ".join(source.split())  # one line in every header
         self.npz_rule = npz_rule
@@ -277,6 +287,22 @@ class PointCloudWriter:
             raise LivoxVizError(f"{self.path}: unknown format {self.format or '(none)'}; allowed: {', '.join(FORMATS)}")
         if coordinates not in FRAMES:
             raise LivoxVizError(f"coordinates {quoted(coordinates)}; allowed: {' or '.join(FRAMES)}")
+        #: An LVX2's or LVX's packages and frames (None for another format).
+        self._lvx: LvxEncoder | None = None
+        if self.format in LIVOX_FORMATS:
+            if livox is None:
+                raise LivoxVizError(f"{self.path}: {self.format} needs the scan's Livox head; allowed: {self.format} "
+                                    f"from scan, batch or the window's export of {heads_of(self.format)}")
+            if livox.model.suffix != self.format:
+                raise LivoxVizError(f"{self.path}: a {livox.model.name} is written as {livox.model.suffix}; allowed: "
+                                    f"{self.format} for {heads_of(self.format)}")
+            if extra_fields:
+                raise LivoxVizError(f"{self.path}: {self.format} holds Livox's fields only; allowed: no extra fields")
+            if coordinates != "sensor":
+                raise LivoxVizError(f"{self.path}: {self.format} holds points in the sensor's frame (Livox's x "
+                                    "forward, y left, z up), the mount as the device's extrinsics; allowed: "
+                                    "coordinates sensor")
+            self._lvx = LvxEncoder(livox)
         self.coordinates = coordinates
         self.ascii = ascii
         self.extra_fields = tuple(extra_fields)
@@ -296,6 +322,8 @@ class PointCloudWriter:
         self._las: LasStream | None = None
         #: The frame being written's LAS records as packed by :attr:`_las`.
         self._packed: PackedFrame | None = None
+        #: The frame being written's LVX bytes and the encoder's state after them.
+        self._lvx_packed = None
         self._npz: NpzColumns | None = None
         self._npz_poses: NpzColumns | None = None
         #: Where the NPZ's points and poses stood before the frame being appended (a failed frame is cut back to it).
@@ -336,7 +364,9 @@ class PointCloudWriter:
             return
         # Unbuffered: what a failed write left can be cut off (a buffer would still hold it and write it later).
         self._body = open(work / "body", "wb", buffering=0)
-        if self.format == ".csv":  # the column names alone: what the file is goes in its sidecar
+        if self._lvx is not None:  # Livox's headers: all known before the first point
+            start = self._lvx.header
+        elif self.format == ".csv":  # the column names alone: what the file is goes in its sidecar
             start = (",".join(name for name, _ in self._fields) + "\n").encode()
         elif self.format in IN_PLACE:
             self._header_room = len(self._header()) + HEADER_ROOM
@@ -379,6 +409,7 @@ class PointCloudWriter:
             size = sum(len(piece) for piece in payload)
         self._make_room(size)
         packed = self._packed
+        lvx_packed = self._lvx_packed
         try:
             if isinstance(payload, dict):
                 assert self._npz is not None
@@ -399,6 +430,8 @@ class PointCloudWriter:
         self.frames += 1
         if packed is not None and self._las is not None:
             self._las.commit(packed)
+        if lvx_packed is not None and self._lvx is not None:
+            self._lvx.commit(lvx_packed)
 
     def _make_room(self, size: int) -> None:
         """Stop writing (:class:`WritingStopped`, nothing of the frame written) unless the disk holds ``size`` more
@@ -415,6 +448,10 @@ class PointCloudWriter:
     def _encode(self, frame: PointFrame, extra: dict[str, np.ndarray]) -> list[bytes | memoryview]:
         """A frame's bytes in the body, in pieces: LAS's raw records, or the points as the file holds them."""
         self._packed = None
+        self._lvx_packed = None
+        if self._lvx is not None:
+            self._lvx_packed = self._lvx.pack(frame)
+            return list(self._lvx_packed.data)
         if self.format == ".las":
             if self._las is not None:
                 self._packed = self._las.pack(*_las_columns(frame, self.coordinates, extra))
@@ -539,6 +576,8 @@ class PointCloudWriter:
         body = self._work.path / "body"
         if self._las is not None:
             write_at(self._body, self._las.header(), 0)
+        elif self._lvx is not None:  # the last package and frame; the headers are written already
+            self._put(self._lvx.finish())
         elif self.format != ".csv":
             header = self._header(self._header_room)
             if header is not None:

@@ -9,6 +9,12 @@ off the boresight as the polar radius), or, for a table whose rays go all
 around the sensor (more than 1 % of them behind it, e.g. the Mid-360), the
 panorama plane (azimuth, elevation).
 
+A Livox recording (``.lvx2``, ``.lvx``, a ROS 1 ``.bag`` of livox_ros_driver;
+:mod:`livox_viz.files.livox_recording`) gives its first device's first returns
+as rows, each with the time its file's driver gives it (the firings that
+returned nothing are gaps in the slots); only its first
+:data:`MAX_TABLE_ROWS` rows are read.
+
 Limits: a table holds at most :data:`MAX_TABLE_ROWS` rows (a ``.npy``'s shape
 is read before its data), a CSV is at most :data:`MAX_CSV_BYTES`; a CSV's
 ``Time/s`` column, when it holds times, gives the rows' rate.
@@ -22,6 +28,7 @@ import math
 import os
 import re
 import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,8 +41,10 @@ from livox_viz.core.textfile import ENCODINGS, decode_text
 from livox_viz.fitting.table import PLANE_IMAGES, ReferencePattern
 from livox_viz.patterns.planes import frd_from_zup, xy_from_directions
 
+#: Livox recordings a table may be read from: LVX2, LVX 1.1 and ROS 1 bags of livox_ros_driver.
+RECORDING_SUFFIXES = (".lvx2", ".lvx", ".bag")
 #: The file forms a table may come in.
-TABLE_SUFFIXES = (".npy", ".npz", ".csv")
+TABLE_SUFFIXES = (".npy", ".npz", ".csv", *RECORDING_SUFFIXES)
 #: Rates a table's times may say, rows per second.
 MIN_RATE = 1.0
 MAX_RATE = 10_000_000.0
@@ -129,6 +138,8 @@ def load_reference(source: str | os.PathLike[str], rate: float | None = None) ->
     table = _read_file(path)
     name = path.stem
     slots, said, column = _slots(path, table)
+    if said is not None and path.suffix.lower() in RECORDING_SUFFIXES and abs(said - round(said)) <= 1e-6 * said:
+        said = float(round(said))  # a recording's times are whole nanoseconds: a head fires a whole number a second
     match = _shipped_match(table)
     if said is not None:
         if rate is not None and abs(rate - said) > 1e-3 * said:
@@ -173,9 +184,11 @@ def _as_pattern(table: _FileRows, name: str, rate: float, source: str, slots: np
 
 
 def _read_file(path: Path) -> _FileRows:
-    require_file(path, "scan table (.npy, .npz or Livox CSV)")
+    require_file(path, "scan table (.npy, .npz, Livox CSV, .lvx2, .lvx or ROS 1 .bag)")
     suffix = path.suffix.lower()
-    if suffix == ".npy":
+    if suffix in RECORDING_SUFFIXES:
+        table = _read_recording(path)
+    elif suffix == ".npy":
         angles = _checked_angles(path, _checked_header(path, "the table"), "a .npy table")
         table = _FileRows(angles[:, 0], angles[:, 1])
     elif suffix == ".npz":
@@ -183,10 +196,29 @@ def _read_file(path: Path) -> _FileRows:
     elif suffix == ".csv":
         table = _read_csv(path)
     else:
-        raise LivoxVizError(f"{path}: unknown format {path.suffix or '(none)'}; allowed: .npy, .npz or .csv")
+        raise LivoxVizError(f"{path}: unknown format {path.suffix or '(none)'}; allowed: "
+                            f"{', '.join(TABLE_SUFFIXES)}")
     if table.azimuth.size < 16:
         raise LivoxVizError(f"{path}: {table.azimuth.size} rows; allowed: at least a petal's worth (16 rows)")
     return table
+
+
+#: Readers of Livox recordings by suffix, registered by :mod:`livox_viz.files` (a later stage of the pipeline,
+#: which this module may not import): ``reader(path, rows)`` gives the first device's first returns in firing order,
+#: at most ``rows`` of them, as points ``(n, 3)`` (x forward, y left, z up, metres) and times ``(n,)`` seconds.
+RECORDING_READERS: dict[str, Callable[[Path, int], tuple[np.ndarray, np.ndarray]]] = {}
+
+
+def _read_recording(path: Path) -> _FileRows:
+    """A Livox recording's rows (:data:`RECORDING_READERS`), each with its time from the first row's."""
+    reader = RECORDING_READERS.get(path.suffix.lower())
+    if reader is None:
+        raise LivoxVizError(f"{path}: Livox recordings are read by livox_viz.files; allowed: import livox_viz.files "
+                            "first (the command line and the window do)")
+    points, times = reader(path, MAX_TABLE_ROWS)
+    x, y, z = points.T
+    return _FileRows(np.arctan2(y, x), np.arctan2(z, np.hypot(x, y)), times - times[0] if len(times) else times,
+                     "time", None)
 
 
 def _checked_header(path: Path, what: str, source: Any = None) -> np.ndarray:
