@@ -12,6 +12,7 @@ from livox_viz.config.presets import DEFAULT_PRESET, DESCRIPTION_KEY, load_prese
 from livox_viz.config.sensor import SensorConfig, frame_layout
 from livox_viz.config.track_params import TrackParams
 from livox_viz.core.errors import ConfigError
+from livox_viz.files.frame_files import FRAME_SUFFIXES
 from livox_viz.fitting.compare import compare
 from livox_viz.fitting.plot import plot_comparison
 from livox_viz.fitting.reference import ReferencePattern, is_table, load_table_or_preset, shipped_tables
@@ -31,6 +32,12 @@ from .common import (
     positive_float,
     whole_number,
     write_config_json,
+)
+from .fit_recording import (
+    add_recording_arguments,
+    check_recording_arguments,
+    fit_recording_command,
+    is_recording,
 )
 
 RATE_HELP = ("firings per second of a table (default: a shipped table's own, the rows' times in a CSV's Time/s "
@@ -54,6 +61,17 @@ def _write_preset(args: argparse.Namespace, config: SensorConfig, description: s
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
+    recording = args.reference is not None and is_recording(args.reference)
+    if args.model is None:
+        args.model = "recording" if recording else "rflysim"
+    if args.model == "recording":
+        if not recording:
+            raise UsageError(f"--model recording takes a recorded frame ({', '.join(FRAME_SUFFIXES)}, a CSV with x, "
+                             f"y, z); {args.reference or args.to} is not one")
+        check_recording_arguments(args)
+        if args.out:
+            check_output_path(args.out, (".json",))
+        return fit_recording_command(args)
     if args.out:
         check_output_path(args.out, (".json",))
     if args.sdk is not None and not args.out:
@@ -272,11 +290,16 @@ def _fit_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("reference", nargs="?", help="scan table: a shipped one by name (mid40, mid70, horizon, "
                                                      "mid360, avia, tele15), a .npy [theta, phi] in radians, an "
                                                      ".npz of theta, phi and t (seconds) or a Livox CSV (degrees); "
-                                                     "rows may be out of laser order, with gaps, cut anywhere")
+                                                     "rows may be out of laser order, with gaps, cut anywhere. Or "
+                                                     "a real sensor's recording: a .pcd, .ply or x,y,z .csv frame "
+                                                     "in firing order with its no-returns as (0, 0, 0), an .lvx2, "
+                                                     ".lvx or a Livox driver's .bag")
     parser.add_argument("--to", help="fit to a preset's own track instead of a table, e.g. livox_mid70_risley")
-    parser.add_argument("--model", choices=("rflysim", "risley", "track"), default="rflysim",
-                        help="rflysim: RflySim's rosette parameters (default); risley: the two-prism track; "
-                             "track: any head's track (oscillating or turning parts, 360-degree heads)")
+    parser.add_argument("--model", choices=("rflysim", "risley", "track", "recording"), default=None,
+                        help="rflysim: RflySim's rosette parameters (default for a table); risley: the two-prism "
+                             "track; track: any head's track (oscillating or turning parts, 360-degree heads); "
+                             "recording (default for a recorded frame): a head's track made the recording's "
+                             "(mirror image, laser order, phases, motor speeds)")
     parser.add_argument("--beams", type=whole_number(1, 16), help="with --model risley or track: the number of "
                                                                   "lasers (default: read off the table's step "
                                                                   "pattern)")
@@ -287,6 +310,7 @@ def _fit_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rate", type=positive_float, help=RATE_HELP)
     parser.add_argument("--seconds", type=positive_float, default=4.0,
                         help="with --to: how much of the preset's track to fit (default 4)")
+    add_recording_arguments(parser)
     add_seed_argument(parser)
     add_config_arguments(parser)
     parser.add_argument("--out", help="write the fitted preset JSON here (RflySim fields from --preset/--config)")
@@ -334,7 +358,9 @@ def _compare_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 COMMANDS: tuple[Command, ...] = (
-    Command("fit", cmd_fit, "fit a pattern model's parameters to a measured table or a preset's track",
+    Command("fit", cmd_fit, "fit a pattern model's parameters to a measured table or a preset's track, or a "
+                            "head's track to a real sensor's recording (livox-viz fit frame.pcd --preset "
+                            "livox_tele15 --out twin.json)",
             "livox-viz fit --model track horizon --preset livox_horizon --out mine.json",
             _fit_arguments),
     Command("compare", cmd_compare, "coverage, radial density and track residual of a preset against a table or "

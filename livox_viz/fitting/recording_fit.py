@@ -80,11 +80,15 @@ class RecordedFrame:
     t : (n,) float64, optional
         Each row's time from the first row, seconds, when the file says it (a driver's per-point offset
         time). Default: row i at ``i / rate``, ``rate`` the head's nominal rate.
+    lasers : (n,) int, optional
+        Each row's laser as the file numbers them (a driver's ``line``). Default: the firing slot's
+        (``round(t * rate)`` mod the head's lasers).
     """
 
     name: str
     directions: np.ndarray
     t: np.ndarray | None = None
+    lasers: np.ndarray | None = None
 
     @property
     def returned(self) -> np.ndarray:
@@ -146,7 +150,7 @@ def imaged_coefficients(c: np.ndarray, signs: tuple[int, int], reverse: bool, fi
 
 def _series_of(config: SensorConfig) -> _Series:
     if config.pattern_model not in SERIES_MODELS:
-        raise LivoxVizError(f"{config.name or 'this configuration'} has the {config.pattern_model!r} pattern, "
+        raise LivoxVizError(f"this configuration has the {config.pattern_model!r} pattern, "
                             "which has no fixed track to fit a recording to; allowed: a preset with a series "
                             "track (risley or track: livox_tele15, livox_horizon, livox_mid360, ...)")
     if config.pattern_model == "risley":
@@ -228,8 +232,9 @@ def _distance(model: np.ndarray, measured: np.ndarray, spin: bool) -> np.ndarray
 
 
 def _coarse(series: _Series, t: np.ndarray, laser: np.ndarray, measured: np.ndarray, steps_a: int,
-            steps_b: int) -> tuple[float, float, float]:
-    """The best phase shift on a grid: (capped mean distance, shift A, shift B)."""
+            steps_b: int, typical: bool = False) -> tuple[float, ...]:
+    """The best phase shift on a grid: (capped mean distance, shift A, shift B); with ``typical``, (the best
+    capped mean distance, the median over the grid)."""
     a0 = 2.0 * np.pi * series.base_hz[0] * t + series.phase_rad[0]
     b0 = 2.0 * np.pi * series.base_hz[1] * t + series.phase_rad[1]
     rows = series.coefficients[laser] * np.exp(1j * (np.outer(a0, series.order_a) + np.outer(b0, series.order_b)))
@@ -237,6 +242,7 @@ def _coarse(series: _Series, t: np.ndarray, laser: np.ndarray, measured: np.ndar
     grid_b = np.arange(steps_b) * (2.0 * np.pi / steps_b)
     turn_b = np.exp(1j * np.outer(series.order_b, grid_b))
     best = (math.inf, 0.0, 0.0)
+    scores = []
     for shift_a in grid_a:
         w = (rows * np.exp(1j * series.order_a * shift_a)[None, :]) @ turn_b
         x = w.real
@@ -245,9 +251,12 @@ def _coarse(series: _Series, t: np.ndarray, laser: np.ndarray, measured: np.ndar
             x = (x + 180.0) % 360.0 - 180.0
         model = np.stack([x, w.imag], axis=-1)
         score = np.minimum(_distance(model, measured[:, None, :], series.spin), CAP_DEG).mean(axis=0)
+        scores.append(score)
         k = int(np.argmin(score))
         if score[k] < best[0]:
             best = (float(score[k]), float(shift_a), float(grid_b[k]))
+    if typical:
+        return best[0], float(np.median(np.concatenate(scores)))
     return best
 
 
@@ -290,6 +299,44 @@ def _aligned_median(series: _Series, t: np.ndarray, laser: np.ndarray, measured:
     return float(np.median(angle_between_deg(series.xy(t, laser, shift, x[2:]), measured, plane)))
 
 
+def _grid_steps(series: _Series) -> tuple[int, int]:
+    """Phase grid steps of the coarse search: fine enough for the highest order (and a spin's azimuth)."""
+    return (max(48, int(8 * np.abs(series.order_a).max()) + (90 if series.spin else 0)),
+            max(48, int(8 * np.abs(series.order_b).max())))
+
+
+def _times_and_lasers(frame: RecordedFrame, rate: float, lasers: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's time (seconds from the first) and laser: the file's, else from the firing order."""
+    t = frame.t if frame.t is not None else np.arange(frame.rows, dtype=np.float64) / rate
+    if frame.lasers is not None:
+        return t, np.asarray(frame.lasers, dtype=np.int64) % lasers
+    return t, np.rint((t - t[0]) * rate).astype(np.int64) % lasers
+
+
+def head_likeness(config: SensorConfig, frame: RecordedFrame) -> float:
+    """How well a head's track explains a frame at its best coarse phase, against its typical phase: the ratio
+    of the two capped mean distances (small: this head; near 1: not this head). Seconds, not minutes: only
+    the frame's first :data:`COARSE_SECONDS` are looked at."""
+    series = _series_of(config)
+    lasers = series.coefficients.shape[0]
+    t, row_laser = _times_and_lasers(frame, float(config.point_rate), lasers)
+    index = np.flatnonzero(frame.returned)
+    if index.size < 16:
+        return 1.0
+    early = _spread_rows(index[t[index] <= t[index[0]] + COARSE_SECONDS], COARSE_ROWS // 2)
+    measured = recorded_xy(frame, config.pattern_plane)[early]
+    steps_a, steps_b = _grid_steps(series)
+    best = 1.0
+    for image in (IMAGES if not series.spin else ("as printed", "mirrored left-right")):
+        for reverse in (False, True):
+            for first in range(lasers):
+                moved = series.image(IMAGES[image], reverse, first)
+                score, typical = _coarse(moved, t[early], row_laser[early], measured, steps_a, steps_b,
+                                         typical=True)
+                best = min(best, score / max(typical, 1e-9))
+    return best
+
+
 def _spread_rows(indices: np.ndarray, count: int) -> np.ndarray:
     """At most ``count`` of ``indices``, evenly spread."""
     if indices.size <= count:
@@ -326,14 +373,12 @@ def fit_recording(config: SensorConfig, frame: RecordedFrame, images: Sequence[s
         raise LivoxVizError(f"{frame.name}: {returns:,} of its {frame.rows:,} rows have a return; allowed: at "
                             f"least {MIN_RETURNS:,} (a frame of a scan in firing order, no-returns as (0, 0, 0))")
     rate = float(config.point_rate)
-    t = frame.t if frame.t is not None else np.arange(frame.rows, dtype=np.float64) / rate
+    t, row_laser = _times_and_lasers(frame, rate, series.coefficients.shape[0])
     measured = recorded_xy(frame, plane)
     lasers = series.coefficients.shape[0]
-    row_laser = np.arange(frame.rows) % lasers
     index = np.flatnonzero(returned)
     early = _spread_rows(index[t[index] <= t[index[0]] + COARSE_SECONDS], COARSE_ROWS)
-    steps_a = max(48, int(8 * np.abs(series.order_a).max()) + (90 if series.spin else 0))
-    steps_b = max(48, int(8 * np.abs(series.order_b).max()))
+    steps_a, steps_b = _grid_steps(series)
     candidates = []
     # A spin track's azimuth is degrees(A) + Re w: only its left-right image is a track of the same form.
     images = [image for image in images if not series.spin or IMAGES[image][1] == 1]
@@ -362,7 +407,7 @@ def fit_recording(config: SensorConfig, frame: RecordedFrame, images: Sequence[s
                                                measured[refine_rows], plane))) for _ in range(NOISE_DRAWS)]
     random_median = float(np.median(noise))
     if median > NOISE_RATIO * random_median:
-        raise LivoxVizError(f"{frame.name}: the best fit of {config.name or 'the head'}'s track leaves a median "
+        raise LivoxVizError(f"{frame.name}: the best fit of the head's track leaves a median "
                             f"{median:.3g} deg, and random phases {random_median:.3g} deg: the recording is not "
                             "this head's scan in firing order (another head, rows sorted or deduplicated, or "
                             "too few returns); allowed: one frame of this head, rows in firing order with "
