@@ -90,7 +90,9 @@ def read_frame_rows(path: str | os.PathLike[str], max_rows: int = MAX_FRAME_ROWS
         not numbers.
     """
     path = Path(path)
-    if not path.is_file():
+    if path.is_dir() and path.suffix.lower() != ".bag":
+        raise LivoxVizError(f"{path}: is a folder; allowed: a recorded frame file ({', '.join(FRAME_SUFFIXES)})")
+    if not path.exists():
         raise LivoxVizError(f"{path}: no such file; allowed: a recorded frame ({', '.join(FRAME_SUFFIXES)})")
     suffix = path.suffix.lower()
     if suffix == ".pcd":

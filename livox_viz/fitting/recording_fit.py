@@ -63,6 +63,12 @@ COARSE_ROWS = 240
 REFINE_ROWS = 6_000
 #: Random phase pairs the noise baseline is the median over.
 NOISE_DRAWS = 24
+#: A terms refit learns on alternate blocks of this many seconds and is judged on the others.
+HOLD_OUT_SECONDS = 0.01
+#: Rounds of coefficients, then phases and motor speeds, in a terms refit.
+REFIT_ROUNDS = 3
+#: Ridge of the terms refit, as a fraction of the normal equations' mean diagonal.
+REFIT_RIDGE = 1e-3
 #: A coarse distance above this many degrees counts as this many (one wild row must not outweigh the rest).
 CAP_DEG = 3.0
 
@@ -200,6 +206,10 @@ class RecordingFit:
         Share of rows with no return.
     seconds : float
         Time the fit took, wall clock.
+    refitted : int
+        Coefficients fitted to the recording (0: the track's own shape, only imaged and moved).
+    held_out_window_deg : (h,) float64
+        With a terms refit, the median per 2 ms window of the held-out blocks (empty without one), degrees.
     """
 
     config: SensorConfig
@@ -215,6 +225,8 @@ class RecordingFit:
     returns: int
     no_return_share: float
     seconds: float
+    refitted: int = 0
+    held_out_window_deg: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
 
 
 def recorded_xy(frame: RecordedFrame, plane: str) -> np.ndarray:
@@ -345,7 +357,8 @@ def _spread_rows(indices: np.ndarray, count: int) -> np.ndarray:
 
 
 def fit_recording(config: SensorConfig, frame: RecordedFrame, images: Sequence[str] = tuple(IMAGES),
-                  orders: Sequence[str] = ORDERS, seed: int = 0) -> RecordingFit:
+                  orders: Sequence[str] = ORDERS, seed: int = 0,
+                  refit_orders: tuple[int, int] | None = None) -> RecordingFit:
     """Fit a head's track to one recorded frame (see the module's docstring).
 
     Parameters
@@ -358,6 +371,11 @@ def fit_recording(config: SensorConfig, frame: RecordedFrame, images: Sequence[s
         The mirror images (:data:`IMAGES`) and laser orders (:data:`ORDERS`) to try.
     seed : int
         Seed of the random phases of the noise baseline.
+    refit_orders : (int, int), optional
+        Also fit the coefficients of the track's terms with ``|m| <= refit_orders[0]`` and
+        ``|l| <= refit_orders[1]`` to the recording, where the table's model itself is off the hardware (the
+        Mid-360's is 2 deg off): on alternate :data:`HOLD_OUT_SECONDS` blocks only, the others held out and
+        reported (:attr:`RecordingFit.held_out_window_deg`), ridge-regularised towards the track's own.
 
     Raises
     ------
@@ -401,6 +419,17 @@ def fit_recording(config: SensorConfig, frame: RecordedFrame, images: Sequence[s
         if best is None or median < best[0]:
             best = (median, image, order, first, moved, x, angle)
     median, image, order, first, moved, x, angle = best
+    held_out = np.zeros(0)
+    refitted = 0
+    if refit_orders is not None:
+        train = (np.floor((t[index] - t[0]) / HOLD_OUT_SECONDS) % 2) == 0
+        moved, x, refitted = _refit_terms(moved, t[index], row_laser[index], measured[index], x, train,
+                                          refit_orders)
+        angle = angle_between_deg(moved.xy(t[index], row_laser[index], x[:2], x[2:]), measured[index], plane)
+        median = float(np.median(angle))
+        test_window = np.floor((t[index][~train] - t[0]) / WINDOW_SECONDS).astype(np.int64)
+        _, test_where = np.unique(test_window, return_index=True)
+        held_out = np.array([np.median(part) for part in np.split(angle[~train], test_where[1:])])
     rng = np.random.default_rng(seed)
     noise = [float(np.median(angle_between_deg(moved.xy(t[refine_rows], row_laser[refine_rows],
                                                         rng.uniform(0, 2 * np.pi, 2), x[2:]),
@@ -417,10 +446,49 @@ def fit_recording(config: SensorConfig, frame: RecordedFrame, images: Sequence[s
     medians = np.array([np.median(part) for part in np.split(angle, where[1:])])
     aligned = np.array([_aligned_median(moved, t[rows], row_laser[rows], measured[rows], x, plane)
                         for rows in np.split(index, where[1:])])
-    fitted = _fitted_config(config, moved, x, (IMAGES[image], order == "reversed", first))
+    fitted = _fitted_config(config, moved, x, (IMAGES[image], order == "reversed", first),
+                            refitted=refitted > 0)
     return RecordingFit(fitted, image, order, first, (float(x[2]), float(x[3])), starts * WINDOW_SECONDS,
                         medians, aligned, median, random_median, returns, 1.0 - returns / frame.rows,
-                        time.perf_counter() - started)
+                        time.perf_counter() - started, refitted, held_out)
+
+
+def _refit_terms(series: _Series, t: np.ndarray, laser: np.ndarray, measured: np.ndarray, x: np.ndarray,
+                 train: np.ndarray, orders: tuple[int, int]) -> tuple[_Series, np.ndarray, int]:
+    """The low-order terms' coefficients fitted to the training rows, laser by laser, alternating with the
+    phases and motor speeds (:data:`REFIT_ROUNDS` rounds); returns the series, the phase vector and how many
+    coefficients were fitted."""
+    chosen = (np.abs(series.order_a) <= orders[0]) & (np.abs(series.order_b) <= orders[1])
+    if not chosen.any():
+        raise LivoxVizError(f"no term of the track has |m| <= {orders[0]} and |l| <= {orders[1]}; allowed: orders "
+                            "that take in some of its terms")
+    lasers = series.coefficients.shape[0]
+    for _ in range(REFIT_ROUNDS):
+        a = 2.0 * np.pi * series.base_hz[0] * (1.0 + 1e-6 * x[2]) * t + series.phase_rad[0] + x[0]
+        b = 2.0 * np.pi * series.base_hz[1] * (1.0 + 1e-6 * x[3]) * t + series.phase_rad[1] + x[1]
+        target = measured[:, 0] - (np.degrees(a) if series.spin else 0.0)
+        if series.spin:
+            target = (target + 180.0) % 360.0 - 180.0
+        target = target + 1j * measured[:, 1]
+        coefficients = series.coefficients.copy()
+        for k in range(lasers):
+            rows = train & (laser == k)
+            if rows.sum() < 4 * chosen.sum():
+                continue
+            every = np.exp(1j * (np.outer(a[rows], series.order_a) + np.outer(b[rows], series.order_b)))
+            design = every[:, chosen]
+            left = target[rows] - every @ coefficients[k]
+            weight = np.ones(design.shape[0])
+            for _ in range(3):
+                # Iteratively reweighted (Huber at 0.1 deg): rows that hit something odd must not pull the track.
+                gram = (design.conj().T * weight) @ design
+                ridge = REFIT_RIDGE * np.trace(gram).real / gram.shape[0]
+                step = np.linalg.solve(gram + ridge * np.eye(gram.shape[0]), (design.conj().T * weight) @ left)
+                weight = 1.0 / np.maximum(np.abs(left - design @ step) / 0.1, 1.0)
+            coefficients[k, chosen] += step
+        series = dataclasses.replace(series, coefficients=coefficients)
+        x = _refine(series, t[train], laser[train], measured[train], x)
+    return series, x, int(chosen.sum()) * lasers
 
 
 def imaged_config(config: SensorConfig, image: str, reverse: bool = False, first_laser: int = 0) -> SensorConfig:
@@ -432,13 +500,19 @@ def imaged_config(config: SensorConfig, image: str, reverse: bool = False, first
 
 
 def _fitted_config(config: SensorConfig, moved: _Series, x: np.ndarray,
-                   how: tuple[tuple[int, int], bool, int]) -> SensorConfig:
-    """The configuration with the fitted series: base speeds scaled, phases moved, coefficients imaged."""
+                   how: tuple[tuple[int, int], bool, int], refitted: bool = False) -> SensorConfig:
+    """The configuration with the fitted series: base speeds scaled, phases moved, coefficients imaged (or, after
+    a terms refit, the fitted ones)."""
     base = tuple(float(v) for v in moved.base_hz * (1.0 + 1e-6 * x[2:]))
     phase = tuple(float(math.remainder(v, 2.0 * math.pi)) for v in moved.phase_rad + x[:2])
     if config.pattern_model == "risley":
         params = config.risley
         # The user's deflections and laser spacing scale the base coefficients; both commute with the images.
+        if refitted:
+            # The fitted coefficients are the effective ones: they replace the base and the user's scalings.
+            risley = dataclasses.replace(params, prism_hz=base, phase_rad=phase, base_coefficients=moved.coefficients,
+                                         deflection_deg=None, laser_spacing=1.0)
+            return dataclasses.replace(config, risley=risley)
         risley = dataclasses.replace(params, prism_hz=base, phase_rad=phase,
                                      base_coefficients=imaged_coefficients(params.base_coefficients, *how))
         return dataclasses.replace(config, risley=risley)
