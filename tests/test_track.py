@@ -19,7 +19,7 @@ from livox_viz.fitting.risley_fit import fit_risley, track_residual
 from livox_viz.fitting.track_fit import fit_track
 from livox_viz.patterns.factory import make_pattern
 from livox_viz.patterns.metrics import CoverageGrid, coverage_curve, radial_density, ring_solid_angles
-from livox_viz.patterns.planes import directions_from_xy
+from livox_viz.patterns.planes import angle_between_deg, directions_from_xy
 from livox_viz.patterns.track import TrackPattern, track_xy
 
 PRESETS = Path(__file__).resolve().parent.parent / "presets"
@@ -254,8 +254,30 @@ def test_each_sensor_preset_has_its_rate_lasers_field_of_view_and_range(name: st
         assert "no rosette fits" in description
 
 
-@pytest.mark.parametrize(("name", "table"), [("livox_horizon", "horizon"), ("livox_mid360", "mid360"),
-                                           ("livox_avia", "avia"), ("livox_tele15", "tele15")])
+def test_the_mid360_preset_is_its_table_refitted_to_a_real_frame_not_the_table_itself() -> None:
+    """A real Mid-360 is 2-3 deg off its public table's model (a recorded frame shows it): the shipped preset's
+    low-order terms were refitted to that frame, so it follows the table (read mirrored: the real one turns the
+    other way) to within a few degrees, not to the table's 0.01."""
+    reference = load_reference("mid360")
+    assert reference.image == "mirrored left-right"
+    config = load_preset("livox_mid360")
+    ours = make_pattern(config).take(len(reference.t)).xy_deg
+    # Its phases and motor speeds are the recording's (the spin 0.8 % slower), so compare what a second shows:
+    # the turn's sense and rate, and the band of elevations, against the table's.
+    def turns(xy: np.ndarray) -> float:
+        return float(np.unwrap(np.radians(xy[::4, 0]))[-1] - np.unwrap(np.radians(xy[::4, 0]))[0]) / (2 * np.pi)
+
+    assert turns(ours) < -150 and turns(reference.xy_deg) < -150
+    assert turns(ours) == pytest.approx(turns(reference.xy_deg), rel=0.01)
+    np.testing.assert_allclose(np.percentile(ours[:, 1], [1, 50, 99]),
+                               np.percentile(reference.xy_deg[:, 1], [1, 50, 99]), atol=1.5)
+    assert float(np.median(angle_between_deg(ours, reference.xy_deg, "panorama"))) > 1.0  # not the table's phases
+    description = json.loads((PRESETS / "livox_mid360.json").read_text())["LivoxVizDescription"]
+    assert "refitted to a real one's frame" in description
+
+
+@pytest.mark.parametrize(("name", "table"), [("livox_horizon", "horizon"), ("livox_avia", "avia"),
+                                           ("livox_tele15", "tele15")])
 def test_the_fitted_presets_replay_the_shipped_tables(name: str, table: str) -> None:
     reference = load_reference(table)
     config = load_preset(name)
@@ -312,18 +334,25 @@ def test_density_rings_hold_the_solid_angle_inside_the_field_of_view() -> None:
 
 
 def test_panorama_rays_are_the_tables_own_at_the_wrap_and_the_edges() -> None:
-    """The Mid-360's stream in the azimuth/elevation plane casts the table's own rays, across +-180 too: the
-    table's mirrored left-right (its y negated), as a real Mid-360 turns the other way round."""
+    """The Mid-360's stream in the azimuth/elevation plane casts its track's own rays (the series evaluated
+    directly, its azimuth by hand), across +-180 and at the band's edges too."""
     config = load_preset("livox_mid360")
-    raw = np.load(PRESETS / "tables" / "mid360.npy").astype(float)
-    ours = directions_from_xy(make_pattern(config).take(len(raw)).xy_deg, config.pattern_plane)
-    theirs = frd_rays(raw[:, 0], raw[:, 1]) * [1.0, -1.0, 1.0]
-    azimuth = np.degrees(raw[:, 0])
-    elevation = np.degrees(raw[:, 1])
-    boundary = ((np.abs(azimuth - 180) < 1) | (azimuth < 1) | (azimuth > 359) | (elevation < -6.5)
+    count = 200_000
+    k = np.arange(count)
+    params = config.track
+    phase = 2 * np.pi * np.outer(k / config.point_rate, params.term_hz) + params.term_phase
+    w = np.sum(params.coefficients[k % params.lasers] * np.exp(1j * phase), axis=1)
+    azimuth = np.degrees(2 * np.pi * params.base_hz[0] * k / config.point_rate + params.phase_rad[0]) + w.real
+    elevation = w.imag
+    theirs = np.column_stack([np.cos(np.radians(elevation)) * np.cos(np.radians(azimuth)),
+                              np.cos(np.radians(elevation)) * np.sin(np.radians(azimuth)),
+                              -np.sin(np.radians(elevation))])
+    ours = directions_from_xy(make_pattern(config).take(count).xy_deg, config.pattern_plane)
+    wrapped = np.mod(azimuth, 360.0)
+    boundary = ((np.abs(wrapped - 180) < 1) | (wrapped < 1) | (wrapped > 359) | (elevation < -6.5)
                 | (elevation > 51.5))
     assert boundary.sum() > 1000
-    assert angle_deg(ours[boundary], theirs[boundary]).max() < 0.03
+    assert angle_deg(ours[boundary], theirs[boundary]).max() < 1e-5
     # Behind the sensor too: a 360-degree head's rays go there.
     assert (ours[:, 0] < -0.9).sum() > 1000
 
