@@ -19,11 +19,11 @@ from livox_viz.patterns.planes import directions_from_xy
 HEAD = "livox_tele15"
 
 
-def made_frame(seconds: float = 0.1, first_sample: int = 0, no_returns: float = 0.25,
-               seed: int = 0) -> np.ndarray:
-    """``(n, 3)`` metres: ``seconds`` of :data:`HEAD`'s track from ``first_sample``, each row at 5-80 m, a share
+def made_frame(seconds: float = 0.1, first_sample: int = 0, no_returns: float = 0.25, seed: int = 0,
+               preset: str = HEAD) -> np.ndarray:
+    """``(n, 3)`` metres: ``seconds`` of ``preset``'s track from ``first_sample``, each row at 5-80 m, a share
     ``no_returns`` of them zero."""
-    config = load_preset(HEAD)
+    config = load_preset(preset)
     count = round(seconds * config.point_rate)
     xy = make_pattern(config).points(first_sample, count).xy_deg
     rng = np.random.default_rng(seed)

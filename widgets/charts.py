@@ -32,8 +32,11 @@ def reference_curves(source: TableSource | PresetSource) -> PatternCurves:
     """The reference's curves over its first seconds (a table from its first row)."""
     if isinstance(source, PresetSource):
         return config_curves(source.config, source.seed)
-    count = min(points_before(max(CURVE_SECONDS), source.rate), CURVE_POINTS, source.table.xy_deg.shape[0])
-    return stream_curves(source.table.xy_deg[:count], source.rate, source.fov)
+    table = source.table
+    # The rows fired in the chart's span (a recording's no-returns are gaps: its rows at their own firings).
+    count = min(int(np.searchsorted(table.slots, points_before(max(CURVE_SECONDS), source.rate))), CURVE_POINTS)
+    return stream_curves(table.xy_deg[:count], source.rate, source.fov,
+                         slots=None if table.consecutive else table.slots[:count])
 
 
 def curve_label(name: str, curves: PatternCurves) -> str:
