@@ -1249,6 +1249,17 @@ def test_broken_files_from_the_menu_leave_the_window_as_it_was(window, qtbot, tm
     qtbot.waitUntil(lambda: not window._jobs, timeout=30_000)
     window.tick()
     assert session.overlay.source is None and "failed" in window.status_message.text()
+    # Recordings that are not frames: a folder, a PCD without x, a frame with no returns.
+    (tmp_path / "frames").mkdir()
+    (tmp_path / "nox.pcd").write_text("FIELDS a y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nPOINTS 20\nDATA ascii\n"
+                                      + "1 2 3\n" * 20, encoding="ascii")
+    (tmp_path / "zero.csv").write_text("x,y,z\n" + "0,0,0\n" * 40, encoding="ascii")
+    for name, said in (("frames", "is a folder"), ("nox.pcd", "allowed: fields x, y and z"),
+                       ("zero.csv", "no returns in its 40 rows")):
+        window.open_reference(str(tmp_path / name))
+        qtbot.waitUntil(lambda: not window._jobs, timeout=30_000)
+        window.tick()
+        assert session.overlay.source is None and said in window.status_message.text()
     assert window.isVisible()
 
 

@@ -39,11 +39,16 @@ def reference_curves(source: TableSource | PresetSource) -> PatternCurves:
                          slots=None if table.consecutive else table.slots[:count])
 
 
-def curve_label(name: str, curves: PatternCurves) -> str:
-    """A coverage curve's legend entry; it says where the curve stops when the point budget cut it short of the
-    chart's 4 s (a 1 M pts/s pattern's first 2 M points are 2 s)."""
+def curve_label(name: str, curves: PatternCurves, span: float | None = None) -> str:
+    """A coverage curve's legend entry; it says where the curve stops short of the chart's 4 s: where a table or
+    recording of ``span`` seconds ends (a 0.1 s frame), or where the point budget cut it (a 1 M pts/s pattern's
+    first 2 M points are 2 s)."""
     end = float(curves.seconds[-1]) if len(curves.seconds) else 0.0
-    return name if end >= max(CURVE_SECONDS) - 1e-9 else f"{name} (to {end:g} s: {CURVE_POINTS // 1_000_000} M points)"
+    if end >= max(CURVE_SECONDS) - 1e-9:
+        return name
+    if span is not None and span < max(CURVE_SECONDS):
+        return f"{name} (its {span:.3g} s)"
+    return f"{name} (to {end:g} s: {CURVE_POINTS // 1_000_000} M points)"
 
 
 def _chart(loc: tuple[float, float], x_label: str, y_label: str) -> pv.Chart2D:
@@ -160,7 +165,9 @@ class CurveCharts:
         if shown:
             self.reference_coverage.update(self.reference.seconds, 100.0 * self.reference.coverage)
             self.reference_density.update(self.reference.density_alpha_deg, self.reference.density / 1e6)
-            self.reference_coverage.label = curve_label("reference", self.reference)
+            source = self._reference_source
+            span = source.table.seconds if isinstance(source, TableSource) else None
+            self.reference_coverage.label = curve_label("reference", self.reference, span)
         self._fit_density_axes()
         self.dirty = True
 

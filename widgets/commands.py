@@ -102,6 +102,9 @@ def reference_source(text: str, rate: float | None, seed: int = 0, recording_rat
 
     from .overlay import PresetSource, TableSource
 
+    if Path(text).is_dir() and Path(text).suffix.lower() != ".bag":
+        raise LivoxVizError(f"{text}: is a folder; allowed: a table (.npy, .npz or Livox .csv), a recording (.pcd, "
+                            ".ply, x,y,z .csv, .lvx2, .lvx or .bag) or a preset (name or .json)")
     if is_table(text):
         return TableSource(load_reference(text, rate=rate, recording_rate=recording_rate))
     return PresetSource(load_preset(text), Path(text).stem, seed)
