@@ -1249,6 +1249,52 @@ def test_broken_files_from_the_menu_leave_the_window_as_it_was(window, qtbot, tm
     qtbot.waitUntil(lambda: not window._jobs, timeout=30_000)
     window.tick()
     assert session.overlay.source is None and "failed" in window.status_message.text()
+    # Recordings that are not frames: a folder, a PCD without x, a frame with no returns.
+    (tmp_path / "frames").mkdir()
+    (tmp_path / "nox.pcd").write_text("FIELDS a y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nPOINTS 20\nDATA ascii\n"
+                                      + "1 2 3\n" * 20, encoding="ascii")
+    (tmp_path / "zero.csv").write_text("x,y,z\n" + "0,0,0\n" * 40, encoding="ascii")
+    for name, said in (("frames", "is a folder"), ("nox.pcd", "allowed: fields x, y and z"),
+                       ("zero.csv", "no returns in its 40 rows")):
+        window.open_reference(str(tmp_path / name))
+        qtbot.waitUntil(lambda: not window._jobs, timeout=30_000)
+        window.tick()
+        assert session.overlay.source is None and said in window.status_message.text()
+    assert window.isVisible()
+
+
+def test_a_recorded_frame_is_the_reference_drawn_in_step_then_held_past_its_end(window, qtbot,
+                                                                                tmp_path: Path) -> None:
+    """File > Open reference takes a real sensor's saved frame (a PCD in firing order, its no-returns (0, 0, 0)):
+    its returns are drawn at their own firings as the scan plays, and past the frame's 0.1 s its last window is
+    held, said once in the status bar."""
+    from livox_viz.widgets.overlay import TableSource
+
+    from .made_frames import made_frame, write_pcd
+
+    session = window.controller.session
+    window.run(lambda: session.seek(0.0))
+    window.open_reference(str(write_pcd(tmp_path / "frame.pcd", made_frame(0.1, preset="livox_mid70"))))
+    qtbot.waitUntil(lambda: (window.tick(), session.overlay.source is not None)[1], timeout=30_000)
+    source = session.overlay.source
+    assert isinstance(source, TableSource) and source.end == pytest.approx(0.1, abs=1e-4)
+    assert "0.1 s recording" in window.status_message.text()
+    for scan_time in (0.02, 0.04, 0.06):
+        session.advance_to(scan_time)
+        window.tick()
+    ring = session.overlay.ring
+    # The frame's returns fired before the scan's time, each at its own firing (a quarter of them are gaps).
+    assert 0.5 * 0.06 * source.rate < ring.count < 0.8 * 0.06 * source.rate
+    assert ring.stream_index[ring.live_slots()].max() < 0.06 * source.rate
+    assert window.controller.pattern_view.reference_poly.n_cells == ring.count  # the points drawn
+    session.advance_to(0.25)
+    window.tick()
+    assert session.overlay.ended and "ends at 0.1 s" in window.status_message.text()
+    held = ring.count
+    window.say("")
+    session.advance_to(0.4)
+    window.tick()
+    assert session.overlay.ring.count == held > 0 and window.status_message.text() == ""
     assert window.isVisible()
 
 

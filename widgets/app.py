@@ -429,6 +429,9 @@ class LivoxVizApp:
                                 f"{self.session.config.pattern_plane} one; allowed: a reference in the same plane")
         self.session.overlay.set_source(source, self.session.scan_time)
         self.session.message = f"reference {source.name}" if source is not None else "no reference"
+        if source is not None and source.end is not None:
+            self.session.message += (f" (a {source.end:.3g} s recording: drawn in step with the scan for its span, "
+                                     "then its last window held)")
         if self.pattern_view is not None:
             self.pattern_view.reset_camera()
 

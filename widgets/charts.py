@@ -32,15 +32,23 @@ def reference_curves(source: TableSource | PresetSource) -> PatternCurves:
     """The reference's curves over its first seconds (a table from its first row)."""
     if isinstance(source, PresetSource):
         return config_curves(source.config, source.seed)
-    count = min(points_before(max(CURVE_SECONDS), source.rate), CURVE_POINTS, source.table.xy_deg.shape[0])
-    return stream_curves(source.table.xy_deg[:count], source.rate, source.fov)
+    table = source.table
+    # The rows fired in the chart's span (a recording's no-returns are gaps: its rows at their own firings).
+    count = min(int(np.searchsorted(table.slots, points_before(max(CURVE_SECONDS), source.rate))), CURVE_POINTS)
+    return stream_curves(table.xy_deg[:count], source.rate, source.fov,
+                         slots=None if table.consecutive else table.slots[:count])
 
 
-def curve_label(name: str, curves: PatternCurves) -> str:
-    """A coverage curve's legend entry; it says where the curve stops when the point budget cut it short of the
-    chart's 4 s (a 1 M pts/s pattern's first 2 M points are 2 s)."""
+def curve_label(name: str, curves: PatternCurves, span: float | None = None) -> str:
+    """A coverage curve's legend entry; it says where the curve stops short of the chart's 4 s: where a table or
+    recording of ``span`` seconds ends (a 0.1 s frame), or where the point budget cut it (a 1 M pts/s pattern's
+    first 2 M points are 2 s)."""
     end = float(curves.seconds[-1]) if len(curves.seconds) else 0.0
-    return name if end >= max(CURVE_SECONDS) - 1e-9 else f"{name} (to {end:g} s: {CURVE_POINTS // 1_000_000} M points)"
+    if end >= max(CURVE_SECONDS) - 1e-9:
+        return name
+    if span is not None and span < max(CURVE_SECONDS):
+        return f"{name} (its {span:.3g} s)"
+    return f"{name} (to {end:g} s: {CURVE_POINTS // 1_000_000} M points)"
 
 
 def _chart(loc: tuple[float, float], x_label: str, y_label: str) -> pv.Chart2D:
@@ -157,7 +165,9 @@ class CurveCharts:
         if shown:
             self.reference_coverage.update(self.reference.seconds, 100.0 * self.reference.coverage)
             self.reference_density.update(self.reference.density_alpha_deg, self.reference.density / 1e6)
-            self.reference_coverage.label = curve_label("reference", self.reference)
+            source = self._reference_source
+            span = source.table.seconds if isinstance(source, TableSource) else None
+            self.reference_coverage.label = curve_label("reference", self.reference, span)
         self._fit_density_axes()
         self.dirty = True
 

@@ -59,7 +59,7 @@ def _session(args: argparse.Namespace, command: str):
         raise UsageError("--reference-rate without --reference; allowed: with --reference TABLE (its rows per "
                          "second)")
     if args.reference is not None:
-        source = reference_source(args.reference, args.reference_rate, args.seed)
+        source = reference_source(args.reference, args.reference_rate, args.seed, float(config.point_rate))
         _check_reference(source, args)
         if source.plane != config.pattern_plane:
             raise LivoxVizError(f"--reference {args.reference} is a {source.plane} pattern and "
@@ -93,15 +93,20 @@ def _check_reference(source, args: argparse.Namespace) -> None:
                      f"{window_label(window)} window", WINDOW_BUDGET, can_force=False)
 
 
-def reference_source(text: str, rate: float, seed: int = 0):
-    """``--reference``: a measured table (.npy / .csv) or a preset (a name or a sensor JSON)."""
+def reference_source(text: str, rate: float | None, seed: int = 0, recording_rate: float | None = None):
+    """``--reference``: a measured table (.npy / .npz / Livox .csv), a real sensor's recording (.pcd / .ply / x,y,z
+    .csv / .lvx2 / .lvx / .bag; one without per-point times at ``recording_rate``, the head's points per second) or
+    a preset (a name or a sensor JSON)."""
     from livox_viz import load_preset
     from livox_viz.fitting.reference import is_table, load_reference
 
     from .overlay import PresetSource, TableSource
 
+    if Path(text).is_dir() and Path(text).suffix.lower() != ".bag":
+        raise LivoxVizError(f"{text}: is a folder; allowed: a table (.npy, .npz or Livox .csv), a recording (.pcd, "
+                            ".ply, x,y,z .csv, .lvx2, .lvx or .bag) or a preset (name or .json)")
     if is_table(text):
-        return TableSource(load_reference(text, rate=rate))
+        return TableSource(load_reference(text, rate=rate, recording_rate=recording_rate))
     return PresetSource(load_preset(text), Path(text).stem, seed)
 
 
@@ -247,7 +252,7 @@ def _render_sidecar(args: argparse.Namespace, out: Path) -> int:
         rate = sources.get("reference_rate")
         if rate is not None and (isinstance(rate, bool) or not isinstance(rate, (int, float)) or not rate > 0):
             raise UsageError(f"--sidecar {path}: reference_rate = {quoted(rate)}; allowed: rows per second > 0")
-        source = reference_source(str(reference), rate, session.seed)
+        source = reference_source(str(reference), rate, session.seed, float(session.config.point_rate))
         _check_reference(source, argparse.Namespace(reference=str(reference), reference_rate=rate))
         session.overlay.set_source(source, 0.0)
         session.overlay.visible = bool(data.get("reference_visible", True))

@@ -105,7 +105,8 @@ class HeadsUp:
                 self._reference_coverage = overlay.coverage()
             shown = " (grey)" if overlay.visible else " (hidden)"
             value = self._reference_coverage
-            reference = (f"\nreference {overlay.source.name}{shown}, window {window_label(overlay.window)}: "
+            held = f", held at {overlay.source.end:.3g} s" if overlay.ended else ""
+            reference = (f"\nreference {overlay.source.name}{shown}, window {window_label(overlay.window)}{held}: "
                          f"coverage {'-' if value is None else f'{100 * value:.1f} %'}")
         model = {"risley": "Risley track", "track": "track"}.get(cfg.pattern_model, "RflySim rosette")
         lasers = f"   {cfg.lasers} lasers" if cfg.lasers > 1 else ""

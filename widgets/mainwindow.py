@@ -461,7 +461,7 @@ class MainWindow(QtWidgets.QMainWindow):
         scenes = file.addMenu("Open built-in scene")
         scenes.aboutToShow.connect(lambda: self._fill_scenes(scenes))
         self._action(file, "Next built-in scene", self.cycle_scene)
-        self._action(file, "Open reference table or preset...", self.open_reference)
+        self._action(file, "Open reference table, recording or preset...", self.open_reference)
         tables = file.addMenu("Open shipped reference table")
         tables.aboutToShow.connect(lambda: self._fill_tables(tables))
         file.addSeparator()
@@ -1104,9 +1104,11 @@ class MainWindow(QtWidgets.QMainWindow):
         self._background(f"loading {Path(choice).name}", work, done)
 
     def open_reference(self, path: str | None = None) -> None:
-        """File > Open reference: a scan table (.npy, Livox CSV) or a preset file, read on a worker."""
+        """File > Open reference: a scan table (.npy, .npz, Livox CSV), a real sensor's recording (.pcd, .ply, a CSV
+        of x, y, z, .lvx2, .lvx, .bag) or a preset file, read on a worker."""
         path = path or self._ask_open("Open a reference",
-                                      "Tables and presets (*.npy *.npz *.csv *.json);;All files (*)")
+                                      "Tables, recordings and presets (*.npy *.npz *.csv *.pcd *.ply *.lvx2 *.lvx "
+                                      "*.bag *.json);;All files (*)")
         if path:
             self.load_reference(path)
 
@@ -1114,6 +1116,7 @@ class MainWindow(QtWidgets.QMainWindow):
         from .commands import reference_source
 
         seed = self.controller.session.seed
+        rate = float(self.controller.session.config.point_rate)  # a recording without times is at the head's rate
 
         def done(source: TableSource | PresetSource) -> None:
             self.controller.set_reference(source)
@@ -1124,7 +1127,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
             from .commands import _check_reference
 
-            source = reference_source(text, None, seed)
+            source = reference_source(text, None, seed, rate)
             # As --reference is checked: a table too short to compare, or one whose windows outgrow the budget.
             _check_reference(source, argparse.Namespace(reference=text, reference_rate=None))
             return source

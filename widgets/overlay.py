@@ -1,7 +1,11 @@
-"""The reference overlay: a measured table or another preset's pattern, played in step with the scan.
+"""The reference overlay: a measured table, a real sensor's recording or another preset's pattern, played in step
+with the scan.
 
 It has its own point ring and integration window, so a user can hold the
-real sensor's 1 s picture beside their own 0.1 s one.
+real sensor's 1 s picture beside their own 0.1 s one. Each row is drawn at its
+own firing (a recording's no-returns are gaps); a table loops, a recording
+(a saved frame, an LVX, a bag) holds its own span only: past its end the
+overlay keeps its last window.
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ def window_capacity(window: float | None, rate: float) -> int:
 
 
 class TableSource:
-    """A measured table, looped.
+    """A measured table, looped, or a recording, played once.
 
     Parameters
     ----------
@@ -48,10 +52,27 @@ class TableSource:
         self.rate = table.rate
         self.fov = table.field_of_view
         self.plane = table.plane
+        #: Firings a loop of the table spans (its first row fires at 0, its last before this).
+        self.period = int(table.slots[-1]) + 1
+        #: Seconds a recording lasts (it is not looped: a real sensor's pattern does not repeat), or None.
+        self.end: float | None = self.period / table.rate if table.recording else None
 
-    def xy(self, first: int, stop: int) -> np.ndarray:
-        """``(stop-first, 2)`` float64 degrees of samples ``first .. stop-1``."""
-        return self.table.xy_deg[np.arange(first, stop) % self.table.xy_deg.shape[0]]
+    def samples(self, first: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+        """The rows fired in firings ``first .. stop-1``: ``(m, 2)`` float64 degrees and their ``(m,)`` int64
+        firings (every firing of a table without gaps; a recording's none past its end)."""
+        xy, slots = self.table.xy_deg, self.table.slots
+        if self.end is None and self.table.consecutive:
+            index = np.arange(first, stop)
+            return xy[index % xy.shape[0]], index
+        # Each loop of the table the firings reach (one for a recording): its rows in the firings asked for.
+        loops = [0] if self.end is not None else range(first // self.period, (stop - 1) // self.period + 1)
+        rows, firings = [], []
+        for loop in loops:
+            base = loop * self.period
+            a, b = np.searchsorted(slots, [first - base, stop - base])
+            rows.append(xy[a:b])
+            firings.append(slots[a:b] + base)
+        return np.concatenate(rows), np.concatenate(firings)
 
 
 class PresetSource:
@@ -73,12 +94,16 @@ class PresetSource:
         self.seed = seed
         self._stream = make_pattern(config, seed)
 
-    def xy(self, first: int, stop: int) -> np.ndarray:
-        """``(stop-first, 2)`` float64 degrees of samples ``first .. stop-1``."""
+    #: A preset's pattern plays for ever.
+    end: float | None = None
+
+    def samples(self, first: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(stop-first, 2)`` float64 degrees of samples ``first .. stop-1``, and their ``(stop-first,)``
+        firings."""
         if first < self._stream.position:
             self._stream = make_pattern(self.config, self.seed)
         self._stream.skip(first - self._stream.position)
-        return self._stream.take(stop - first).xy_deg
+        return self._stream.take(stop - first).xy_deg, np.arange(first, stop)
 
 
 @dataclass
@@ -100,6 +125,13 @@ class ReferenceOverlay:
     def __post_init__(self) -> None:
         self.ring = PointRing(1)
         self._position = 0
+        #: Whether the scan has run past a recording's end (the overlay holds its last window).
+        self.ended = False
+
+    def _held(self, scan_time: float) -> float:
+        """The time the overlay shows at ``scan_time``: a recording's end once the scan is past it."""
+        end = self.source.end if self.source is not None else None
+        return scan_time if end is None else min(scan_time, end)
 
     @property
     def window(self) -> float | None:
@@ -120,33 +152,38 @@ class ReferenceOverlay:
 
     def refill(self, scan_time: float) -> None:
         """Empty the ring and fill it with the window that ends at ``scan_time``."""
+        self.ended = False
         if self.source is None:
             self.ring = PointRing(1)
             self._position = 0
             return
         window = self.window
         self.ring = PointRing(window_capacity(window, self.source.rate))
-        start = 0.0 if window is None else max(0.0, scan_time - window)
+        start = 0.0 if window is None else max(0.0, self._held(scan_time) - window)
         self._position = points_before(start, self.source.rate)
         self.advance_to(scan_time)
 
-    def advance_to(self, scan_time: float) -> None:
-        """Add the samples emitted before ``scan_time`` and drop those older than the window."""
+    def advance_to(self, scan_time: float) -> bool:
+        """Add the samples emitted before ``scan_time`` and drop those older than the window (a recording's: up to
+        its end, then held). Whether the scan has just run past a recording's end."""
         source = self.source
         if source is None:
-            return
-        target = points_before(scan_time, source.rate)
+            return False
+        shown = self._held(scan_time)
+        just_ended = shown < scan_time and not self.ended
+        self.ended = shown < scan_time
+        target = points_before(shown, source.rate)
         count = min(target - self._position, self.ring.capacity)
         if count <= 0:
-            return
-        first = target - count
-        xyz = np.zeros((count, 3), dtype=np.float32)
-        xyz[:, :2] = source.xy(first, target)
-        index = np.arange(first, target)
-        self.ring.write(xyz, np.zeros(count, dtype=np.float32), index / source.rate, index)
+            return just_ended
+        xy, index = source.samples(target - count, target)
+        xyz = np.zeros((index.size, 3), dtype=np.float32)
+        xyz[:, :2] = xy
+        self.ring.write(xyz, np.zeros(index.size, dtype=np.float32), index / source.rate, index)
         self._position = target
         if self.window is not None:
-            self.ring.drop_older_than(scan_time - self.window)
+            self.ring.drop_older_than(shown - self.window)
+        return just_ended
 
     def coverage(self) -> float | None:
         """FOV coverage of the overlay's points in its own FOV, or None without a source."""

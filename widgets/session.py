@@ -495,7 +495,10 @@ class Session:
         chunk = self.pattern.take(missing)
         self.scan_time = scan_time
         self.played = max(self.played, scan_time)
-        self.overlay.advance_to(scan_time)
+        if self.overlay.advance_to(scan_time):
+            source = self.overlay.source
+            self.message = (f"reference {source.name} ends at {source.end:.3g} s (a recording is not looped): its "
+                            "last window is held")
         self._add_pattern(chunk)
         if self.casting:
             frame = self.mounted.cast(chunk)

@@ -317,14 +317,24 @@ def _fit_arguments(parser: argparse.ArgumentParser) -> None:
     add_sdk_argument(parser)
 
 
+#: A track residual against a recording above this (deg rms) is the sensor's phases, not ours: a twin fitted to its
+#: recording (``fit RECORDING``) follows it to within a few hundredths of a degree.
+RECORDING_ALIGNED_DEG = 0.1
+
+
 def cmd_compare(args: argparse.Namespace) -> int:
     if args.plot:
         check_output_path(args.plot, (".png",))
     cfg = config_from_args(args)
-    reference = load_table_or_preset(args.reference, rate=args.rate, seconds=args.seconds, seed=args.seed)
+    reference = load_table_or_preset(args.reference, rate=args.rate, seconds=args.seconds, seed=args.seed,
+                                     recording_rate=float(cfg.point_rate))
     result = compare(cfg, reference, seed=args.seed)
     span = "" if result.span_seconds >= reference.seconds else f", its first {result.span_seconds:g} s compared"
     print(f"{config_label(args)} against {reference.name} ({reference.seconds:g} s{span})")
+    if reference.recording:
+        print(f"  the {reference.recording} recording's {len(reference.t):,} returns of {reference.firings:,} "
+              f"firings ({1 - len(reference.t) / reference.firings:.1%} no-returns: its density counts returns); "
+              f"rate {reference.rate:,.6g} rows/s: {reference.rate_source}")
     print("  integration s   reference %   ours %   difference pp")
     for t, ref, ours in zip(result.seconds, result.coverage_reference, result.coverage_ours, strict=True):
         print(f"  {t:13g}   {100 * ref:11.2f}   {100 * ours:6.2f}   {100 * (ours - ref):+13.2f}")
@@ -338,6 +348,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
         rms, p95, worst = result.track_residual
         print(f"  track residual   rms {rms:.6f} deg, p95 {p95:.6f} deg, max {worst:.6f} deg (angle between rays, "
               "sample for sample)")
+        if reference.recording and rms > RECORDING_ALIGNED_DEG:
+            head = f"--config {args.config}" if getattr(args, "config", None) else f"--preset {config_label(args)}"
+            print(f"                   the recording's sensor started at its own phases, ours at the preset's: align "
+                  f"a twin first (livox-viz fit {args.reference} {head} --out twin.json), "
+                  "then compare --config twin.json")
     else:
         print(f"  track residual   none: {result.no_residual_because}")
     if args.plot:
@@ -348,8 +363,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def _compare_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_arguments(parser)
-    parser.add_argument("reference", help="a scan table (a shipped one by name, a .npy, an .npz or a Livox CSV) or a "
-                                          "preset (name or JSON)")
+    parser.add_argument("reference", help="a scan table (a shipped one by name, a .npy, an .npz or a Livox CSV), a "
+                                          "real sensor's recording (.pcd, .ply, a CSV of x, y, z, .lvx2, .lvx, "
+                                          ".bag: rows in firing order, no-returns as 0,0,0; without per-point times "
+                                          "at the preset's point rate) or a preset (name or JSON)")
     parser.add_argument("--rate", type=positive_float, help=RATE_HELP)
     parser.add_argument("--seconds", type=positive_float, default=4.0,
                         help="how much of a preset reference to replay (default 4)")
@@ -363,8 +380,8 @@ COMMANDS: tuple[Command, ...] = (
                             "livox_tele15 --out twin.json)",
             "livox-viz fit --model track horizon --preset livox_horizon --out mine.json",
             _fit_arguments),
-    Command("compare", cmd_compare, "coverage, radial density and track residual of a preset against a table or "
-                                    "another preset",
+    Command("compare", cmd_compare, "coverage, radial density and track residual of a preset against a table, a "
+                                    "recording or another preset",
             "livox-viz compare --preset livox_mid70_fitted mid70 --plot compare.png",
             _compare_arguments),
 )

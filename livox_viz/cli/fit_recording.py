@@ -13,7 +13,6 @@ window and against random phases, and the recording's return statistics;
 from __future__ import annotations
 
 import argparse
-import csv
 from dataclasses import replace
 from pathlib import Path
 
@@ -24,6 +23,7 @@ from livox_viz.config.sensor import SensorConfig
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.files.frame_files import FRAME_SUFFIXES, FrameRows, read_frame_rows
 from livox_viz.fitting.recording_fit import RecordedFrame, RecordingFit, fit_recording, head_likeness
+from livox_viz.fitting.reference import is_point_csv
 
 from .common import UsageError, config_from_args, config_label, write_config_json
 
@@ -41,16 +41,8 @@ DEFAULT_FRAME_SECONDS = 0.1
 
 def is_recording(text: str) -> bool:
     """Whether ``fit``'s input is a recorded frame (a CSV only when its header names x, y and z)."""
-    path = Path(text)
-    suffix = path.suffix.lower()
-    if suffix == ".csv":
-        try:
-            with path.open(newline="", encoding="utf-8", errors="replace") as handle:
-                header = [name.strip().lower() for name in next(csv.reader(handle), [])]
-        except OSError:
-            return False
-        return {"x", "y", "z"} <= set(header)
-    return suffix in FRAME_SUFFIXES
+    suffix = Path(text).suffix.lower()
+    return is_point_csv(text) if suffix == ".csv" else suffix in FRAME_SUFFIXES
 
 
 def _heads(args: argparse.Namespace, rows: FrameRows, frame: RecordedFrame) -> list[tuple[SensorConfig, str]]:

@@ -21,6 +21,9 @@ from livox_viz.patterns.metrics import radial_density, window_coverage
 from livox_viz.patterns.stream import points_before
 
 COMPARE_TIMES = (0.05, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0)
+#: A window may end this share of its firings past a table's last row: a recording's last firings may have
+#: returned nothing (a 0.1 s frame whose last row is a no-return is still compared over 0.1 s).
+TAIL_SHARE = 0.01
 #: The longest span compared, seconds (a longer reference is compared over its first minute).
 COMPARE_MAX_SECONDS = 60.0
 
@@ -55,17 +58,22 @@ def compare(config: SensorConfig, reference: ReferencePattern, seed: int = 0,
     duration = min(reference.seconds, COMPARE_MAX_SECONDS)
     # The rows of the compared span (a table with gaps has fewer rows than firings).
     rows = int(np.searchsorted(reference.slots, points_before(duration, reference.rate)))
-    usable = tuple(t for t in seconds if points_before(t, reference.rate) <= rows
-                   and points_before(t, config.point_rate) <= points_before(duration, config.point_rate))
+    # The firings the rows span, from firing 0 (a recording's no-returns are gaps, not rows).
+    reach = int(reference.slots[rows - 1]) + 1 if rows else 0
+    tail = 1.0 if reference.consecutive else 1.0 + TAIL_SHARE
+    usable = tuple(t for t in seconds if points_before(t, reference.rate) <= reach * tail
+                   and points_before(t, config.point_rate) <= points_before(duration, config.point_rate) * tail)
     if not usable or rows < 2:
         raise LivoxVizError(f"the reference holds {reference.seconds:.3g} s; allowed: at least {min(seconds):g} s")
     count = points_before(duration, config.point_rate)
     check_points(count, f"comparing {duration:g} s of a {config.point_rate:,} pts/s pattern")
-    ours = make_pattern(config, seed=seed).take(count).xy_deg
+    longest = make_pattern(config, seed=seed).take(max(count, points_before(max(usable), config.point_rate))).xy_deg
+    ours = longest[:count]
     reference_xy = reference.xy_deg[:rows]
     ours_fov, reference_fov = config.field_of_view, reference.field_of_view
-    ours_cov = window_coverage(ours, config.point_rate, usable, ours_fov)
-    ref_cov = window_coverage(reference_xy, reference.rate, usable, reference_fov)
+    ours_cov = window_coverage(longest, config.point_rate, usable, ours_fov)
+    ref_cov = window_coverage(reference_xy, reference.rate, usable, reference_fov,
+                              slots=None if reference.consecutive else reference.slots[:rows])
     low = min(ours_fov.profile_range[0], reference_fov.profile_range[0])
     high = max(ours_fov.profile_range[1], reference_fov.profile_range[1])
     edges, ours_density = radial_density(ours, ours_fov, bins, (low, high))

@@ -9,11 +9,14 @@ off the boresight as the polar radius), or, for a table whose rays go all
 around the sensor (more than 1 % of them behind it, e.g. the Mid-360), the
 panorama plane (azimuth, elevation).
 
-A Livox recording (``.lvx2``, ``.lvx``, a ROS 1 ``.bag`` of livox_ros_driver;
-:mod:`livox_viz.files.livox_recording`) gives its first device's first returns
-as rows, each with the time its file's driver gives it (the firings that
-returned nothing are gaps in the slots); only its first
-:data:`MAX_TABLE_ROWS` rows are read.
+A real sensor's recording (``.lvx2``, ``.lvx``, a ROS 1 ``.bag`` of
+livox_ros_driver, or a frame saved as ``.pcd``, ``.ply`` or a ``.csv`` whose
+header names ``x``, ``y``, ``z``; read by :mod:`livox_viz.files`) gives its
+first device's first returns as rows (the firings that returned nothing are
+gaps in the slots), each with the time its file gives it, or, for a frame
+without per-point times, its row's place in the firing order (a no-return row
+``(0, 0, 0)`` is a gap); only its first :data:`MAX_TABLE_ROWS` rows are read.
+A CSV is a recording when its header names x, y and z, else a Livox table.
 
 Limits: a table holds at most :data:`MAX_TABLE_ROWS` rows (a ``.npy``'s shape
 is read before its data), a CSV is at most :data:`MAX_CSV_BYTES`; a CSV's
@@ -41,8 +44,9 @@ from livox_viz.core.textfile import ENCODINGS, decode_text
 from livox_viz.fitting.table import PLANE_IMAGES, ReferencePattern
 from livox_viz.patterns.planes import frd_from_zup, xy_from_directions
 
-#: Livox recordings a table may be read from: LVX2, LVX 1.1 and ROS 1 bags of livox_ros_driver.
-RECORDING_SUFFIXES = (".lvx2", ".lvx", ".bag")
+#: Recordings a table may be read from: LVX2, LVX 1.1, ROS 1 bags of livox_ros_driver and frames saved as PCD or
+#: PLY (and a CSV whose header names x, y and z: :func:`is_point_csv`).
+RECORDING_SUFFIXES = (".lvx2", ".lvx", ".bag", ".pcd", ".ply")
 #: The file forms a table may come in.
 TABLE_SUFFIXES = (".npy", ".npz", ".csv", *RECORDING_SUFFIXES)
 #: Rates a table's times may say, rows per second.
@@ -97,14 +101,29 @@ def shipped_tables() -> dict[str, dict[str, Any]]:
     return {name: entry for name, entry in index.items() if (shipped_table_dir() / f"{name}.npy").is_file()}
 
 
+def is_point_csv(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` is a CSV of points (a recorded frame: its header names x, y and z) rather than a Livox
+    table (``Time/s,Azimuth/deg,Zenith/deg``)."""
+    path = Path(path)
+    if path.suffix.lower() != ".csv":
+        return False
+    try:
+        with path.open(newline="", encoding="utf-8", errors="replace") as handle:
+            header = [name.strip().lower() for name in next(csv.reader([handle.readline(4096)]), [])]
+    except OSError:
+        return False
+    return {"x", "y", "z"} <= set(header)
+
+
 def is_table(text: str | os.PathLike[str]) -> bool:
     """Whether a reference names a scan table (a shipped table's name, or a table file) rather than a preset."""
     return os.fspath(text) in shipped_tables() or Path(text).suffix.lower() in TABLE_SUFFIXES
 
 
-def load_reference(source: str | os.PathLike[str], rate: float | None = None) -> ReferencePattern:
-    """Read a scan table: a shipped one by name (``"mid70"``), a ``.npy`` (radians), an ``.npz`` with times or a
-    Livox CSV (degrees).
+def load_reference(source: str | os.PathLike[str], rate: float | None = None,
+                   recording_rate: float | None = None) -> ReferencePattern:
+    """Read a scan table: a shipped one by name (``"mid70"``), a ``.npy`` (radians), an ``.npz`` with times, a
+    Livox CSV (degrees) or a recording (``.pcd``, ``.ply``, a CSV of x, y, z, ``.lvx2``, ``.lvx``, ``.bag``).
 
     Parameters
     ----------
@@ -117,6 +136,10 @@ def load_reference(source: str | os.PathLike[str], rate: float | None = None) ->
         which the head's parts turn at whole rpm). The table's ``rate_source`` says which. A rate that
         contradicts a shipped table's own or the rows' times is refused rather than replayed at the wrong
         times.
+    recording_rate : float, optional
+        Firings per second of a recording whose file has no per-point times (a saved frame): the rate of the head
+        it is compared with or shown beside, in place of the spectrum's (a frame of 0.1 s is too short to read a
+        rate off). Ignored for other tables and when ``rate`` is given.
 
     Raises
     ------
@@ -138,7 +161,7 @@ def load_reference(source: str | os.PathLike[str], rate: float | None = None) ->
     table = _read_file(path)
     name = path.stem
     slots, said, column = _slots(path, table)
-    if said is not None and path.suffix.lower() in RECORDING_SUFFIXES and abs(said - round(said)) <= 1e-6 * said:
+    if said is not None and table.recording and abs(said - round(said)) <= 1e-6 * said:
         said = float(round(said))  # a recording's times are whole nanoseconds: a head fires a whole number a second
     match = _shipped_match(table)
     if said is not None:
@@ -146,17 +169,21 @@ def load_reference(source: str | os.PathLike[str], rate: float | None = None) ->
             raise LivoxVizError(f"{path}: its {column} column says {said:,.6g} rows/s; --rate {rate:g} contradicts "
                                 "it (leave --rate out)")
         return _as_pattern(table, name, rate or said, "given (--rate)" if rate else f"its {column} column", slots,
-                           match or "")
+                           match or "", table.recording)
     if rate is not None:
-        return _as_pattern(table, name, rate, "given (--rate)", slots, match or "")
+        return _as_pattern(table, name, rate, "given (--rate)", slots, match or "", table.recording)
     if match is not None:
         return _as_pattern(table, name, float(shipped_tables()[match]["rate"]),
-                           f"the shipped tables' index (its first rows are the shipped {match} table's)", slots, match)
+                           f"the shipped tables' index (its first rows are the shipped {match} table's)", slots, match,
+                           table.recording)
+    if recording_rate is not None and table.recording:
+        return _as_pattern(table, name, float(recording_rate), "the head's point rate (the recording has no per-point "
+                           "times)", slots, recording=table.recording)
     from livox_viz.fitting.track_fit import rate_from_spectrum
 
     xy, plane = xy_from_zup(table.azimuth, table.elevation)
     said, how = rate_from_spectrum(name, xy, plane, slots)
-    return _as_pattern(table, name, said, how, slots)
+    return _as_pattern(table, name, said, how, slots, recording=table.recording)
 
 
 @dataclass(frozen=True)
@@ -170,23 +197,26 @@ class _FileRows:
     column: str = ""
     #: The first line of data in the file (a CSV's line numbers in messages), or None for a row index.
     first_line: int | None = None
+    #: The recording's format when the rows are a real sensor's recording (:data:`RECORDING_READERS`), else "".
+    recording: str = ""
 
 
 def _as_pattern(table: _FileRows, name: str, rate: float, source: str, slots: np.ndarray | None = None,
-                shipped: str = "") -> ReferencePattern:
+                shipped: str = "", recording: str = "") -> ReferencePattern:
     xy, plane = xy_from_zup(table.azimuth, table.elevation)
     # Some of Livox's tables are mirror images of what the hardware does: their rows are turned as the index says.
     image = shipped_tables()[shipped].get("image", "as printed") if shipped else "as printed"
     xy *= np.array(PLANE_IMAGES[image], dtype=np.float64)
     count = xy.shape[0]
     t = (np.arange(count, dtype=np.float64) if slots is None else slots.astype(np.float64)) / rate
-    return ReferencePattern(name, xy, t, float(rate), plane, source, shipped, image)
+    return ReferencePattern(name, xy, t, float(rate), plane, source, shipped, image, recording)
 
 
 def _read_file(path: Path) -> _FileRows:
-    require_file(path, "scan table (.npy, .npz, Livox CSV, .lvx2, .lvx or ROS 1 .bag)")
+    require_file(path, "scan table (.npy, .npz, Livox CSV) or recording (.pcd, .ply, x,y,z .csv, .lvx2, .lvx or "
+                       "ROS 1 .bag)")
     suffix = path.suffix.lower()
-    if suffix in RECORDING_SUFFIXES:
+    if suffix in RECORDING_SUFFIXES or is_point_csv(path):
         table = _read_recording(path)
     elif suffix == ".npy":
         angles = _checked_angles(path, _checked_header(path, "the table"), "a .npy table")
@@ -203,22 +233,32 @@ def _read_file(path: Path) -> _FileRows:
     return table
 
 
-#: Readers of Livox recordings by suffix, registered by :mod:`livox_viz.files` (a later stage of the pipeline,
-#: which this module may not import): ``reader(path, rows)`` gives the first device's first returns in firing order,
-#: at most ``rows`` of them, as points ``(n, 3)`` (x forward, y left, z up, metres) and times ``(n,)`` seconds.
-RECORDING_READERS: dict[str, Callable[[Path, int], tuple[np.ndarray, np.ndarray]]] = {}
+#: Readers of recordings by suffix, registered by :mod:`livox_viz.files` (a later stage of the pipeline, which this
+#: module may not import): ``reader(path, rows)`` gives the first device's first returns in firing order, at most
+#: ``rows`` of them, as points ``(n, 3)`` (x forward, y left, z up, metres; a no-return, ``(0, 0, 0)``, is a gap)
+#: and times ``(n,)`` seconds, or None when the file has no per-point times: then the rows are every firing, and
+#: each returned row's slot is its row index. The result's third item is the format read ("PCD", "LVX2", ...).
+RECORDING_READERS: dict[str, Callable[[Path, int], tuple[np.ndarray, np.ndarray | None, str]]] = {}
 
 
 def _read_recording(path: Path) -> _FileRows:
-    """A Livox recording's rows (:data:`RECORDING_READERS`), each with its time from the first row's."""
+    """A recording's returned rows (:data:`RECORDING_READERS`), each with its time from the first row's (or, without
+    times, its row index: the no-returns between are gaps)."""
     reader = RECORDING_READERS.get(path.suffix.lower())
     if reader is None:
-        raise LivoxVizError(f"{path}: Livox recordings are read by livox_viz.files; allowed: import livox_viz.files "
+        raise LivoxVizError(f"{path}: recordings are read by livox_viz.files; allowed: import livox_viz.files "
                             "first (the command line and the window do)")
-    points, times = reader(path, MAX_TABLE_ROWS)
-    x, y, z = points.T
-    return _FileRows(np.arctan2(y, x), np.arctan2(z, np.hypot(x, y)), times - times[0] if len(times) else times,
-                     "time", None)
+    points, times, form = reader(path, MAX_TABLE_ROWS)
+    returned = np.flatnonzero(np.any(points != 0.0, axis=1))
+    if returned.size == 0:
+        raise LivoxVizError(f"{path}: no returns in its {points.shape[0]:,} rows (every point (0, 0, 0) or none); "
+                            "allowed: a recorded frame with returns")
+    x, y, z = points[returned].T
+    if times is None:
+        rows, column = returned, "row"  # firing order from the file's first row: a no-return row is a gap
+    else:
+        rows, column = times[returned] - times[0], "time"
+    return _FileRows(np.arctan2(y, x), np.arctan2(z, np.hypot(x, y)), rows.astype(np.float64), column, None, form)
 
 
 def _checked_header(path: Path, what: str, source: Any = None) -> np.ndarray:
@@ -386,6 +426,10 @@ def _slots(path: Path, table: _FileRows) -> tuple[np.ndarray | None, float | Non
     def line(row: int) -> str:
         return f"line {row + table.first_line}" if table.first_line else f"row {row}"
 
+    if column == "row":  # a recording's rows in firing order: the returned rows' indices are their slots
+        slots = times.astype(np.int64)
+        _check_gaps(path, slots, "rows", line, "count")
+        return (None if slots[0] == 0 and slots[-1] == slots.size - 1 else slots), None, column
     steps = np.diff(times)
     if np.any(steps < 0):
         row = int(np.flatnonzero(steps < 0)[0]) + 1
@@ -408,6 +452,8 @@ def _slots(path: Path, table: _FileRows) -> tuple[np.ndarray | None, float | Non
     if placed:
         _check_gaps(path, slots, column, line, "steps")
         said = 1.0 / float(np.polyfit(slots.astype(np.float64), times - times[0], 1)[0])
+        if table.recording:  # a frame's times start at its first row, which may be a no-return: a gap
+            slots = slots + round(times[0] * said)
     else:
         slots = None
         said = (times.size - 1) / float(times[-1] - times[0])
@@ -462,13 +508,14 @@ def pattern_table(config, name: str, seconds: float = 4.0, seed: int = 0) -> Ref
 
 
 def load_table_or_preset(text: str, rate: float | None = None, seconds: float = 4.0,
-                         seed: int = 0) -> ReferencePattern:
-    """A reference given on the command line: a table (shipped name or file), or a preset (name or JSON)
-    replayed for ``seconds``."""
+                         seed: int = 0, recording_rate: float | None = None) -> ReferencePattern:
+    """A reference given on the command line: a table (shipped name or file) or a recording (``recording_rate``:
+    see :func:`load_reference`), or a preset (name or JSON) replayed for ``seconds``."""
+    if Path(text).is_dir() and Path(text).suffix.lower() != ".bag":
+        raise LivoxVizError(f"{text}: is a folder; allowed: a table (.npy, .npz or Livox .csv), a recording (.pcd, "
+                            ".ply, x,y,z .csv, .lvx2, .lvx or .bag) or a preset (name or .json)")
     if is_table(text):
-        return load_reference(text, rate=rate)
-    if Path(text).is_dir():
-        raise LivoxVizError(f"{text}: is a folder; allowed: a table (.npy or Livox .csv) or a preset (name or .json)")
+        return load_reference(text, rate=rate, recording_rate=recording_rate)
     from livox_viz.config.presets import load_preset
 
     return pattern_table(load_preset(text), Path(text).stem, seconds, seed)

@@ -59,6 +59,9 @@ class ReferencePattern:
     image : str
         How the rows as printed were turned to be the real sensor's (a key of :data:`PLANE_IMAGES`; the
         shipped tables' index says it for each head, "as printed" for any other table).
+    recording : str
+        The format of the real sensor's recording the rows were read from ("PCD", "LVX2", ...), else "": a
+        recording starts at its own phases (not a preset's) and holds only its own span (it does not repeat).
     """
 
     name: str
@@ -69,6 +72,7 @@ class ReferencePattern:
     rate_source: str = "given"
     shipped: str = ""
     image: str = "as printed"
+    recording: str = ""
 
     @property
     def alpha_deg(self) -> np.ndarray:

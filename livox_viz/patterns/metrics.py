@@ -371,7 +371,8 @@ class PatternCurves:
 
 
 def stream_curves(xy_deg: np.ndarray, rate: float, fov: FovLike,
-                  seconds: Sequence[float] = CURVE_SECONDS, bins: int = 30) -> PatternCurves:
+                  seconds: Sequence[float] = CURVE_SECONDS, bins: int = 30,
+                  slots: np.ndarray | None = None) -> PatternCurves:
     """:class:`PatternCurves` of the points ``xy_deg`` (in firing order at ``rate`` points/s).
 
     Parameters
@@ -382,12 +383,18 @@ def stream_curves(xy_deg: np.ndarray, rate: float, fov: FovLike,
         The field of view (or a cone's half-angle, degrees) for coverage and the density's span.
     seconds : (k,) float
     bins : int
+    slots : (n,) int64, optional
+        Each point's firing (increasing, from firing 0), for a stream with gaps (a recording's no-returns);
+        default: point k is firing k.
     """
-    usable = np.array([s for s in seconds if points_before(s, rate) <= xy_deg.shape[0]], dtype=np.float64)
+    firings = xy_deg.shape[0] if slots is None or not len(slots) else int(slots[-1]) + 1
+    usable = np.array([s for s in seconds if points_before(s, rate) <= firings], dtype=np.float64)
     counts = points_before(usable, rate)
+    if slots is not None:
+        counts = np.searchsorted(slots, counts, side="left")  # the points fired before each time
     fraction = coverage_curve(xy_deg, counts, fov) if usable.size else np.zeros(0)
     edges, density = radial_density(xy_deg, fov, bins)
-    duration = xy_deg.shape[0] / rate
+    duration = firings / rate
     return PatternCurves(usable, fraction, 0.5 * (edges[1:] + edges[:-1]), density / max(duration, 1e-12))
 
 
@@ -399,7 +406,7 @@ def config_curves(config: SensorConfig, seed: int = 0, seconds: Sequence[float] 
 
 
 def window_coverage(xy_deg: np.ndarray, rate: float, seconds: tuple[float, ...] | list[float], fov: FovLike,
-                    cell_deg: float = LIVOX_CELL_DEG, starts: int = 6) -> np.ndarray:
+                    cell_deg: float = LIVOX_CELL_DEG, starts: int = 6, slots: np.ndarray | None = None) -> np.ndarray:
     """Coverage at each integration time, the mean over ``starts`` windows spread over the stream.
 
     Parameters
@@ -412,19 +419,26 @@ def window_coverage(xy_deg: np.ndarray, rate: float, seconds: tuple[float, ...] 
         The field of view, or a cone's half-angle, degrees.
     cell_deg : float
     starts : int
+    slots : (n,) int64, optional
+        Each point's firing (increasing), for a stream with gaps (a recording's no-returns): a window is the
+        points fired within it, and one longer than the stream holds all of them. Default: point k is firing k.
 
     Returns
     -------
     fraction : (k,) float64
     """
-    total = xy_deg.shape[0]
+    total = xy_deg.shape[0] if slots is None or not len(slots) else int(slots[-1]) + 1
     result = np.zeros(len(seconds))
     counts = points_before(np.asarray(seconds, dtype=np.float64), rate)
-    if counts.max() > total:
+    if slots is None and counts.max() > total:
         raise LivoxVizError(f"{max(seconds):g} s needs {counts.max()} points; the stream has {total}")
     for k, count in enumerate(counts):
         span = total - count
         offsets = np.linspace(0, span, starts).astype(int) if span > 0 else np.zeros(1, dtype=int)
-        values = [coverage_curve(xy_deg[o : o + count], [count], fov, cell_deg)[0] for o in offsets]
+        if slots is None:
+            rows = [(o, o + count) for o in offsets]
+        else:
+            rows = zip(np.searchsorted(slots, offsets), np.searchsorted(slots, offsets + count), strict=True)
+        values = [coverage_curve(xy_deg[a:b], [b - a], fov, cell_deg)[0] for a, b in rows]
         result[k] = float(np.mean(values))
     return result
