@@ -262,18 +262,9 @@ def _read_livox(path: Path, max_rows: int) -> FrameRows:
 
         recording = read_livox_bag(path, max_points=max_rows)
     else:
-        from livox_viz.files.livox_recording import LivoxRecording
-        from livox_viz.files.lvx_read import iter_lvx, read_layout
+        from livox_viz.files.lvx_read import read_lvx_start
 
-        # Frame by frame, only as far as the rows asked for (a recording of an hour is read from its start).
-        parts, count = [], 0
-        for part in iter_lvx(path):
-            parts.append(part)
-            count += len(part)
-            if count >= max_rows:
-                break
-        layout = read_layout(path)
-        recording = LivoxRecording.join(parts, layout.devices, layout.source, {}).subset(slice(0, max_rows))
+        recording = read_lvx_start(path, max_rows)
     keep = (recording.return_number <= 1) & (recording.device_index == 0)
     part = recording.subset(keep)
     times = part.times_s - part.times_s[0] if len(part) else part.times_s

@@ -20,25 +20,21 @@ import numpy as np
 from livox_viz.files.livox_recording import LivoxRecording
 
 
+def _first_returns_mask(recording: LivoxRecording) -> np.ndarray:
+    return ~recording.no_return & (recording.return_number == 1) & (recording.device_index == 0)
+
+
 def _first_returns(recording: LivoxRecording) -> LivoxRecording:
-    return recording.subset(~recording.no_return & (recording.return_number == 1) & (recording.device_index == 0))
+    return recording.subset(_first_returns_mask(recording))
 
 
 def lvx_rows(path: Path, rows: int) -> tuple[np.ndarray, np.ndarray, str]:
     """An LVX2's or LVX 1.1's first ``rows`` first returns: points ``(n, 3)`` metres (x forward, y left, z up),
     times ``(n,)`` seconds and the format."""
-    from livox_viz.files.lvx_read import iter_lvx, read_layout
+    from livox_viz.files.lvx_read import read_lvx_start
 
-    parts, count = [], 0
-    for frame in iter_lvx(path):
-        part = _first_returns(frame)
-        parts.append(part)
-        count += len(part)
-        if count >= rows:
-            break
-    layout = read_layout(path)
-    joined = LivoxRecording.join(parts, layout.devices, layout.source, {}).subset(slice(0, rows))
-    return joined.points_m, joined.times_s, layout.source
+    joined = read_lvx_start(path, rows, _first_returns_mask)
+    return joined.points_m, joined.times_s, joined.source
 
 
 def bag_rows(path: Path, rows: int) -> tuple[np.ndarray, np.ndarray, str]:

@@ -31,7 +31,7 @@ LVX 1.1's IMU packages (type 6) are read past and counted. Spherical types, LVX
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -189,6 +189,22 @@ def iter_lvx(path: str | os.PathLike[str], max_frame_bytes: int = MAX_FRAME_BYTE
             body = _read_exact(handle, body_size, path, where)
             yield _frame_points(path, layout, body, where)
             position, index = end, index + 1
+
+
+def read_lvx_start(path: str | os.PathLike[str], rows: int,
+                   keep: Callable[[LivoxRecording], np.ndarray] | None = None) -> LivoxRecording:
+    """A file's first ``rows`` points (those ``keep`` keeps, given a frame: a boolean mask), read frame by frame
+    only as far as they go: an hour's recording is read from its start in bounded memory."""
+    path = Path(path)
+    parts, count = [], 0
+    for frame in iter_lvx(path):
+        part = frame if keep is None else frame.subset(keep(frame))
+        parts.append(part)
+        count += len(part)
+        if count >= rows:
+            break
+    layout = read_layout(path)
+    return LivoxRecording.join(parts, layout.devices, layout.source, {}).subset(slice(0, rows))
 
 
 def read_lvx(path: str | os.PathLike[str], max_points: int = MAX_POINTS) -> LivoxRecording:
