@@ -1359,7 +1359,8 @@ def seed_numba_cache(cache_dir: Path, leave_out: tuple[str, ...]) -> int:
 def test_the_first_datasheet_use_keeps_the_window_painting(tmp_path: Path, qapp) -> None:
     """With a compile cache that lacks two of the datasheet loops, d: the window paints on (the longest gap between
     two frames under 0.5 s, or a twentieth of the compile on a loaded machine), the ideal model plays meanwhile,
-    and the datasheet model takes over when its loops are ready. (A fully empty cache took a minute here: the window's side of it is the same, only longer.)
+    and the datasheet model takes over when its loops are ready. (A fully empty cache took a minute here: the
+    window's side of it is the same, only longer.)
 
     Why it takes about 20 s, the suite's longest: the compile it waits for is real (two of numba's datasheet loops
     from nothing, in the window's own child, as a user's first d), and only a real compile shows the window
