@@ -88,8 +88,12 @@ class ReferencePattern:
 
     @property
     def firings(self) -> int:
-        """Firings from the first row to the last, both counted (the rows plus the gaps)."""
-        return int(self.slots[-1] - self.slots[0]) + 1 if len(self.t) else 0
+        """Firings from the first row to the last, both counted (the rows plus the gaps); rows that share the last
+        slot (a group printed with one time) each count as one."""
+        if not len(self.t):
+            return 0
+        slots = self.slots
+        return int(slots[-1] - slots[0]) + int(np.count_nonzero(slots == slots[-1]))
 
     @property
     def seconds(self) -> float:
