@@ -84,7 +84,8 @@ class ReferencePattern:
     def consecutive(self) -> bool:
         """Whether the rows are every firing from the first to the last (no gaps)."""
         slots = self.slots
-        return bool(slots.size == 0 or (slots[0] == 0 and slots[-1] == slots.size - 1))
+        # Rows sharing a slot (a group printed with one time) are no firing each, even where they count right.
+        return bool(slots.size == 0 or (slots[0] == 0 and slots[-1] == slots.size - 1 and np.all(np.diff(slots) > 0)))
 
     @property
     def firings(self) -> int:
