@@ -109,3 +109,61 @@ def out_of_order(name: str, lasers: int, rate: float, rows: int, seed: int = 0, 
         angles[:, 0], 2 * np.pi)
     keep = rng.random(rows) >= drop
     return MadeTable(angles[keep], slots[keep], fired[keep], rate)
+
+
+# A HAP-like export: lasers listed in groups in no fixed order ------------------------------------------------------
+@dataclass(frozen=True)
+class GroupedExport:
+    """A made export of a head whose K lasers are listed in groups of K in no fixed order.
+
+    ``angles`` (n, 2) [theta, phi] radians; ``printed`` (n,) the Time/s each row is printed with; ``fired`` (n,)
+    when each row's laser truly fired, seconds; ``laser`` (n,) the source track's laser; ``rate`` rows per second.
+    """
+
+    angles: np.ndarray
+    printed: np.ndarray
+    fired: np.ndarray
+    laser: np.ndarray
+    rate: float
+
+    def save_csv(self, path: Path, time_decimals: int = 9) -> Path:
+        """As a Livox CSV (``Time/s,Azimuth/deg,Zenith/deg``), the printed times to ``time_decimals``."""
+        table = np.column_stack([self.printed, np.degrees(self.angles[:, 0]), 90.0 - np.degrees(self.angles[:, 1])])
+        with path.open("w") as handle:
+            handle.write("Time/s,Azimuth/deg,Zenith/deg\n")
+            np.savetxt(handle, table, fmt=[f"%.{time_decimals}f", "%.7f", "%.7f"], delimiter=",")
+        return path
+
+    def save_npy(self, path: Path) -> Path:
+        np.save(path, self.angles.astype(np.float32))
+        return path
+
+
+def grouped_export(track, rate: float, rows: int, listing: str, together: bool, seed: int = 0) -> GroupedExport:
+    """``rows`` rows of a track's K lasers (a :class:`~livox_viz.config.track_params.TrackParams`; made with
+    livox_viz's own ``track_xy``, as no public table of such a head is at hand), listed in groups of K.
+
+    ``together``: the K lasers of a group fire at one instant and the group is printed with that time (each row
+    of it the same Time/s); else laser k fires at slot g K + k and each row is printed with the time of its place
+    in the list (so a row's Time/s is not when it fired). ``listing`` orders each group: ``"random"`` (a new
+    order each group), ``"azimuth"`` (left to right), ``"elevation"`` (top down) or ``"fixed"`` (laser order).
+    """
+    from livox_viz.patterns.planes import directions_from_xy
+    from livox_viz.patterns.track import track_xy
+
+    lasers = track.lasers
+    slot = np.arange(rows)
+    laser = slot % lasers
+    fired = ((slot - laser) if together else slot) / rate
+    xy = track_xy(track, fired, laser)
+    whole = rows // lasers * lasers
+    groups = xy[:whole].reshape(-1, lasers, 2)
+    rng = np.random.default_rng(seed)
+    keys = {"random": rng.random(groups.shape[:2]), "azimuth": groups[..., 0], "elevation": -groups[..., 1],
+            "fixed": np.broadcast_to(np.arange(lasers, dtype=np.float64), groups.shape[:2])}[listing]
+    order = np.arange(rows)
+    order[:whole] = (np.argsort(keys, axis=1, kind="stable") + np.arange(0, whole, lasers)[:, None]).ravel()
+    d = directions_from_xy(xy[order])  # FRD: x forward, y right, z down
+    angles = np.column_stack([np.arctan2(-d[:, 1], d[:, 0]), np.arcsin(np.clip(-d[:, 2], -1.0, 1.0))])
+    printed = fired[order] if together else slot / rate
+    return GroupedExport(angles, printed, fired[order], laser[order], rate)

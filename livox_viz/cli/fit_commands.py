@@ -166,24 +166,35 @@ def _rate_line(reference: ReferencePattern) -> str:
 
 def _at_table_rate(base: SensorConfig, reference: ReferencePattern, lasers: int, found: int) -> SensorConfig:
     """The base configuration with W x H x F equal to the table's rows per second (about 10 frames/s), each frame
-    whole firing groups of ``lasers``.
+    whole firing groups of ``lasers`` where any frame at that rate is.
 
-    The base's own layout is kept when it already makes the rate; otherwise W stays nearest the base's.
+    The base's own layout is kept when it already makes the rate; otherwise W stays nearest the base's. A rate
+    no frame of whole groups makes (the HAP's 452 000 rows/s has no factor 3: no frame holds whole groups of its
+    6 lasers) is kept when the rows' geometry found that many lasers: its frames begin on any laser, as the
+    head's own do (:func:`_frame_note` says so).
 
     Raises
     ------
     UsageError
-        When no frame of whole groups makes the rate (a forced ``--beams`` the rows do not show is named).
+        When no frame of whole groups makes the rate for a forced ``--beams`` the rows do not show.
     """
     if base.point_rate == reference.rate and base.points_per_frame % lasers == 0:
         return base
     width, height, freq = frame_layout(reference.rate, lasers, width=base.data_width)
-    if (width * height) % lasers:
+    if (width * height) % lasers and lasers != found:
         blame = (f"; --beams {lasers} where the rows' geometry says {found}: leave --beams out" if lasers != found
                  else "")
         raise UsageError(f"{reference.name}: at {reference.rate:,.6g} rows/s no frame (DataWidth x DataHeight, "
                          f"DataCheckFreq 1 to 1000 a second) holds whole groups of {lasers} lasers{blame}")
     return replace(base, data_width=width, data_height=height, data_check_freq=freq)
+
+
+def _frame_note(config: SensorConfig, lasers: int) -> str | None:
+    """A line for a layout whose frames hold no whole firing groups (each frame may then begin on any laser)."""
+    if config.points_per_frame % lasers == 0:
+        return None
+    return (f"  frames           {config.points_per_frame:,} points hold no whole groups of {lasers} lasers (no frame "
+            f"at {config.point_rate:,} pts/s does): a frame may begin on any laser")
 
 
 def _with_track(config: SensorConfig, track: TrackParams, fov: FieldOfView) -> SensorConfig:
@@ -221,6 +232,9 @@ def _fit_risley(args: argparse.Namespace, reference: ReferencePattern, base: Sen
     print(f"  fitted in        {fit.seconds:.1f} s")
     print(f"  plays at         {config.data_width} x {config.data_height} x {config.data_check_freq} = {rate:,} "
           "pts/s, the table's rate")
+    note = _frame_note(config, params.lasers)
+    if note:
+        print(note)
     _warn_forced(args, fit.lasers_found)
     if args.out:
         _write_preset(args, config, f"Risley track fitted to {reference.name} ({reference.seconds:g} s, "
@@ -246,6 +260,9 @@ def _fit_track(args: argparse.Namespace, reference: ReferencePattern, base: Sens
     print(f"  base             {base_said}")
     print(f"  plays at         {config.data_width} x {config.data_height} x {config.data_check_freq} = "
           f"{config.point_rate:,} pts/s, the table's rate")
+    note = _frame_note(config, params.lasers)
+    if note:
+        print(note)
     _warn_forced(args, fit.lasers_found)
     if fit.rms_deg > 0.01:
         print(f"  warning: the track follows the table only to {fit.rms_deg:.3g} deg rms (more than 0.01 deg): "
@@ -265,6 +282,8 @@ def _track_report(reference: ReferencePattern, fit: TrackFit, forced: bool) -> s
     orders_a = max(abs(m) for m, _ in params.terms)
     orders_b = max(abs(n) for _, n in params.terms)
     order = "in one fixed order" if fit.in_order else "out of order, each row's laser from the geometry"
+    if fit.grouped:
+        order += f" (listed in groups of {params.lasers} in no fixed order: each row at its group's time)"
     moved = f"; {fit.relabelled} rows moved to the laser whose track passes nearest" if fit.relabelled else ""
     lines = [f"{reference.name}: {len(reference.t):,} rows, {reference.seconds:g} s at {reference.rate:g} rows/s, "
              f"{reference.plane} plane",

@@ -22,6 +22,18 @@ order is used exactly, as the public tables have it. A forced count the
 geometry does not see is taken in one fixed order (row at slot s is laser
 s mod K).
 
+Which laser a row is need not say when it fired. A head may fire its K lasers
+together, or in turn at fixed offsets, and an export list each group of K in
+any order (sorted within a group by angle, or at random), each row's time
+then that of its place in the list, not of its firing. When the rows come in
+groups of K consecutive slots that each hold every laser once, the lasers are
+followed a second time with every row of a group at the group's first slot
+(:func:`_group_slots`); if that predicts the rows at least
+:data:`GROUP_GAIN` x closer, the rows' own slots were their places in a list,
+and each row is taken at its group's slot (``LaserAssignment.slots``). A
+laser fired at a fixed offset within its group is then at a fixed time shift
+from its group's slot, which its own coefficients take up exactly.
+
 Lasers are numbered by slot (laser k fires at slots k mod K) when in order,
 else by their offsets: from the top down (y), then from the left (x).
 """
@@ -42,6 +54,10 @@ COUNT_MARGIN = 3.0
 COUNT_ROWS = 24_000
 #: Share of rows that must agree with one fixed order for it to be used.
 IN_ORDER_SHARE = 0.99
+#: Share of groups of K rows that must each hold every laser once for the rows to be tried at their group's slot.
+GROUP_SHARE = 0.9
+#: The rows are taken at their group's slot when that predicts them at least this many times closer.
+GROUP_GAIN = 0.5
 
 
 @dataclass(frozen=True)
@@ -61,6 +77,10 @@ class LaserAssignment:
     prediction_error_deg : float
         Rms distance of each row from where its laser's track was predicted (degrees of the plane): small
         for a scan, as large as the rows' spread for noise.
+    slots : (n,) int64
+        Each row's firing slot as the fit takes it: the table's own, or, when ``grouped``, its group's first.
+    grouped : bool
+        Whether the rows were listed in groups of K in no fixed order, each taken at its group's slot.
     """
 
     lasers: int
@@ -68,6 +88,8 @@ class LaserAssignment:
     labels: np.ndarray
     in_order: bool
     prediction_error_deg: float
+    slots: np.ndarray
+    grouped: bool = False
 
 
 def find_lasers(z: np.ndarray, max_lasers: int = MAX_LASERS) -> int:
@@ -112,12 +134,15 @@ def assign_lasers(z: np.ndarray, slots: np.ndarray, beams: int | None = None) ->
     found = next((k for k, error in errors.items() if error <= COUNT_MARGIN * best), 1)
     lasers = beams or found
     if lasers == 1:
-        return LaserAssignment(1, found, np.zeros(z.size, dtype=np.int8), True, errors.get(1, 0.0))
-    residue = np.mod(slots, lasers).astype(np.int8)
+        return LaserAssignment(1, found, np.zeros(z.size, dtype=np.int8), True, errors.get(1, 0.0), slots)
+    # Rows that share a slot (a group printed with one time) in their listed order, for the fixed order's test.
+    run_start = np.flatnonzero(np.r_[True, np.diff(slots) != 0])
+    rank = np.arange(slots.size) - np.repeat(run_start, np.diff(np.r_[run_start, slots.size]))
+    residue = np.mod(slots + rank, lasers).astype(np.int8)
     if lasers != found:
         # A count the geometry does not see (K tracks on fewer lasers follow nothing in particular): the lasers
         # are taken to fire in turn in one fixed order, as a forced count says.
-        return LaserAssignment(lasers, found, residue, True, errors.get(found, 0.0))
+        return LaserAssignment(lasers, found, residue, True, errors.get(found, 0.0), slots)
     labels, error = _follow_rows(z, slots, lasers)
     # The tracks in one fixed order: each track's most common slot residue, all distinct and agreeing.
     counts = np.zeros((lasers, lasers), dtype=np.int64)
@@ -125,8 +150,42 @@ def assign_lasers(z: np.ndarray, slots: np.ndarray, beams: int | None = None) ->
     mapping = counts.argmax(axis=1)
     agree = counts[np.arange(lasers), mapping].sum() / max(1, z.size)
     if np.unique(mapping).size == lasers and agree >= IN_ORDER_SHARE:
-        return LaserAssignment(lasers, found, residue, True, error)
-    return LaserAssignment(lasers, found, _by_offset(z, slots, labels, lasers), False, error)
+        return LaserAssignment(lasers, found, residue, True, error, slots)
+    grouped = _group_slots(slots, labels, lasers)
+    if grouped is not None:
+        group_labels, group_error = _follow_rows(z, grouped, lasers)
+        if group_error <= GROUP_GAIN * error:
+            return LaserAssignment(lasers, found, _by_offset(z, grouped, group_labels, lasers), False, group_error,
+                                   grouped, True)
+    return LaserAssignment(lasers, found, _by_offset(z, slots, labels, lasers), False, error, slots)
+
+
+def _group_slots(slots: np.ndarray, labels: np.ndarray, lasers: int) -> np.ndarray | None:
+    """Each row at the first slot of its group of ``lasers`` rows, or None when the rows are not such groups.
+
+    The groups are ``lasers`` consecutive rows from one of the ``lasers`` phases (a table may be cut within a
+    group), each on ``lasers`` consecutive slots (no firing missing); the phase whose groups most often hold
+    every laser once is taken, if at least :data:`GROUP_SHARE` of its whole groups do. Rows of a cut group at
+    either end keep the slots their whole group would have.
+    """
+    n = slots.size
+    best, best_share = -1, 0.0
+    for phase in range(lasers):
+        whole = (n - phase) // lasers
+        if whole < 2:
+            continue
+        block = slice(phase, phase + whole * lasers)
+        grouped_slots = slots[block].reshape(whole, lasers)
+        if not np.all(grouped_slots[:, -1] - grouped_slots[:, 0] == lasers - 1):
+            continue
+        grouped_labels = np.sort(labels[block].reshape(whole, lasers), axis=1)
+        share = float(np.mean(np.all(grouped_labels == np.arange(lasers), axis=1)))
+        if share > best_share:
+            best, best_share = phase, share
+    if best < 0 or best_share < GROUP_SHARE:
+        return None
+    group = np.floor_divide(np.arange(n) - best, lasers)
+    return (slots[best] + lasers * group).astype(np.int64)
 
 
 def even_series(z: np.ndarray, slots: np.ndarray, lasers: int) -> np.ndarray:

@@ -60,6 +60,8 @@ MATCH_ROWS = 2000
 MAX_TABLE_ROWS = 10_000_000
 #: Largest Livox CSV read (a CSV row is about 30 bytes: some 8 million rows).
 MAX_CSV_BYTES = 256 * 1024 * 1024
+#: Times printed to a step over this fraction of the firing period cannot place each row on its firing.
+MAX_PRINT_STEP = 0.3
 #: A table is in the panorama plane when more than this fraction of its rays point behind the sensor.
 PANORAMA_FRACTION = 0.01
 
@@ -168,8 +170,11 @@ def load_reference(source: str | os.PathLike[str], rate: float | None = None,
         if rate is not None and abs(rate - said) > 1e-3 * said:
             raise LivoxVizError(f"{path}: its {column} column says {said:,.6g} rows/s; --rate {rate:g} contradicts "
                                 "it (leave --rate out)")
-        return _as_pattern(table, name, rate or said, "given (--rate)" if rate else f"its {column} column", slots,
-                           match or "", table.recording)
+        shared = ""
+        if slots is not None and np.any(np.diff(slots) == 0):
+            shared = f", each group of {int(np.bincount(slots).max())} rows at one time"
+        return _as_pattern(table, name, rate or said, "given (--rate)" if rate else f"its {column} column{shared}",
+                           slots, match or "", table.recording)
     if rate is not None:
         return _as_pattern(table, name, rate, "given (--rate)", slots, match or "", table.recording)
     if match is not None:
@@ -416,8 +421,12 @@ def _slots(path: Path, table: _FileRows) -> tuple[np.ndarray | None, float | Non
     A column that counts rows (whole numbers stepping by 1 or more) gives the slots, gaps and all, but no rate;
     one holding a single value says nothing. Times in seconds step by whole numbers of one firing period: the
     period is the smallest common step (a low percentile of the steps, refined over the whole column), each
-    step a whole number of periods. Times printed too coarsely to place each row (steps that are no whole
-    number of periods, or rows sharing a time) give the mean step's rate, the rows taken as consecutive.
+    step a whole number of periods. Rows listed in groups that share one time (a head firing its K lasers
+    together, each group printed once, in any order within it) keep their group's time: every group of K rows
+    at one slot, K slots after the last (:func:`_shared_time_slots`). Times printed too coarsely to place each
+    row (steps that are no whole number of periods, or runs of rows of uneven length sharing a time) give the
+    rate of a line through the times, the rows taken as consecutive (which laser fired when is then the
+    geometry's to say, :func:`~livox_viz.fitting.lasers.assign_lasers`).
     """
     times, column = table.times, table.column
     if times is None or times.size < 2:
@@ -434,13 +443,48 @@ def _slots(path: Path, table: _FileRows) -> tuple[np.ndarray | None, float | Non
     if np.any(steps < 0):
         row = int(np.flatnonzero(steps < 0)[0]) + 1
         raise LivoxVizError(f"{path}: {column} goes back at {line(row)} ({times[row - 1]:.9g} then {times[row]:.9g} "
-                            "s); allowed: rows in firing order")
+                            "s); allowed: rows in firing order (an export sorted by another column has lost it: "
+                            "export the rows unsorted)")
     if np.all(steps == 0):
         return None, None, column
     if np.all(times == np.round(times)) and steps[steps > 0].min() == 1:
         slots = (times - times[0]).astype(np.int64)
         _check_gaps(path, slots, column, line, "counts rows")
         return (None if np.all(steps == 1) else slots), None, column
+    shared = _shared_time_slots(times)
+    if shared is not None:
+        slots, said = shared
+        _check_gaps(path, slots, column, line, "steps")
+    else:
+        placed = _placed(times)
+        if placed is not None and np.all(steps > 0):
+            slots = placed
+            _check_gaps(path, slots, column, line, "steps")
+            said = 1.0 / float(np.polyfit(slots.astype(np.float64), times - times[0], 1)[0])
+            if table.recording:  # a frame's times start at its first row, which may be a no-return: a gap
+                slots = slots + round(times[0] * said)
+        else:
+            slots = None
+            rows = np.arange(times.size, dtype=np.float64)
+            said = 1.0 / float(np.polyfit(rows, times - times[0], 1)[0])
+    if not MIN_RATE <= said <= MAX_RATE:
+        raise LivoxVizError(f"{path}: its {column} column steps {1 / said:.3g} s from firing to firing ({said:.3g} "
+                            f"rows/s); allowed: times in seconds, {MIN_RATE:g} to {MAX_RATE:,.0f} rows/s")
+    return slots, said, column
+
+
+def _placed(times: np.ndarray) -> np.ndarray | None:
+    """Each time's slot, a whole number of one period from the first (None when the times are no such steps).
+
+    The period is the smallest common step (a low percentile of the steps, refined over the whole column); each
+    step is a whole number of periods, and every time must lie within 0.4 period of its slot. Times rounded to
+    a print step over :data:`MAX_PRINT_STEP` of the period place nothing (unless they sit on the periods
+    exactly, one after another): 1 us steps on a 2.2 us period (452 000 rows/s) read as 1.8 us steps with
+    gaps that pass the 0.4 test.
+    """
+    steps = np.diff(times)
+    if not np.any(steps > 0):
+        return None
     period = float(np.percentile(steps[steps > 0], 5))
     span = float(times[-1] - times[0])
     whole = np.ones_like(steps)
@@ -448,19 +492,45 @@ def _slots(path: Path, table: _FileRows) -> tuple[np.ndarray | None, float | Non
         whole = np.maximum(1.0, np.round(steps / period))
         period = span / float(whole.sum())
     slots = np.concatenate([[0], np.cumsum(whole.astype(np.int64))])
-    placed = bool(np.all(steps > 0) and np.abs(times - times[0] - slots * period).max() <= 0.4 * period)
-    if placed:
-        _check_gaps(path, slots, column, line, "steps")
-        said = 1.0 / float(np.polyfit(slots.astype(np.float64), times - times[0], 1)[0])
-        if table.recording:  # a frame's times start at its first row, which may be a no-return: a gap
-            slots = slots + round(times[0] * said)
-    else:
-        slots = None
-        said = (times.size - 1) / float(times[-1] - times[0])
-    if not MIN_RATE <= said <= MAX_RATE:
-        raise LivoxVizError(f"{path}: its {column} column steps {1 / said:.3g} s from firing to firing ({said:.3g} "
-                            f"rows/s); allowed: times in seconds, {MIN_RATE:g} to {MAX_RATE:,.0f} rows/s")
-    return slots, said, column
+    off = float(np.abs(times - times[0] - slots * period).max())
+    if off > 0.4 * period:
+        return None
+    # Printed as coarsely as the period, times place rows only when they sit on it exactly, nearly every one a
+    # period after the last (10 us steps on a 13.3 us period read as a 10 us period with every third missing).
+    exact = off <= 1e-3 * period and np.mean(whole == 1) >= 0.99
+    if _print_step(times) > MAX_PRINT_STEP * period and not exact:
+        return None
+    return slots
+
+
+def _print_step(times: np.ndarray) -> float:
+    """The step the times are printed to (seconds: 1e-6 for six decimals), 0 when finer than 1e-12 s."""
+    for decimals in range(13):
+        scaled = times * 10.0**decimals
+        if np.all(np.abs(scaled - np.round(scaled)) <= 1e-6 + 1e-14 * np.abs(scaled)):
+            return 10.0**-decimals
+    return 0.0
+
+
+def _shared_time_slots(times: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Slots and rate (rows per second) of rows listed in groups of K that share one time, else None.
+
+    Every distinct time but the first and last (a table cut anywhere) holds the same K >= 2 rows, and the
+    distinct times step by whole numbers of one group period P: each row's slot is K x its group's, the rate
+    K / P. The rows of a group are then each at the group's time, whatever order they are listed in.
+    """
+    distinct, counts = np.unique(times, return_counts=True)
+    if distinct.size < 3 or distinct.size == times.size:
+        return None
+    lasers = int(np.bincount(counts[1:-1]).argmax())
+    if lasers < 2 or np.any(counts[1:-1] != lasers) or counts[0] > lasers or counts[-1] > lasers:
+        return None
+    groups = _placed(distinct)
+    if groups is None:
+        return None
+    period = float(np.polyfit(groups.astype(np.float64), distinct - distinct[0], 1)[0])
+    slots = np.repeat(lasers * groups, counts)
+    return slots, lasers / period
 
 
 def _check_gaps(path: Path, slots: np.ndarray, column: str, line: Any, what: str) -> None:

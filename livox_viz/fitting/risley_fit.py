@@ -167,7 +167,9 @@ def _fit_risley(table: ReferencePattern, beams: int | None) -> RisleyFit:
     assignment = assign_lasers(z, slots, beams)
     found, lasers, laser = assignment.found, assignment.lasers, assignment.labels
     rate = table.rate
-    t = np.asarray(table.t, dtype=np.float64)
+    # Each row at its own time, or, for rows listed in groups in no fixed order, at its group's.
+    slots = assignment.slots
+    t = slots / rate if assignment.grouped else np.asarray(table.t, dtype=np.float64)
     first = laser == 0
     peaks = spectral_peaks(even_series(z[first], slots[first], lasers), rate / lasers, 2)
     if len(peaks) < 2:

@@ -88,12 +88,17 @@ class ReferencePattern:
     def consecutive(self) -> bool:
         """Whether the rows are every firing from the first to the last (no gaps)."""
         slots = self.slots
-        return bool(slots.size == 0 or (slots[0] == 0 and slots[-1] == slots.size - 1))
+        # Rows sharing a slot (a group printed with one time) are no firing each, even where they count right.
+        return bool(slots.size == 0 or (slots[0] == 0 and slots[-1] == slots.size - 1 and np.all(np.diff(slots) > 0)))
 
     @property
     def firings(self) -> int:
-        """Firings from the first row to the last, both counted (the rows plus the gaps)."""
-        return int(self.slots[-1] - self.slots[0]) + 1 if len(self.t) else 0
+        """Firings from the first row to the last, both counted (the rows plus the gaps); rows that share the last
+        slot (a group printed with one time) each count as one."""
+        if not len(self.t):
+            return 0
+        slots = self.slots
+        return int(slots[-1] - slots[0]) + int(np.count_nonzero(slots == slots[-1]))
 
     @property
     def seconds(self) -> float:

@@ -120,6 +120,8 @@ class TrackFit:
         Whether the lasers fired in one fixed order (row at slot s is laser s mod K).
     relabelled : int
         Rows the geometry had given to another laser, moved to the laser whose track passes nearest.
+    grouped : bool
+        Whether the rows were listed in groups of K in no fixed order, each fitted at its group's time.
     """
 
     params: TrackParams
@@ -134,6 +136,7 @@ class TrackFit:
     budget_notes: tuple[str, ...] = ()
     in_order: bool = True
     relabelled: int = 0
+    grouped: bool = False
 
 
 
@@ -194,7 +197,9 @@ def _signals(table: ReferencePattern, assignment: LaserAssignment, panorama: boo
         t = [(k + lasers * np.arange(p.size, dtype=np.float64)) / table.rate for k, p in enumerate(places)]
         dt = lasers / table.rate
     else:
-        t = [np.asarray(table.t, dtype=np.float64)[p] for p in places]
+        # Each row at its own time, or, for rows listed in groups in no fixed order, at its group's.
+        times = (assignment.slots / table.rate) if assignment.grouped else np.asarray(table.t, dtype=np.float64)
+        t = [times[p] for p in places]
         dt = float(np.median([(tk[-1] - tk[0]) / (tk.size - 1) for tk in t]))
     return _Signals(x, y, t, places, dt, regular)
 
@@ -475,7 +480,7 @@ def _fit_assigned(table: ReferencePattern, assignment: LaserAssignment, toleranc
         raise _Refusal("", "the last solve")
     return TrackFit(params, FieldOfView.of_points(table.xy_deg, plane), assignment.found, total,
                     float(np.percentile(distance, 95)), float(distance.max()), per, spread_deg,
-                    time.perf_counter() - started, tuple(notes), assignment.in_order, moved)
+                    time.perf_counter() - started, tuple(notes), assignment.in_order, moved, assignment.grouped)
 
 
 def _settle(table: ReferencePattern, signals: _Signals, assignment: LaserAssignment, hz: tuple[float, float],
@@ -494,7 +499,7 @@ def _settle(table: ReferencePattern, signals: _Signals, assignment: LaserAssignm
             break
         moved += count
         assignment = LaserAssignment(assignment.lasers, assignment.found, labels, False,
-                                     assignment.prediction_error_deg)
+                                     assignment.prediction_error_deg, assignment.slots, assignment.grouped)
         signals = _signals(table, assignment, table.plane == "panorama")
     return signals, assignment, moved, (every_row, coefficients, residuals)
 
