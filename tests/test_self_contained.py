@@ -26,6 +26,7 @@ TEXT_SUFFIXES = {".py", ".json", ".md", ".txt", ".toml", ".cfg", ".sh", ""}
 
 def repository_text_files() -> list[Path]:
     files = [ROOT / name for name in ("README.md", "Makefile", "pyproject.toml", ".ci/run")]
+    files += sorted((ROOT / "docs").glob("*.md"))
     for folder in CHECKED:
         files += [p for p in (ROOT / folder).rglob("*") if p.is_file() and p.suffix in TEXT_SUFFIXES
                   and "__pycache__" not in p.parts]
