@@ -57,8 +57,8 @@ sys.path.insert(0, str(ROOT / "scripts"))
 from mutate_bugs import DELIBERATE_BUGS  # noqa: E402
 
 #: What a worker's copy of the tree holds (the layout of the repository, so path-based tests hold too).
-COPIED = ("livox_viz", "widgets", "presets", "tests", "benchmarks", "scripts", "screenshots", "README.md",
-          "pyproject.toml")
+COPIED = ("livox_viz", "widgets", "presets", "tests", "benchmarks", "scripts", "screenshots", "docs",
+          "README.md", "pyproject.toml")
 #: Where the installed package names live in a copy (as pyproject.toml's package-dir maps them).
 PACKAGE_DIRS = {"livox_viz": "livox_viz", "livox_viz.widgets": "widgets", "livox_viz.shipped_presets": "presets"}
 LEFT_OUT_TESTS = ("tests/test_lint.py",)

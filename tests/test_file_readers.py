@@ -159,13 +159,15 @@ def test_open3d_tensor_reader_reads_every_ply_field(tmp_path: Path, frames: list
     _assert_columns(read, expected)
 
 
-def test_the_readme_says_which_return_numbers_a_las_holds(tmp_path: Path, frames: list) -> None:
-    """Item 21: the README said every LAS has return_number = number_of_returns = 1, where a datasheet LAS holds
-    second returns (its own Outputs paragraph said so): what it says now is what laspy reads."""
+def test_the_guide_says_which_return_numbers_a_las_holds(tmp_path: Path, frames: list) -> None:
+    """Item 21: the README (its text now in docs/files.md) said every LAS has return_number = number_of_returns = 1,
+    where a datasheet LAS holds second returns (its own Outputs paragraph said so): what it says now is what laspy
+    reads."""
     import laspy
 
-    readme = " ".join((Path(__file__).resolve().parent.parent / "README.md").read_text(encoding="utf-8").split())
-    said = readme[readme.index("**A LAS is z-up**"):]
+    guide = (Path(__file__).resolve().parent.parent / "docs" / "files.md").read_text(encoding="utf-8")
+    guide = " ".join(guide.split())
+    said = guide[guide.index("**A LAS is z-up**"):]
     said = said[: said.index(" - **")]
     assert "`number_of_returns` = 1" not in said
     datasheet = laspy.read(_write(tmp_path / "datasheet.las", frames))

@@ -114,18 +114,18 @@ def test_a_broken_sidecar_is_a_one_line_error(tmp_path: Path) -> None:
         load_mesh_file(tmp_path / "b.obj")
 
 
-def test_the_readmes_scene_json_loads_as_it_says(tmp_path: Path) -> None:
-    """The scene file the README documents, taken from the README itself: every object type, materials by name,
-    number and pattern, the default vehicle pose when the file gives none."""
+def test_the_guides_scene_json_loads_as_it_says(tmp_path: Path) -> None:
+    """The scene file the user guide documents, taken from docs/files.md itself: every object type, materials by
+    name, number and pattern, the default vehicle pose when the file gives none."""
     import re
 
     from livox_viz.core.poses import Pose
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
-    block = re.search(r"### Scene files.*?```json\n(.*?)```", readme, re.S)
+    guide = (Path(__file__).resolve().parents[1] / "docs" / "files.md").read_text(encoding="utf-8")
+    block = re.search(r"\n## Scene files\n.*?```json\n(.*?)```", guide, re.S)
     assert block is not None
     scene = json.loads(block.group(1))
-    car = trimesh.creation.box((4.0, 1.5, 1.8))  # y up in the file, as the README's object says
+    car = trimesh.creation.box((4.0, 1.5, 1.8))  # y up in the file, as the guide's object says
     car.visual.face_colors = [200, 200, 200, 255]
     car.metadata["name"] = "glass_windows"
     car.export(tmp_path / "car.glb")

@@ -2,7 +2,8 @@
 
 A user's machine has no development folder beside the checkout: no file of the repository may point
 there, and the installed wheel must carry the presets, scenes and public scan
-tables that ``fit mid70``, ``compare mid40`` and ``--reference mid70`` name.
+tables that ``fit mid70``, ``compare mid40`` and ``--reference mid70`` name, and the user guide (``docs/``)
+that Help > User guide shows.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ TEXT_SUFFIXES = {".py", ".json", ".md", ".txt", ".toml", ".cfg", ".sh", ""}
 
 def repository_text_files() -> list[Path]:
     files = [ROOT / name for name in ("README.md", "Makefile", "pyproject.toml", ".ci/run")]
+    files += sorted((ROOT / "docs").glob("*.md"))
     for folder in CHECKED:
         files += [p for p in (ROOT / folder).rglob("*") if p.is_file() and p.suffix in TEXT_SUFFIXES
                   and "__pycache__" not in p.parts]
@@ -80,6 +82,8 @@ def test_the_wheel_carries_presets_scenes_tables_and_the_window(wheel: Path) -> 
     assert {"mid40", "mid70"} <= set(tables)
     assert len(shipped) > 15 and shipped <= names, sorted(shipped - names)
     assert "livox_viz/widgets/app.py" in names and not any(n.startswith("widgets/") for n in names)
+    guide = {f"livox_viz/shipped_docs/{p.name}" for p in (ROOT / "docs").glob("*.md")}
+    assert "livox_viz/shipped_docs/index.md" in guide and len(guide) >= 5 and guide <= names, sorted(guide - names)
 
 
 @pytest.mark.xdist_group("wheel")
@@ -94,6 +98,8 @@ def test_the_installed_wheel_names_its_tables_without_the_checkout(wheel: Path, 
         f"assert livox_viz.__file__.startswith({str(site)!r}), livox_viz.__file__\n"
         "table = load_reference('mid70')\n"
         "print(len(table.xy_deg), table.rate, load_preset('livox_mid70_risley').point_rate)\n"
+        "from livox_viz.widgets.guide import guide_dir\n"
+        f"assert str(guide_dir()) == {str((site / 'livox_viz' / 'shipped_docs').resolve())!r}, guide_dir()\n"
     )
     env = {**os.environ, "PYTHONPATH": str(site)}
     result = subprocess.run([sys.executable, "-c", probe], cwd=tmp_path, env=env, capture_output=True, text=True,

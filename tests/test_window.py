@@ -1228,6 +1228,59 @@ def test_the_help_dialog_lists_every_key_inside_the_screen(window, qtbot) -> Non
     assert not dialog.isVisible()
 
 
+def test_the_user_guide_opens_from_the_help_menu_and_follows_its_links_inside_the_screen(window, qtbot) -> None:
+    """Help > User guide shows docs/index.md beside the window (not modal, inside the screen); a click on a link
+    opens that page in the guide, a heading's link scrolls to it, and Back returns to the contents."""
+    from qtpy import QtCore, QtGui, QtWidgets
+
+    (helper,) = [a.menu() for a in window.menuBar().actions() if a.text() == "&Help"]
+    (entry,) = [a for a in helper.actions() if a.text() == "User guide..."]
+    entry.trigger()
+    guide = window.findChild(QtWidgets.QDialog, "user-guide")
+    qtbot.waitUntil(guide.isVisible, timeout=5000)
+    assert not guide.isModal()
+    browser = guide.browser
+    assert browser.source().fileName() == "index.md"
+    assert browser.toPlainText().startswith("livox-viz user guide")
+    screen = guide.screen().availableGeometry()
+    assert screen.contains(guide.frameGeometry()) or screen.contains(guide.geometry())
+
+    # A click on the first link to window.md, where Qt draws it.
+    block = browser.document().begin()
+    found = None
+    while block.isValid() and found is None:
+        it = block.begin()
+        while not it.atEnd():
+            fragment = it.fragment()
+            if fragment.charFormat().anchorHref() == "window.md":
+                found = fragment.position() + 1
+                break
+            it += 1
+        block = block.next()
+    assert found is not None
+    cursor = QtGui.QTextCursor(browser.document())
+    cursor.setPosition(found)
+    qtbot.mouseClick(browser.viewport(), QtCore.Qt.MouseButton.LeftButton, pos=browser.cursorRect(cursor).center())
+    qtbot.waitUntil(lambda: browser.source().fileName() == "window.md", timeout=5000)
+    assert browser.toPlainText().startswith("The window") and "integration window" in browser.toPlainText()
+    assert browser.verticalScrollBar().value() == 0
+    guide.follow(QtCore.QUrl("#keys"))  # a heading of the page shown: scrolled to the top, the page kept
+    keys = browser.document().find("Keys")
+    while keys.block().blockFormat().headingLevel() != 2:
+        assert not keys.isNull()
+        keys = browser.document().find("Keys", keys)
+    top = browser.document().documentLayout().blockBoundingRect(keys.block()).top()
+    assert browser.source().fileName() == "window.md" and browser.verticalScrollBar().value() == int(top) > 0
+    guide.follow(QtCore.QUrl("../no-such-page.md"))
+    assert browser.source().fileName() == "window.md" and "no-such-page.md" in guide.note.text()
+    assert guide.back.isEnabled()
+    qtbot.mouseClick(guide.back, QtCore.Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: browser.source().fileName() == "index.md", timeout=5000)
+    close = guide.findChild(QtWidgets.QDialogButtonBox).button(QtWidgets.QDialogButtonBox.StandardButton.Close)
+    qtbot.mouseClick(close, QtCore.Qt.MouseButton.LeftButton)
+    assert not guide.isVisible() and window.isVisible()
+
+
 def test_broken_files_from_the_menu_leave_the_window_as_it_was(window, qtbot, tmp_path: Path) -> None:
     session = window.controller.session
     broken = tmp_path / "broken.json"

@@ -1,4 +1,4 @@
-"""The one key table: it drives the key bindings, the help overlay, the keys line and the README's table."""
+"""The one key table: it drives the key bindings, the help overlay, the keys line and the user guide's table."""
 
 from __future__ import annotations
 
@@ -92,7 +92,7 @@ def help_html() -> str:
 
 
 def markdown_table() -> str:
-    """The README's key table."""
+    """The key table of the user guide (docs/window.md, under "## Keys"; a test holds it there)."""
     lines = ["| key | action |", "|---|---|"]
     lines += [f"| {row.label} | {row.action} |" for row in KEYS]
     return "\n".join(lines)

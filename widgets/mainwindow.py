@@ -42,6 +42,7 @@ from livox_viz.config.sensor import save_config
 from . import files
 from .app import VIEW_NAMES, LivoxVizApp, quiet_vtk
 from .collector import MainThreadCollector, destroy_widget_tree, give_back_free_memory
+from .guide import GUIDE_SIZE, UserGuide, guide_dir
 from .keys import KEYS, help_html
 from .nonerefs import NoneReserve, binding_drops_none
 from .overlay import WINDOWS, PresetSource, TableSource, window_label
@@ -295,6 +296,7 @@ class MainWindow(QtWidgets.QMainWindow):
             top.menu().aboutToShow.connect(self._sync_menus)
         self._make_shortcuts()
         self.help_dialog: QtWidgets.QDialog | None = None
+        self.guide: UserGuide | None = None
 
         # The compiled loops: what the first frame needs now, the rest in the background.
         moving = session.trajectory is not None
@@ -548,6 +550,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self._action(pattern, "Cloud in the world / sensor frame", c.toggle_cloud_frame)
 
         helper = bar.addMenu("&Help")
+        self._action(helper, "User guide...", self.open_guide)
         self._action(helper, "Keys and mouse", self.toggle_help)
         self._action(helper, "About livox-viz", self.about)
 
@@ -959,6 +962,19 @@ class MainWindow(QtWidgets.QMainWindow):
             self.help_dialog.show()
             self.help_dialog.raise_()
 
+    def open_guide(self) -> None:
+        """The user guide (docs/), beside the window and not modal, sized to fit the screen (Help > User guide)."""
+        if self.guide is None:
+            folder = guide_dir()
+            if folder is None:
+                self.say("the user guide is not part of this installation of livox-viz", error=True)
+                return
+            self.guide = UserGuide(folder, self)
+            self.guide.resize(*fit_to_screen(GUIDE_SIZE, self._available_area()))
+        self.guide.show()
+        self.guide.raise_()
+        self.guide.activateWindow()
+
     def about(self) -> None:
         from livox_viz import __version__
 
@@ -1203,6 +1219,8 @@ class MainWindow(QtWidgets.QMainWindow):
             self.warmer.close()
         if self.help_dialog is not None:
             self.help_dialog.close()
+        if self.guide is not None:
+            self.guide.close()
         self.controller.close()
         self.collector.stop()
         event.accept()
