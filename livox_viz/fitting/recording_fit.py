@@ -335,9 +335,10 @@ def head_likeness(config: SensorConfig, frame: RecordedFrame) -> float:
     index = np.flatnonzero(frame.returned)
     if index.size < 16:
         return 1.0
-    early = _spread_rows(index[t[index] <= t[index[0]] + COARSE_SECONDS], COARSE_ROWS // 2)
+    early = _spread_rows(index[t[index] <= t[index[0]] + COARSE_SECONDS], COARSE_ROWS // 4)
     measured = recorded_xy(frame, config.pattern_plane)[early]
-    steps_a, steps_b = _grid_steps(series)
+    # Half the fit's grid: a ranking of heads, not a phase to start from.
+    steps_a, steps_b = (max(24, steps // 2) for steps in _grid_steps(series))
     best = 1.0
     for image in (IMAGES if not series.spin else ("as printed", "mirrored left-right")):
         for reverse in (False, True):
