@@ -180,3 +180,23 @@ def test_a_bad_frame_file_gets_one_line(tmp_path: Path, text: str, message: str,
     assert main(["fit", str(path), "--preset", "livox_tele15"]) == 2
     error = capsys.readouterr().err.strip()
     assert "\n" not in error and message.split(";")[0] in error
+
+
+def test_an_lvx_our_scan_wrote_is_fitted_back_to_the_preset_that_scanned_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """End to end: scan --out x.lvx (LVX 1.1, per-point times and lines as the drivers rebuild them), then fit
+    RECORDING: the file's device type names the head, and the preset comes back as it is (no image, no laser
+    moved, motors at nominal, within the file's 1 mm steps)."""
+    lvx = tmp_path / "scan.lvx"
+    assert main(["scan", "--preset", "livox_tele15", "--seconds", "0.03", "--scene", "urban", "--out",
+                 str(lvx)]) == 0
+    capsys.readouterr()
+    assert main(["fit", str(lvx), "--frame-seconds", "0.03"]) == 0
+    text = capsys.readouterr().out
+    assert "livox_tele15 (the file's device type 2)" in text
+    assert "the preset's track itself (not mirrored)" in text and "its first row is laser 0" in text
+    ppm = [float(word) for word in text.split("motor speeds")[1].split("\n")[0].replace("ppm", " ").split()
+           if word.lstrip("+-").isdigit()]
+    assert len(ppm) == 2 and max(abs(value) for value in ppm) <= 20
+    median = float(text.split("residual         median ")[1].split(" deg")[0])
+    assert median < 0.01
