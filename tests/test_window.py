@@ -346,6 +346,46 @@ def test_the_shipped_tables_open_by_name_from_the_file_menu(window, qtbot) -> No
     assert isinstance(source.source, TableSource) and source.source.name == "avia"
 
 
+def test_a_cloud_opens_beside_the_scan_from_the_file_menu_and_closes(window, qtbot, tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """File > Open cloud (issue 45 item 6): a PLY of our own scan, read on a worker, is drawn in the scene view as
+    an actor of its own with every one of its points, named in the status bar and the heads-up text; a folder is
+    refused in one line, the cloud kept; File > Close cloud takes it away."""
+    from qtpy import QtWidgets
+
+    from livox_viz.cli import main
+
+    cloud = tmp_path / "mine.ply"
+    assert main(["scan", "--seconds", "0.05", "--seed", "0", "--out", str(cloud)]) == 0
+    count = int(next(line for line in cloud.read_bytes().split(b"\n") if line.startswith(b"element vertex"))
+                .split()[2])
+    file_menu = next(a.menu() for a in window.menuBar().actions() if a.text().replace("&", "") == "File")
+    entries = {a.text(): a for a in file_menu.actions()}
+    opening = next(a for text, a in entries.items() if text.startswith("Open cloud"))
+    chosen = [str(cloud)]
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", staticmethod(lambda *a, **k: (chosen[0], "")))
+    view = window.controller.scene_view
+    opening.trigger()
+    qtbot.waitUntil(lambda: (window.tick(), view.opened is not None)[1], timeout=20_000)
+    actor = window.controller.plotters["scene"].actors["opened-cloud"]
+    assert actor is view.opened_actor and actor.mapper.GetInput().GetNumberOfPoints() == count
+    said = window.status_message.text()
+    assert "opened cloud mine.ply" in said and f"{count:,} points" in said and "sensor's pose" in said
+    assert "opened cloud mine.ply" in window.controller.hud.scene_state.GetText(2)
+
+    chosen[0] = str(tmp_path)  # a folder: refused in one line, the cloud stays
+    opening.trigger()
+    qtbot.waitUntil(lambda: (window.tick(), not window._jobs)[1], timeout=20_000)
+    window.tick()
+    assert window._error and "no ROS 2 bag" in window.status_message.text()
+    assert view.opened == ("mine.ply", count) and window.isVisible()
+
+    entries["Close cloud"].trigger()
+    window.tick()
+    assert "opened-cloud" not in window.controller.plotters["scene"].actors and view.opened is None
+    assert "closed cloud mine.ply" in window.status_message.text()
+
+
 def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot) -> None:
     """The menus named no key (a first-use trial): an entry whose action has a key in the key table shows it at
     its right as Qt does, and the key, pressed in a view, still runs its action once (Up doubles the speed once,

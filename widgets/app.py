@@ -741,7 +741,8 @@ class LivoxVizApp:
             if view is not None:
                 view.update()
         self.hud.update(self.session, density_shown=self.pattern_view is not None and self.pattern_view.density_shown(),
-                        drawn=self.scene_view.drawn_count() if self.scene_view is not None else 0)
+                        drawn=self.scene_view.drawn_count() if self.scene_view is not None else 0,
+                        opened=self.scene_view.opened_line() if self.scene_view is not None else "")
 
     def render(self, every: bool = False, draw: Callable[[pv.BasePlotter], None] | None = None) -> None:
         """Render the views (the charts only when they changed, or ``every``) and update the frames per second.

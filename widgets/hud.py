@@ -126,8 +126,9 @@ class HeadsUp:
             + (f"   jitter per {cfg.jitter_scope}" if cfg.pattern_model == "rflysim" else "")
         )
 
-    def scene_text(self, session: Session, drawn: int) -> str:
-        """The scene view's lines; ``drawn`` is how many of the cloud's points the view draws."""
+    def scene_text(self, session: Session, drawn: int, opened: str = "") -> str:
+        """The scene view's lines; ``drawn`` is how many of the cloud's points the view draws, ``opened`` the line
+        of a cloud opened from a file ("" with none)."""
         cfg = session.config
         count = session.scene_ring.count
         thinned = f" (drawing {drawn:,}: 1 in {round(count / max(drawn, 1))})" if drawn < count else ""
@@ -138,11 +139,13 @@ class HeadsUp:
             lines.append("ideal returns carry no intensity (reflectivity 0): turn on the datasheet returns (d)")
         if session.trajectory is not None:
             lines.append(f"trajectory {session.trajectory.name}, cloud in the {session.display.cloud_frame} frame")
+        if opened:
+            lines.append(opened)
         return "\n".join(lines)
 
-    def update(self, session: Session, density_shown: bool = False, drawn: int = 0) -> None:
-        """All text from the session's state."""
+    def update(self, session: Session, density_shown: bool = False, drawn: int = 0, opened: str = "") -> None:
+        """All text from the session's state (``opened``: as :meth:`scene_text`)."""
         if self.state is not None:
             self.state.SetText(2, wrapped(self.pattern_text(session, density_shown)))
         if self.scene_state is not None:
-            self.scene_state.SetText(2, wrapped(self.scene_text(session, drawn)))
+            self.scene_state.SetText(2, wrapped(self.scene_text(session, drawn, opened)))

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 os.environ.setdefault("QT_API", "pyside6")
 
 from pyvistaqt import QtInteractor
@@ -466,6 +468,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._action(file, "Open reference table, recording or preset...", self.open_reference)
         tables = file.addMenu("Open shipped reference table")
         tables.aboutToShow.connect(lambda: self._fill_tables(tables))
+        self._action(file, "Open cloud (PLY, PCD, LAS, NPZ, CSV, LVX2, LVX, bag) beside the scan...", self.open_cloud)
+        self._action(file, "Close cloud", self.close_cloud)
         file.addSeparator()
         self._action(file, "Save as user preset", c.save_preset)
         self._action(file, "Save configuration as...", self.save_config_as, "Ctrl+S")
@@ -1149,6 +1153,49 @@ class MainWindow(QtWidgets.QMainWindow):
             return source
 
         self._background(f"reading {Path(text).name}", work, done)
+
+    def open_cloud(self, path: str | None = None) -> None:
+        """File > Open cloud: a point cloud file read on a worker and drawn in the scene view beside the scan's,
+        static, in light grey (see :mod:`livox_viz.files.cloud_file` for the formats and frames)."""
+        path = path or self._ask_open("Open a cloud to draw beside the scan",
+                                      "Point clouds (*.ply *.pcd *.las *.laz *.npz *.csv *.lvx2 *.lvx *.bag "
+                                      "metadata.yaml);;All files (*)")
+        if path:
+            self.load_cloud(path)
+
+    def load_cloud(self, text: str) -> None:
+        """Read the cloud ``text`` on a worker; a world-frame file is drawn as written (world NED), a sensor-frame
+        one (our sensor exports, a recording in Livox's frame) placed with the sensor's pose as the window opened
+        it, as the scan's sensor-frame points are."""
+        from livox_viz.files.cloud_file import read_cloud
+
+        if self.controller.scene_view is None:
+            raise LivoxVizError("no scene view to draw a cloud in; allowed: the window with its scene view")
+        pose = self.controller.session.sensor_pose  # the sensor now: where a sensor-frame cloud is placed
+
+        def work():
+            cloud = read_cloud(text)
+            points = cloud.points_m if cloud.frame == "world" else pose.origin + cloud.points_m @ pose.rotation.T
+            return cloud, points.astype(np.float32)
+
+        def done(result) -> None:
+            cloud, points = result
+            self.controller.scene_view.show_opened_cloud(points, cloud.name)
+            where = ("drawn as written, in the world frame" if cloud.frame == "world" else
+                     "in the sensor's frame, placed at the sensor's pose now")
+            self.say(f"opened cloud {cloud.name}: {len(points):,} points ({cloud.source}), {where}")
+
+        self._background(f"reading {Path(text).name}", work, done)
+
+    def close_cloud(self) -> None:
+        """File > Close cloud: the opened cloud leaves the scene view."""
+        view = self.controller.scene_view
+        if view is None or view.opened is None:
+            self.say("no cloud is open (File > Open cloud)")
+            return
+        name = view.opened[0]
+        view.show_opened_cloud(None)
+        self.say(f"closed cloud {name}")
 
     def export_cloud(self, suffix: str, path: str | None = None) -> None:
         """File > Export: the window's cloud, cast again from its stream on a worker into the file by the writers

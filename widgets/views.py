@@ -44,6 +44,8 @@ BACKGROUNDS: dict[str, tuple[str, str | None]] = {"dark": ("#10141c", None), "gr
 REFERENCE_COLOUR = "#e6e6e6"
 #: The reference's grey on a white background, where the light one vanished.
 REFERENCE_COLOUR_ON_WHITE = "#4d4d4d"
+#: A cloud opened from a file (File > Open cloud), drawn in the scene beside the scan's: the reference's grey.
+OPENED_CLOUD_COLOUR = REFERENCE_COLOUR
 #: The degree grid's marks and the axes' names, and theirs on a white background (where the first is faint).
 GRID_MARK_COLOUR, GRID_MARK_COLOUR_ON_WHITE = "#9aa6b8", "#4a5568"
 #: The least height between two marked elevation lines of a panorama, pixels (a 12-point mark is about 14 tall).
@@ -808,6 +810,9 @@ class SceneView(_View):
         colour_bar_text(self.scalar_bar, self.background_name)
         self.grid_actor = None
         self.axes_actor = None
+        #: The cloud opened from a file (File > Open cloud), drawn beside the scan's; its name and points, or None.
+        self.opened_actor = None
+        self.opened: tuple[str, int] | None = None
         self.draw_vehicle()
         self.reset_camera()
         session.subscribe(self._on_change)
@@ -862,6 +867,45 @@ class SceneView(_View):
         if shown:
             self.axes_actor = self.plotter.add_axes_at_origin(labels_off=False, line_width=3)
             self.axes_actor.SetTotalLength(5.0, 5.0, 5.0)
+
+    def show_opened_cloud(self, points_ned: np.ndarray | None, name: str = "") -> None:
+        """Draw a cloud opened from a file beside the scan's, static, in :data:`OPENED_CLOUD_COLOUR`; None removes
+        it.
+
+        Parameters
+        ----------
+        points_ned : (n, 3) float32, optional
+            World NED, metres (a sensor-frame file already placed with the sensor's pose).
+        name : str
+            The file's name, for the heads-up text.
+        """
+        self.plotter.subplot(*self.subplot)
+        if points_ned is None:
+            if self.opened_actor is not None:
+                self.plotter.remove_actor(self.opened_actor, render=False)
+            self.opened_actor, self.opened = None, None
+            return
+        cloud = pv.PolyData(np.ascontiguousarray(points_ned, dtype=np.float32))
+        if self.opened_actor is not None:  # another file: the same actor, its new points
+            self.opened_actor.mapper.SetInputData(cloud)
+        else:
+            self.opened_actor = self.plotter.add_mesh(
+                cloud, color=OPENED_CLOUD_COLOUR, point_size=self.point_size, render_points_as_spheres=False,
+                name="opened-cloud", reset_camera=False, lighting=False, pickable=False)
+            self.opened_actor.user_matrix = NED_TO_DISPLAY
+        self.opened = (name, cloud.n_points)
+
+    def opened_line(self) -> str:
+        """The heads-up line naming the opened cloud, or "" with none."""
+        if self.opened is None:
+            return ""
+        name, count = self.opened
+        return f"opened cloud {name}: {count:,} points (light grey)"
+
+    def set_point_size(self, pixels: float) -> None:
+        super().set_point_size(pixels)
+        if self.opened_actor is not None:
+            self.opened_actor.GetProperty().SetPointSize(self.point_size)
 
     def draw_vehicle(self) -> None:
         """The vehicle at its pose, the sensor and a wire cone of the FOV along its boresight.

@@ -36,7 +36,7 @@ from livox_viz.files.frame_files import FRAME_SUFFIXES, read_frame_rows
 
 #: Most points of an opened cloud (about 0.5 GB as float64 x, y, z; a LAS or PLY of more is refused).
 MAX_CLOUD_POINTS = 20_000_000
-#: The suffixes read as clouds (and a ROS 2 bag folder, one holding ``metadata.yaml``).
+#: The suffixes read as clouds (and a ROS 2 bag folder, one holding ``metadata.yaml``, or that file itself).
 CLOUD_SUFFIXES: tuple[str, ...] = (*FRAME_SUFFIXES, ".npz", ".las", ".laz")
 #: Livox's FLU (and LAS's ENU read as x, y, z) to the project's z-down frames: FLU -> FRD.
 _FLIP_YZ = np.array([1.0, -1.0, -1.0])
@@ -85,6 +85,8 @@ def read_cloud(path: str | os.PathLike[str], max_points: int = MAX_CLOUD_POINTS)
         One line: a folder that is no ROS 2 bag, an unknown suffix, a broken file, no returns, too many points.
     """
     path = Path(path)
+    if path.name == "metadata.yaml":  # a file dialog picks files: a ROS 2 bag by its metadata
+        path = path.parent
     allowed = f"allowed: a cloud file ({', '.join(CLOUD_SUFFIXES)}) or a ROS 2 bag folder"
     if path.is_dir() and not (path / "metadata.yaml").exists() and path.suffix.lower() != ".bag":
         raise LivoxVizError(f"{path}: is a folder that is no ROS 2 bag; {allowed}")
