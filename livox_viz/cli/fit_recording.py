@@ -13,7 +13,6 @@ window and against random phases, and the recording's return statistics;
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -59,17 +58,19 @@ def _heads(args: argparse.Namespace, rows: FrameRows, frame: RecordedFrame) -> l
             for _, name in likeness[:GUESS_TRIES]]
 
 
+def _first_rows(rows: FrameRows, count: int) -> RecordedFrame:
+    """The recording's first ``count`` rows as a frame to fit."""
+    return RecordedFrame(rows.name, rows.frd[:count], None if rows.times_s is None else rows.times_s[:count],
+                         None if rows.lasers is None else rows.lasers[:count])
+
+
 def _cut(rows: FrameRows, seconds: float, rate: float) -> RecordedFrame:
     """The recording's first ``seconds`` as a frame to fit."""
     if rows.times_s is not None:
         count = int(np.searchsorted(rows.times_s, seconds, side="left"))
     else:
         count = round(seconds * rate)
-    count = max(1, min(count, rows.points_m.shape[0]))
-    frd = rows.frd[:count]
-    t = None if rows.times_s is None else rows.times_s[:count]
-    lasers = None if rows.lasers is None else rows.lasers[:count]
-    return RecordedFrame(rows.name, frd, t, lasers)
+    return _first_rows(rows, max(1, min(count, rows.points_m.shape[0])))
 
 
 def fit_recording_command(args: argparse.Namespace) -> int:
@@ -78,9 +79,7 @@ def fit_recording_command(args: argparse.Namespace) -> int:
     if rows.points_m.shape[0] == 0:
         raise LivoxVizError(f"{args.reference}: holds no rows; allowed: a frame in firing order")
     seconds = args.frame_seconds
-    probe = RecordedFrame(rows.name, rows.frd[:50_000], None if rows.times_s is None else rows.times_s[:50_000],
-                          None if rows.lasers is None else rows.lasers[:50_000])
-    heads = _heads(args, rows, probe)
+    heads = _heads(args, rows, _first_rows(rows, 50_000))
     refusals = []
     for config, head_said in heads:
         frame = _cut(rows, seconds, float(config.point_rate))
@@ -101,7 +100,7 @@ def fit_recording_command(args: argparse.Namespace) -> int:
                        f"({rows.source}): {fit.image}, lasers {fit.laser_order}, motors {fit.ppm[0]:+.0f} and "
                        f"{fit.ppm[1]:+.0f} ppm; median {fit.median_deg:.3g} deg per row (random phases "
                        f"{fit.random_median_deg:.3g} deg)")
-        what = write_config_json(args.out, replace(fit.config), args.sdk, {DESCRIPTION_KEY: description})
+        what = write_config_json(args.out, fit.config, args.sdk, {DESCRIPTION_KEY: description})
         print(f"wrote {args.out} ({what})")
     return 0
 

@@ -36,7 +36,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -272,22 +272,29 @@ def _coarse(series: _Series, t: np.ndarray, laser: np.ndarray, measured: np.ndar
     return best
 
 
-def _refine(series: _Series, t: np.ndarray, laser: np.ndarray, measured: np.ndarray,
-            start: Sequence[float]) -> np.ndarray:
-    """Least squares on (shift A, shift B, ppm A, ppm B), robust to the rows that hit something odd."""
-    from scipy.optimize import least_squares
-
+def _residual_deg(series: _Series, t: np.ndarray, laser: np.ndarray, measured: np.ndarray,
+                  ppm: Sequence[float] | None = None) -> Callable[[np.ndarray], np.ndarray]:
+    """The least-squares residual (degrees, x then y; a spin's azimuth wrapped and shortened by the elevation) of
+    the phase vector: (shift A, shift B, ppm A, ppm B), or with ``ppm`` fixed, the two shifts alone."""
     cos_el = np.cos(np.radians(measured[:, 1])) if series.spin else 1.0
 
     def residual(x: np.ndarray) -> np.ndarray:
-        model = series.xy(t, laser, x[:2], x[2:])
+        model = series.xy(t, laser, x[:2], x[2:] if ppm is None else ppm)
         dx = model[:, 0] - measured[:, 0]
         if series.spin:
             dx = ((dx + 180.0) % 360.0 - 180.0) * cos_el
         return np.concatenate([dx, model[:, 1] - measured[:, 1]])
 
-    solution = least_squares(residual, np.asarray(start, dtype=np.float64), loss="soft_l1", f_scale=0.05,
-                             x_scale=np.array([1e-3, 1e-3, 10.0, 10.0]))
+    return residual
+
+
+def _refine(series: _Series, t: np.ndarray, laser: np.ndarray, measured: np.ndarray,
+            start: Sequence[float]) -> np.ndarray:
+    """Least squares on (shift A, shift B, ppm A, ppm B), robust to the rows that hit something odd."""
+    from scipy.optimize import least_squares
+
+    solution = least_squares(_residual_deg(series, t, laser, measured), np.asarray(start, dtype=np.float64),
+                             loss="soft_l1", f_scale=0.05, x_scale=np.array([1e-3, 1e-3, 10.0, 10.0]))
     return solution.x
 
 
@@ -298,17 +305,15 @@ def _aligned_median(series: _Series, t: np.ndarray, laser: np.ndarray, measured:
 
     if t.size < 8:
         return math.nan
-    cos_el = np.cos(np.radians(measured[:, 1])) if series.spin else 1.0
-
-    def residual(shift: np.ndarray) -> np.ndarray:
-        model = series.xy(t, laser, shift, x[2:])
-        dx = model[:, 0] - measured[:, 0]
-        if series.spin:
-            dx = ((dx + 180.0) % 360.0 - 180.0) * cos_el
-        return np.concatenate([dx, model[:, 1] - measured[:, 1]])
-
-    shift = least_squares(residual, x[:2], loss="soft_l1", f_scale=0.05, x_scale=1e-3).x
+    shift = least_squares(_residual_deg(series, t, laser, measured, x[2:]), x[:2], loss="soft_l1", f_scale=0.05,
+                          x_scale=1e-3).x
     return float(np.median(angle_between_deg(series.xy(t, laser, shift, x[2:]), measured, plane)))
+
+
+def _images_of(series: _Series, images: Sequence[str]) -> list[str]:
+    """The images worth trying: a spin track's azimuth is degrees(A) + Re w, so only its left-right image is a
+    track of the same form."""
+    return [image for image in images if not series.spin or IMAGES[image][1] == 1]
 
 
 def _grid_steps(series: _Series) -> tuple[int, int]:
@@ -340,7 +345,7 @@ def head_likeness(config: SensorConfig, frame: RecordedFrame) -> float:
     # Half the fit's grid: a ranking of heads, not a phase to start from.
     steps_a, steps_b = (max(24, steps // 2) for steps in _grid_steps(series))
     best = 1.0
-    for image in (IMAGES if not series.spin else ("as printed", "mirrored left-right")):
+    for image in _images_of(series, tuple(IMAGES)):
         for reverse in (False, True):
             for first in range(lasers):
                 moved = series.image(IMAGES[image], reverse, first)
@@ -399,8 +404,7 @@ def fit_recording(config: SensorConfig, frame: RecordedFrame, images: Sequence[s
     early = _spread_rows(index[t[index] <= t[index[0]] + COARSE_SECONDS], COARSE_ROWS)
     steps_a, steps_b = _grid_steps(series)
     candidates = []
-    # A spin track's azimuth is degrees(A) + Re w: only its left-right image is a track of the same form.
-    images = [image for image in images if not series.spin or IMAGES[image][1] == 1]
+    images = _images_of(series, images)
     for image in images:
         for order in orders:
             for first in range(lasers):
