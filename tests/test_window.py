@@ -159,8 +159,15 @@ def press(qtbot, window, key: str) -> None:
     names = {"space": QtCore.Qt.Key.Key_Space, "Right": QtCore.Qt.Key.Key_Right, "Up": QtCore.Qt.Key.Key_Up,
              "Down": QtCore.Qt.Key.Key_Down}
     target = window.interactors["pattern"]
+    *held, key = key.split("+") if len(key) > 1 else [key]
+    modifiers = QtCore.Qt.KeyboardModifier.NoModifier
+    for name in held:  # "Ctrl+Shift+Z"
+        modifiers |= {"Ctrl": QtCore.Qt.KeyboardModifier.ControlModifier,
+                      "Shift": QtCore.Qt.KeyboardModifier.ShiftModifier}[name]
     if key in names:
-        qtbot.keyClick(target, names[key])
+        qtbot.keyClick(target, names[key], modifiers)
+    elif held:
+        qtbot.keyClick(target, getattr(QtCore.Qt.Key, f"Key_{key}"), modifiers)
     else:
         qtbot.keyClick(target, key)
     qtbot.wait(5)
@@ -668,6 +675,35 @@ def test_a_whole_number_refused_in_its_box_is_said_in_the_status_bar_with_whole_
     assert window._error
     type_into(qtbot, row.box, "abc")
     assert "only a whole number in pts is taken (as 12 or 1e2)" in session.message
+
+
+def test_ctrl_z_undoes_a_panel_change_and_the_edit_menu_names_it(window, qtbot) -> None:
+    """Undo of a parameter change (issue 45): a value typed in the panel, then Ctrl+Z, gives the old value back to
+    the scan and its box; the Edit menu names the change; Ctrl+Shift+Z and Ctrl+Y make it again."""
+    from qtpy import QtCore
+
+    session = window.controller.session
+    row = window.panel.rows["data_width"]
+    before = session.config.param_value("data_width")
+    assert not window.undo_action.isEnabled()  # nothing changed yet: nothing to undo
+    row.box.lineEdit().setText("116")
+    qtbot.keyClick(row.box, QtCore.Qt.Key.Key_Return)
+    window.tick()
+    assert session.config.param_value("data_width") == 116
+    assert window.undo_action.isEnabled() and window.undo_action.text() == f"Undo DataWidth {before:g} -> 116"
+    press(qtbot, window, "Ctrl+Z")
+    window.tick()
+    assert session.config.param_value("data_width") == before and window.panel.rows["data_width"].value == before
+    assert window.redo_action.text() == f"Redo DataWidth {before:g} -> 116" and not window.undo_action.isEnabled()
+    press(qtbot, window, "Ctrl+Shift+Z")
+    window.tick()
+    assert session.config.param_value("data_width") == 116 == window.panel.rows["data_width"].value
+    press(qtbot, window, "Ctrl+Z")
+    window.tick()
+    press(qtbot, window, "Ctrl+Y")  # redo as Windows programs have it
+    window.tick()
+    assert session.config.param_value("data_width") == 116
+    assert "redo: DataWidth" in window.status_message.text()
 
 
 def test_the_wheel_over_a_slider_steps_by_the_parameter_s_step(window, qtbot) -> None:

@@ -186,6 +186,25 @@ class LivoxVizApp:
             value = float(round(value))
         return self.session.set_param(name, value)
 
+    def undo(self) -> None:
+        """Give back the configuration before the last change (once its compiled loops are loaded)."""
+        self._history_step("undo")
+
+    def redo(self) -> None:
+        """Make the last undone change again."""
+        self._history_step("redo")
+
+    def _history_step(self, word: str) -> None:
+        from livox_viz.casting.warm import stages_for
+
+        history = self.session.history
+        target = history.undo_target() if word == "undo" else history.redo_target()
+        if target is None:
+            self.session.message = f"nothing to {word}"
+            return
+        step = self.session.undo if word == "undo" else self.session.redo
+        self.when_ready(stages_for(target.config, self.session.trajectory is not None), step, word)
+
     def on_speed(self, speed: float) -> None:
         """The playback speed, in x real time."""
         taken = self.session.playback.set_speed(speed)

@@ -47,6 +47,9 @@ KEYS: tuple[KeyRow, ...] = (
     KeyRow("j", "add the random rotation after each flower / after each figure", (("j", "toggle_jitter_scope"),)),
     KeyRow("v", "pattern model: RflySim's rosette / the track (a configuration with Risley or track parameters)",
            (("v", "toggle_pattern_model"),), "model"),
+    KeyRow("Ctrl+Z / Ctrl+Shift+Z", "undo / redo the last change of the configuration: a parameter, the preset, the "
+           "return or pattern model, a fit (the Edit menu names it; Ctrl+Y redoes too)",
+           (("Ctrl+Z", "undo"), ("Ctrl+Shift+Z", "redo"))),
     KeyRow("s", "screenshot of the views (PNG) into `screenshots/` with a JSON sidecar from which `livox-viz render "
            "--sidecar` draws the same picture", (("s", "take_screenshot"),), "screenshot"),
     KeyRow("p", "save the parameters as a user preset (in your presets folder, which `livox-viz presets` names; "

@@ -45,6 +45,7 @@ from . import files
 from .app import VIEW_NAMES, LivoxVizApp, quiet_vtk
 from .collector import MainThreadCollector, destroy_widget_tree, give_back_free_memory
 from .guide import GUIDE_SIZE, UserGuide, guide_dir
+from .history import describe_change
 from .keys import KEYS, help_html
 from .nonerefs import NoneReserve, binding_drops_none
 from .overlay import WINDOWS, PresetSource, TableSource, window_label
@@ -290,6 +291,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self._make_scrubber()
         #: The keys of the key table a menu entry's action holds (:meth:`_action`).
         self._menu_keys: set[str] = set()
+        self._history_shown = -1
         self._make_menus()
         # The choices' menus show the current one from the start, and whatever changed it since (the panel, a
         # preset's own return model, a change that waited for its loops): none was checked before the first key.
@@ -482,6 +484,13 @@ class MainWindow(QtWidgets.QMainWindow):
         # q, the key table's, shown at the entry; Ctrl+Q as well, as every program has it.
         quit_action = self._action(file, "Quit", self.quit)
         quit_action.setShortcuts([*quit_action.shortcuts(), QtGui.QKeySequence("Ctrl+Q")])
+
+        # Undo and redo of the configuration, named as editors name them ("Undo DataWidth 250 -> 116").
+        edit = bar.addMenu("&Edit")
+        self.undo_action = self._action(edit, "Undo", c.undo)
+        self.redo_action = self._action(edit, "Redo", c.redo)
+        self.redo_action.setShortcuts([*self.redo_action.shortcuts(), QtGui.QKeySequence("Ctrl+Y")])
+        edit.aboutToShow.connect(self._sync_history)
 
         view = bar.addMenu("&View")
         self.pattern_colour_menu = view.addMenu("Colour the pattern by")
@@ -682,6 +691,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._finish_jobs()
         self._run_deferred()
         self._trim_after_restarts()
+        if self._history_shown != self.controller.session.history.version:  # a change from the panel, say
+            self._sync_history()
         if self._resting():
             return
         try:
@@ -863,6 +874,21 @@ class MainWindow(QtWidgets.QMainWindow):
         view = self.controller.scene_view
         if view is not None:
             self.follow_action.setChecked(view.follow)
+        self._sync_history()
+
+    def _sync_history(self) -> None:
+        """The Edit menu names the change an undo or a redo would make, and offers neither when there is none."""
+        session = self.controller.session
+        self._history_shown = session.history.version
+        for action, word, target in ((self.undo_action, "Undo", session.history.undo_target()),
+                                     (self.redo_action, "Redo", session.history.redo_target())):
+            if target is None:
+                action.setText(word)
+            else:
+                current = session.state
+                change = (describe_change(target, current) if word == "Undo" else describe_change(current, target))
+                action.setText(f"{word} {short_description(change)}")
+            action.setEnabled(target is not None)
 
     def _fill_pattern_colours(self) -> None:
         menu = self.pattern_colour_menu

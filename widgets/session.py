@@ -33,6 +33,7 @@ from livox_viz.scene.raycast import EmbreeCaster, RayCaster
 from livox_viz.scene.scenes import Scene
 from livox_viz.wire.received import ReceivedFrame
 
+from .history import ConfigHistory, ConfigState, describe_change
 from .overlay import WINDOWS, ReferenceOverlay, window_capacity
 from .playback import Playback
 from .ring import CoverageCounts, DensityGrid, PointRing
@@ -189,6 +190,8 @@ class Session:
         self.config = config
         #: The configuration as its preset gave it: what a parameter's reset goes back to.
         self.preset_config = config
+        #: Every change of the configuration, to undo and redo (Edit menu, Ctrl+Z / Ctrl+Shift+Z).
+        self.history = ConfigHistory()
         self._fit_display()
         self._make_rings()
         #: Which scan this is, counted up at each restart: what was picked in an earlier one is not in this one.
@@ -215,9 +218,22 @@ class Session:
         """The window's place among the presets :data:`WINDOWS`, or None for a typed value that is none of them."""
         return WINDOWS.index(self._window) if self._window in WINDOWS else None
 
-    def set_config(self, config: SensorConfig, preset_name: str | None = None) -> None:
+    @property
+    def state(self) -> ConfigState:
+        """The configuration shown, with its preset: what an undo step keeps."""
+        return ConfigState(self.config, self.preset_name, self.preset_config)
+
+    def set_config(self, config: SensorConfig, preset_name: str | None = None, *, record: bool = True) -> None:
         """Show another configuration: restart the scan and tell every view. While paused, the new scan is shown
         filled to the time that was shown (still paused), not empty at t = 0.
+
+        Parameters
+        ----------
+        config : SensorConfig
+        preset_name : str, optional
+            Shown as this preset (its values become what a parameter's reset goes back to).
+        record : bool
+            Whether the change is a step of :attr:`history` (False: an undo or redo applying one).
 
         Raises
         ------
@@ -226,11 +242,14 @@ class Session:
         """
         check_points(window_capacity(self.window, config.point_rate),
                      f"a {config.point_rate:,} pts/s pattern in the integration window", WINDOW_BUDGET)
+        before = self.state
         resize = config.point_rate != self.config.point_rate or config.field_of_view != self.config.field_of_view
         self.config = config
         if preset_name is not None:
             self.preset_name = preset_name
             self.preset_config = config
+        if record and self.state != before:
+            self.history.record(before)
         if resize:
             self._make_rings()
         source = self.overlay.source
@@ -265,6 +284,31 @@ class Session:
             self.message = str(exc)
             return False
         self.message = ""
+        return True
+
+    def undo(self) -> bool:
+        """Give back the configuration before the last change; False (and a message) if there is none."""
+        return self._step_history(self.history.undo_target(), self.history.undone, "undo")
+
+    def redo(self) -> bool:
+        """Make the last undone change again; False (and a message) if there is none."""
+        return self._step_history(self.history.redo_target(), self.history.redone, "redo")
+
+    def _step_history(self, target: ConfigState | None, take: Callable[[ConfigState], ConfigState],
+                      word: str) -> bool:
+        if target is None:
+            self.message = f"nothing to {word}"
+            return False
+        current = self.state
+        what = describe_change(target, current) if word == "undo" else describe_change(current, target)
+        # Checked before the stacks move: a window too full for the target's rate leaves both as they were.
+        check_points(window_capacity(self.window, target.config.point_rate),
+                     f"a {target.config.point_rate:,} pts/s pattern in the integration window", WINDOW_BUDGET)
+        take(current)
+        self.preset_name = target.preset_name
+        self.preset_config = target.preset_config
+        self.set_config(target.config, record=False)
+        self.message = f"{word}: {what}"
         return True
 
     def set_returns_model(self, model: str) -> None:
