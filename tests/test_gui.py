@@ -459,6 +459,59 @@ def test_received_frames_feed_the_views(app: LivoxVizApp) -> None:
     assert session.frame_index == 2 and session.scan_time == pytest.approx(0.3)
 
 
+def test_the_live_view_says_its_rate_sender_and_a_stop_and_a_pause_sets_frames_aside(app: LivoxVizApp) -> None:
+    """gui --listen (issue 45): the text says where it listens and who sends, how fast frames and points come (the
+    figures of the frames that came), when the stream stopped; frames that come while paused are read and set
+    aside, so play resumes with the stream as it is (left in the socket, they came back as a burst of old frames)."""
+    from livox_viz.widgets.live import LiveStats
+
+    from livox_viz.casting.scan import LidarScanner
+    from livox_viz.wire.rflysim import LivoxFrame
+
+    session = app.session
+    scanner = LidarScanner(session.config, session.caster, session.vehicle_pose, seed=0)
+    sent = [LivoxFrame(f.timestamp, f.sensor_pose.as_array(), f.xyz_int16, source="127.0.0.1:5000")
+            for f in (scanner.next_frame() for _ in range(4))]
+
+    class Source:
+        def __init__(self) -> None:
+            self.queue: list = []
+
+        def poll(self) -> list:
+            frames, self.queue = self.queue, []
+            return frames
+
+    session.restart()
+    session.source = Source()
+    session.live = LiveStats("udp 0.0.0.0:9999")
+    assert session.live_line() == "live: udp 0.0.0.0:9999: waiting for the first frame"
+    session.playback.paused = True
+    session.source.queue = sent[:2]
+    assert session.tick() == 0 and session.scene_ring.count == 0 and session.source.queue == []
+    assert session.live.paused_frames == 2
+    session.playback.paused = False
+    session.source.queue = sent[2:]
+    assert session.tick() == sum(f.xyz_int16.shape[0] for f in sent[2:]) == session.scene_ring.count
+    app.refresh()
+    assert "live: udp 0.0.0.0:9999 <- 127.0.0.1:5000, " in app.hud.state.GetText(2)
+
+    # The figures, on a clock of our own: 10 frames of 1,000 points a second for 3 s, then nothing.
+    live = LiveStats("udp 0.0.0.0:9999")
+
+    class Frame:
+        source = "10.0.0.2:4000"
+        xyz_int16 = np.zeros((1000, 3), np.int16)
+
+    for k in range(30):
+        live.heard([Frame()], 100.0 + k / 10)
+    assert live.line(102.95, 10.0) == "live: udp 0.0.0.0:9999 <- 10.0.0.2:4000, 10.0 frames/s, 10,000 pts/s"
+    assert live.line(102.95, 10.0, lost=3).endswith(", 3 lost")
+    # 0.6 s quiet at 10 Hz is no stop yet: the rates count the last 2 s, which hold 15 frames.
+    assert live.line(103.5, 10.0).endswith(", 7.5 frames/s, 7,500 pts/s")
+    assert live.line(106.9, 10.0) == "live: udp 0.0.0.0:9999 <- 10.0.0.2:4000: no frame for 4 s (30 frames received)"
+    assert live.stopped_for(102.2, 1.0) is None  # at 1 Hz, 3 s of quiet are the stream's own pace
+
+
 @pytest.mark.parametrize("background", ["white", "dark"])
 def test_the_density_image_s_empty_cells_show_the_background_and_what_is_behind(app: LivoxVizApp,
                                                                                background: str) -> None:

@@ -158,6 +158,7 @@ def cmd_gui(args: argparse.Namespace) -> int:
         return 0
     from livox_viz.casting.warm import STAGES, stages_for
 
+    from .live import LiveStats
     from .mainwindow import run_window
     from .warmup import LoopWarmer
 
@@ -169,8 +170,8 @@ def cmd_gui(args: argparse.Namespace) -> int:
     if args.listen:
         receiver, where = open_receiver(args, session.config)
         session.source = receiver
+        session.live = LiveStats(where)
         session.preset_name = "received"
-        session.message = f"listening on {where}"
     # Ctrl-C, SIGTERM and SIGHUP close the window on its next tick (raised inside Qt's loop, they would be lost).
     with StopRequests() as stop:
         try:

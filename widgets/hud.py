@@ -118,7 +118,9 @@ class HeadsUp:
         return (
             # The field of view on a line of its own: after the rate, a band's "elevation -7.212 to 52.16 deg" ran
             # past a narrow view's edge.
-            f"{session.preset_name or 'custom'}   {model}{lasers}   {cfg.point_rate:,} pts/s\n{fov_text}\n"
+            f"{session.preset_name or 'custom'}   {model}{lasers}   {cfg.point_rate:,} pts/s\n"
+            + (f"{session.live_line()}\n" if session.live is not None else "")
+            + f"{fov_text}\n"
             f"t = {session.shown_time:8.3f} s   frame {max(session.shown_frame, 0)}   {state}\n"
             f"{window_line(session)}, coverage {coverage_words(session)}{100 * session.visible_coverage():.1f} %"
             f"{reference}\n"

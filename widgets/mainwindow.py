@@ -831,6 +831,8 @@ class MainWindow(QtWidgets.QMainWindow):
         message = session.message
         if self.controller.pick_text and not message:
             message = self.controller.pick_text
+        if session.live is not None and not message:  # where it listens, who sends, how fast, or that it stopped
+            message = session.live_line()
         self.status_message.setText(message)
         self.status_message.setStyleSheet("color: #d9534f;" if self._error and message else "")
         self._share_status_room()

@@ -15,6 +15,7 @@ writes, and placed in the world with the frame's pose.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -34,6 +35,7 @@ from livox_viz.scene.scenes import Scene
 from livox_viz.wire.received import ReceivedFrame
 
 from .history import ConfigHistory, ConfigState, describe_change
+from .live import LiveStats
 from .overlay import WINDOWS, ReferenceOverlay, window_capacity
 from .playback import Playback
 from .ring import CoverageCounts, DensityGrid, PointRing
@@ -180,6 +182,8 @@ class Session:
         self.scene_options: dict[str, object] = {}
         #: A receiver with ``poll() -> list of LivoxFrame`` (the live view); None plays the model.
         self.source = None
+        #: What the live view's stream did (set with :attr:`source`).
+        self.live: LiveStats | None = None
         #: Where the scene, the trajectory and the reference came from, as the command line names them
         #: (``scene``, ``up``, ``reflectance``, ``pose``, ``trajectory``, ``trajectory_speed``, ``reference``...):
         #: what a screenshot's sidecar needs to make them again.
@@ -490,13 +494,24 @@ class Session:
             self.playback.restart()
             return added
         if self.source is not None:
-            if self.playback.paused:
+            arrived = self.source.poll()
+            if self.live is not None:
+                self.live.heard(arrived, time.monotonic(), drawn=not self.playback.paused)
+            if self.playback.paused:  # read and set aside: play resumes with the stream as it is now
                 return 0
             received = [ReceivedFrame(f, self.config.range_max, self.config.data_check_freq,
                                       plane=self.config.pattern_plane)
-                        for f in self.source.poll()]
+                        for f in arrived]
             return sum(self.add_received(frame) for frame in received)
         return self.advance_to(self.scan_time + self.playback.elapsed(now))
+
+    def live_line(self) -> str:
+        """The live view's line (:meth:`LiveStats.line`), or "" when the window plays the model."""
+        if self.live is None:
+            return ""
+        drops = getattr(getattr(self.source, "assembler", None), "drops", {})
+        return self.live.line(time.monotonic(), self.config.data_check_freq,
+                              drops.get("lost frames (frame ids skipped)", 0))
 
     def add_received(self, frame: ReceivedFrame) -> int:
         """Show a received frame: its angles (from the decoded points) in the pattern view, its points in the scene."""
