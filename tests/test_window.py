@@ -1918,6 +1918,16 @@ def test_the_window_opens_within_the_screen_s_available_area(urban, qtbot) -> No
         window.close()
 
 
+def test_a_closed_window_s_views_hold_no_wrapper_of_their_gl_context_or_surface(window, qtbot) -> None:
+    """A full run (issue 43) had the menu bar's addMenu return a 'QSurface': a new menu made at the address of a
+    closed window's GL surface came back as the surface's stale wrapper, which pyvistaqt's views kept after closing
+    (a surface is no QObject, so Shiboken never learns it is gone). Closed, the window lets go of them."""
+    views = list(window.interactors.values())
+    qtbot.waitUntil(lambda: all(view._surface is not None for view in views), timeout=5000)  # each view painted
+    window.close()
+    assert [(view._ctx, view._surface) for view in views] == [(None, None)] * len(views)
+
+
 def test_paused_and_unchanged_the_window_draws_nothing_and_rests(window, qtbot) -> None:
     """Issue 45: paused, the window used a whole core (99-119 %) redrawing the same picture 10-14 times a second.
     Paused and untouched it now draws nothing; a key that changes what is shown draws again."""
@@ -1948,9 +1958,8 @@ def test_paused_and_unchanged_the_window_draws_nothing_and_rests(window, qtbot) 
     rendered.clear()
     qtbot.wait(1000)
     assert rendered == [], f"{len(rendered)} renders in 1 s at rest after a change"
-    press(qtbot, window, "space")  # playing again: drawn every tick
-    qtbot.wait(500)
-    assert len(rendered) >= 3
+    press(qtbot, window, "space")  # playing again: drawn every tick (under a loaded machine's few frames a second)
+    qtbot.waitUntil(lambda: len(rendered) >= 3, timeout=5000)
 
 
 def test_after_a_restart_the_heap_s_free_pages_go_back_to_the_system_once(window, qtbot) -> None:

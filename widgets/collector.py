@@ -16,7 +16,7 @@ collection is turned off while the window runs and the window's tick collects wh
 from __future__ import annotations
 
 import gc
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 
 
@@ -74,6 +74,23 @@ def give_back_free_memory() -> bool:
     return True
 
 
+def release_gl_wrappers(interactors: Iterable[object]) -> None:
+    """Let go of the Python wrappers pyvistaqt's closed views keep of their GL context and its surface.
+
+    After ``close`` (the render window finalized) a view still held a wrapper of its ``QOpenGLContext`` and of the
+    context's ``QSurface``. A surface is no QObject: Shiboken never learns that Qt destroyed it, and its wrapper
+    stays registered at that address. A full test run then had ``QMenuBar.addMenu`` return a ``QSurface`` (a new
+    menu made where a closed window's surface had been, handed back as the stale wrapper); the same mix-up, a
+    wrapper freed under a live object at that address, is how Shiboken's ``releaseWrapper`` can crash. pyvistaqt
+    itself forgets them only when the context says it is going (``_cleanup_context``), which a window torn down
+    from its top does not reach.
+    """
+    for interactor in interactors:
+        forget = getattr(interactor, "_forget_context", None)
+        if forget is not None:
+            forget()
+
+
 def destroy_widget_tree(widget: object) -> None:
     """Destroy a Qt widget and all its children now, Python's automatic collection off meanwhile.
 
@@ -87,6 +104,9 @@ def destroy_widget_tree(widget: object) -> None:
 
     with collection_paused():
         if shiboken6.isValid(widget):
+            # Closed first (a no-op for a window closed already): a main window lets go of its views' GL there
+            # (:func:`release_gl_wrappers`), while the context is still alive.
+            widget.close()
             shiboken6.delete(widget)
 
 

@@ -43,7 +43,7 @@ from livox_viz.config.sensor import save_config
 
 from . import files
 from .app import VIEW_NAMES, LivoxVizApp, quiet_vtk
-from .collector import MainThreadCollector, destroy_widget_tree, give_back_free_memory
+from .collector import MainThreadCollector, destroy_widget_tree, give_back_free_memory, release_gl_wrappers
 from .guide import GUIDE_SIZE, UserGuide, guide_dir
 from .history import describe_change
 from .keys import KEYS, help_html
@@ -1297,6 +1297,7 @@ class MainWindow(QtWidgets.QMainWindow):
         if self.guide is not None:
             self.guide.close()
         self.controller.close()
+        release_gl_wrappers(self.interactors.values())  # each view's GL is finalized by now
         self.collector.stop()
         event.accept()
 
