@@ -30,6 +30,7 @@ from livox_viz.config.sensor import PARAM_RANGES
 from livox_viz.core.blas import blas_threads
 
 from . import files
+from .cameras import CameraState
 from .charts import CurveCharts
 from .hud import HeadsUp
 from .overlay import WINDOWS, PresetSource, TableSource
@@ -670,33 +671,19 @@ class LivoxVizApp:
             self.scene_view.show_axes(bool(scene.get("axes")))
 
     def cameras(self) -> dict[str, Any]:
-        """Each view's camera, for the sidecar."""
-        cameras = {}
-        for name, view in (("pattern", self.pattern_view), ("scene", self.scene_view)):
-            if view is not None:
-                camera = view.renderer.camera
-                cameras[name] = {"position": list(camera.position), "focal_point": list(camera.focal_point),
-                                 "up": list(camera.up), "parallel_scale": camera.parallel_scale,
-                                 "view_angle": camera.view_angle, "parallel": bool(camera.parallel_projection)}
-        return cameras
+        """Each view's camera, for the sidecar (:meth:`CameraState.to_json`)."""
+        return {name: CameraState.of(view.renderer.camera).to_json()
+                for name, view in (("pattern", self.pattern_view), ("scene", self.scene_view)) if view is not None}
 
     def apply_cameras(self, cameras: Mapping[str, Any]) -> None:
-        """Put each view's camera where :meth:`cameras` found it."""
+        """Put each view's camera where :meth:`cameras` found it (a camera that cannot be is refused in one line,
+        before any view moves)."""
+        states = {name: CameraState.from_json(given, f"the {name} view's camera") for name, given in cameras.items()
+                  if name in ("pattern", "scene") and isinstance(given, Mapping)}
         for name, view in (("pattern", self.pattern_view), ("scene", self.scene_view)):
-            given = cameras.get(name)
-            if view is None or not isinstance(given, Mapping):
-                continue
-            camera = view.renderer.camera
-            if given.get("parallel"):
-                camera.enable_parallel_projection()
-            else:
-                camera.disable_parallel_projection()
-            camera.position = tuple(given["position"])
-            camera.focal_point = tuple(given["focal_point"])
-            camera.up = tuple(given["up"])
-            camera.parallel_scale = float(given["parallel_scale"])
-            camera.view_angle = float(given["view_angle"])
-            view.renderer.ResetCameraClippingRange()
+            if view is not None and name in states:
+                states[name].apply(view.renderer.camera)
+                view.renderer.ResetCameraClippingRange()
 
     def save_preset(self) -> Path:
         """Write the current configuration as a user preset (never over a shipped one)."""

@@ -1,0 +1,134 @@
+"""A view's camera as data, without VTK.
+
+:class:`CameraState` is the one form a camera is written in: a screenshot's
+sidecar holds one per view, as :meth:`CameraState.to_json` writes it, checked
+when it is read back. A camera object is touched only by
+:meth:`CameraState.of` and :meth:`CameraState.apply` (any object with
+pyvista's ``Camera`` attributes).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from livox_viz.core.errors import LivoxVizError
+
+#: The keys of a camera as it is written, in order (a sidecar's and a viewpoint's).
+CAMERA_KEYS = ("position", "focal_point", "up", "parallel_scale", "view_angle", "parallel")
+#: A camera's projections.
+PROJECTIONS = ("perspective", "orthographic")
+
+
+@dataclass(frozen=True)
+class CameraState:
+    """Where a camera is and how it projects.
+
+    Parameters
+    ----------
+    position, focal_point : tuple of 3 float
+        The eye and the point it looks at, in the view's world coordinates (metres in the scene view, degrees
+        in the pattern view).
+    up : tuple of 3 float
+        The view's up direction (any length but zero; not along the line of sight).
+    parallel_scale : float
+        Half the height the view shows when orthographic, in the world's units (> 0).
+    view_angle : float
+        The vertical angle the view shows when perspective, degrees (0 to 180, both excluded).
+    parallel : bool
+        Orthographic (parallel) projection, else perspective.
+    """
+
+    position: tuple[float, float, float]
+    focal_point: tuple[float, float, float]
+    up: tuple[float, float, float]
+    parallel_scale: float
+    view_angle: float
+    parallel: bool
+
+    def __post_init__(self) -> None:
+        for key in ("position", "focal_point", "up"):
+            value = getattr(self, key)
+            if len(value) != 3 or not all(math.isfinite(v) for v in value):
+                raise LivoxVizError(f"camera {key} {list(value)}; allowed: three finite numbers")
+        sight = np.subtract(self.focal_point, self.position)
+        if not np.linalg.norm(sight) > 0:
+            raise LivoxVizError("camera position equals its focal point; allowed: an eye apart from what it looks at")
+        up = np.asarray(self.up, dtype=float)
+        if np.linalg.norm(np.cross(sight, up)) <= 1e-9 * np.linalg.norm(sight) * max(np.linalg.norm(up), 1e-300):
+            raise LivoxVizError(f"camera up {list(self.up)} is zero or along the line of sight; allowed: a "
+                                "direction across it")
+        if not (math.isfinite(self.parallel_scale) and self.parallel_scale > 0):
+            raise LivoxVizError(f"camera parallel_scale {self.parallel_scale!r}; allowed: a number > 0")
+        if not (math.isfinite(self.view_angle) and 0 < self.view_angle < 180):
+            raise LivoxVizError(f"camera view_angle {self.view_angle!r} deg; allowed: between 0 and 180 deg")
+
+    @classmethod
+    def from_json(cls, data: Any, what: str = "camera") -> CameraState:
+        """The camera a JSON object holds (:meth:`to_json`'s keys, all of them).
+
+        Raises
+        ------
+        LivoxVizError
+            One line naming ``what``, the key and what is allowed.
+        """
+        if not isinstance(data, Mapping):
+            raise LivoxVizError(f"{what}: {type(data).__name__} instead of an object; allowed: an object with "
+                                f"{', '.join(CAMERA_KEYS)}")
+        missing = [key for key in CAMERA_KEYS if key not in data]
+        if missing:
+            raise LivoxVizError(f"{what}: no {', '.join(missing)}; allowed: an object with {', '.join(CAMERA_KEYS)}")
+        values: dict[str, Any] = {}
+        for key in ("position", "focal_point", "up"):
+            given = data[key]
+            if not (isinstance(given, list | tuple) and len(given) == 3 and all(_is_number(v) for v in given)):
+                raise LivoxVizError(f"{what}: {key} {given!r}; allowed: a list of three numbers")
+            values[key] = tuple(float(v) for v in given)
+        for key in ("parallel_scale", "view_angle"):
+            if not _is_number(data[key]):
+                raise LivoxVizError(f"{what}: {key} {data[key]!r}; allowed: a number")
+            values[key] = float(data[key])
+        if not isinstance(data["parallel"], bool):
+            raise LivoxVizError(f"{what}: parallel {data['parallel']!r}; allowed: true or false")
+        try:
+            return cls(parallel=data["parallel"], **values)
+        except LivoxVizError as exc:
+            raise LivoxVizError(f"{what}: {str(exc).removeprefix('camera ')}") from None
+
+    def to_json(self) -> dict[str, Any]:
+        """The camera as a JSON object (the sidecar's and the viewpoints file's form)."""
+        return {"position": list(self.position), "focal_point": list(self.focal_point), "up": list(self.up),
+                "parallel_scale": self.parallel_scale, "view_angle": self.view_angle, "parallel": self.parallel}
+
+    @classmethod
+    def of(cls, camera: Any) -> CameraState:
+        """The state of a pyvista camera."""
+        return cls(position=tuple(camera.position), focal_point=tuple(camera.focal_point), up=tuple(camera.up),
+                   parallel_scale=float(camera.parallel_scale), view_angle=float(camera.view_angle),
+                   parallel=bool(camera.parallel_projection))
+
+    def apply(self, camera: Any) -> None:
+        """Put a pyvista camera in this state (its renderer's clipping range is the caller's to reset)."""
+        if self.parallel:
+            camera.enable_parallel_projection()
+        else:
+            camera.disable_parallel_projection()
+        camera.position = self.position
+        camera.focal_point = self.focal_point
+        camera.up = self.up
+        camera.parallel_scale = self.parallel_scale
+        camera.view_angle = self.view_angle
+
+    @property
+    def projection(self) -> str:
+        """``"orthographic"`` or ``"perspective"``."""
+        return PROJECTIONS[1] if self.parallel else PROJECTIONS[0]
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
