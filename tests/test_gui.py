@@ -1143,3 +1143,70 @@ def test_a_sidecars_background_is_drawn_again_and_a_strange_one_named(app: Livox
     state["scene"]["background"] = "purple"
     with pytest.raises(LivoxVizError, match=r"scene view's background 'purple'; allowed: dark, gradient, black, white"):
         app.apply_drawing_state(state)
+
+
+# The scene view's projection (issue 45 item 6) ------------------------------------------------------
+def display_pixels(renderer, points_display: np.ndarray) -> np.ndarray:
+    """``(n, 2)`` VTK's pixels (origin bottom left) of display-frame points, by the camera's own projection."""
+    width, height = renderer.GetSize()
+    matrix = renderer.GetActiveCamera().GetCompositeProjectionTransformMatrix(width / height, -1, 1)
+    projection = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+    homogeneous = np.column_stack([points_display, np.ones(len(points_display))]) @ projection.T
+    return np.column_stack([(homogeneous[:, 0] / homogeneous[:, 3] + 1) / 2 * width,
+                            (homogeneous[:, 1] / homogeneous[:, 3] + 1) / 2 * height])
+
+
+def test_orthographic_keeps_the_size_of_what_is_looked_at_and_r_and_the_presets_fit_the_cloud(
+        app: LivoxVizApp) -> None:
+    """ParaView's parallel projection: switched, a length on the focal plane is as many pixels as before (VTK's own
+    projection says); switched back, the eye is where it was. Orthographic, r and each preset camera keep it and
+    draw the sensor and nine tenths of the cloud inside the part of the view the colour bar and the text leave free,
+    the cloud filling most of it; the top camera looks straight down (a map); the sidecar says parallel."""
+    from livox_viz.widgets.views import CAMERA_PRESETS, NED_TO_DISPLAY, SCALAR_BAR_LEFT, SCENE_TEXT_BAND_PX
+
+    session, view = app.session, app.scene_view
+    session.advance_to(0.5)
+    app.refresh()
+    app.render(every=True)
+    renderer, camera = view.renderer, view.renderer.camera
+    before = app.cameras()["scene"]
+    assert view.projection == "perspective" and not before["parallel"]
+
+    def pixels_of_five_metres() -> float:
+        focal = np.array(camera.focal_point)
+        across = np.cross(np.array(camera.direction), np.array(camera.up))
+        ends = np.stack([focal, focal + 5.0 * across / np.linalg.norm(across)])
+        return float(np.linalg.norm(np.diff(display_pixels(renderer, ends), axis=0)))
+
+    seen = pixels_of_five_metres()
+    app.toggle_projection()
+    assert view.projection == "orthographic" and camera.parallel_projection
+    assert pixels_of_five_metres() == pytest.approx(seen, rel=1e-6) and seen > 20
+    assert "orthographic" in session.message
+    app.toggle_projection()
+    assert view.projection == "perspective"
+    np.testing.assert_allclose(camera.position, before["position"], atol=1e-9)
+    assert pixels_of_five_metres() == pytest.approx(seen, rel=1e-6)
+
+    app.set_projection("orthographic")
+    ring = session.scene_ring
+    cloud = ring.ordered(ring.positions).astype(float) @ NED_TO_DISPLAY[:3, :3].T
+    sensor = NED_TO_DISPLAY[:3, :3] @ session.sensor_pose.origin
+    width, height = renderer.GetSize()
+    free_x, free_y = SCALAR_BAR_LEFT * width, (1 - SCENE_TEXT_BAND_PX / height) * height
+    for reset in ("r", *CAMERA_PRESETS):
+        if reset == "r":
+            app.reset_cameras()
+        else:
+            app.set_scene_camera(reset)
+        assert view.projection == "orthographic", reset
+        x, y = display_pixels(renderer, np.vstack([sensor, cloud])).T
+        inside = (x >= 0) & (x <= free_x) & (y >= 0) & (y <= free_y)
+        assert inside[0] and inside[1:].mean() > 0.9, (reset, inside[1:].mean())
+        # Fitted, not merely inside: the cloud's middle 96 % spans most of the free part one way or the other.
+        spread = max(np.ptp(np.percentile(x[1:], [2, 98])) / free_x, np.ptp(np.percentile(y[1:], [2, 98])) / free_y)
+        assert spread > 0.6, (reset, spread)
+        if reset == "top":
+            np.testing.assert_allclose(camera.direction, (0.0, 0.0, -1.0), atol=1e-9)
+    assert app.cameras()["scene"]["parallel"] is True
+

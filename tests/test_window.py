@@ -386,6 +386,27 @@ def test_a_cloud_opens_beside_the_scan_from_the_file_menu_and_closes(window, qtb
     assert "closed cloud mine.ply" in window.status_message.text()
 
 
+def view_submenu(window, title: str):
+    view_menu = next(a.menu() for a in window.menuBar().actions() if a.text().replace("&", "") == "View")
+    menu = next(a.menu() for a in view_menu.actions() if a.text() == title)
+    menu.aboutToShow.emit()
+    return menu
+
+
+def test_the_scene_view_s_projection_from_the_view_menu(window, qtbot) -> None:
+    """View > Projection marks the projection shown and 5 switches it (issue 45 item 6)."""
+    view = window.controller.scene_view
+    projection = view_submenu(window, "Projection (scene view)")
+    window._sync_menus()
+    assert [a.text() for a in projection.actions() if a.isChecked()] == ["Perspective"]
+    press(qtbot, window, "5")
+    assert view.projection == "orthographic" and view.renderer.camera.parallel_projection
+    window._sync_menus()
+    assert [a.text() for a in projection.actions() if a.isChecked()] == ["Orthographic (parallel)"]
+    next(a for a in projection.actions() if a.text() == "Perspective").trigger()
+    assert view.projection == "perspective"
+
+
 def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot) -> None:
     """The menus named no key (a first-use trial): an entry whose action has a key in the key table shows it at
     its right as Qt does, and the key, pressed in a view, still runs its action once (Up doubles the speed once,
@@ -410,7 +431,7 @@ def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot
                 "Fit the rosette to the reference": "F", "Cloud in the world / sensor frame": "W",
                 "Screenshot (views and sidecar)": "S", "Save as user preset": "P",
                 "Reset cameras (fit everything drawn)": "R", "Keys and mouse": "H", "Quit": "Q",
-                "Next built-in scene": "M"}
+                "Next built-in scene": "M", "Switch perspective / orthographic": "5"}
     assert {text: shown.get(text) for text in expected} == expected
     # A trial found m in no menu and q only as Ctrl+Q; Ctrl+Q still quits too.
     quit_action = next(a for top in window.menuBar().actions() for a in actions(top.menu()) if a.text() == "Quit")

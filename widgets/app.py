@@ -30,7 +30,7 @@ from livox_viz.config.sensor import PARAM_RANGES
 from livox_viz.core.blas import blas_threads
 
 from . import files
-from .cameras import CameraState
+from .cameras import PROJECTIONS, CameraState
 from .charts import CurveCharts
 from .hud import HeadsUp
 from .overlay import WINDOWS, PresetSource, TableSource
@@ -508,6 +508,21 @@ class LivoxVizApp:
         if preset not in CAMERA_PRESETS:
             raise LivoxVizError(f"camera {preset!r}; allowed: {', '.join(CAMERA_PRESETS)}, follow")
         self.scene_view.reset_camera(preset)
+
+    # The scene view's projection (issue 45 item 6) ------------------------------
+    def set_projection(self, projection: str) -> None:
+        """The scene view's projection, one of :data:`~livox_viz.widgets.cameras.PROJECTIONS`, what it looks at
+        kept the same size."""
+        if self.scene_view is None:
+            return
+        self.scene_view.set_projection(projection)
+        hint = ": View > Scene camera > top makes it a map" if projection == "orthographic" else ""
+        self.session.message = f"scene view {projection}{hint}"
+
+    def toggle_projection(self) -> None:
+        """Perspective / orthographic (the 5 key, as Blender's keypad 5)."""
+        if self.scene_view is not None:
+            self.set_projection(PROJECTIONS[1 - PROJECTIONS.index(self.scene_view.projection)])
 
     # Picking -------------------------------------------------------------------------------
     def forget_picks(self) -> None:

@@ -1,8 +1,9 @@
-"""A view's camera as data, without VTK.
+"""A view's camera as data, and the arithmetic of orthographic (parallel) projection, without VTK.
 
 :class:`CameraState` is the one form a camera is written in: a screenshot's
-sidecar holds one per view, as :meth:`CameraState.to_json` writes it, checked
-when it is read back. A camera object is touched only by
+sidecar holds one per view, as :meth:`CameraState.to_json` writes it. The
+functions below are what the scene view's projection switch and its
+orthographic reset compute; a camera object is touched only by
 :meth:`CameraState.of` and :meth:`CameraState.apply` (any object with
 pyvista's ``Camera`` attributes).
 """
@@ -20,7 +21,7 @@ from livox_viz.core.errors import LivoxVizError
 
 #: The keys of a camera as it is written, in order (a sidecar's and a viewpoint's).
 CAMERA_KEYS = ("position", "focal_point", "up", "parallel_scale", "view_angle", "parallel")
-#: A camera's projections.
+#: The projections a user picks between (View > Projection).
 PROJECTIONS = ("perspective", "orthographic")
 
 
@@ -132,3 +133,63 @@ class CameraState:
 def _is_number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
+
+def parallel_scale_for(distance: float, view_angle_deg: float) -> float:
+    """The parallel scale (half the view's height) at which an orthographic view shows what a perspective view of
+    vertical angle ``view_angle_deg`` degrees shows at ``distance`` from its eye (its focal point's plane): the
+    switch to orthographic keeps what is looked at the same size."""
+    return distance * math.tan(math.radians(view_angle_deg) / 2)
+
+
+def distance_for(parallel_scale: float, view_angle_deg: float) -> float:
+    """The inverse of :func:`parallel_scale_for`: how far from its focal point a perspective eye of vertical angle
+    ``view_angle_deg`` degrees shows the focal plane as an orthographic view of ``parallel_scale`` does."""
+    return parallel_scale / math.tan(math.radians(view_angle_deg) / 2)
+
+
+def screen_axes(direction: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(right, screen_up, forward)``, unit vectors of a camera looking along ``direction`` with ``up`` roughly
+    up (its component across the line of sight is the screen's up)."""
+    forward = np.asarray(direction, dtype=float)
+    forward = forward / np.linalg.norm(forward)
+    right = np.cross(forward, np.asarray(up, dtype=float))
+    right /= np.linalg.norm(right)
+    return right, np.cross(right, forward), forward
+
+
+def fit_parallel(points: np.ndarray, direction: np.ndarray, up: np.ndarray, aspect: float,
+                 free_width: float = 1.0, free_height: float = 1.0, margin: float = 1.0) -> tuple[np.ndarray, float]:
+    """The focal point and parallel scale of an orthographic camera looking along ``direction`` that draws every
+    one of ``points`` inside the part of the view left free by a strip on its right and a band at its top, with
+    the points' middle in that part's middle.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        What must be in view, world coordinates (n >= 1).
+    direction, up : (3,) float
+        The line of sight and the view's up (not along it).
+    aspect : float
+        The view's width over its height, pixels.
+    free_width, free_height : float
+        The shares of the view's width (from its left) and height (from its bottom) the points may take, 0 to 1.
+    margin : float
+        The share of that part the points' extent fills at most (0 to 1).
+
+    Returns
+    -------
+    focal_point : (3,) float
+        At the points' middle along the line of sight too.
+    parallel_scale : float
+        Half the view's height, world units.
+    """
+    right, screen_up, forward = screen_axes(direction, up)
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    x, y, z = points @ right, points @ screen_up, points @ forward
+    width, height = float(np.ptp(x)), float(np.ptp(y))
+    scale = max(height / (2 * free_height * margin), width / (2 * aspect * free_width * margin), 1e-3)
+    # Moved right and up by half of what the strip and the band take, the camera draws the points' middle in the
+    # middle of the free part.
+    across = (x.min() + x.max()) / 2 + scale * aspect * (1 - free_width)
+    upward = (y.min() + y.max()) / 2 + scale * (1 - free_height)
+    return right * across + screen_up * upward + forward * (z.min() + z.max()) / 2, scale

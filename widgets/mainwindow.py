@@ -43,6 +43,7 @@ from livox_viz.config.sensor import save_config
 
 from . import files
 from .app import VIEW_NAMES, LivoxVizApp, quiet_vtk
+from .cameras import PROJECTIONS
 from .collector import MainThreadCollector, destroy_widget_tree, give_back_free_memory
 from .guide import GUIDE_SIZE, UserGuide, guide_dir
 from .keys import KEYS, help_html
@@ -501,6 +502,7 @@ class MainWindow(QtWidgets.QMainWindow):
             self._action(cameras, f"{preset}", lambda p=preset: c.set_scene_camera(p))
         self.follow_action = self._action(cameras, "follow the vehicle", lambda: c.set_scene_camera("follow"),
                                           checkable=True)
+        self._make_scene_view_menus(view)
         self._action(view, "Reset cameras (fit everything drawn)", c.reset_cameras)
         view.addSeparator()
         self.dock_action = self.dock.toggleViewAction()
@@ -557,6 +559,18 @@ class MainWindow(QtWidgets.QMainWindow):
         self._action(helper, "User guide...", self.open_guide)
         self._action(helper, "Keys and mouse", self.toggle_help)
         self._action(helper, "About livox-viz", self.about)
+
+    def _make_scene_view_menus(self, view: QtWidgets.QMenu) -> None:
+        """View > Projection: the scene view's projection (ParaView's camera parallel projection)."""
+        c = self.controller
+        projection = view.addMenu("Projection (scene view)")
+        group = QtGui.QActionGroup(self)
+        self.projection_actions = {
+            name: self._action(projection, label, lambda p=name: c.set_projection(p), checkable=True, group=group)
+            for name, label in zip(PROJECTIONS, ("Perspective", "Orthographic (parallel)"), strict=True)}
+        projection.addSeparator()
+        # The 5 key, shown here: a key is one action's only shortcut, so neither choice above can hold it.
+        self._action(projection, "Switch perspective / orthographic", c.toggle_projection)
 
     def _make_shortcuts(self) -> None:
         """Every key of the key table, window-wide (a spin box being typed in keeps its own keys)."""
@@ -863,6 +877,8 @@ class MainWindow(QtWidgets.QMainWindow):
         view = self.controller.scene_view
         if view is not None:
             self.follow_action.setChecked(view.follow)
+            for name, action in self.projection_actions.items():
+                action.setChecked(name == view.projection)
 
     def _fill_pattern_colours(self) -> None:
         menu = self.pattern_colour_menu

@@ -14,8 +14,10 @@ import math
 import numpy as np
 import pyvista as pv
 
+from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.rotations import FRD_TO_FLU
 
+from .cameras import PROJECTIONS, distance_for, fit_parallel, parallel_scale_for, screen_axes
 from .ring import PointRing
 from .session import PATTERN_COLOURS, TAG_CLASSES, Session
 
@@ -777,6 +779,8 @@ SIDE_FIT_POINTS = 100
 SIDE_ELEVATION = math.radians(15.0)
 SIDE_MARGIN = 0.85
 SIDE_NEAREST_M = 8.0
+#: Points of the cloud an orthographic reset frames at most (a sample: the percentiles of a million are the same).
+ORTHO_FIT_SAMPLE = 100_000
 
 
 class SceneView(_View):
@@ -978,6 +982,7 @@ class SceneView(_View):
         """
         if preset not in CAMERA_PRESETS:
             raise ValueError(f"camera preset {preset!r}; allowed: {', '.join(CAMERA_PRESETS)}")
+        orthographic = self.projection == "orthographic"  # kept: r and the presets do not undo the user's choice
         sensor = self.session.sensor_pose
         boresight = sensor.rotation @ np.array([1.0, 0.0, 0.0])
         flat = np.array([boresight[0], boresight[1], 0.0])
@@ -1003,9 +1008,69 @@ class SceneView(_View):
         camera.focal_point = tuple(to_display @ target_ned)
         camera.up = up
         camera.view_angle = SCENE_VIEW_ANGLE
+        if orthographic:
+            self._fit_orthographic(tuple(to_display @ eye_ned), flat, left)
         self.renderer.ResetCameraClippingRange()
         vehicle = self.session.vehicle_pose_now
         self._followed = (NED_TO_DISPLAY[:3, :3] @ vehicle.origin, _heading(vehicle.rotation))
+
+    @property
+    def projection(self) -> str:
+        """The scene camera's projection, one of :data:`~livox_viz.widgets.cameras.PROJECTIONS` (the camera's own
+        state: a viewpoint or a sidecar that sets it sets this)."""
+        return PROJECTIONS[1] if self.renderer.camera.GetParallelProjection() else PROJECTIONS[0]
+
+    def set_projection(self, projection: str) -> None:
+        """Perspective or orthographic, keeping what is looked at the same size on the screen: the parallel scale
+        from the eye's distance and the view angle (ParaView keeps the scale it had, and a switch jumped the zoom);
+        back to perspective, the eye moved along the line of sight to the distance that scale stands for."""
+        if projection not in PROJECTIONS:
+            raise LivoxVizError(f"projection {projection!r}; allowed: {', '.join(PROJECTIONS)}")
+        if projection == self.projection:
+            return
+        camera = self.renderer.camera
+        if projection == "orthographic":
+            camera.parallel_scale = parallel_scale_for(camera.distance, camera.view_angle)
+            camera.enable_parallel_projection()
+        else:
+            distance = distance_for(camera.parallel_scale, camera.view_angle)
+            camera.position = tuple(np.asarray(camera.focal_point) - np.asarray(camera.direction) * distance)
+            camera.disable_parallel_projection()
+        self.renderer.ResetCameraClippingRange()
+
+    def _fit_orthographic(self, eye: tuple[float, float, float], flat: np.ndarray, left: np.ndarray) -> None:
+        """Make the camera, looking as a preset put it (its ``eye``, display frame), orthographic and fit the
+        sensor and the cloud (its 2nd to 98th percentiles across the screen: stray far points left out) into the
+        part of the view the colour bar and the text leave free; before a cloud, the box ahead of the sensor that
+        the side camera frames. A perspective preset's fixed distance cut a wide cloud off, or drew it small."""
+        camera = self.renderer.camera
+        to_display = NED_TO_DISPLAY[:3, :3]
+        right, screen_up, forward = screen_axes(np.asarray(camera.direction), np.asarray(camera.up))
+        origin = self.session.sensor_pose.origin
+        ring = self.session.scene_ring
+        slots = ring.live_slots()
+        if slots.size >= SIDE_FIT_POINTS:
+            slots = slots[:: max(1, slots.size // ORTHO_FIT_SAMPLE)]
+            cloud = ring.positions[slots].astype(np.float64) @ to_display.T
+            across = np.stack([cloud @ right, cloud @ screen_up, cloud @ forward], axis=1)
+            low, high = np.percentile(across, [2.0, 98.0], axis=0)
+            box = np.array([[a, b, c] for a in (low[0], high[0]) for b in (low[1], high[1])
+                            for c in (low[2], high[2])]) @ np.stack([right, screen_up, forward])
+        else:
+            axes = np.stack([flat, left, np.array([0.0, 0.0, -1.0])])  # ahead, left, up (NED)
+            box = np.array([[a, b, c] for a in (-2.0, SIDE_REACH_M) for b in (-3.0, 3.0) for c in (-2.0, 3.0)])
+            box = (origin + box @ axes) @ to_display.T
+        points = np.vstack([box, to_display @ origin])
+        width, height = self.renderer.GetSize()
+        free_y = 1.0 - min(0.3, SCENE_TEXT_BAND_PX / max(height, 1))
+        focal, scale = fit_parallel(points, forward, screen_up, max(width, 1) / max(height, 1), SCALAR_BAR_LEFT,
+                                    free_y, SIDE_MARGIN)
+        # The eye where the preset had it along the line of sight, or farther: in front of everything framed.
+        back = max(float(np.dot(focal - np.asarray(eye), forward)), float(((focal - points) @ forward).max()) + 1.0)
+        camera.enable_parallel_projection()
+        camera.focal_point = tuple(focal)
+        camera.position = tuple(focal - forward * back)
+        camera.parallel_scale = scale
 
     def _side_camera(self, origin: np.ndarray, flat: np.ndarray, left: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(eye, target)``, NED metres, of the side camera: from the sensor's left and a little above, at the
@@ -1118,3 +1183,4 @@ class SceneView(_View):
         self._colour()
         update_ring_polydata(self.poly, self._ring, self.stride())
         self.scalar_bar.SetTitle(SCENE_UNITS[self.session.display.scene_colour])
+
