@@ -1,14 +1,22 @@
-"""The scene view's projection arithmetic and its camera's form, without a window (issue 45 item 6): pure
-functions, checked against numbers computed here another way."""
+"""The scene view's projection arithmetic, its range and reflectivity filter and its saved viewpoints, without a
+window (issue 45 item 6): pure functions, checked against numbers computed here another way."""
 
 from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from livox_viz.widgets.cameras import CameraState, distance_for, fit_parallel, parallel_scale_for
+from livox_viz.widgets.viewpoints import (
+    FORMAT_KEY,
+    delete_viewpoint,
+    read_viewpoints,
+    save_viewpoint,
+    viewpoints_path,
+)
 
 from livox_viz import LivoxVizError
 
@@ -72,3 +80,96 @@ def test_a_camera_is_written_as_the_sidecar_writes_it_and_a_bad_one_refused_in_o
     with pytest.raises(LivoxVizError, match="allowed: three finite numbers"):
         CameraState.from_json({**data, "position": [float("nan"), 0, 0]})
 
+
+# Saved viewpoints ------------------------------------------------------------------------------------------------
+@pytest.fixture
+def viewpoints_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.setenv("LIVOX_VIZ_VIEWPOINTS", str(tmp_path / "views"))
+    return viewpoints_path()
+
+
+def test_viewpoints_are_kept_in_the_user_s_folder_in_order_replaced_by_name_and_deleted(viewpoints_file: Path,
+                                                                                       monkeypatch) -> None:
+    monkeypatch.delenv("LIVOX_VIZ_VIEWPOINTS")
+    from livox_viz.config.presets import user_config_dir
+
+    assert viewpoints_path().parent.parent == user_config_dir("presets").parent  # beside the user presets
+    monkeypatch.setenv("LIVOX_VIZ_VIEWPOINTS", str(viewpoints_file.parent))
+    assert read_viewpoints().viewpoints == [] and not read_viewpoints().problem  # no file yet: nothing to say
+    top = CameraState((0.0, 0.0, 60.0), (0.0, 0.0, 0.0), (1.0, 0.0, 0.0), 40.0, 50.0, True)
+    assert "'map' saved (orthographic)" in save_viewpoint("  map ", top)
+    assert "'behind' saved (perspective)" in save_viewpoint("behind", CAMERA.__class__(**{**CAMERA.__dict__,
+                                                                                         "parallel": False}))
+    moved = CameraState((0.0, 0.0, 80.0), (5.0, 0.0, 0.0), (1.0, 0.0, 0.0), 60.0, 50.0, True)
+    assert "'map' replaced" in save_viewpoint("map", moved)
+    data = json.loads(viewpoints_file.read_text())
+    assert data[FORMAT_KEY] == 1 and [v["name"] for v in data["viewpoints"]] == ["behind", "map"]
+    assert data["viewpoints"][1]["camera"] == moved.to_json()
+    assert read_viewpoints().find("map").camera == moved
+    assert "deleted" in delete_viewpoint("behind")
+    assert read_viewpoints().names() == ["map"]
+    with pytest.raises(LivoxVizError, match=r"no viewpoint 'behind' in .*; allowed: map"):
+        delete_viewpoint("behind")
+    for name in ("", "   ", "a\nb", "x" * 61):
+        with pytest.raises(LivoxVizError, match="allowed: 1 to 60 printable characters"):
+            save_viewpoint(name, top)
+    assert read_viewpoints().names() == ["map"]
+    assert sorted(p.name for p in viewpoints_file.parent.iterdir()) == ["viewpoints.json"]  # no temporaries left
+
+
+def test_a_hand_edited_file_keeps_what_cannot_be_read_and_a_damaged_one_is_set_aside_never_lost(
+        viewpoints_file: Path) -> None:
+    """An entry with a bad camera or a name taken twice is said in one line and written back as it was when
+    another is saved; a file that is no viewpoints file (half a JSON, a list) is renamed aside, byte for byte,
+    before a new one is written; a newer format is read but never written over."""
+    good = {"name": "map", "camera": CAMERA.to_json()}
+    bad_camera = {"name": "wrong", "camera": {**CAMERA.to_json(), "view_angle": 0}}
+    viewpoints_file.parent.mkdir(parents=True)
+    viewpoints_file.write_text(json.dumps({FORMAT_KEY: 1, "viewpoints": [good, bad_camera, good, "x"]}))
+    book = read_viewpoints()
+    assert book.names() == ["map"] and book.kept == [bad_camera, good, "x"]
+    assert "\n" not in book.problem and "3 of 4 viewpoints could not be read and are kept" in book.problem
+    assert "viewpoint 'wrong''s camera: view_angle 0.0 deg" in book.problem
+    said = save_viewpoint("new", CAMERA)
+    assert "3 unreadable entries kept as they were" in said
+    assert json.loads(viewpoints_file.read_text())["viewpoints"][1:] == [{"name": "new", "camera": CAMERA.to_json()},
+                                                                         bad_camera, good, "x"]
+
+    for damaged in (b'{"livox_viz_viewpoints": 1, "viewpoints": [{"na', b"[1, 2]", b'{"viewpoints": []}'):
+        viewpoints_file.write_bytes(damaged)
+        book = read_viewpoints()
+        assert book.unreadable and book.viewpoints == [] and "\n" not in book.problem
+        assert book.problem.startswith("viewpoints.json: ") and book.problem.endswith(f"({viewpoints_file.parent})")
+        assert "set aside when a viewpoint is saved" in book.problem
+        said = save_viewpoint("fresh", CAMERA)
+        aside = [p for p in viewpoints_file.parent.iterdir() if p.name.startswith("viewpoints.unreadable-")]
+        assert len(aside) == 1 and aside[0].read_bytes() == damaged and f"kept as {aside[0].name}" in said
+        aside[0].unlink()
+        assert read_viewpoints().names() == ["fresh"] and not read_viewpoints().problem
+
+    newer = json.dumps({FORMAT_KEY: 2, "viewpoints": [good], "more": True})
+    viewpoints_file.write_text(newer)
+    assert read_viewpoints().names() == ["map"] and "newer livox-viz" in read_viewpoints().problem
+    with pytest.raises(LivoxVizError, match="newer livox-viz; allowed"):
+        save_viewpoint("over", CAMERA)
+    assert viewpoints_file.read_text() == newer
+
+
+def test_a_viewpoint_that_cannot_be_written_leaves_the_file_as_it_was(viewpoints_file: Path, tmp_path: Path,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """A read-only file (its owner's word, which even an administrator's run respects) and a folder that cannot be
+    made are one line each; the file is as it was."""
+    save_viewpoint("map", CAMERA)
+    before = viewpoints_file.read_bytes()
+    viewpoints_file.chmod(0o444)
+    try:
+        with pytest.raises(LivoxVizError) as refused:
+            save_viewpoint("other", CAMERA)
+    finally:
+        viewpoints_file.chmod(0o644)
+    assert "\n" not in str(refused.value) and "read-only" in str(refused.value)
+    assert viewpoints_file.read_bytes() == before and read_viewpoints().names() == ["map"]
+    (tmp_path / "a-file").write_text("")
+    monkeypatch.setenv("LIVOX_VIZ_VIEWPOINTS", str(tmp_path / "a-file" / "views"))
+    with pytest.raises(LivoxVizError, match="cannot make its folder"):
+        save_viewpoint("other", CAMERA)

@@ -285,7 +285,9 @@ def test_every_menu_action_runs(window, qtbot, user_presets: Path, monkeypatch: 
     monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", staticmethod(lambda *a, **k: ("", "")))
     monkeypatch.setattr(QtWidgets.QFileDialog, "getSaveFileName", staticmethod(lambda *a, **k: ("", "")))
     monkeypatch.setattr(QtWidgets.QInputDialog, "getDouble", staticmethod(lambda *a, **k: (0.25, True)))
+    monkeypatch.setattr(QtWidgets.QInputDialog, "getText", staticmethod(lambda *a, **k: ("walked", True)))
     monkeypatch.setattr(QtWidgets.QMessageBox, "about", staticmethod(lambda *a, **k: None))
+    monkeypatch.setenv("LIVOX_VIZ_VIEWPOINTS", str(user_presets.parent / "viewpoints"))
     skipped = {"Quit", "Fit the rosette to the reference"}
     ran = []
 
@@ -393,9 +395,17 @@ def view_submenu(window, title: str):
     return menu
 
 
-def test_the_scene_view_s_projection_from_the_view_menu(window, qtbot) -> None:
-    """View > Projection marks the projection shown and 5 switches it (issue 45 item 6)."""
-    view = window.controller.scene_view
+def test_the_scene_view_s_projection_and_saved_viewpoints_from_the_view_menu(window, qtbot, tmp_path: Path,
+                                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """View > Projection marks the projection shown and 5 switches it (issue 45 item 6). View > Viewpoints saves
+    the scene camera under a typed name into the user's viewpoints file, lists it, restores it exactly and deletes
+    it; a damaged file is one red line naming it, the menu still saves, and the damaged file is kept aside."""
+    from livox_viz.widgets.cameras import CameraState
+    from livox_viz.widgets.viewpoints import viewpoints_path
+    from qtpy import QtWidgets
+
+    monkeypatch.setenv("LIVOX_VIZ_VIEWPOINTS", str(tmp_path / "viewpoints"))
+    c, view = window.controller, window.controller.scene_view
     projection = view_submenu(window, "Projection (scene view)")
     window._sync_menus()
     assert [a.text() for a in projection.actions() if a.isChecked()] == ["Perspective"]
@@ -405,6 +415,46 @@ def test_the_scene_view_s_projection_from_the_view_menu(window, qtbot) -> None:
     assert [a.text() for a in projection.actions() if a.isChecked()] == ["Orthographic (parallel)"]
     next(a for a in projection.actions() if a.text() == "Perspective").trigger()
     assert view.projection == "perspective"
+    press(qtbot, window, "5")
+    window.run(lambda: c.set_scene_camera("top"))  # an orthographic map
+    saved = CameraState.of(view.renderer.camera)
+
+    names = iter(["map"])
+    monkeypatch.setattr(QtWidgets.QInputDialog, "getText", staticmethod(lambda *a, **k: (next(names), True)))
+    menu = view_submenu(window, "Viewpoints (scene view)")
+    next(a for a in menu.actions() if a.text() == "Save current view...").trigger()
+    assert "viewpoint 'map' saved (orthographic)" in window.status_message.text() and not window._error
+    data = json.loads(viewpoints_path().read_text())
+    assert data["viewpoints"] == [{"name": "map", "camera": saved.to_json()}]
+    window.run(lambda: c.set_scene_camera("behind"))
+    press(qtbot, window, "5")
+    assert view.projection == "perspective"
+    menu = view_submenu(window, "Viewpoints (scene view)")
+    entry = next(a for a in menu.actions() if a.text() == "map")
+    assert entry.toolTip().startswith("orthographic, looking from")
+    entry.trigger()
+    restored = CameraState.of(view.renderer.camera)
+    for key, value in saved.to_json().items():
+        assert restored.to_json()[key] == pytest.approx(value, abs=1e-9), key
+    window._sync_menus()
+    assert [a.text() for a in projection.actions() if a.isChecked()] == ["Orthographic (parallel)"]
+    delete = next(a.menu() for a in menu.actions() if a.text() == "Delete")
+    next(a for a in delete.actions() if a.text() == "map").trigger()
+    assert json.loads(viewpoints_path().read_text())["viewpoints"] == []
+    assert "deleted" in window.status_message.text()
+
+    viewpoints_path().write_text('{"livox_viz_viewpoints": 1, "viewpoints": [')  # cut short
+    menu = view_submenu(window, "Viewpoints (scene view)")
+    assert window._error and window.status_message.text().startswith("viewpoints.json: not a readable viewpoints")
+    assert "\n" not in window.status_message.text()
+    assert [a.text() for a in menu.actions() if not a.isSeparator() and not a.isEnabled()] == \
+        ["no viewpoint could be read"]
+    names = iter(["again"])
+    next(a for a in menu.actions() if a.text() == "Save current view...").trigger()
+    assert "viewpoint 'again' saved" in window.status_message.text() and "kept as" in window.status_message.text()
+    assert [p.read_text() for p in viewpoints_path().parent.glob("viewpoints.unreadable-*.json")] == \
+        ['{"livox_viz_viewpoints": 1, "viewpoints": [']
+    assert window.isVisible()
 
 
 def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot) -> None:

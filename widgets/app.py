@@ -509,7 +509,7 @@ class LivoxVizApp:
             raise LivoxVizError(f"camera {preset!r}; allowed: {', '.join(CAMERA_PRESETS)}, follow")
         self.scene_view.reset_camera(preset)
 
-    # The scene view's projection (issue 45 item 6) ------------------------------
+    # The scene view's projection and viewpoints (issue 45 item 6) ------------------------------
     def set_projection(self, projection: str) -> None:
         """The scene view's projection, one of :data:`~livox_viz.widgets.cameras.PROJECTIONS`, what it looks at
         kept the same size."""
@@ -523,6 +523,20 @@ class LivoxVizApp:
         """Perspective / orthographic (the 5 key, as Blender's keypad 5)."""
         if self.scene_view is not None:
             self.set_projection(PROJECTIONS[1 - PROJECTIONS.index(self.scene_view.projection)])
+
+    def scene_camera(self) -> CameraState:
+        """The scene view's camera now (what View > Viewpoints > Save keeps)."""
+        if self.scene_view is None:
+            raise LivoxVizError("no scene view; allowed: the window with its scene view")
+        return CameraState.of(self.scene_view.renderer.camera)
+
+    def restore_scene_camera(self, state: CameraState, name: str = "") -> None:
+        """Put the scene view's camera in ``state`` (a saved viewpoint called ``name``)."""
+        if self.scene_view is None:
+            return
+        state.apply(self.scene_view.renderer.camera)
+        self.scene_view.renderer.ResetCameraClippingRange()
+        self.session.message = f"viewpoint {name!r} ({state.projection})" if name else f"{state.projection} view"
 
     # Picking -------------------------------------------------------------------------------
     def forget_picks(self) -> None:
@@ -686,7 +700,7 @@ class LivoxVizApp:
             self.scene_view.show_axes(bool(scene.get("axes")))
 
     def cameras(self) -> dict[str, Any]:
-        """Each view's camera, for the sidecar (:meth:`CameraState.to_json`)."""
+        """Each view's camera, for the sidecar (:meth:`CameraState.to_json`, as a saved viewpoint holds it)."""
         return {name: CameraState.of(view.renderer.camera).to_json()
                 for name, view in (("pattern", self.pattern_view), ("scene", self.scene_view)) if view is not None}
 

@@ -1,7 +1,8 @@
 """A view's camera as data, and the arithmetic of orthographic (parallel) projection, without VTK.
 
 :class:`CameraState` is the one form a camera is written in: a screenshot's
-sidecar holds one per view, as :meth:`CameraState.to_json` writes it. The
+sidecar holds one per view and a saved viewpoint (View > Viewpoints) holds
+the scene view's, both as :meth:`CameraState.to_json` writes it. The
 functions below are what the scene view's projection switch and its
 orthographic reset compute; a camera object is touched only by
 :meth:`CameraState.of` and :meth:`CameraState.apply` (any object with

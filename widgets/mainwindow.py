@@ -51,6 +51,7 @@ from .nonerefs import NoneReserve, binding_drops_none
 from .overlay import WINDOWS, PresetSource, TableSource, window_label
 from .panel import ParameterPanel, signals_blocked
 from .session import DRAWINGS, SCENE_COLOURS, Session, pattern_colours, step_units
+from .viewpoints import NAME_CHARS, delete_viewpoint, read_viewpoints, save_viewpoint
 from .views import BACKGROUNDS, CAMERA_PRESETS, COLOUR_MAPS
 from .warmup import LoopWarmer
 
@@ -561,7 +562,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._action(helper, "About livox-viz", self.about)
 
     def _make_scene_view_menus(self, view: QtWidgets.QMenu) -> None:
-        """View > Projection: the scene view's projection (ParaView's camera parallel projection)."""
+        """View > Projection and Viewpoints: the scene view's projection (ParaView's camera parallel projection)
+        and its saved cameras (ParaView's bookmarks, RViz's saved views)."""
         c = self.controller
         projection = view.addMenu("Projection (scene view)")
         group = QtGui.QActionGroup(self)
@@ -571,6 +573,9 @@ class MainWindow(QtWidgets.QMainWindow):
         projection.addSeparator()
         # The 5 key, shown here: a key is one action's only shortcut, so neither choice above can hold it.
         self._action(projection, "Switch perspective / orthographic", c.toggle_projection)
+        self.viewpoints_menu = view.addMenu("Viewpoints (scene view)")
+        self.viewpoints_menu.setToolTipsVisible(True)
+        self.viewpoints_menu.aboutToShow.connect(self._fill_viewpoints)
 
     def _make_shortcuts(self) -> None:
         """Every key of the key table, window-wide (a spin box being typed in keeps its own keys)."""
@@ -951,6 +956,51 @@ class MainWindow(QtWidgets.QMainWindow):
             action = self._action(menu, Path(choice).name if os.sep in choice else choice,
                                   lambda c=choice: self.load_scene(c), checkable=True, group=group)
             action.setChecked(choice == current)  # the scene shown
+
+    def _fill_viewpoints(self) -> None:
+        """View > Viewpoints, read afresh from the file each time it opens (another window may have saved one):
+        save, the saved ones to restore, delete. A file that cannot be read (all or some of it) is one line in the
+        status bar; what could be read is offered."""
+        menu = self.viewpoints_menu
+        menu.clear()
+        self._action(menu, "Save current view...", self.save_viewpoint)
+        book = read_viewpoints()
+        if book.problem:
+            self.say(book.problem, error=True)
+            self._update_status()
+        menu.addSeparator()
+        if not book.viewpoints:
+            empty = menu.addAction("no viewpoints saved" if not book.problem else "no viewpoint could be read")
+            empty.setEnabled(False)
+        for viewpoint in book.viewpoints:
+            camera = viewpoint.camera
+            # A name's & would be read as a mnemonic's mark and vanish from the entry.
+            action = self._action(menu, viewpoint.name.replace("&", "&&"),
+                                  lambda v=viewpoint: self.controller.restore_scene_camera(v.camera, v.name))
+            action.setToolTip(f"{camera.projection}, looking from ({', '.join(f'{v:.1f}' for v in camera.position)}) "
+                              f"at ({', '.join(f'{v:.1f}' for v in camera.focal_point)}), m")
+        if book.viewpoints:
+            menu.addSeparator()
+            delete = menu.addMenu("Delete")
+            for viewpoint in book.viewpoints:
+                self._action(delete, viewpoint.name.replace("&", "&&"),
+                             lambda n=viewpoint.name: self.delete_viewpoint(n))
+
+    def save_viewpoint(self, name: str | None = None) -> None:
+        """View > Viewpoints > Save current view: the scene view's camera under a name the user gives, in the
+        viewpoints file (a name taken replaces its viewpoint, and says so)."""
+        if name is None:
+            taken = read_viewpoints().names()
+            suggestion = next(f"view {k}" for k in range(1, len(taken) + 2) if f"view {k}" not in taken)
+            name, accepted = QtWidgets.QInputDialog.getText(
+                self, "Save the scene view", f"Name of this viewpoint (1 to {NAME_CHARS} characters; a name "
+                "taken is replaced):", QtWidgets.QLineEdit.EchoMode.Normal, suggestion)
+            if not accepted:
+                return
+        self.say(save_viewpoint(name, self.controller.scene_camera()))
+
+    def delete_viewpoint(self, name: str) -> None:
+        self.say(delete_viewpoint(name))
 
     def _panel_follow(self) -> None:
         self.panel.follow()
