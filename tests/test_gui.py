@@ -1145,7 +1145,7 @@ def test_a_sidecars_background_is_drawn_again_and_a_strange_one_named(app: Livox
         app.apply_drawing_state(state)
 
 
-# The scene view's projection (issue 45 item 6) ------------------------------------------------------
+# The scene view's projection and filter (issue 45 item 6) ------------------------------------------------------
 def display_pixels(renderer, points_display: np.ndarray) -> np.ndarray:
     """``(n, 2)`` VTK's pixels (origin bottom left) of display-frame points, by the camera's own projection."""
     width, height = renderer.GetSize()
@@ -1210,3 +1210,62 @@ def test_orthographic_keeps_the_size_of_what_is_looked_at_and_r_and_the_presets_
             np.testing.assert_allclose(camera.direction, (0.0, 0.0, -1.0), atol=1e-9)
     assert app.cameras()["scene"]["parallel"] is True
 
+
+def test_the_filter_draws_only_the_points_inside_its_bounds_says_how_many_it_hides_and_hides_them_from_picks(
+        app: LivoxVizApp) -> None:
+    """The cells drawn are exactly the live slots whose range is inside the bounds (counted here from the ring's
+    ranges), after each tick too; the heads-up text says the bounds and the points hidden of the window's; a click
+    on a hidden point does not pick it; the sidecar keeps the filter and Clear draws every point again."""
+    from livox_viz.widgets.filters import CloudFilter
+
+    session, view = app.session, app.scene_view
+    session.advance_to(0.5)
+    app.refresh()
+    app.render(every=True)
+    ring = session.scene_ring
+    low, high = 8.0, 30.0
+
+    def drawn() -> np.ndarray:
+        return np.sort(pv.convert_array(view.poly.GetVerts().GetConnectivityArray()))
+
+    def expected() -> np.ndarray:
+        live = ring.live_slots()
+        ranges = ring.range_m[live].astype(np.float64)
+        return np.sort(live[(ranges >= low) & (ranges <= high)])
+
+    # A point the filter will hide, clear of every point it keeps on the screen, answers a click before.
+    pixels = display_pixels(view.renderer, ring.positions.astype(float) * [1, -1, -1])
+    width, height = view.renderer.GetSize()
+    kept = expected()
+    hidden = [s for s in np.setdiff1d(ring.live_slots(), kept)[::7]
+              if 10 < pixels[s, 0] < width - 10 and 10 < pixels[s, 1] < height - 10
+              and np.hypot(*(pixels[kept] - pixels[s]).T).min() > 12]
+    assert hidden, "no hidden point stands clear on the screen"
+    target = pixels[hidden[0]]
+    before = app.pick_scene(*target)
+    assert before is not None and not low <= before["range_m"] <= high
+
+    app.set_cloud_filter(CloudFilter(range_min_m=low, range_max_m=high))
+    app.refresh()
+    assert 0 < kept.size < ring.count and np.array_equal(drawn(), kept)
+    line = f"filter: range 8-30 m, {ring.count - kept.size:,} of {ring.count:,} hidden"
+    assert line in app.hud.scene_state.GetText(2)
+    assert app.pick_scene(*target) is None or low <= app.picks[-1]["range_m"] <= high
+    session.advance_to(0.8)  # a tick: the new points filtered too, the old ones gone
+    app.refresh()
+    assert np.array_equal(drawn(), expected())
+    assert f"of {ring.count:,} hidden" in app.hud.scene_state.GetText(2)
+
+    state = json.loads(json.dumps(app.drawing_state()))
+    assert state["scene"]["filter"] == {"range_min_m": low, "range_max_m": high, "reflectivity_min": None,
+                                        "reflectivity_max": None}
+    app.set_cloud_filter(CloudFilter(reflectivity_min=1))  # ideal returns carry 0: every point hidden
+    app.refresh()
+    assert drawn().size == 0 and f"{ring.count:,} of {ring.count:,} hidden" in app.hud.scene_state.GetText(2)
+    app.clear_filters()
+    app.refresh()
+    assert drawn().size == ring.count and "filter:" not in app.hud.scene_state.GetText(2)
+    assert "every point" in session.message
+    app.apply_drawing_state(state)  # as render --sidecar does
+    app.refresh()
+    assert np.array_equal(drawn(), expected())

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from livox_viz.widgets.cameras import CameraState, distance_for, fit_parallel, parallel_scale_for
+from livox_viz.widgets.filters import CloudFilter, filtered_slots
+from livox_viz.widgets.ring import PointRing
 from livox_viz.widgets.viewpoints import (
     FORMAT_KEY,
     delete_viewpoint,
@@ -79,6 +81,71 @@ def test_a_camera_is_written_as_the_sidecar_writes_it_and_a_bad_one_refused_in_o
         CameraState.from_json({k: v for k, v in data.items() if k not in ("view_angle", "parallel")})
     with pytest.raises(LivoxVizError, match="allowed: three finite numbers"):
         CameraState.from_json({**data, "position": [float("nan"), 0, 0]})
+
+
+# The filter --------------------------------------------------------------------------------------------------
+def ring_of(rng: np.random.Generator, capacity: int, written: int) -> PointRing:
+    """A scene ring (ranges kept) that took ``written`` points of random ranges and reflectivities."""
+    ring = PointRing(capacity, sensor_frame=True)
+    local = rng.normal(0.0, 20.0, (written, 3)).astype(np.float32)
+    ring.write(local, np.zeros(written, np.float32), np.arange(written) * 1e-5, np.arange(written),
+               reflectivity=rng.integers(0, 256, written).astype(np.uint8), sensor_xyz=local)
+    return ring
+
+
+@pytest.mark.parametrize(("capacity", "written", "stride"), [(1000, 700, 1), (1000, 2500, 1), (1000, 2500, 3),
+                                                             (1000, 1000, 4)])
+def test_the_filter_keeps_exactly_the_live_points_inside_its_bounds(capacity: int, written: int,
+                                                                    stride: int) -> None:
+    """Against a loop over the live slots, point by point: the slots kept are those drawn whose range and
+    reflectivity are within the bounds (both included), and the points hidden are counted over all live ones."""
+    from livox_viz.widgets.views import drawn_slots
+
+    ring = ring_of(np.random.default_rng(capacity + written + stride), capacity, written)
+    ring.drop_older_than(float(ring.times[ring.live_slots()[50]]))  # a time window's cut: dead slots keep points
+    bounds = CloudFilter(range_min_m=15.0, range_max_m=40.0, reflectivity_min=30, reflectivity_max=200)
+    drawn = drawn_slots(ring, stride)
+    kept, hidden = filtered_slots(ring, drawn, bounds)
+
+    def inside(slot: int) -> bool:
+        distance = float(ring.range_m[slot])
+        return 15.0 <= distance <= 40.0 and 30 <= int(ring.reflectivity[slot]) <= 200
+
+    assert sorted(kept.tolist()) == sorted(s for s in drawn.tolist() if inside(s))
+    assert hidden == sum(not inside(s) for s in ring.live_slots().tolist())
+    assert 0 < kept.size < drawn.size and set(kept.tolist()) <= set(ring.live_slots().tolist())
+
+
+def test_a_bound_on_each_side_alone_and_the_full_byte_range_hides_nothing_more() -> None:
+    ring = ring_of(np.random.default_rng(5), 500, 500)
+    slots = ring.live_slots()
+    assert not CloudFilter(range_min_m=0.0, reflectivity_min=0, reflectivity_max=255).active
+    for bounds, inside in ((CloudFilter(range_min_m=30.0), ring.range_m >= 30.0),
+                           (CloudFilter(range_max_m=30.0), ring.range_m <= 30.0),
+                           (CloudFilter(reflectivity_min=128), ring.reflectivity >= 128),
+                           (CloudFilter(reflectivity_max=127), ring.reflectivity <= 127)):
+        assert bounds.active
+        kept, hidden = filtered_slots(ring, slots, bounds)
+        assert sorted(kept.tolist()) == np.flatnonzero(inside).tolist() and hidden == 500 - inside.sum()
+
+
+def test_a_bad_filter_is_refused_in_one_line_naming_what_is_allowed_and_it_reads_as_it_is_said() -> None:
+    for values, words in (({"range_min_m": 20.0, "range_max_m": 1.0}, "range filter 20-1 m refused"),
+                          ({"reflectivity_min": 200, "reflectivity_max": 10}, "reflectivity filter 200-10 refused"),
+                          ({"range_min_m": -1.0}, "a range of 0 m or more"),
+                          ({"range_max_m": float("inf")}, "a range of 0 m or more"),
+                          ({"reflectivity_max": 256}, "a whole number from 0 to 255"),
+                          ({"reflectivity_min": 12.5}, "a whole number from 0 to 255")):
+        with pytest.raises(LivoxVizError) as refused:
+            CloudFilter(**values)
+        assert words in str(refused.value) and "allowed" in str(refused.value) and "\n" not in str(refused.value)
+    assert CloudFilter(1.0, 20.0).describe() == "range 1-20 m"
+    assert CloudFilter(range_min_m=2.5, reflectivity_max=150).describe() == "range >= 2.5 m, reflectivity <= 150"
+    both = CloudFilter(1.0, 20.0, 10, 255)
+    assert CloudFilter.from_json(json.loads(json.dumps(both.to_json()))) == both
+    assert CloudFilter.from_json(None) == CloudFilter()
+    with pytest.raises(LivoxVizError, match="unknown range_m; allowed"):
+        CloudFilter.from_json({"range_m": 3})
 
 
 # Saved viewpoints ------------------------------------------------------------------------------------------------

@@ -457,6 +457,60 @@ def test_the_scene_view_s_projection_and_saved_viewpoints_from_the_view_menu(win
     assert window.isVisible()
 
 
+def test_the_filters_dialog_applies_refuses_in_one_line_and_clears(window, qtbot) -> None:
+    """View > Filters... (issue 45 item 6): bounds typed as a user types them; a minimum above its maximum is
+    refused in one red line in the status bar and in the dialog, nothing changed; Enter applies; the heads-up text
+    counts the points hidden as the ring holds them; View > Clear filters draws every point. The dialog fits the
+    screen and its words are not cut."""
+    from qtpy import QtCore, QtWidgets
+
+    session, view = window.controller.session, window.controller.scene_view
+    session.advance_to(0.5)
+    session.playback.paused = True
+    window.tick()
+    view_menu = next(a.menu() for a in window.menuBar().actions() if a.text().replace("&", "") == "View")
+    entries = {a.text(): a for a in view_menu.actions()}
+    entries["Filters (range, reflectivity)..."].trigger()
+    dialog = window.filter_dialog
+    qtbot.waitExposed(dialog)
+    assert dialog.isVisible() and not view.cloud_filter.active
+    screen = QtWidgets.QApplication.primaryScreen().availableGeometry()
+    assert screen.contains(dialog.frameGeometry())
+    def words_whole() -> None:
+        for label in dialog.findChildren(QtWidgets.QLabel):
+            if label.text() and label.wordWrap():  # its lines as wrapped at its width all inside it
+                assert label.heightForWidth(label.width()) <= label.height(), label.text()
+            elif label.text():
+                assert label.fontMetrics().horizontalAdvance(label.text()) <= label.width(), label.text()
+
+    words_whole()
+    low, high = dialog.boxes["range_min_m"], dialog.boxes["range_max_m"]
+    qtbot.keyClicks(low, "30")
+    qtbot.keyClicks(high, "8 m")
+    qtbot.mouseClick(dialog.apply_button, QtCore.Qt.MouseButton.LeftButton)
+    said = window.status_message.text()
+    assert window._error and "minimum is above its maximum" in said and "allowed" in said and "\n" not in said
+    assert dialog.note.text() in said and not view.cloud_filter.active
+    qtbot.wait(50)  # the dialog takes its new size
+    words_whole()
+    high.clear()
+    qtbot.keyClicks(high, "40 m")
+    qtbot.keyClick(high, QtCore.Qt.Key.Key_Return)
+    assert dialog.isVisible() and (view.cloud_filter.range_min_m, view.cloud_filter.range_max_m) == (30.0, 40.0)
+    window.tick()
+    ring = session.scene_ring
+    ranges = ring.range_m[ring.live_slots()]
+    hidden = int(np.count_nonzero((ranges < 30.0) | (ranges > 40.0)))
+    assert 0 < hidden < ring.count
+    assert f"filter: range 30-40 m, {hidden:,} of {ring.count:,} hidden" in window.controller.hud.scene_state.GetText(2)
+    assert "filter: range 30-40 m" in window.status_message.text() and not window._error
+    assert "drawn now: range 30-40 m" in dialog.note.text()
+    entries["Clear filters"].trigger()
+    window.tick()
+    assert not view.cloud_filter.active and "filter:" not in window.controller.hud.scene_state.GetText(2)
+    assert view.poly.GetNumberOfCells() == ring.count
+
+
 def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot) -> None:
     """The menus named no key (a first-use trial): an entry whose action has a key in the key table shows it at
     its right as Qt does, and the key, pressed in a view, still runs its action once (Up doubles the speed once,

@@ -32,6 +32,7 @@ from livox_viz.core.blas import blas_threads
 from . import files
 from .cameras import PROJECTIONS, CameraState
 from .charts import CurveCharts
+from .filters import CloudFilter
 from .hud import HeadsUp
 from .overlay import WINDOWS, PresetSource, TableSource
 from .playback import next_choice
@@ -509,7 +510,7 @@ class LivoxVizApp:
             raise LivoxVizError(f"camera {preset!r}; allowed: {', '.join(CAMERA_PRESETS)}, follow")
         self.scene_view.reset_camera(preset)
 
-    # The scene view's projection and viewpoints (issue 45 item 6) ------------------------------
+    # The scene view's projection, viewpoints and filter (issue 45 item 6) ------------------------------
     def set_projection(self, projection: str) -> None:
         """The scene view's projection, one of :data:`~livox_viz.widgets.cameras.PROJECTIONS`, what it looks at
         kept the same size."""
@@ -537,6 +538,18 @@ class LivoxVizApp:
         state.apply(self.scene_view.renderer.camera)
         self.scene_view.renderer.ResetCameraClippingRange()
         self.session.message = f"viewpoint {name!r} ({state.projection})" if name else f"{state.projection} view"
+
+    def set_cloud_filter(self, cloud_filter: CloudFilter | None) -> None:
+        """Draw only the scene's points inside ``cloud_filter``'s bounds (None: every point)."""
+        if self.scene_view is None:
+            return
+        self.scene_view.cloud_filter = cloud_filter or CloudFilter()
+        active = self.scene_view.cloud_filter
+        self.session.message = (f"filter: {active.describe()} (points outside are not drawn or picked)"
+                                if active.active else "filters cleared: every point of the cloud drawn")
+
+    def clear_filters(self) -> None:
+        self.set_cloud_filter(None)
 
     # Picking -------------------------------------------------------------------------------
     def forget_picks(self) -> None:
@@ -673,7 +686,9 @@ class LivoxVizApp:
             state["scene"] = {"colour_map": self.scene_view.colour_map, "point_size": self.scene_view.point_size,
                               "background": self.scene_view.background_name,
                               "follow": self.scene_view.follow, "grid": self.scene_view.grid_actor is not None,
-                              "axes": self.scene_view.axes_actor is not None}
+                              "axes": self.scene_view.axes_actor is not None,
+                              "filter": (self.scene_view.cloud_filter.to_json()
+                                         if self.scene_view.cloud_filter.active else None)}
         return state
 
     def apply_drawing_state(self, state: Mapping[str, Any]) -> None:
@@ -698,6 +713,7 @@ class LivoxVizApp:
             self.scene_view.follow = bool(scene.get("follow", self.scene_view.follow))
             self.scene_view.show_grid(bool(scene.get("grid")))
             self.scene_view.show_axes(bool(scene.get("axes")))
+            self.scene_view.cloud_filter = CloudFilter.from_json(scene.get("filter"))
 
     def cameras(self) -> dict[str, Any]:
         """Each view's camera, for the sidecar (:meth:`CameraState.to_json`, as a saved viewpoint holds it)."""
@@ -758,7 +774,8 @@ class LivoxVizApp:
                 view.update()
         self.hud.update(self.session, density_shown=self.pattern_view is not None and self.pattern_view.density_shown(),
                         drawn=self.scene_view.drawn_count() if self.scene_view is not None else 0,
-                        opened=self.scene_view.opened_line() if self.scene_view is not None else "")
+                        opened=self.scene_view.opened_line() if self.scene_view is not None else "",
+                        filtered=self.scene_view.filter_line() if self.scene_view is not None else "")
 
     def render(self, every: bool = False, draw: Callable[[pv.BasePlotter], None] | None = None) -> None:
         """Render the views (the charts only when they changed, or ``every``) and update the frames per second.

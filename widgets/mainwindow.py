@@ -45,6 +45,7 @@ from . import files
 from .app import VIEW_NAMES, LivoxVizApp, quiet_vtk
 from .cameras import PROJECTIONS
 from .collector import MainThreadCollector, destroy_widget_tree, give_back_free_memory
+from .filter_dialog import FilterDialog
 from .guide import GUIDE_SIZE, UserGuide, guide_dir
 from .keys import KEYS, help_html
 from .nonerefs import NoneReserve, binding_drops_none
@@ -562,8 +563,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self._action(helper, "About livox-viz", self.about)
 
     def _make_scene_view_menus(self, view: QtWidgets.QMenu) -> None:
-        """View > Projection and Viewpoints: the scene view's projection (ParaView's camera parallel projection)
-        and its saved cameras (ParaView's bookmarks, RViz's saved views)."""
+        """View > Projection, Viewpoints and Filters: the scene view's projection (ParaView's camera parallel
+        projection), its saved cameras (ParaView's bookmarks, RViz's saved views) and its range and reflectivity
+        filter (CloudCompare's filter by value, Livox Viewer's filters)."""
         c = self.controller
         projection = view.addMenu("Projection (scene view)")
         group = QtGui.QActionGroup(self)
@@ -576,6 +578,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self.viewpoints_menu = view.addMenu("Viewpoints (scene view)")
         self.viewpoints_menu.setToolTipsVisible(True)
         self.viewpoints_menu.aboutToShow.connect(self._fill_viewpoints)
+        self._action(view, "Filters (range, reflectivity)...", self.open_filters)
+        self._action(view, "Clear filters", c.clear_filters)
+        self.filter_dialog: FilterDialog | None = None
 
     def _make_shortcuts(self) -> None:
         """Every key of the key table, window-wide (a spin box being typed in keeps its own keys)."""
@@ -1002,6 +1007,27 @@ class MainWindow(QtWidgets.QMainWindow):
     def delete_viewpoint(self, name: str) -> None:
         self.say(delete_viewpoint(name))
 
+    def open_filters(self) -> None:
+        """View > Filters: the dialog of the scene view's range and reflectivity bounds, beside the window."""
+        if self.filter_dialog is None:
+            view = self.controller.scene_view
+            if view is None:
+                raise LivoxVizError("no scene view to filter; allowed: the window with its scene view")
+
+            def apply(cloud_filter):
+                self.run(lambda: self.controller.set_cloud_filter(cloud_filter))
+                return self._error_text if self._error else None
+
+            def refuse(text: str) -> None:
+                self.say(text, error=True)
+                self._after_action()
+
+            self.filter_dialog = FilterDialog(self, lambda: view.cloud_filter, apply, refuse)
+        self.filter_dialog.show_current()
+        self.filter_dialog.show()
+        self.filter_dialog.raise_()
+        self.filter_dialog.activateWindow()
+
     def _panel_follow(self) -> None:
         self.panel.follow()
         self._update_title()
@@ -1332,6 +1358,8 @@ class MainWindow(QtWidgets.QMainWindow):
             self.warmer.close()
         if self.help_dialog is not None:
             self.help_dialog.close()
+        if self.filter_dialog is not None:
+            self.filter_dialog.close()
         if self.guide is not None:
             self.guide.close()
         self.controller.close()

@@ -18,6 +18,7 @@ from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.rotations import FRD_TO_FLU
 
 from .cameras import PROJECTIONS, distance_for, fit_parallel, parallel_scale_for, screen_axes
+from .filters import CloudFilter, filtered_slots
 from .ring import PointRing
 from .session import PATTERN_COLOURS, TAG_CLASSES, Session
 
@@ -82,25 +83,37 @@ def ring_polydata(ring: PointRing) -> pv.PolyData:
     return poly
 
 
-def update_ring_polydata(poly: pv.PolyData, ring: PointRing, stride: int = 1) -> None:
+def drawn_slots(ring: PointRing, stride: int = 1) -> np.ndarray:
+    """``(k,)`` int64 the ring's slots a view draws: every live one, or with ``stride`` k > 1 those that are
+    multiples of k (a level of detail: always the same slots, so the thinned cloud does not shimmer as the ring
+    turns). A full ring's are its slots in storage order, the same from tick to tick."""
+    full = ring.count == ring.capacity
+    slots = ring.all_slots() if full else ring.live_slots()
+    if stride > 1:
+        slots = np.ascontiguousarray(slots[(-ring.tail if not full else 0) % stride :: stride])
+    return slots
+
+
+def update_ring_polydata(poly: pv.PolyData, ring: PointRing, stride: int = 1,
+                         cells: tuple[object, np.ndarray] | None = None) -> None:
     """Tell VTK the ring changed: re-point the vertex cells if the live slots moved, mark the arrays modified.
 
     A full ring draws every slot, in any order, so its cells stay the same
-    from tick to tick and VTK does not rebuild its index buffer. With
-    ``stride`` k > 1 only the slots that are multiples of k are drawn (a level
-    of detail): always the same slots, so the thinned cloud does not shimmer
-    as the ring turns.
+    from tick to tick and VTK does not rebuild its index buffer. ``stride``:
+    see :func:`drawn_slots`. ``cells``: ``(key, slots)``, the slots to draw
+    instead (a filter's), made again only when ``key`` changes.
     """
     if poly.GetPoints().GetData().GetVoidPointer(0) != _address(ring.positions):
         poly.points = ring.positions
         poly.point_data.set_array(ring.scalars, "scalars")
         poly.point_data.active_scalars_name = "scalars"
     full = ring.count == ring.capacity
-    cells_key = (id(ring), "full", stride) if full else (id(ring), ring.tail, ring.count, stride)
+    if cells is not None:
+        cells_key = ("given", cells[0])
+    else:
+        cells_key = (id(ring), "full", stride) if full else (id(ring), ring.tail, ring.count, stride)
     if getattr(poly, "_livox_cells_key", None) != cells_key:
-        slots = ring.all_slots() if full else ring.live_slots()
-        if stride > 1:
-            slots = np.ascontiguousarray(slots[(-ring.tail if not full else 0) % stride :: stride])
+        slots = drawn_slots(ring, stride) if cells is None else cells[1]
         poly.SetVerts(pv.CellArray.from_arrays(ring.cell_offsets()[: slots.size + 1], slots))
         poly._livox_cells_key = cells_key
     poly.GetPoints().GetData().Modified()
@@ -817,6 +830,10 @@ class SceneView(_View):
         #: The cloud opened from a file (File > Open cloud), drawn beside the scan's; its name and points, or None.
         self.opened_actor = None
         self.opened: tuple[str, int] | None = None
+        #: The range and reflectivity bounds of the points drawn (View > Filters), and the last cells it made:
+        #: (key, slots, points hidden).
+        self.cloud_filter = CloudFilter()
+        self._filtered: tuple[tuple, np.ndarray, int] | None = None
         self.draw_vehicle()
         self.reset_camera()
         session.subscribe(self._on_change)
@@ -1040,7 +1057,7 @@ class SceneView(_View):
 
     def _fit_orthographic(self, eye: tuple[float, float, float], flat: np.ndarray, left: np.ndarray) -> None:
         """Make the camera, looking as a preset put it (its ``eye``, display frame), orthographic and fit the
-        sensor and the cloud (its 2nd to 98th percentiles across the screen: stray far points left out) into the
+        sensor and the cloud drawn (its 2nd to 98th percentiles across the screen: stray far points left out) into the
         part of the view the colour bar and the text leave free; before a cloud, the box ahead of the sensor that
         the side camera frames. A perspective preset's fixed distance cut a wide cloud off, or drew it small."""
         camera = self.renderer.camera
@@ -1048,7 +1065,8 @@ class SceneView(_View):
         right, screen_up, forward = screen_axes(np.asarray(camera.direction), np.asarray(camera.up))
         origin = self.session.sensor_pose.origin
         ring = self.session.scene_ring
-        slots = ring.live_slots()
+        # What is drawn: the filter's points when one is on (a range filter's 20 m were a speck in the whole map).
+        slots = self._filtered_cells(self.stride())[1] if self.cloud_filter.active else ring.live_slots()
         if slots.size >= SIDE_FIT_POINTS:
             slots = slots[:: max(1, slots.size // ORTHO_FIT_SAMPLE)]
             cloud = ring.positions[slots].astype(np.float64) @ to_display.T
@@ -1181,6 +1199,26 @@ class SceneView(_View):
         if self._ring is not self.session.scene_ring:
             self._ring = self.session.scene_ring
         self._colour()
-        update_ring_polydata(self.poly, self._ring, self.stride())
+        stride = self.stride()
+        update_ring_polydata(self.poly, self._ring, stride,
+                             self._filtered_cells(stride) if self.cloud_filter.active else None)
         self.scalar_bar.SetTitle(SCENE_UNITS[self.session.display.scene_colour])
 
+    def _filtered_cells(self, stride: int) -> tuple[tuple, np.ndarray]:
+        """``(key, slots)``: the drawn slots the filter lets through, made again only when the ring, the drawing or
+        the filter changed (a paused window turned by the mouse costs nothing)."""
+        session = self.session
+        ring = session.scene_ring
+        key = (id(ring), ring.head, ring.count, stride, self.cloud_filter, session.scan_number, session.scan_time)
+        if self._filtered is None or self._filtered[0] != key:
+            slots, hidden = filtered_slots(ring, drawn_slots(ring, stride), self.cloud_filter)
+            self._filtered = (key, slots, hidden)
+        return key, self._filtered[1]
+
+    def filter_line(self) -> str:
+        """The heads-up line of the filter ("" with none): its bounds and how many of the window's points it
+        hides."""
+        if not self.cloud_filter.active:
+            return ""
+        hidden = self._filtered[2] if self._filtered is not None else 0
+        return f"filter: {self.cloud_filter.describe()}, {hidden:,} of {self.session.scene_ring.count:,} hidden"
