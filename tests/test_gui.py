@@ -1196,3 +1196,129 @@ def test_a_sidecars_background_is_drawn_again_and_a_strange_one_named(app: Livox
     state["scene"]["background"] = "purple"
     with pytest.raises(LivoxVizError, match=r"scene view's background 'purple'; allowed: dark, gradient, black, white"):
         app.apply_drawing_state(state)
+
+
+# The scene view's projection and filter (issue 45 item 6) ------------------------------------------------------
+def display_pixels(renderer, points_display: np.ndarray) -> np.ndarray:
+    """``(n, 2)`` VTK's pixels (origin bottom left) of display-frame points, by the camera's own projection."""
+    width, height = renderer.GetSize()
+    matrix = renderer.GetActiveCamera().GetCompositeProjectionTransformMatrix(width / height, -1, 1)
+    projection = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+    homogeneous = np.column_stack([points_display, np.ones(len(points_display))]) @ projection.T
+    return np.column_stack([(homogeneous[:, 0] / homogeneous[:, 3] + 1) / 2 * width,
+                            (homogeneous[:, 1] / homogeneous[:, 3] + 1) / 2 * height])
+
+
+def test_orthographic_keeps_the_size_of_what_is_looked_at_and_r_and_the_presets_fit_the_cloud(
+        app: LivoxVizApp) -> None:
+    """ParaView's parallel projection: switched, a length on the focal plane is as many pixels as before (VTK's own
+    projection says); switched back, the eye is where it was. Orthographic, r and each preset camera keep it and
+    draw the sensor and nine tenths of the cloud inside the part of the view the colour bar and the text leave free,
+    the cloud filling most of it; the top camera looks straight down (a map); the sidecar says parallel."""
+    from livox_viz.widgets.views import CAMERA_PRESETS, NED_TO_DISPLAY, SCALAR_BAR_LEFT, SCENE_TEXT_BAND_PX
+
+    session, view = app.session, app.scene_view
+    session.advance_to(0.5)
+    app.refresh()
+    app.render(every=True)
+    renderer, camera = view.renderer, view.renderer.camera
+    before = app.cameras()["scene"]
+    assert view.projection == "perspective" and not before["parallel"]
+
+    def pixels_of_five_metres() -> float:
+        focal = np.array(camera.focal_point)
+        across = np.cross(np.array(camera.direction), np.array(camera.up))
+        ends = np.stack([focal, focal + 5.0 * across / np.linalg.norm(across)])
+        return float(np.linalg.norm(np.diff(display_pixels(renderer, ends), axis=0)))
+
+    seen = pixels_of_five_metres()
+    app.toggle_projection()
+    assert view.projection == "orthographic" and camera.parallel_projection
+    assert pixels_of_five_metres() == pytest.approx(seen, rel=1e-6) and seen > 20
+    assert "orthographic" in session.message
+    app.toggle_projection()
+    assert view.projection == "perspective"
+    np.testing.assert_allclose(camera.position, before["position"], atol=1e-9)
+    assert pixels_of_five_metres() == pytest.approx(seen, rel=1e-6)
+
+    app.set_projection("orthographic")
+    ring = session.scene_ring
+    cloud = ring.ordered(ring.positions).astype(float) @ NED_TO_DISPLAY[:3, :3].T
+    sensor = NED_TO_DISPLAY[:3, :3] @ session.sensor_pose.origin
+    width, height = renderer.GetSize()
+    free_x, free_y = SCALAR_BAR_LEFT * width, (1 - SCENE_TEXT_BAND_PX / height) * height
+    for reset in ("r", *CAMERA_PRESETS):
+        if reset == "r":
+            app.reset_cameras()
+        else:
+            app.set_scene_camera(reset)
+        assert view.projection == "orthographic", reset
+        x, y = display_pixels(renderer, np.vstack([sensor, cloud])).T
+        inside = (x >= 0) & (x <= free_x) & (y >= 0) & (y <= free_y)
+        assert inside[0] and inside[1:].mean() > 0.9, (reset, inside[1:].mean())
+        # Fitted, not merely inside: the cloud's middle 96 % spans most of the free part one way or the other.
+        spread = max(np.ptp(np.percentile(x[1:], [2, 98])) / free_x, np.ptp(np.percentile(y[1:], [2, 98])) / free_y)
+        assert spread > 0.6, (reset, spread)
+        if reset == "top":
+            np.testing.assert_allclose(camera.direction, (0.0, 0.0, -1.0), atol=1e-9)
+    assert app.cameras()["scene"]["parallel"] is True
+
+
+def test_the_filter_draws_only_the_points_inside_its_bounds_says_how_many_it_hides_and_hides_them_from_picks(
+        app: LivoxVizApp) -> None:
+    """The cells drawn are exactly the live slots whose range is inside the bounds (counted here from the ring's
+    ranges), after each tick too; the heads-up text says the bounds and the points hidden of the window's; a click
+    on a hidden point does not pick it; the sidecar keeps the filter and Clear draws every point again."""
+    from livox_viz.widgets.filters import CloudFilter
+
+    session, view = app.session, app.scene_view
+    session.advance_to(0.5)
+    app.refresh()
+    app.render(every=True)
+    ring = session.scene_ring
+    low, high = 8.0, 30.0
+
+    def drawn() -> np.ndarray:
+        return np.sort(pv.convert_array(view.poly.GetVerts().GetConnectivityArray()))
+
+    def expected() -> np.ndarray:
+        live = ring.live_slots()
+        ranges = ring.range_m[live].astype(np.float64)
+        return np.sort(live[(ranges >= low) & (ranges <= high)])
+
+    # A point the filter will hide, clear of every point it keeps on the screen, answers a click before.
+    pixels = display_pixels(view.renderer, ring.positions.astype(float) * [1, -1, -1])
+    width, height = view.renderer.GetSize()
+    kept = expected()
+    hidden = [s for s in np.setdiff1d(ring.live_slots(), kept)[::7]
+              if 10 < pixels[s, 0] < width - 10 and 10 < pixels[s, 1] < height - 10
+              and np.hypot(*(pixels[kept] - pixels[s]).T).min() > 12]
+    assert hidden, "no hidden point stands clear on the screen"
+    target = pixels[hidden[0]]
+    before = app.pick_scene(*target)
+    assert before is not None and not low <= before["range_m"] <= high
+
+    app.set_cloud_filter(CloudFilter(range_min_m=low, range_max_m=high))
+    app.refresh()
+    assert 0 < kept.size < ring.count and np.array_equal(drawn(), kept)
+    line = f"filter: range 8-30 m, {ring.count - kept.size:,} of {ring.count:,} hidden"
+    assert line in app.hud.scene_state.GetText(2)
+    assert app.pick_scene(*target) is None or low <= app.picks[-1]["range_m"] <= high
+    session.advance_to(0.8)  # a tick: the new points filtered too, the old ones gone
+    app.refresh()
+    assert np.array_equal(drawn(), expected())
+    assert f"of {ring.count:,} hidden" in app.hud.scene_state.GetText(2)
+
+    state = json.loads(json.dumps(app.drawing_state()))
+    assert state["scene"]["filter"] == {"range_min_m": low, "range_max_m": high, "reflectivity_min": None,
+                                        "reflectivity_max": None}
+    app.set_cloud_filter(CloudFilter(reflectivity_min=1))  # ideal returns carry 0: every point hidden
+    app.refresh()
+    assert drawn().size == 0 and f"{ring.count:,} of {ring.count:,} hidden" in app.hud.scene_state.GetText(2)
+    app.clear_filters()
+    app.refresh()
+    assert drawn().size == ring.count and "filter:" not in app.hud.scene_state.GetText(2)
+    assert "every point" in session.message
+    app.apply_drawing_state(state)  # as render --sidecar does
+    app.refresh()
+    assert np.array_equal(drawn(), expected())

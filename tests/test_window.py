@@ -292,7 +292,9 @@ def test_every_menu_action_runs(window, qtbot, user_presets: Path, monkeypatch: 
     monkeypatch.setattr(QtWidgets.QFileDialog, "getOpenFileName", staticmethod(lambda *a, **k: ("", "")))
     monkeypatch.setattr(QtWidgets.QFileDialog, "getSaveFileName", staticmethod(lambda *a, **k: ("", "")))
     monkeypatch.setattr(QtWidgets.QInputDialog, "getDouble", staticmethod(lambda *a, **k: (0.25, True)))
+    monkeypatch.setattr(QtWidgets.QInputDialog, "getText", staticmethod(lambda *a, **k: ("walked", True)))
     monkeypatch.setattr(QtWidgets.QMessageBox, "about", staticmethod(lambda *a, **k: None))
+    monkeypatch.setenv("LIVOX_VIZ_VIEWPOINTS", str(user_presets.parent / "viewpoints"))
     skipped = {"Quit", "Fit the rosette to the reference"}
     ran = []
 
@@ -393,6 +395,129 @@ def test_a_cloud_opens_beside_the_scan_from_the_file_menu_and_closes(window, qtb
     assert "closed cloud mine.ply" in window.status_message.text()
 
 
+def view_submenu(window, title: str):
+    view_menu = next(a.menu() for a in window.menuBar().actions() if a.text().replace("&", "") == "View")
+    menu = next(a.menu() for a in view_menu.actions() if a.text() == title)
+    menu.aboutToShow.emit()
+    return menu
+
+
+def test_the_scene_view_s_projection_and_saved_viewpoints_from_the_view_menu(window, qtbot, tmp_path: Path,
+                                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """View > Projection marks the projection shown and 5 switches it (issue 45 item 6). View > Viewpoints saves
+    the scene camera under a typed name into the user's viewpoints file, lists it, restores it exactly and deletes
+    it; a damaged file is one red line naming it, the menu still saves, and the damaged file is kept aside."""
+    from livox_viz.widgets.cameras import CameraState
+    from livox_viz.widgets.viewpoints import viewpoints_path
+    from qtpy import QtWidgets
+
+    monkeypatch.setenv("LIVOX_VIZ_VIEWPOINTS", str(tmp_path / "viewpoints"))
+    c, view = window.controller, window.controller.scene_view
+    projection = view_submenu(window, "Projection (scene view)")
+    window._sync_menus()
+    assert [a.text() for a in projection.actions() if a.isChecked()] == ["Perspective"]
+    press(qtbot, window, "5")
+    assert view.projection == "orthographic" and view.renderer.camera.parallel_projection
+    window._sync_menus()
+    assert [a.text() for a in projection.actions() if a.isChecked()] == ["Orthographic (parallel)"]
+    next(a for a in projection.actions() if a.text() == "Perspective").trigger()
+    assert view.projection == "perspective"
+    press(qtbot, window, "5")
+    window.run(lambda: c.set_scene_camera("top"))  # an orthographic map
+    saved = CameraState.of(view.renderer.camera)
+
+    names = iter(["map"])
+    monkeypatch.setattr(QtWidgets.QInputDialog, "getText", staticmethod(lambda *a, **k: (next(names), True)))
+    menu = view_submenu(window, "Viewpoints (scene view)")
+    next(a for a in menu.actions() if a.text() == "Save current view...").trigger()
+    assert "viewpoint 'map' saved (orthographic)" in window.status_message.text() and not window._error
+    data = json.loads(viewpoints_path().read_text())
+    assert data["viewpoints"] == [{"name": "map", "camera": saved.to_json()}]
+    window.run(lambda: c.set_scene_camera("behind"))
+    press(qtbot, window, "5")
+    assert view.projection == "perspective"
+    menu = view_submenu(window, "Viewpoints (scene view)")
+    entry = next(a for a in menu.actions() if a.text() == "map")
+    assert entry.toolTip().startswith("orthographic, looking from")
+    entry.trigger()
+    restored = CameraState.of(view.renderer.camera)
+    for key, value in saved.to_json().items():
+        assert restored.to_json()[key] == pytest.approx(value, abs=1e-9), key
+    window._sync_menus()
+    assert [a.text() for a in projection.actions() if a.isChecked()] == ["Orthographic (parallel)"]
+    delete = next(a.menu() for a in menu.actions() if a.text() == "Delete")
+    next(a for a in delete.actions() if a.text() == "map").trigger()
+    assert json.loads(viewpoints_path().read_text())["viewpoints"] == []
+    assert "deleted" in window.status_message.text()
+
+    viewpoints_path().write_text('{"livox_viz_viewpoints": 1, "viewpoints": [')  # cut short
+    menu = view_submenu(window, "Viewpoints (scene view)")
+    assert window._error and window.status_message.text().startswith("viewpoints.json: not a readable viewpoints")
+    assert "\n" not in window.status_message.text()
+    assert [a.text() for a in menu.actions() if not a.isSeparator() and not a.isEnabled()] == \
+        ["no viewpoint could be read"]
+    names = iter(["again"])
+    next(a for a in menu.actions() if a.text() == "Save current view...").trigger()
+    assert "viewpoint 'again' saved" in window.status_message.text() and "kept as" in window.status_message.text()
+    assert [p.read_text() for p in viewpoints_path().parent.glob("viewpoints.unreadable-*.json")] == \
+        ['{"livox_viz_viewpoints": 1, "viewpoints": [']
+    assert window.isVisible()
+
+
+def test_the_filters_dialog_applies_refuses_in_one_line_and_clears(window, qtbot) -> None:
+    """View > Filters... (issue 45 item 6): bounds typed as a user types them; a minimum above its maximum is
+    refused in one red line in the status bar and in the dialog, nothing changed; Enter applies; the heads-up text
+    counts the points hidden as the ring holds them; View > Clear filters draws every point. The dialog fits the
+    screen and its words are not cut."""
+    from qtpy import QtCore, QtWidgets
+
+    session, view = window.controller.session, window.controller.scene_view
+    session.advance_to(0.5)
+    session.playback.paused = True
+    window.tick()
+    view_menu = next(a.menu() for a in window.menuBar().actions() if a.text().replace("&", "") == "View")
+    entries = {a.text(): a for a in view_menu.actions()}
+    entries["Filters (range, reflectivity)..."].trigger()
+    dialog = window.filter_dialog
+    qtbot.waitExposed(dialog)
+    assert dialog.isVisible() and not view.cloud_filter.active
+    screen = QtWidgets.QApplication.primaryScreen().availableGeometry()
+    assert screen.contains(dialog.frameGeometry())
+    def words_whole() -> None:
+        for label in dialog.findChildren(QtWidgets.QLabel):
+            if label.text() and label.wordWrap():  # its lines as wrapped at its width all inside it
+                assert label.heightForWidth(label.width()) <= label.height(), label.text()
+            elif label.text():
+                assert label.fontMetrics().horizontalAdvance(label.text()) <= label.width(), label.text()
+
+    words_whole()
+    low, high = dialog.boxes["range_min_m"], dialog.boxes["range_max_m"]
+    qtbot.keyClicks(low, "30")
+    qtbot.keyClicks(high, "8 m")
+    qtbot.mouseClick(dialog.apply_button, QtCore.Qt.MouseButton.LeftButton)
+    said = window.status_message.text()
+    assert window._error and "minimum is above its maximum" in said and "allowed" in said and "\n" not in said
+    assert dialog.note.text() in said and not view.cloud_filter.active
+    qtbot.wait(50)  # the dialog takes its new size
+    words_whole()
+    high.clear()
+    qtbot.keyClicks(high, "40 m")
+    qtbot.keyClick(high, QtCore.Qt.Key.Key_Return)
+    assert dialog.isVisible() and (view.cloud_filter.range_min_m, view.cloud_filter.range_max_m) == (30.0, 40.0)
+    window.tick()
+    ring = session.scene_ring
+    ranges = ring.range_m[ring.live_slots()]
+    hidden = int(np.count_nonzero((ranges < 30.0) | (ranges > 40.0)))
+    assert 0 < hidden < ring.count
+    assert f"filter: range 30-40 m, {hidden:,} of {ring.count:,} hidden" in window.controller.hud.scene_state.GetText(2)
+    assert "filter: range 30-40 m" in window.status_message.text() and not window._error
+    assert "drawn now: range 30-40 m" in dialog.note.text()
+    entries["Clear filters"].trigger()
+    window.tick()
+    assert not view.cloud_filter.active and "filter:" not in window.controller.hud.scene_state.GetText(2)
+    assert view.poly.GetNumberOfCells() == ring.count
+
+
 def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot) -> None:
     """The menus named no key (a first-use trial): an entry whose action has a key in the key table shows it at
     its right as Qt does, and the key, pressed in a view, still runs its action once (Up doubles the speed once,
@@ -417,7 +542,7 @@ def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot
                 "Fit the rosette to the reference": "F", "Cloud in the world / sensor frame": "W",
                 "Screenshot (views and sidecar)": "S", "Save as user preset": "P",
                 "Reset cameras (fit everything drawn)": "R", "Keys and mouse": "H", "Quit": "Q",
-                "Next built-in scene": "M"}
+                "Next built-in scene": "M", "Switch perspective / orthographic": "5"}
     assert {text: shown.get(text) for text in expected} == expected
     # A trial found m in no menu and q only as Ctrl+Q; Ctrl+Q still quits too.
     quit_action = next(a for top in window.menuBar().actions() for a in actions(top.menu()) if a.text() == "Quit")

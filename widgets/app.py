@@ -30,7 +30,9 @@ from livox_viz.config.sensor import PARAM_RANGES
 from livox_viz.core.blas import blas_threads
 
 from . import files
+from .cameras import PROJECTIONS, CameraState
 from .charts import CurveCharts
+from .filters import CloudFilter
 from .hud import HeadsUp
 from .overlay import WINDOWS, PresetSource, TableSource
 from .playback import next_choice
@@ -527,6 +529,47 @@ class LivoxVizApp:
             raise LivoxVizError(f"camera {preset!r}; allowed: {', '.join(CAMERA_PRESETS)}, follow")
         self.scene_view.reset_camera(preset)
 
+    # The scene view's projection, viewpoints and filter (issue 45 item 6) ------------------------------
+    def set_projection(self, projection: str) -> None:
+        """The scene view's projection, one of :data:`~livox_viz.widgets.cameras.PROJECTIONS`, what it looks at
+        kept the same size."""
+        if self.scene_view is None:
+            return
+        self.scene_view.set_projection(projection)
+        hint = ": View > Scene camera > top makes it a map" if projection == "orthographic" else ""
+        self.session.message = f"scene view {projection}{hint}"
+
+    def toggle_projection(self) -> None:
+        """Perspective / orthographic (the 5 key, as Blender's keypad 5)."""
+        if self.scene_view is not None:
+            self.set_projection(PROJECTIONS[1 - PROJECTIONS.index(self.scene_view.projection)])
+
+    def scene_camera(self) -> CameraState:
+        """The scene view's camera now (what View > Viewpoints > Save keeps)."""
+        if self.scene_view is None:
+            raise LivoxVizError("no scene view; allowed: the window with its scene view")
+        return CameraState.of(self.scene_view.renderer.camera)
+
+    def restore_scene_camera(self, state: CameraState, name: str = "") -> None:
+        """Put the scene view's camera in ``state`` (a saved viewpoint called ``name``)."""
+        if self.scene_view is None:
+            return
+        state.apply(self.scene_view.renderer.camera)
+        self.scene_view.renderer.ResetCameraClippingRange()
+        self.session.message = f"viewpoint {name!r} ({state.projection})" if name else f"{state.projection} view"
+
+    def set_cloud_filter(self, cloud_filter: CloudFilter | None) -> None:
+        """Draw only the scene's points inside ``cloud_filter``'s bounds (None: every point)."""
+        if self.scene_view is None:
+            return
+        self.scene_view.cloud_filter = cloud_filter or CloudFilter()
+        active = self.scene_view.cloud_filter
+        self.session.message = (f"filter: {active.describe()} (points outside are not drawn or picked)"
+                                if active.active else "filters cleared: every point of the cloud drawn")
+
+    def clear_filters(self) -> None:
+        self.set_cloud_filter(None)
+
     # Picking -------------------------------------------------------------------------------
     def forget_picks(self) -> None:
         """Drop the picks and their marks (the scan moved to another time: the points picked may not be there)."""
@@ -662,7 +705,9 @@ class LivoxVizApp:
             state["scene"] = {"colour_map": self.scene_view.colour_map, "point_size": self.scene_view.point_size,
                               "background": self.scene_view.background_name,
                               "follow": self.scene_view.follow, "grid": self.scene_view.grid_actor is not None,
-                              "axes": self.scene_view.axes_actor is not None}
+                              "axes": self.scene_view.axes_actor is not None,
+                              "filter": (self.scene_view.cloud_filter.to_json()
+                                         if self.scene_view.cloud_filter.active else None)}
         return state
 
     def apply_drawing_state(self, state: Mapping[str, Any]) -> None:
@@ -687,35 +732,22 @@ class LivoxVizApp:
             self.scene_view.follow = bool(scene.get("follow", self.scene_view.follow))
             self.scene_view.show_grid(bool(scene.get("grid")))
             self.scene_view.show_axes(bool(scene.get("axes")))
+            self.scene_view.cloud_filter = CloudFilter.from_json(scene.get("filter"))
 
     def cameras(self) -> dict[str, Any]:
-        """Each view's camera, for the sidecar."""
-        cameras = {}
-        for name, view in (("pattern", self.pattern_view), ("scene", self.scene_view)):
-            if view is not None:
-                camera = view.renderer.camera
-                cameras[name] = {"position": list(camera.position), "focal_point": list(camera.focal_point),
-                                 "up": list(camera.up), "parallel_scale": camera.parallel_scale,
-                                 "view_angle": camera.view_angle, "parallel": bool(camera.parallel_projection)}
-        return cameras
+        """Each view's camera, for the sidecar (:meth:`CameraState.to_json`, as a saved viewpoint holds it)."""
+        return {name: CameraState.of(view.renderer.camera).to_json()
+                for name, view in (("pattern", self.pattern_view), ("scene", self.scene_view)) if view is not None}
 
     def apply_cameras(self, cameras: Mapping[str, Any]) -> None:
-        """Put each view's camera where :meth:`cameras` found it."""
+        """Put each view's camera where :meth:`cameras` found it (a camera that cannot be is refused in one line,
+        before any view moves)."""
+        states = {name: CameraState.from_json(given, f"the {name} view's camera") for name, given in cameras.items()
+                  if name in ("pattern", "scene") and isinstance(given, Mapping)}
         for name, view in (("pattern", self.pattern_view), ("scene", self.scene_view)):
-            given = cameras.get(name)
-            if view is None or not isinstance(given, Mapping):
-                continue
-            camera = view.renderer.camera
-            if given.get("parallel"):
-                camera.enable_parallel_projection()
-            else:
-                camera.disable_parallel_projection()
-            camera.position = tuple(given["position"])
-            camera.focal_point = tuple(given["focal_point"])
-            camera.up = tuple(given["up"])
-            camera.parallel_scale = float(given["parallel_scale"])
-            camera.view_angle = float(given["view_angle"])
-            view.renderer.ResetCameraClippingRange()
+            if view is not None and name in states:
+                states[name].apply(view.renderer.camera)
+                view.renderer.ResetCameraClippingRange()
 
     def save_preset(self) -> Path:
         """Write the current configuration as a user preset (never over a shipped one)."""
@@ -761,7 +793,8 @@ class LivoxVizApp:
                 view.update()
         self.hud.update(self.session, density_shown=self.pattern_view is not None and self.pattern_view.density_shown(),
                         drawn=self.scene_view.drawn_count() if self.scene_view is not None else 0,
-                        opened=self.scene_view.opened_line() if self.scene_view is not None else "")
+                        opened=self.scene_view.opened_line() if self.scene_view is not None else "",
+                        filtered=self.scene_view.filter_line() if self.scene_view is not None else "")
 
     def render(self, every: bool = False, draw: Callable[[pv.BasePlotter], None] | None = None) -> None:
         """Render the views (the charts only when they changed, or ``every``) and update the frames per second.

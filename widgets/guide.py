@@ -9,6 +9,7 @@ checkout only) is said under the page instead of opening an empty one.
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 from typing import Any
@@ -117,7 +118,13 @@ class UserGuide(QtWidgets.QDialog):
         block = self.browser.document().begin()
         while block.isValid():
             if block.blockFormat().headingLevel() and heading_anchor(block.text()) == fragment:
-                top = self.browser.document().documentLayout().blockBoundingRect(block).top()
-                self.browser.verticalScrollBar().setValue(int(top))
+                layout = self.browser.document().documentLayout()
+                top = layout.blockBoundingRect(block).top()
+                bar = self.browser.verticalScrollBar()
+                # Qt brings the bar's range up to the page's height only as it lays the page out in the background:
+                # a heading near the end of a long page (window.md's Keys) stopped short of the top.
+                bar.setMaximum(max(bar.maximum(), math.ceil(layout.documentSize().height())
+                                   - self.browser.viewport().height()))
+                bar.setValue(int(top))
                 return
             block = block.next()

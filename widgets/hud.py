@@ -128,14 +128,15 @@ class HeadsUp:
             + (f"   jitter per {cfg.jitter_scope}" if cfg.pattern_model == "rflysim" else "")
         )
 
-    def scene_text(self, session: Session, drawn: int, opened: str = "") -> str:
+    def scene_text(self, session: Session, drawn: int, opened: str = "", filtered: str = "") -> str:
         """The scene view's lines; ``drawn`` is how many of the cloud's points the view draws, ``opened`` the line
-        of a cloud opened from a file ("" with none)."""
+        of a cloud opened from a file, ``filtered`` the filter's ("" with none)."""
         cfg = session.config
         count = session.scene_ring.count
         thinned = f" (drawing {drawn:,}: 1 in {round(count / max(drawn, 1))})" if drawn < count else ""
         lines = [f"scene {session.scene.name}: {len(session.scene.mesh.faces):,} triangles",
                  f"decoded cloud: {count:,} returns in the window{thinned}",
+                 *([filtered] if filtered else []),
                  f"returns: {cfg.returns_model}   colour: {session.display.scene_colour}"]
         if session.display.scene_colour == "reflectivity" and cfg.returns_model == "ideal":
             lines.append("ideal returns carry no intensity (reflectivity 0): turn on the datasheet returns (d)")
@@ -145,9 +146,10 @@ class HeadsUp:
             lines.append(opened)
         return "\n".join(lines)
 
-    def update(self, session: Session, density_shown: bool = False, drawn: int = 0, opened: str = "") -> None:
-        """All text from the session's state (``opened``: as :meth:`scene_text`)."""
+    def update(self, session: Session, density_shown: bool = False, drawn: int = 0, opened: str = "",
+               filtered: str = "") -> None:
+        """All text from the session's state (``opened``, ``filtered``: as :meth:`scene_text`)."""
         if self.state is not None:
             self.state.SetText(2, wrapped(self.pattern_text(session, density_shown)))
         if self.scene_state is not None:
-            self.scene_state.SetText(2, wrapped(self.scene_text(session, drawn, opened)))
+            self.scene_state.SetText(2, wrapped(self.scene_text(session, drawn, opened, filtered)))

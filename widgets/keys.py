@@ -17,7 +17,7 @@ class KeyRow:
         What they do.
     bindings : tuple of (str, str)
         (key, name of the method it calls: the window's, else the controller's), one per key; a key is a
-        character or one of ``space``, ``Right``, ``Up``, ``Down``.
+        character (a letter or a digit) or one of ``space``, ``Right``, ``Up``, ``Down``.
     short : str
         The few words the always-visible keys line shows ("" = not shown there).
     """
@@ -69,6 +69,8 @@ KEYS: tuple[KeyRow, ...] = (
     KeyRow("f", "fit the rosette's parameters to the reference and move the sliders there",
            (("f", "fit_to_reference"),), "fit"),
     KeyRow("r", "reset the cameras to fit everything drawn (the reference too)", (("r", "reset_cameras"),)),
+    KeyRow("5", "scene view: perspective / orthographic (as Blender's keypad 5), what is looked at kept the same "
+           "size; with View > Scene camera > top, a map", (("5", "toggle_projection"),)),
     KeyRow("h", "the keys and the mouse", (("h", "toggle_help"),), "help"),
     KeyRow("q", "quit", (("q", "quit"),), "quit"),
 )

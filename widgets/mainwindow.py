@@ -43,7 +43,9 @@ from livox_viz.config.sensor import save_config
 
 from . import files
 from .app import VIEW_NAMES, LivoxVizApp, quiet_vtk
+from .cameras import PROJECTIONS
 from .collector import MainThreadCollector, destroy_widget_tree, give_back_free_memory, release_gl_wrappers
+from .filter_dialog import FilterDialog
 from .guide import GUIDE_SIZE, UserGuide, guide_dir
 from .history import describe_change
 from .keys import KEYS, help_html
@@ -51,6 +53,7 @@ from .nonerefs import NoneReserve, binding_drops_none
 from .overlay import WINDOWS, PresetSource, TableSource, window_label
 from .panel import ParameterPanel, signals_blocked
 from .session import DRAWINGS, SCENE_COLOURS, Session, pattern_colours, step_units
+from .viewpoints import NAME_CHARS, delete_viewpoint, read_viewpoints, save_viewpoint
 from .views import BACKGROUNDS, CAMERA_PRESETS, COLOUR_MAPS
 from .warmup import LoopWarmer
 
@@ -510,6 +513,7 @@ class MainWindow(QtWidgets.QMainWindow):
             self._action(cameras, f"{preset}", lambda p=preset: c.set_scene_camera(p))
         self.follow_action = self._action(cameras, "follow the vehicle", lambda: c.set_scene_camera("follow"),
                                           checkable=True)
+        self._make_scene_view_menus(view)
         self._action(view, "Reset cameras (fit everything drawn)", c.reset_cameras)
         view.addSeparator()
         self.dock_action = self.dock.toggleViewAction()
@@ -566,6 +570,26 @@ class MainWindow(QtWidgets.QMainWindow):
         self._action(helper, "User guide...", self.open_guide)
         self._action(helper, "Keys and mouse", self.toggle_help)
         self._action(helper, "About livox-viz", self.about)
+
+    def _make_scene_view_menus(self, view: QtWidgets.QMenu) -> None:
+        """View > Projection, Viewpoints and Filters: the scene view's projection (ParaView's camera parallel
+        projection), its saved cameras (ParaView's bookmarks, RViz's saved views) and its range and reflectivity
+        filter (CloudCompare's filter by value, Livox Viewer's filters)."""
+        c = self.controller
+        projection = view.addMenu("Projection (scene view)")
+        group = QtGui.QActionGroup(self)
+        self.projection_actions = {
+            name: self._action(projection, label, lambda p=name: c.set_projection(p), checkable=True, group=group)
+            for name, label in zip(PROJECTIONS, ("Perspective", "Orthographic (parallel)"), strict=True)}
+        projection.addSeparator()
+        # The 5 key, shown here: a key is one action's only shortcut, so neither choice above can hold it.
+        self._action(projection, "Switch perspective / orthographic", c.toggle_projection)
+        self.viewpoints_menu = view.addMenu("Viewpoints (scene view)")
+        self.viewpoints_menu.setToolTipsVisible(True)
+        self.viewpoints_menu.aboutToShow.connect(self._fill_viewpoints)
+        self._action(view, "Filters (range, reflectivity)...", self.open_filters)
+        self._action(view, "Clear filters", c.clear_filters)
+        self.filter_dialog: FilterDialog | None = None
 
     def _make_shortcuts(self) -> None:
         """Every key of the key table, window-wide (a spin box being typed in keeps its own keys)."""
@@ -876,6 +900,8 @@ class MainWindow(QtWidgets.QMainWindow):
         view = self.controller.scene_view
         if view is not None:
             self.follow_action.setChecked(view.follow)
+            for name, action in self.projection_actions.items():
+                action.setChecked(name == view.projection)
         self._sync_history()
 
     def _sync_history(self) -> None:
@@ -963,6 +989,72 @@ class MainWindow(QtWidgets.QMainWindow):
             action = self._action(menu, Path(choice).name if os.sep in choice else choice,
                                   lambda c=choice: self.load_scene(c), checkable=True, group=group)
             action.setChecked(choice == current)  # the scene shown
+
+    def _fill_viewpoints(self) -> None:
+        """View > Viewpoints, read afresh from the file each time it opens (another window may have saved one):
+        save, the saved ones to restore, delete. A file that cannot be read (all or some of it) is one line in the
+        status bar; what could be read is offered."""
+        menu = self.viewpoints_menu
+        menu.clear()
+        self._action(menu, "Save current view...", self.save_viewpoint)
+        book = read_viewpoints()
+        if book.problem:
+            self.say(book.problem, error=True)
+            self._update_status()
+        menu.addSeparator()
+        if not book.viewpoints:
+            empty = menu.addAction("no viewpoints saved" if not book.problem else "no viewpoint could be read")
+            empty.setEnabled(False)
+        for viewpoint in book.viewpoints:
+            camera = viewpoint.camera
+            # A name's & would be read as a mnemonic's mark and vanish from the entry.
+            action = self._action(menu, viewpoint.name.replace("&", "&&"),
+                                  lambda v=viewpoint: self.controller.restore_scene_camera(v.camera, v.name))
+            action.setToolTip(f"{camera.projection}, looking from ({', '.join(f'{v:.1f}' for v in camera.position)}) "
+                              f"at ({', '.join(f'{v:.1f}' for v in camera.focal_point)}), m")
+        if book.viewpoints:
+            menu.addSeparator()
+            delete = menu.addMenu("Delete")
+            for viewpoint in book.viewpoints:
+                self._action(delete, viewpoint.name.replace("&", "&&"),
+                             lambda n=viewpoint.name: self.delete_viewpoint(n))
+
+    def save_viewpoint(self, name: str | None = None) -> None:
+        """View > Viewpoints > Save current view: the scene view's camera under a name the user gives, in the
+        viewpoints file (a name taken replaces its viewpoint, and says so)."""
+        if name is None:
+            taken = read_viewpoints().names()
+            suggestion = next(f"view {k}" for k in range(1, len(taken) + 2) if f"view {k}" not in taken)
+            name, accepted = QtWidgets.QInputDialog.getText(
+                self, "Save the scene view", f"Name of this viewpoint (1 to {NAME_CHARS} characters; a name "
+                "taken is replaced):", QtWidgets.QLineEdit.EchoMode.Normal, suggestion)
+            if not accepted:
+                return
+        self.say(save_viewpoint(name, self.controller.scene_camera()))
+
+    def delete_viewpoint(self, name: str) -> None:
+        self.say(delete_viewpoint(name))
+
+    def open_filters(self) -> None:
+        """View > Filters: the dialog of the scene view's range and reflectivity bounds, beside the window."""
+        if self.filter_dialog is None:
+            view = self.controller.scene_view
+            if view is None:
+                raise LivoxVizError("no scene view to filter; allowed: the window with its scene view")
+
+            def apply(cloud_filter):
+                self.run(lambda: self.controller.set_cloud_filter(cloud_filter))
+                return self._error_text if self._error else None
+
+            def refuse(text: str) -> None:
+                self.say(text, error=True)
+                self._after_action()
+
+            self.filter_dialog = FilterDialog(self, lambda: view.cloud_filter, apply, refuse)
+        self.filter_dialog.show_current()
+        self.filter_dialog.show()
+        self.filter_dialog.raise_()
+        self.filter_dialog.activateWindow()
 
     def _panel_follow(self) -> None:
         self.panel.follow()
@@ -1294,6 +1386,8 @@ class MainWindow(QtWidgets.QMainWindow):
             self.warmer.close()
         if self.help_dialog is not None:
             self.help_dialog.close()
+        if self.filter_dialog is not None:
+            self.filter_dialog.close()
         if self.guide is not None:
             self.guide.close()
         self.controller.close()

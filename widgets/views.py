@@ -14,8 +14,11 @@ import math
 import numpy as np
 import pyvista as pv
 
+from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.rotations import FRD_TO_FLU
 
+from .cameras import PROJECTIONS, distance_for, fit_parallel, parallel_scale_for, screen_axes
+from .filters import CloudFilter, filtered_slots
 from .ring import PointRing
 from .session import PATTERN_COLOURS, TAG_CLASSES, Session
 
@@ -80,25 +83,37 @@ def ring_polydata(ring: PointRing) -> pv.PolyData:
     return poly
 
 
-def update_ring_polydata(poly: pv.PolyData, ring: PointRing, stride: int = 1) -> None:
+def drawn_slots(ring: PointRing, stride: int = 1) -> np.ndarray:
+    """``(k,)`` int64 the ring's slots a view draws: every live one, or with ``stride`` k > 1 those that are
+    multiples of k (a level of detail: always the same slots, so the thinned cloud does not shimmer as the ring
+    turns). A full ring's are its slots in storage order, the same from tick to tick."""
+    full = ring.count == ring.capacity
+    slots = ring.all_slots() if full else ring.live_slots()
+    if stride > 1:
+        slots = np.ascontiguousarray(slots[(-ring.tail if not full else 0) % stride :: stride])
+    return slots
+
+
+def update_ring_polydata(poly: pv.PolyData, ring: PointRing, stride: int = 1,
+                         cells: tuple[object, np.ndarray] | None = None) -> None:
     """Tell VTK the ring changed: re-point the vertex cells if the live slots moved, mark the arrays modified.
 
     A full ring draws every slot, in any order, so its cells stay the same
-    from tick to tick and VTK does not rebuild its index buffer. With
-    ``stride`` k > 1 only the slots that are multiples of k are drawn (a level
-    of detail): always the same slots, so the thinned cloud does not shimmer
-    as the ring turns.
+    from tick to tick and VTK does not rebuild its index buffer. ``stride``:
+    see :func:`drawn_slots`. ``cells``: ``(key, slots)``, the slots to draw
+    instead (a filter's), made again only when ``key`` changes.
     """
     if poly.GetPoints().GetData().GetVoidPointer(0) != _address(ring.positions):
         poly.points = ring.positions
         poly.point_data.set_array(ring.scalars, "scalars")
         poly.point_data.active_scalars_name = "scalars"
     full = ring.count == ring.capacity
-    cells_key = (id(ring), "full", stride) if full else (id(ring), ring.tail, ring.count, stride)
+    if cells is not None:
+        cells_key = ("given", cells[0])
+    else:
+        cells_key = (id(ring), "full", stride) if full else (id(ring), ring.tail, ring.count, stride)
     if getattr(poly, "_livox_cells_key", None) != cells_key:
-        slots = ring.all_slots() if full else ring.live_slots()
-        if stride > 1:
-            slots = np.ascontiguousarray(slots[(-ring.tail if not full else 0) % stride :: stride])
+        slots = drawn_slots(ring, stride) if cells is None else cells[1]
         poly.SetVerts(pv.CellArray.from_arrays(ring.cell_offsets()[: slots.size + 1], slots))
         poly._livox_cells_key = cells_key
     poly.GetPoints().GetData().Modified()
@@ -777,6 +792,8 @@ SIDE_FIT_POINTS = 100
 SIDE_ELEVATION = math.radians(15.0)
 SIDE_MARGIN = 0.85
 SIDE_NEAREST_M = 8.0
+#: Points of the cloud an orthographic reset frames at most (a sample: the percentiles of a million are the same).
+ORTHO_FIT_SAMPLE = 100_000
 
 
 class SceneView(_View):
@@ -813,6 +830,10 @@ class SceneView(_View):
         #: The cloud opened from a file (File > Open cloud), drawn beside the scan's; its name and points, or None.
         self.opened_actor = None
         self.opened: tuple[str, int] | None = None
+        #: The range and reflectivity bounds of the points drawn (View > Filters), and the last cells it made:
+        #: (key, slots, points hidden).
+        self.cloud_filter = CloudFilter()
+        self._filtered: tuple[tuple, np.ndarray, int] | None = None
         self.draw_vehicle()
         self.reset_camera()
         session.subscribe(self._on_change)
@@ -978,6 +999,7 @@ class SceneView(_View):
         """
         if preset not in CAMERA_PRESETS:
             raise ValueError(f"camera preset {preset!r}; allowed: {', '.join(CAMERA_PRESETS)}")
+        orthographic = self.projection == "orthographic"  # kept: r and the presets do not undo the user's choice
         sensor = self.session.sensor_pose
         boresight = sensor.rotation @ np.array([1.0, 0.0, 0.0])
         flat = np.array([boresight[0], boresight[1], 0.0])
@@ -1003,9 +1025,70 @@ class SceneView(_View):
         camera.focal_point = tuple(to_display @ target_ned)
         camera.up = up
         camera.view_angle = SCENE_VIEW_ANGLE
+        if orthographic:
+            self._fit_orthographic(tuple(to_display @ eye_ned), flat, left)
         self.renderer.ResetCameraClippingRange()
         vehicle = self.session.vehicle_pose_now
         self._followed = (NED_TO_DISPLAY[:3, :3] @ vehicle.origin, _heading(vehicle.rotation))
+
+    @property
+    def projection(self) -> str:
+        """The scene camera's projection, one of :data:`~livox_viz.widgets.cameras.PROJECTIONS` (the camera's own
+        state: a viewpoint or a sidecar that sets it sets this)."""
+        return PROJECTIONS[1] if self.renderer.camera.GetParallelProjection() else PROJECTIONS[0]
+
+    def set_projection(self, projection: str) -> None:
+        """Perspective or orthographic, keeping what is looked at the same size on the screen: the parallel scale
+        from the eye's distance and the view angle (ParaView keeps the scale it had, and a switch jumped the zoom);
+        back to perspective, the eye moved along the line of sight to the distance that scale stands for."""
+        if projection not in PROJECTIONS:
+            raise LivoxVizError(f"projection {projection!r}; allowed: {', '.join(PROJECTIONS)}")
+        if projection == self.projection:
+            return
+        camera = self.renderer.camera
+        if projection == "orthographic":
+            camera.parallel_scale = parallel_scale_for(camera.distance, camera.view_angle)
+            camera.enable_parallel_projection()
+        else:
+            distance = distance_for(camera.parallel_scale, camera.view_angle)
+            camera.position = tuple(np.asarray(camera.focal_point) - np.asarray(camera.direction) * distance)
+            camera.disable_parallel_projection()
+        self.renderer.ResetCameraClippingRange()
+
+    def _fit_orthographic(self, eye: tuple[float, float, float], flat: np.ndarray, left: np.ndarray) -> None:
+        """Make the camera, looking as a preset put it (its ``eye``, display frame), orthographic and fit the
+        sensor and the cloud drawn (its 2nd to 98th percentiles across the screen: stray far points left out) into the
+        part of the view the colour bar and the text leave free; before a cloud, the box ahead of the sensor that
+        the side camera frames. A perspective preset's fixed distance cut a wide cloud off, or drew it small."""
+        camera = self.renderer.camera
+        to_display = NED_TO_DISPLAY[:3, :3]
+        right, screen_up, forward = screen_axes(np.asarray(camera.direction), np.asarray(camera.up))
+        origin = self.session.sensor_pose.origin
+        ring = self.session.scene_ring
+        # What is drawn: the filter's points when one is on (a range filter's 20 m were a speck in the whole map).
+        slots = self._filtered_cells(self.stride())[1] if self.cloud_filter.active else ring.live_slots()
+        if slots.size >= SIDE_FIT_POINTS:
+            slots = slots[:: max(1, slots.size // ORTHO_FIT_SAMPLE)]
+            cloud = ring.positions[slots].astype(np.float64) @ to_display.T
+            across = np.stack([cloud @ right, cloud @ screen_up, cloud @ forward], axis=1)
+            low, high = np.percentile(across, [2.0, 98.0], axis=0)
+            box = np.array([[a, b, c] for a in (low[0], high[0]) for b in (low[1], high[1])
+                            for c in (low[2], high[2])]) @ np.stack([right, screen_up, forward])
+        else:
+            axes = np.stack([flat, left, np.array([0.0, 0.0, -1.0])])  # ahead, left, up (NED)
+            box = np.array([[a, b, c] for a in (-2.0, SIDE_REACH_M) for b in (-3.0, 3.0) for c in (-2.0, 3.0)])
+            box = (origin + box @ axes) @ to_display.T
+        points = np.vstack([box, to_display @ origin])
+        width, height = self.renderer.GetSize()
+        free_y = 1.0 - min(0.3, SCENE_TEXT_BAND_PX / max(height, 1))
+        focal, scale = fit_parallel(points, forward, screen_up, max(width, 1) / max(height, 1), SCALAR_BAR_LEFT,
+                                    free_y, SIDE_MARGIN)
+        # The eye where the preset had it along the line of sight, or farther: in front of everything framed.
+        back = max(float(np.dot(focal - np.asarray(eye), forward)), float(((focal - points) @ forward).max()) + 1.0)
+        camera.enable_parallel_projection()
+        camera.focal_point = tuple(focal)
+        camera.position = tuple(focal - forward * back)
+        camera.parallel_scale = scale
 
     def _side_camera(self, origin: np.ndarray, flat: np.ndarray, left: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(eye, target)``, NED metres, of the side camera: from the sensor's left and a little above, at the
@@ -1116,5 +1199,26 @@ class SceneView(_View):
         if self._ring is not self.session.scene_ring:
             self._ring = self.session.scene_ring
         self._colour()
-        update_ring_polydata(self.poly, self._ring, self.stride())
+        stride = self.stride()
+        update_ring_polydata(self.poly, self._ring, stride,
+                             self._filtered_cells(stride) if self.cloud_filter.active else None)
         self.scalar_bar.SetTitle(SCENE_UNITS[self.session.display.scene_colour])
+
+    def _filtered_cells(self, stride: int) -> tuple[tuple, np.ndarray]:
+        """``(key, slots)``: the drawn slots the filter lets through, made again only when the ring, the drawing or
+        the filter changed (a paused window turned by the mouse costs nothing)."""
+        session = self.session
+        ring = session.scene_ring
+        key = (id(ring), ring.head, ring.count, stride, self.cloud_filter, session.scan_number, session.scan_time)
+        if self._filtered is None or self._filtered[0] != key:
+            slots, hidden = filtered_slots(ring, drawn_slots(ring, stride), self.cloud_filter)
+            self._filtered = (key, slots, hidden)
+        return key, self._filtered[1]
+
+    def filter_line(self) -> str:
+        """The heads-up line of the filter ("" with none): its bounds and how many of the window's points it
+        hides."""
+        if not self.cloud_filter.active:
+            return ""
+        hidden = self._filtered[2] if self._filtered is not None else 0
+        return f"filter: {self.cloud_filter.describe()}, {hidden:,} of {self.session.scene_ring.count:,} hidden"
