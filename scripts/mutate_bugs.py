@@ -57,8 +57,8 @@ DELIBERATE_BUGS: list[dict[str, str]] = [
         "name": "moving cast: each ray uses the pose one sample late",
         "owner": "h-motion",
         "path": "livox_viz/casting/scan.py",
-        "old": "self.track.rays(chunk.t[first : first + CAST_PART], directions_sensor)",
-        "new": "self.track.rays(chunk.t[first : first + CAST_PART] + 1.0 / config.point_rate, directions_sensor)",
+        "old": "origin, directions_world = self.track.rays(t, directions_sensor, into)",
+        "new": "origin, directions_world = self.track.rays(t + 1.0 / config.point_rate, directions_sensor, into)",
     },
     {
         "name": "odometry: the twist in the world frame instead of the body frame",
