@@ -288,6 +288,8 @@ def test_every_menu_action_runs(window, qtbot, user_presets: Path, monkeypatch: 
     monkeypatch.setattr(QtWidgets.QMessageBox, "about", staticmethod(lambda *a, **k: None))
     skipped = {"Quit", "Fit the rosette to the reference"}
     ran = []
+    session = window.controller.session
+    typed = []
 
     def walk(menu) -> None:
         menu.aboutToShow.emit()
@@ -298,12 +300,13 @@ def test_every_menu_action_runs(window, qtbot, user_presets: Path, monkeypatch: 
                 action.trigger()
                 window.tick()
                 ran.append(action.text())
+                if action.text() == "Type a window...":
+                    typed.append(session.window)
 
     for top in window.menuBar().actions():
         walk(top.menu())
     assert len(ran) >= 60
-    session = window.controller.session
-    assert session.window == 0.25  # the typed window, from Playback > Integration window > Type
+    assert typed == [0.25]  # the typed window, from Playback > Integration window > Type
     assert window.isVisible()
 
 
@@ -388,9 +391,11 @@ def test_a_cloud_opens_beside_the_scan_from_the_file_menu_and_closes(window, qtb
 
 def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot) -> None:
     """The menus named no key (a first-use trial): an entry whose action has a key in the key table shows it at
-    its right as Qt does, and the key, pressed in a view, still runs its action once (Up doubles the speed once,
-    h opens the help and leaves it open)."""
+    its right as Qt does, every key of the table is shown at some entry (c, k, g, m, u and i were at none), and
+    the key, pressed in a view, still runs its action once (Up doubles the speed once, h opens the help and leaves
+    it open). A submenu filled as it opens leaves no entries behind it in the window when it opens again."""
     from livox_viz.widgets.keys import KEYS
+    from qtpy import QtCore, QtGui
 
     def actions(menu):
         for action in menu.actions():
@@ -410,13 +415,23 @@ def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot
                 "Fit the rosette to the reference": "F", "Cloud in the world / sensor frame": "W",
                 "Screenshot (views and sidecar)": "S", "Save as user preset": "P",
                 "Reset cameras (fit everything drawn)": "R", "Keys and mouse": "H", "Quit": "Q",
-                "Next built-in scene": "M"}
+                "Next built-in scene": "M", "Next pattern colouring": "C", "Next cloud colouring": "K",
+                "Next drawing": "G", "Next step unit": "U", "Next window": "I"}
     assert {text: shown.get(text) for text in expected} == expected
     # A trial found m in no menu and q only as Ctrl+Q; Ctrl+Q still quits too.
     quit_action = next(a for top in window.menuBar().actions() for a in actions(top.menu()) if a.text() == "Quit")
     assert [k.toString() for k in quit_action.shortcuts()] == ["Q", "Ctrl+Q"]
     table_keys = {key.upper() if len(key) == 1 else key.capitalize() for row in KEYS for key, _ in row.bindings}
-    assert {key for key in shown.values() if key and "+" not in key} <= table_keys
+    assert {key for key in shown.values() if key and "+" not in key} == table_keys
+
+    def opened_everywhere() -> tuple[int, int]:
+        for top in window.menuBar().actions():
+            for menu in [top.menu(), *top.menu().findChildren(type(top.menu()))]:
+                menu.aboutToShow.emit()
+        QtCore.QCoreApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete.value)
+        return len(window.findChildren(QtGui.QAction)), len(window.findChildren(QtGui.QActionGroup))
+
+    assert opened_everywhere() == opened_everywhere()
     session = window.controller.session
     press(qtbot, window, "Up")
     assert session.playback.speed == 2.0

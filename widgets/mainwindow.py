@@ -446,13 +446,20 @@ class MainWindow(QtWidgets.QMainWindow):
         return action
 
     def _choices(self, menu: QtWidgets.QMenu, title: str, choices: Iterable[Any], choose: Callable[[Any], Any],
-                 label: Callable[[Any], str] = str) -> dict[Any, QtGui.QAction]:
+                 label: Callable[[Any], str] = str,
+                 following: tuple[str, Callable[[], Any]] | None = None) -> dict[Any, QtGui.QAction]:
         """A submenu ``title`` of ``menu`` holding one checkable action per choice, one checked at a time; its
-        actions by choice. Choosing calls ``choose(choice)``."""
+        actions by choice. Choosing calls ``choose(choice)``. ``following``: (text, slot) of an entry after them
+        that steps to the next choice (it shows the slot's key)."""
         submenu = menu.addMenu(title)
         group = QtGui.QActionGroup(self)
-        return {choice: self._action(submenu, label(choice), lambda x=choice: choose(x), checkable=True, group=group)
-                for choice in choices}
+        actions = {choice: self._action(submenu, label(choice), lambda x=choice: choose(x), checkable=True,
+                                        group=group)
+                   for choice in choices}
+        if following is not None:
+            submenu.addSeparator()
+            self._action(submenu, *following)
+        return actions
 
     def _make_menus(self) -> None:
         c = self.controller
@@ -484,15 +491,22 @@ class MainWindow(QtWidgets.QMainWindow):
         quit_action.setShortcuts([*quit_action.shortcuts(), QtGui.QKeySequence("Ctrl+Q")])
 
         view = bar.addMenu("&View")
+        # c, k, g, u and i step through a submenu's choices: each submenu ends in a "Next" entry showing its key, as
+        # d's and v's entries do (a first-use trial found these keys in no menu).
         self.pattern_colour_menu = view.addMenu("Colour the pattern by")
+        self._next_pattern_colour = self._action(self.pattern_colour_menu, "Next pattern colouring",
+                                                 c.cycle_pattern_colour)
         self.pattern_colour_menu.aboutToShow.connect(self._fill_pattern_colours)
-        self.scene_colour_actions = self._choices(view, "Colour the cloud by", SCENE_COLOURS, c.set_scene_colour)
+        self._fill_pattern_colours()
+        self.scene_colour_actions = self._choices(view, "Colour the cloud by", SCENE_COLOURS, c.set_scene_colour,
+                                                  following=("Next cloud colouring", c.cycle_scene_colour))
         self.colour_map_actions = self._choices(view, "Colour map (time, range, height)", COLOUR_MAPS,
                                                 self.set_colour_map)
         self.point_size_actions = self._choices(view, "Point size", (1, 2, 3, 4, 6, 8), self.set_point_size,
                                                 label="{} px".format)
         self.background_actions = self._choices(view, "Background", BACKGROUNDS, self.set_background)
-        self.drawing_actions = self._choices(view, "Pattern drawing", DRAWINGS, self.set_drawing)
+        self.drawing_actions = self._choices(view, "Pattern drawing", DRAWINGS, self.set_drawing,
+                                             following=("Next drawing", c.cycle_drawing))
         view.addSeparator()
         self.grid_action = self._action(view, "Ground grid in the scene", self.toggle_grid, checkable=True)
         self.axes_action = self._action(view, "World axes in the scene", self.toggle_axes, checkable=True)
@@ -516,8 +530,10 @@ class MainWindow(QtWidgets.QMainWindow):
         play = bar.addMenu("&Playback")
         self._action(play, "Play / pause", c.toggle_pause)
         self._action(play, "Step one unit", c.step)
-        units = play.addMenu("Step unit")
-        units.aboutToShow.connect(lambda: self._fill_step_units(units))
+        self.step_unit_menu = play.addMenu("Step unit")
+        self._next_step_unit = self._action(self.step_unit_menu, "Next step unit", c.cycle_step_unit)
+        self.step_unit_menu.aboutToShow.connect(self._fill_step_units)
+        self._fill_step_units()
         self._action(play, "Faster (x2)", c.faster)
         self._action(play, "Slower (/2)", c.slower)
         windows = play.addMenu("Integration window")
@@ -527,6 +543,8 @@ class MainWindow(QtWidgets.QMainWindow):
             self.window_actions[window] = self._action(windows, window_label(window), lambda i=index: c.on_window(i),
                                                        checkable=True, group=group)
         self._action(windows, "Type a window...", self.type_window)
+        windows.addSeparator()
+        self._action(windows, "Next window", c.cycle_window)
         self._action(play, "Reset the scan to t = 0", c.reset)
 
         returns = bar.addMenu("&Returns")
@@ -864,31 +882,45 @@ class MainWindow(QtWidgets.QMainWindow):
         if view is not None:
             self.follow_action.setChecked(view.follow)
 
-    def _fill_pattern_colours(self) -> None:
-        menu = self.pattern_colour_menu
+    @staticmethod
+    def _cleared(menu: QtWidgets.QMenu) -> QtGui.QActionGroup:
+        """``menu`` emptied and the group of its last entries deleted (one more group each time the menu opened);
+        a new group for its entries."""
         menu.clear()
-        group = QtGui.QActionGroup(menu)
+        for group in menu.findChildren(QtGui.QActionGroup, options=QtCore.Qt.FindChildOption.FindDirectChildrenOnly):
+            group.setParent(None)
+            group.deleteLater()
+        return QtGui.QActionGroup(menu)
+
+    def _fill_pattern_colours(self) -> None:
+        """The pattern colourings the configuration has (they differ by model), then the c key's entry."""
+        menu = self.pattern_colour_menu
+        group = self._cleared(menu)
         current = self.controller.session.display.pattern_colour
         for mode in pattern_colours(self.controller.session.config):
             action = self._action(menu, mode, lambda m=mode: self.controller.set_pattern_colour(m), checkable=True,
                                   group=group)
             action.setChecked(mode == current)
+        menu.addSeparator()
+        menu.addAction(self._next_pattern_colour)
 
-    def _fill_step_units(self, menu: QtWidgets.QMenu) -> None:
-        menu.clear()
-        group = QtGui.QActionGroup(menu)
+    def _fill_step_units(self) -> None:
+        """The step units the configuration has, then the u key's entry."""
+        menu = self.step_unit_menu
+        group = self._cleared(menu)
         display = self.controller.session.display
         for unit in step_units(self.controller.session.config):
             action = self._action(menu, unit, lambda u=unit: setattr(display, "step_unit", u), checkable=True,
                                   group=group)
             action.setChecked(unit == display.step_unit)
+        menu.addSeparator()
+        menu.addAction(self._next_step_unit)
 
     def _fill_presets(self, menu: QtWidgets.QMenu) -> None:
         """The presets by name and the start of their description, the whole of it in the entry's tooltip: whole,
         the entries ran past a 1600-pixel screen. The one shown is checked."""
-        menu.clear()
+        group = self._cleared(menu)
         menu.setToolTipsVisible(True)
-        group = QtGui.QActionGroup(menu)
         current = self.controller.session.preset_name
         for info in list_presets():
             action = self._described_action(menu, info.name, info.description,
@@ -910,7 +942,7 @@ class MainWindow(QtWidgets.QMainWindow):
         from livox_viz import load_preset
         from livox_viz.fitting.reference import shipped_tables
 
-        menu.clear()
+        self._cleared(menu)
         menu.setToolTipsVisible(True)
         plane = self.controller.session.config.pattern_plane
         for name, entry in shipped_tables().items():
@@ -927,8 +959,7 @@ class MainWindow(QtWidgets.QMainWindow):
     def _fill_scenes(self, menu: QtWidgets.QMenu) -> None:
         from livox_viz.scene.scenes import scene_choices
 
-        menu.clear()
-        group = QtGui.QActionGroup(menu)
+        group = self._cleared(menu)
         session = self.controller.session
         current = session.sources.get("scene") or session.scene.name
         for choice in scene_choices():
