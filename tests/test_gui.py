@@ -841,6 +841,62 @@ def test_a_scene_pick_returns_the_values_stored_for_the_point_and_two_picks_thei
     assert app.pick_scene(x, y) is None and "no point" in app.pick_text
 
 
+def test_a_click_picks_a_point_drawn_within_a_few_pixels_or_says_none_is_there(app: LivoxVizApp) -> None:
+    """A first-use trial's click on empty sky picked a point 230 px away (VTK's point picker took its tolerance as
+    a length at the focal plane), and a click outside the pattern named its nearest sample however far. Over a
+    grid of clicks on each view (the scene from behind and from the top), and 3 px beside drawn points: a point
+    drawn within the tolerance is picked, as near as the nearest drawn; farther, none is, and the status says so."""
+    from livox_viz.widgets.app import PICK_TOLERANCE_PX
+    from livox_viz.widgets.views import display_points
+
+    session = app.session
+    session.advance_to(0.3)
+    app.refresh()
+    rng = np.random.default_rng(3)
+
+    def clicks(renderer, drawn: np.ndarray, pick) -> list[bool]:
+        width, height = renderer.GetSize()
+        grid = [(x, y) for x in range(4, width, 23) for y in range(4, height, 23)]
+        beside = [tuple(drawn[k] + (3.0, 0.0)) for k in rng.choice(len(drawn), 10, replace=False)]
+        picked = []
+        for x, y in grid + beside:
+            nearest = np.hypot(*(drawn - (x, y)).T).min()
+            found = pick(x, y)
+            if nearest > PICK_TOLERANCE_PX + 0.5:
+                assert found is None and app.pick_text.startswith("no point under the cursor"), (x, y, nearest)
+            elif nearest < PICK_TOLERANCE_PX - 0.5:
+                assert found is not None, (x, y, nearest)
+            picked.append(found is not None)
+        return picked
+
+    for camera in ("behind", "top"):
+        app.set_scene_camera(camera)
+        app.render(every=True)
+        view = app.scene_view
+        slots = pv.convert_array(view.poly.GetVerts().GetConnectivityArray())
+        points = session.scene_ring.positions[slots].astype(float) * [1, -1, -1]  # NED to the display's z up
+        drawn, shown = display_points(view.renderer, points)
+        sample = rng.choice(len(points), 50, replace=False)  # where VTK itself draws them
+        np.testing.assert_allclose(drawn[sample], [on_screen(view.renderer, points[k])[:2] for k in sample],
+                                   atol=1e-6)
+        drawn = drawn[shown]
+
+        def pick(x, y, drawn=drawn):
+            found = app.pick_scene(x, y)
+            if found is not None:  # as near as the nearest drawn point
+                here = on_screen(app.scene_view.renderer, np.asarray(found["xyz_world"]) * [1, -1, -1])[:2]
+                assert math.hypot(here[0] - x, here[1] - y) <= np.hypot(*(drawn - (x, y)).T).min() + 1.0
+            return found
+
+        picked = clicks(view.renderer, drawn, pick)
+        assert any(picked) and not all(picked), camera
+    ring = session.pattern_ring
+    live = ring.positions[ring.live_slots()].astype(float)
+    drawn, _ = display_points(app.pattern_view.renderer, np.column_stack([live[:, :2], np.zeros(len(live))]))
+    picked = clicks(app.pattern_view.renderer, drawn, app.pick_pattern)
+    assert any(picked) and not all(picked)
+
+
 def test_a_pattern_pick_gives_the_angles_and_time_of_the_nearest_sample(app: LivoxVizApp) -> None:
     session = app.session
     session.advance_to(0.2)

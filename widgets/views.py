@@ -197,6 +197,49 @@ def pattern_categories(session: Session) -> list[str]:
     return [str(k + 1) for k in range(count)]
 
 
+def display_points(renderer, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where ``renderer`` draws ``points`` (n, 3) of its world, as VTK's display pixels (origin bottom left), and
+    which are in front of the camera (within its clipping range).
+
+    Parameters
+    ----------
+    renderer : vtkRenderer
+    points : (n, 3) float
+
+    Returns
+    -------
+    xy : (n, 2) float64
+        Pixels.
+    shown : (n,) bool
+    """
+    camera = renderer.GetActiveCamera()
+    projection = pv.array_from_vtkmatrix(camera.GetCompositeProjectionTransformMatrix(
+        renderer.GetTiledAspectRatio(), -1.0, 1.0))
+    clip = np.asarray(points, dtype=np.float64) @ projection[:, :3].T + projection[:, 3]
+    w = clip[:, 3]
+    shown = w > 1e-12
+    safe = np.where(shown, w, 1.0)
+    ndc = clip[:, :3] / safe[:, None]
+    shown &= np.abs(ndc[:, 2]) <= 1.0
+    width, height = renderer.GetSize()
+    x0, y0 = renderer.GetOrigin()
+    xy = np.column_stack([x0 + (ndc[:, 0] + 1.0) * (width / 2.0), y0 + (ndc[:, 1] + 1.0) * (height / 2.0)])
+    return xy, shown
+
+
+def nearest_drawn(xy: np.ndarray, shown: np.ndarray, depth: np.ndarray, at: tuple[float, float],
+                  tolerance_px: float) -> int | None:
+    """The row of ``xy`` (n, 2) pixels drawn nearest to ``at`` and at most ``tolerance_px`` from it, among those
+    ``shown``; of rows within a pixel of the nearest, the one nearest the camera (least ``depth``). None: none
+    that near."""
+    distance = np.hypot(xy[:, 0] - at[0], xy[:, 1] - at[1])
+    distance[~shown] = np.inf
+    if distance.size == 0 or not distance.min() <= tolerance_px:
+        return None
+    close = np.flatnonzero(distance <= distance.min() + 1.0)
+    return int(close[np.argmin(depth[close])])
+
+
 def _address(array: np.ndarray) -> int:
     return int(array.__array_interface__["data"][0])
 
@@ -1041,6 +1084,24 @@ class SceneView(_View):
         # Moved right and up, the camera draws the box's middle in the middle of the free part.
         shift = right * (1.0 - free_x) * tan_h * distance + screen_up * (1.0 - free_y) * tan_v * distance
         return centre + back * distance + shift, centre + shift
+
+    def drawn_point_at(self, x_px: float, y_px: float, tolerance_px: float) -> int | None:
+        """The ring's slot of the cloud's point drawn nearest to the display position ``(x_px, y_px)`` (VTK's
+        pixels, origin bottom left), at most ``tolerance_px`` from it; None when no drawn point is that near.
+
+        Only the points the vertex cells draw (what the time window and the level of detail left), measured on
+        the screen: VTK's point picker took its tolerance as a length at the focal plane, and a click on empty sky
+        picked a point near the camera 230 pixels away (a first-use trial).
+        """
+        slots = pv.convert_array(self.poly.GetVerts().GetConnectivityArray())
+        if slots is None or slots.size == 0:
+            return None
+        matrix = np.asarray(self.actor.user_matrix)
+        placed = self.poly.points[slots].astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+        xy, shown = display_points(self.renderer, placed)
+        depth = np.linalg.norm(placed - self.renderer.GetActiveCamera().GetPosition(), axis=1)
+        row = nearest_drawn(xy, shown, depth, (x_px, y_px), tolerance_px)
+        return None if row is None else int(slots[row])
 
     def mark_picks(self, points_ned: list) -> None:
         """Mark the points picked (NED, metres): a ring round each, and the line between two."""
