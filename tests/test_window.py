@@ -861,25 +861,56 @@ def test_the_scrubber_seeks_when_paused_and_forgets_the_picks(window) -> None:
     assert window.status_message.text() != "range 12.000 m"
 
 
-def test_the_scrubber_shows_the_scan_s_end_while_playing_and_a_click_goes_there(window, qtbot) -> None:
-    """A first-use trial saw the handle at 0 while the scan played on (until the first pause), and a click in the
-    middle of the bar moved back only a page step, 1.8 s of a long scan."""
-    from qtpy import QtCore
+def test_the_scrubber_shows_the_scan_s_end_while_playing_its_time_while_dragged_and_a_click_goes_there(
+        window, qtbot) -> None:
+    """A first-use trial saw the handle at 0 while the scan played on (until the first pause), nothing change
+    while it dragged the handle, and a click in the bar move only a page step, 1.8 s of a long scan. Dragged, the
+    time shows beside the bar and in a tip over the handle, a tick keeping it; let go, the window is cast there.
+    A click on the bar puts the handle's middle under the cursor, and the scan goes to that time."""
+    from qtpy import QtCore, QtGui, QtWidgets
 
     session, controller = window.controller.session, window.controller
     session.advance_to(2.0)
     window.tick()
-    assert not session.playback.paused and window.scrubber.value() == 1000
+    slider = window.scrubber
+    assert not session.playback.paused and slider.value() == 1000
     window.run(controller.toggle_pause)
     played = window._played
-    groove = window.scrubber.rect()
-    qtbot.mouseClick(window.scrubber, QtCore.Qt.MouseButton.LeftButton,
-                     pos=QtCore.QPoint(groove.center().x(), groove.center().y()))
-    for _ in range(200):
-        if session.filling is None:
-            break
-        window.tick()
-    assert session.scan_time == pytest.approx(0.5 * played, abs=0.05 * played)
+
+    def settled() -> None:
+        for _ in range(200):
+            if session.filling is None:
+                break
+            window.tick()
+
+    def handle() -> QtCore.QRect:
+        option = QtWidgets.QStyleOptionSlider()
+        slider.initStyleOption(option)
+        return slider.style().subControlRect(QtWidgets.QStyle.ComplexControl.CC_Slider, option,
+                                             QtWidgets.QStyle.SubControl.SC_SliderHandle, slider)
+
+    left = QtCore.Qt.MouseButton.LeftButton
+    qtbot.mousePress(slider, left, pos=handle().center())
+    to = QtCore.QPoint(round(slider.width() * 0.3), slider.height() // 2)
+    move = QtGui.QMouseEvent(QtCore.QEvent.Type.MouseMove, QtCore.QPointF(to), QtCore.QPointF(slider.mapToGlobal(to)),
+                             QtCore.Qt.MouseButton.NoButton, left, QtCore.Qt.KeyboardModifier.NoModifier)
+    QtWidgets.QApplication.sendEvent(slider, move)
+    window.tick()  # a tick while the handle is held keeps its time shown
+    dragged = slider.value() / 1000 * played
+    assert 0.2 * played < dragged < 0.4 * played and session.shown_time == pytest.approx(played)
+    assert f"{dragged:8.3f} s" in window.scrub_label.text()
+    qtbot.waitUntil(QtWidgets.QToolTip.isVisible, timeout=5000)
+    assert QtWidgets.QToolTip.text() == f"t = {dragged:.3f} s"
+    qtbot.mouseRelease(slider, left, pos=to)
+    settled()
+    assert session.scan_time == pytest.approx(dragged, abs=1e-6) and not QtWidgets.QToolTip.isVisible()
+
+    x = round(slider.width() * 0.7)
+    qtbot.mouseClick(slider, left, pos=QtCore.QPoint(x, slider.height() // 2))
+    settled()
+    assert abs(handle().center().x() - x) <= 1
+    assert session.scan_time == pytest.approx(slider.value() / 1000 * played, abs=1e-6)
+    assert session.scan_time == pytest.approx(0.7 * played, abs=0.02 * played)
 
 
 @pytest.mark.parametrize("switch", ["n key", "preset menu", "x key"])

@@ -180,24 +180,55 @@ def short_description(text: str, most: int = 60) -> str:
 
 
 class _ScrubSlider(QtWidgets.QSlider):
-    """A slider whose bar, clicked outside the handle, moves the handle there, as a media player's does (Qt's
-    default: a page step, 1.8 s of a long scan, which a first-use trial took for a broken bar). A subclass, not a
-    proxy style: a widget does not own its style, and one that died before the slider left it a dangling one."""
+    """A slider whose bar, clicked outside the handle, moves the handle's middle under the cursor and lets it be
+    dragged on from there, as a media player's does (Qt's default: a page step, 1.8 s of a long scan, which a
+    first-use trial took for a broken bar). A subclass, not a proxy style: a widget does not own its style, and
+    one that died before the slider left it a dangling one.
+
+    :attr:`held` is true while the handle is held (dragged, or jumping to a click): its moves are shown, not yet
+    sought (the seek comes with ``sliderReleased``).
+    """
+
+    def __init__(self, orientation: QtCore.Qt.Orientation, parent: QtWidgets.QWidget | None = None) -> None:
+        super().__init__(orientation, parent)
+        self._jumping = False
+
+    @property
+    def held(self) -> bool:
+        return self._jumping or self.isSliderDown()
+
+    def _rect(self, part: QtWidgets.QStyle.SubControl) -> QtCore.QRect:
+        option = QtWidgets.QStyleOptionSlider()
+        self.initStyleOption(option)
+        return self.style().subControlRect(QtWidgets.QStyle.ComplexControl.CC_Slider, option, part, self)
+
+    def handle_rect(self) -> QtCore.QRect:
+        """The handle's rectangle, in the slider's pixels."""
+        return self._rect(QtWidgets.QStyle.SubControl.SC_SliderHandle)
+
+    def value_under(self, x: float) -> int:
+        """The value that puts the handle's middle at ``x`` (the slider's pixels), as Qt maps a handle's place to a
+        value: along the groove less the handle's length."""
+        groove, handle = self._rect(QtWidgets.QStyle.SubControl.SC_SliderGroove), self.handle_rect()
+        span = max(groove.width() - handle.width(), 1)
+        place = round(x - handle.width() / 2) - groove.x()
+        return QtWidgets.QStyle.sliderValueFromPosition(self.minimum(), self.maximum(), place, span,
+                                                        self.invertedAppearance())
 
     def mousePressEvent(self, event: QtGui.QMouseEvent) -> None:
-        if event.button() == QtCore.Qt.MouseButton.LeftButton and self.isEnabled():
-            option = QtWidgets.QStyleOptionSlider()
-            self.initStyleOption(option)
-            style = self.style()
-            handle = style.subControlRect(QtWidgets.QStyle.ComplexControl.CC_Slider, option,
-                                          QtWidgets.QStyle.SubControl.SC_SliderHandle, self)
-            x = round(event.position().x())
-            if not handle.contains(event.position().toPoint()):
-                span = max(self.width() - handle.width(), 1)
-                self.setValue(QtWidgets.QStyle.sliderValueFromPosition(
-                    self.minimum(), self.maximum(), x - handle.width() // 2, span, option.upsideDown))
-                event.accept()
-                return
+        point = event.position().toPoint()
+        if event.button() == QtCore.Qt.MouseButton.LeftButton and self.isEnabled() \
+                and not self.handle_rect().contains(point):
+            self._jumping = True
+            try:
+                self.setValue(self.value_under(event.position().x()))
+            finally:
+                self._jumping = False
+            # The handle is under the cursor now: Qt's own press grabs it, so a drag goes on from the click.
+            super().mousePressEvent(event)
+            if not self.isSliderDown():  # not grabbed after all: the jump was the whole move
+                self.sliderReleased.emit()
+            return
         super().mousePressEvent(event)
 
 
@@ -844,10 +875,11 @@ class MainWindow(QtWidgets.QMainWindow):
         paused = session.playback.paused
         self.scrubber.setEnabled(paused and self._played > 0)
         # Playing, it shows where the scan is too (at its end): it sat at 0 until the first pause.
-        if self._played > 0 and not self.scrubber.isSliderDown():
-            with signals_blocked(self.scrubber):
-                self.scrubber.setValue(round(1000 * session.shown_time / self._played))
-        self.scrub_label.setText(f" scan time {session.shown_time:8.3f} s ")
+        if not self.scrubber.held:  # held, the bar shows the time of the handle
+            if self._played > 0:
+                with signals_blocked(self.scrubber):
+                    self.scrubber.setValue(round(1000 * session.shown_time / self._played))
+            self.scrub_label.setText(f" scan time {session.shown_time:8.3f} s ")
 
     def _share_status_room(self) -> None:
         """What is being prepared gets the room the permanent figures leave, but for the message's share: the
@@ -1084,15 +1116,25 @@ class MainWindow(QtWidgets.QMainWindow):
         self._update_status()
 
     def _scrub_moved(self, value: int) -> None:
-        if self.scrubber.isSliderDown():
-            self.scrub_label.setText(f" scan time {value / 1000 * self._played:8.3f} s ")
-        else:
+        if not self.scrubber.held:  # a key or setValue: sought at once
             self._scrubbed()
+            return
+        # Held, the handle shows the time it is at, beside the bar and in a tip that follows it (a first-use trial
+        # saw nothing change while dragging); the window is cast again when it is let go.
+        text = f" scan time {value / 1000 * self._played:8.3f} s "
+        self.scrub_label.setText(text)
+        handle = self.scrubber.handle_rect()
+        QtWidgets.QToolTip.showText(self.scrubber.mapToGlobal(QtCore.QPoint(handle.center().x(), handle.top())),
+                                    f"t = {value / 1000 * self._played:.3f} s", self.scrubber)
 
     def _scrubbed(self) -> None:
+        QtWidgets.QToolTip.hideText()
+        session = self.controller.session
         target = self.scrubber.value() / 1000 * self._played
+        if session.shown_time == target:  # the handle let go where it was: nothing to cast again
+            return
         # The picks belonged to the time left behind (a trial found them floating over another time's cloud).
-        self.run(lambda: (self.controller.session.seek(target), self.controller.forget_picks()))
+        self.run(lambda: (session.seek(target), self.controller.forget_picks()))
 
     # Files ---------------------------------------------------------------------------------------
     def _ask_open(self, title: str, filters: str) -> str | None:
