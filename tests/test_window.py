@@ -1196,10 +1196,12 @@ def test_a_status_message_longer_than_the_bar_is_elided_with_the_whole_in_its_to
             assert label.fontMetrics().horizontalAdvance(shown) <= room, (shown, room)
             whole = label.text()
             if shown != whole:
-                assert shown.endswith("\u2026") and whole.startswith(shown[:-1]) and label.toolTip() == whole
+                assert shown.endswith("\u2026") and whole.startswith(shown[:-1])
+                assert label.toolTip().split("\n\n")[0] == whole
             assert bar.rect().contains(widget_rect(label, bar)), label.text()
         assert window.status_message.text() == message and QtWidgets.QLabel.text(window.status_message) != message
-        assert window.status_message.toolTip() == message
+        assert window.status_message.toolTip().startswith(message + "\n\n")
+        assert "View > Messages" in window.status_message.toolTip()
         assert window.status_message.width() >= 300  # what is being prepared leaves the message room
         rects = [widget_rect(label, bar) for label in labels if label.isVisible()]
         for k, first in enumerate(rects):
@@ -1211,6 +1213,46 @@ def test_a_status_message_longer_than_the_bar_is_elided_with_the_whole_in_its_to
     finally:
         window._jobs.clear()
         window.close()
+
+
+def test_a_long_message_is_read_whole_and_copied_from_the_messages_log(window, qtbot) -> None:
+    """A long error was cut with an ellipsis, its whole only in a tooltip that could not be copied or read again
+    once the next message came (a first-use trial, issue 45). A click on the status bar's message opens the
+    messages' log (as does View > Messages): every message whole, oldest first, errors marked, in a read-only
+    box a user selects and copies from; a message said while it is open is added at the bottom."""
+    from qtpy import QtCore, QtWidgets
+
+    message = ("integration window 25 s refused; allowed: 0.01 to 10 s, or unlimited (1 M points): a window the "
+               "point budget of DataWidth x DataHeight x DataCheckFreq can hold, and this sentence goes on and on "
+               "past the end of any status bar, naming /a/deep/folder/with/a/rather/long/name/config.json")
+    window.say("scene urban")
+    window.say(message, error=True)
+    window._update_status()
+    QtWidgets.QApplication.processEvents()
+    label = window.status_message
+    assert QtWidgets.QLabel.text(label) != message  # cut in the bar
+    qtbot.mouseClick(label, QtCore.Qt.MouseButton.LeftButton, pos=label.rect().center())
+    dialog = window.messages_dialog
+    assert dialog is not None
+    qtbot.waitUntil(dialog.isVisible, timeout=5000)
+    lines = dialog.view.toPlainText().splitlines()
+    assert lines[-2].endswith("  scene urban") and lines[-1].endswith(f"  error: {message}")
+    assert dialog.view.isReadOnly()
+    assert dialog.view.textInteractionFlags() & QtCore.Qt.TextInteractionFlag.TextSelectableByMouse
+    screen = dialog.screen().availableGeometry()
+    assert screen.contains(dialog.frameGeometry()) or screen.contains(dialog.geometry())
+    dialog.view.selectAll()
+    dialog.view.copy()
+    assert message in QtWidgets.QApplication.clipboard().text()
+    qtbot.mouseClick(dialog.copy_button, QtCore.Qt.MouseButton.LeftButton)
+    assert QtWidgets.QApplication.clipboard().text() == window.messages.text()
+    window.controller.session.message = "saved /tmp/shot.png"  # as the screenshot's writer thread says it
+    window._update_status()
+    assert dialog.view.toPlainText().splitlines()[-1].endswith("  saved /tmp/shot.png")
+    dialog.hide()
+    view = next(a.menu() for a in window.menuBar().actions() if a.text() == "&View")
+    next(a for a in view.actions() if a.text().startswith("Messages")).trigger()
+    assert dialog.isVisible() and message in dialog.view.toPlainText()
 
 
 def test_a_short_status_text_is_shown_whole_when_the_bar_has_room(window) -> None:

@@ -46,6 +46,7 @@ from .app import VIEW_NAMES, LivoxVizApp, quiet_vtk
 from .collector import MainThreadCollector, destroy_widget_tree, give_back_free_memory
 from .guide import GUIDE_SIZE, UserGuide, guide_dir
 from .keys import KEYS, help_html
+from .messages import LOG_SIZE, MessageLog, MessagesDialog
 from .nonerefs import NoneReserve, binding_drops_none
 from .overlay import WINDOWS, PresetSource, TableSource, window_label
 from .panel import ParameterPanel, signals_blocked
@@ -94,16 +95,32 @@ def application() -> QtWidgets.QApplication:
 
 class ElidedLabel(QtWidgets.QLabel):
     """A one-line label for the status bar: when its text is wider than the room it gets, it shows what fits and
-    an ellipsis, and the whole text is its tooltip (a long message was cut at the bar's edge without a sign).
+    an ellipsis, and the whole text is its tooltip (a long message was cut at the bar's edge without a sign),
+    followed by ``more`` when given.
 
     :meth:`text` is the whole text; the label asks for its width, at most ``widest`` pixels, but takes less (down
-    to an ellipsis).
+    to an ellipsis). A click (a press and release in one place that selects nothing) emits :attr:`clicked`.
     """
 
-    def __init__(self, widest: int = 1 << 20, parent: QtWidgets.QWidget | None = None) -> None:
+    clicked = QtCore.Signal()
+
+    def __init__(self, widest: int = 1 << 20, parent: QtWidgets.QWidget | None = None, more: str = "") -> None:
         super().__init__(parent)
         self._whole = ""
         self._widest = widest
+        self._more = more
+        self._pressed_at: QtCore.QPointF | None = None
+
+    def mousePressEvent(self, event: QtGui.QMouseEvent) -> None:
+        self._pressed_at = event.position() if event.button() == QtCore.Qt.MouseButton.LeftButton else None
+        super().mousePressEvent(event)
+
+    def mouseReleaseEvent(self, event: QtGui.QMouseEvent) -> None:
+        super().mouseReleaseEvent(event)
+        pressed, self._pressed_at = self._pressed_at, None
+        if pressed is not None and event.button() == QtCore.Qt.MouseButton.LeftButton \
+                and (event.position() - pressed).manhattanLength() <= CLICK_SLOP and not self.hasSelectedText():
+            self.clicked.emit()
 
     def setText(self, text: str) -> None:
         if text == self._whole:
@@ -147,7 +164,7 @@ class ElidedLabel(QtWidgets.QLabel):
         shown = self.fontMetrics().elidedText(self._whole, QtCore.Qt.TextElideMode.ElideRight, room)
         if shown != super().text():
             super().setText(shown)
-        tip = self._whole if shown != self._whole else ""
+        tip = (self._whole + (f"\n\n{self._more}" if self._more else "")) if shown != self._whole else ""
         if tip != self.toolTip():
             self.setToolTip(tip)
 
@@ -272,6 +289,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._pending: dict[str, tuple[set[str], Callable[[], None], str]] = {}
         #: The refusal or failure the status bar shows in red while it is the message (a later message is not red).
         self._error_text: str | None = None
+        #: Every message the status bar said, whole (View > Messages).
+        self.messages = MessageLog()
         self._press: tuple[str, int, int] | None = None
         self._closing = False
         self._sized = False
@@ -330,6 +349,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self._make_shortcuts()
         self.help_dialog: QtWidgets.QDialog | None = None
         self.guide: UserGuide | None = None
+        self.messages_dialog: MessagesDialog | None = None
 
         # The compiled loops: what the first frame needs now, the rest in the background.
         moving = session.trajectory is not None
@@ -414,9 +434,12 @@ class MainWindow(QtWidgets.QMainWindow):
         # is being prepared takes the room it needs, but leaves the message (feedback to what was just done) its
         # share (_share_status_room): capped at 320 px, its note on the first compile was cut with 600 px to spare.
         self.status_busy = ElidedLabel()
-        self.status_message = ElidedLabel()
+        # A click on the message shows every message whole (View > Messages): the tooltip of a message cut short
+        # could not be copied, nor read again once the next one came.
+        self.status_message = ElidedLabel(more="Click: every message whole, to read and copy (View > Messages)")
         self.status_message.setObjectName("message")
         self.status_message.setTextInteractionFlags(QtCore.Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.status_message.clicked.connect(self.show_messages)
         for widget in (self.status_time, self.status_points, self.status_fps, self.status_returns):
             bar.addPermanentWidget(widget)
         bar.addWidget(self.busy)
@@ -551,6 +574,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.dock_action = self.dock.toggleViewAction()
         self.dock_action.setText("Parameter panel")
         view.addAction(self.dock_action)
+        self._action(view, "Messages (every status bar message, whole)...", self.show_messages)
         # The charts can go, giving their room to the views; double-clicking a view gives it the whole row (again:
         # the row back), as ParaView and CloudCompare do: the scene view had about 300 of 1,600 px (issue 45).
         self.charts_action = self._action(view, "Charts", self.toggle_charts, checkable=True)
@@ -639,6 +663,24 @@ class MainWindow(QtWidgets.QMainWindow):
         self.controller.session.message = text
         if error:
             self._error_text = text
+        self._log(text, error)
+
+    def _log(self, text: str, error: bool) -> None:
+        """Keep ``text`` in the messages' log (and show it there if the log is open)."""
+        message = self.messages.add(text, error)
+        if message is not None and self.messages_dialog is not None and self.messages_dialog.isVisible():
+            self.messages_dialog.append(message)
+
+    def show_messages(self) -> None:
+        """The messages' log beside the window, not modal, inside the screen (View > Messages, or a click on the
+        status bar's message)."""
+        if self.messages_dialog is None:
+            self.messages_dialog = MessagesDialog(self.messages, self)
+            self.messages_dialog.resize(*fit_to_screen(LOG_SIZE, self._available_area()))
+        self.messages_dialog.refill()
+        self.messages_dialog.show()
+        self.messages_dialog.raise_()
+        self.messages_dialog.activateWindow()
 
     @property
     def _error(self) -> bool:
@@ -870,6 +912,8 @@ class MainWindow(QtWidgets.QMainWindow):
         if self.controller.pick_text and not message:
             message = self.controller.pick_text
         self.status_message.setText(message)
+        # Messages the controller and its threads set (a screenshot saved, a pick) are kept as they are shown.
+        self._log(message, self._error and message == session.message)
         self.status_message.setStyleSheet("color: #d9534f;" if self._error and message else "")
         self._share_status_room()
         paused = session.playback.paused
@@ -1341,6 +1385,8 @@ class MainWindow(QtWidgets.QMainWindow):
             self.help_dialog.close()
         if self.guide is not None:
             self.guide.close()
+        if self.messages_dialog is not None:
+            self.messages_dialog.close()
         self.controller.close()
         self.collector.stop()
         event.accept()
