@@ -641,12 +641,17 @@ def test_the_grid_marks_and_colour_bars_read_on_every_background(app: LivoxVizAp
     text = placer.GetInputAlgorithm().GetTextProperty().GetColor()
     assert _contrast(text, patch) >= 4.5, (background, text, patch)
     assert app.pattern_view.guide_labels == ["10°", "20°", "30°"]
-    # The colour bars' words too: light grey, "points/cell" vanished on white.
+    # The colour bars' words too: light grey, "points/cell" vanished on white; and each on its patch, whatever is
+    # drawn under it (bare, the return/tag legend's words were faint over the grey buildings and the cloud).
     for view in (app.pattern_view, app.scene_view):
         view.set_background(background)
         bar = view.scalar_bar
         for words in (bar.GetTitleTextProperty(), bar.GetLabelTextProperty(), bar.GetAnnotationTextProperty()):
             assert _contrast(words.GetColor(), patch) >= 4.5, (background, words.GetColor())
+            opacity, backing = words.GetBackgroundOpacity(), words.GetBackgroundColor()
+            for under in ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)):
+                behind = [opacity * b + (1 - opacity) * u for b, u in zip(backing, under, strict=True)]
+                assert _contrast(words.GetColor(), behind) >= 4.5, (background, under, opacity)
 
 
 def test_charts_follow_the_parameters_and_the_reference(app: LivoxVizApp) -> None:

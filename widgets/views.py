@@ -13,11 +13,12 @@ import math
 
 import numpy as np
 import pyvista as pv
+from vtkmodules.vtkRenderingCore import vtkTextRenderer
 
 from livox_viz.core.rotations import FRD_TO_FLU
 
 from .ring import PointRing
-from .session import PATTERN_COLOURS, TAG_CLASSES, Session
+from .session import PATTERN_COLOURS, TAG_CLASSES, Session, pattern_colours
 
 #: NED (z down) to the display's z-up frame (north-west-up), as a 4x4 actor matrix.
 NED_TO_DISPLAY = np.eye(4)
@@ -52,8 +53,8 @@ GRID_MARK_COLOUR, GRID_MARK_COLOUR_ON_WHITE = "#9aa6b8", "#4a5568"
 ELEVATION_MARK_PX = 16.0
 #: Pixels at the top of the pattern view that its text's lines take (kept free of the drawing).
 TEXT_BAND_PX = 84
-#: The share of the pattern view's width left of the colour bar's strip.
-PATTERN_USABLE_WIDTH = 0.78
+#: The least share of the pattern view's width the pattern keeps beside the colour bar's legend.
+PATTERN_LEAST_WIDTH = 0.3
 #: Pixels between the field of view's edge and an axis's name, and the rows the names take below it and above it
 #: (the gap, a 12-point line, a little air).
 NAME_GAP_PX = 6
@@ -244,20 +245,90 @@ def _address(array: np.ndarray) -> int:
     return int(array.__array_interface__["data"][0])
 
 
-#: Where the colour bar's strip begins, a share of the view's width from its left (its title, centred on the bar,
-#: reaches a little to the left of the bar).
+#: The share of the scene view's width the side camera frames the sensor and the cloud in: about where the colour
+#: bar's strip begins (:func:`place_colour_bar` puts it 50-55 px in from the right edge).
 SCALAR_BAR_LEFT = 0.82
 #: Pixels at the top of the scene view its text's three lines take.
 SCENE_TEXT_BAND_PX = 52
 
 
+#: Pixels of a colour bar's frame, whatever the view's width: VTK draws the strip over the left 3/8 of it (9 px)
+#: and centres the title over it.
+BAR_FRAME_PX = 24
+#: Pixels between a colour bar's words and the view's right edge, and between its legend and the pattern.
+LEGEND_EDGE_PX = 6
+LEGEND_GAP_PX = 8
+#: Pixels VTK leaves between the strip and its annotations' words (their leader lines, to the left) and its
+#: labels' words (to the right).
+ANNOTATION_LEAD_PX = 11
+LABEL_LEAD_PX = 4
+#: The bar's frame: from this share of the view's height, this share tall.
+BAR_BOTTOM, BAR_HEIGHT = 0.2, 0.6
+
+
 def add_scalar_bar(plotter: pv.Plotter, title: str, mapper) -> object:
-    """The vertical colour bar both views show at their right edge (far enough in that a title such as
-    "range, m", centred on the bar, stays whole in a 280-pixel view)."""
+    """The vertical colour bar both views show at their right edge (:func:`place_colour_bar` puts it there)."""
     return plotter.add_scalar_bar(
-        title, mapper=mapper, vertical=True, position_x=0.86, position_y=0.2, width=0.05, height=0.6,
+        title, mapper=mapper, vertical=True, position_x=0.86, position_y=BAR_BOTTOM, width=0.05, height=BAR_HEIGHT,
         title_font_size=12, label_font_size=11, color=BAR_TEXT_COLOURS["dark"], n_labels=5, fmt="%.3g",
     )
+
+
+def text_width_px(words, text: str, dpi: int) -> int:
+    """Pixels ``text`` takes across, drawn with the text property ``words`` at ``dpi``."""
+    box = [0, 0, 0, 0]
+    if not text or not vtkTextRenderer.GetInstance().GetBoundingBox(words, text, box, dpi):
+        return 0
+    return box[1] - box[0] + 1
+
+
+def bar_marks(bar) -> tuple[list[str], list[str]]:
+    """The words a colour bar shows beside its strip now: its annotations' (left of it) and its labels' (right)."""
+    table = bar.GetLookupTable()
+    annotations = ([table.GetAnnotation(k) for k in range(table.GetNumberOfAnnotatedValues())]
+                   if bar.GetDrawAnnotations() and table is not None else [])
+    count = bar.GetNumberOfLabels()
+    labels = ([bar.GetLabelFormat() % value for value in np.linspace(*table.GetRange(), count)]
+              if count > 0 and table is not None else [])
+    return annotations, labels
+
+
+def place_colour_bar(bar, renderer, titles: tuple[str, ...] = (), left_marks: tuple[str, ...] = (),
+                     right_marks: tuple[str, ...] = ()) -> float:
+    """Put ``bar`` at the right edge of ``renderer``'s view, every word of it inside the view, and say where its
+    legend begins.
+
+    The words are measured as VTK draws them: the title (centred over the frame), the annotations with their
+    leader lines left of the strip, the labels right of it. Room is kept for any of ``titles`` and of the
+    ``left_marks`` and ``right_marks`` as well as for the words shown now, so that the bar stays put when the
+    colouring or its marks change. Placed as a share of the width, the bar's title ran past a narrow view's edge
+    ("return / ta") and its marks into the pattern (a first-use trial).
+
+    Returns
+    -------
+    float
+        The legend's left edge, pixels from the view's left.
+    """
+    width = max(renderer.GetSize()[0], 1)
+    window = renderer.GetRenderWindow()
+    dpi = window.GetDPI() if window is not None else 72
+    annotations, labels = bar_marks(bar)
+    title = max(text_width_px(bar.GetTitleTextProperty(), text, dpi) for text in (bar.GetTitle(), *titles))
+    left_words = max((text_width_px(bar.GetAnnotationTextProperty(), text, dpi)
+                      for text in (*annotations, *left_marks)), default=0)
+    right_words = max((text_width_px(bar.GetLabelTextProperty(), text, dpi) for text in (*labels, *right_marks)),
+                      default=0)
+    strip = math.ceil(bar.GetBarRatio() * BAR_FRAME_PX)
+    # Each side's reach from the frame's left edge, pixels.
+    reach_right = max(BAR_FRAME_PX / 2 + title / 2, 1 + strip + (LABEL_LEAD_PX + right_words if right_words else 0))
+    reach_left = min(BAR_FRAME_PX / 2 - title / 2, -(ANNOTATION_LEAD_PX + left_words) if left_words else 0)
+    frame_left = width - LEGEND_EDGE_PX - reach_right
+    place = (frame_left / width, BAR_BOTTOM)
+    if tuple(bar.GetPosition()) != place or bar.GetWidth() != BAR_FRAME_PX / width:
+        bar.SetPosition(*place)
+        bar.SetWidth(BAR_FRAME_PX / width)
+        bar.SetHeight(BAR_HEIGHT)
+    return frame_left + reach_left
 
 
 #: The colour bars' words and marks by background: light on the dark ones; on white, where they vanished, dark.
@@ -322,6 +393,16 @@ class _View:
         self.point_size = float(min(max(pixels, 1.0), 10.0))
         self.actor.GetProperty().SetPointSize(self.point_size)
 
+    #: The titles and marks a view's colour bar may show, room kept for all of them (see :func:`place_colour_bar`).
+    LEGEND_TITLES: tuple[str, ...] = ()
+    LEGEND_LEFT_MARKS: tuple[str, ...] = ()
+    LEGEND_RIGHT_MARKS: tuple[str, ...] = ()
+
+    def place_legend(self) -> float:
+        """The colour bar at the view's right edge, whole (:func:`place_colour_bar`); its legend's left edge, px."""
+        return place_colour_bar(self.scalar_bar, self.renderer, self.LEGEND_TITLES, self.LEGEND_LEFT_MARKS,
+                                self.LEGEND_RIGHT_MARKS)
+
 
 def panorama_stretch(fov) -> float:
     """How much the pattern view stretches elevation against azimuth: 1 for a boresight pattern (true angles,
@@ -340,6 +421,18 @@ class PatternView(_View):
     A 360-degree band is drawn with its elevation stretched (:func:`panorama_stretch`) so that it fills the view's
     width at a readable height; its marks still read true degrees, and :meth:`plane_point` undoes the stretch.
     """
+
+    #: Marks room is kept for beside the strip besides the categories': a time window's ends and round times
+    #: between, and the density's counts (wider ones move the bar, and the pattern is fitted again).
+    LEGEND_LEFT_MARKS = ("999.99", "10,000")
+
+    def place_legend(self) -> float:
+        """The colour bar at the view's right edge, room kept for the titles and marks of the colourings the
+        configuration has (the rosette's arcs' names are the widest; a Risley's lasers are numbers)."""
+        colourings = pattern_colours(self.session.config)
+        titles = (*(PATTERN_UNITS[mode] for mode in colourings), "points/cell")
+        marks = (*self.LEGEND_LEFT_MARKS, *(ARC_NAMES if "arc" in colourings else ()))
+        return place_colour_bar(self.scalar_bar, self.renderer, titles, marks)
 
     def set_background(self, name: str) -> None:
         """One of :data:`BACKGROUNDS`; the reference's grey darkens on white."""
@@ -368,6 +461,7 @@ class PatternView(_View):
         )
         self.scalar_bar = add_scalar_bar(plotter, PATTERN_UNITS[session.display.pattern_colour], self.actor.mapper)
         colour_bar_text(self.scalar_bar, self.background_name)
+        self._legend_left = self.place_legend()
         self._density_grid = None
         self.density_actor = None
         self._guides_fov = None
@@ -580,14 +674,21 @@ class PatternView(_View):
         aspect = max(pixels_w, 1) / max(pixels_h, 1)
         top = min(0.3, TEXT_BAND_PX / max(pixels_h, 1))
         rows = 1.02 * (NAME_BELOW_PX + NAME_ABOVE_PX) / max(pixels_h, 1)
-        visible = max(height / max(1.0 - top - rows, 0.05), 1.05 * width / (aspect * PATTERN_USABLE_WIDTH))
+        visible = max(height / max(1.0 - top - rows, 0.05), 1.05 * width / (aspect * self._usable_width()))
         per_pixel = 1.02 * visible / max(pixels_h, 1)  # degrees
         return (x0 - 0.02 * width, x1 + 0.03 * width, y0 - NAME_BELOW_PX * per_pixel,
                 y1 + NAME_ABOVE_PX * per_pixel)
 
+    def _usable_width(self) -> float:
+        """The share of the view's width left of the colour bar's legend, less a gap (at least
+        :data:`PATTERN_LEAST_WIDTH`)."""
+        width = max(self.renderer.GetSize()[0], 1)
+        return min(max((self._legend_left - LEGEND_GAP_PX) / width, PATTERN_LEAST_WIDTH), 1.0)
+
     def reset_camera(self) -> None:
         """Look straight at the pattern plane, orthographic, everything drawn (the reference too) in the view, with
-        the colour bar's strip on the right and the text's lines at the top kept free."""
+        the colour bar's legend on the right and the text's lines at the top kept free."""
+        self._legend_left = self.place_legend()
         x0, x1, y0, y1 = self.drawn_bounds()
         width, height = self.renderer.GetSize()
         aspect = max(width, 1) / max(height, 1)
@@ -604,12 +705,12 @@ class PatternView(_View):
 
     def _fitted_height(self) -> tuple[float, float, float]:
         """``(visible, usable, top)``: the height of the plane :meth:`reset_camera` shows (degrees, before its 2 %
-        margin), and the shares of the view's width and height left for it by the colour bar's strip (the right
-        22 %) and the text's lines at the top (about 80 px)."""
+        margin), and the shares of the view's width and height left for it by the colour bar's legend (measured:
+        :meth:`place_legend`) and the text's lines at the top (about 80 px)."""
         x0, x1, y0, y1 = self.drawn_bounds()
         width, height = self.renderer.GetSize()
         aspect = max(width, 1) / max(height, 1)
-        usable = PATTERN_USABLE_WIDTH
+        usable = self._usable_width()
         top = min(0.3, TEXT_BAND_PX / max(height, 1))
         return max((y1 - y0) / (1 - top), (x1 - x0) / (aspect * usable)), usable, top
 
@@ -679,6 +780,8 @@ class PatternView(_View):
         update_ring_polydata(self.reference_poly, self._reference_ring)
         self.reference_actor.SetVisibility(overlay.source is not None and overlay.visible)
         self.scalar_bar.SetTitle("points/cell" if density else PATTERN_UNITS[self.session.display.pattern_colour])
+        if self.place_legend() != self._legend_left:  # marks wider than the room kept: fit the pattern again
+            self.reset_camera()
 
 
 def count_marks(top: float) -> dict[float, str]:
@@ -832,6 +935,9 @@ class SceneView(_View):
     """
 
     background_name = "gradient"
+    LEGEND_TITLES = tuple(SCENE_UNITS.values())
+    LEGEND_LEFT_MARKS = (*REFLECTIVITY_MARKS.values(), *TAG_CLASSES, "9999.99")
+    LEGEND_RIGHT_MARKS = ("-888.8",)
 
     def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int] = (0, 0)) -> None:
         super().__init__(plotter, session, subplot)
@@ -851,6 +957,7 @@ class SceneView(_View):
         self.actor.user_matrix = NED_TO_DISPLAY
         self.scalar_bar = add_scalar_bar(plotter, SCENE_UNITS[session.display.scene_colour], self.actor.mapper)
         colour_bar_text(self.scalar_bar, self.background_name)
+        self.place_legend()
         self.grid_actor = None
         self.axes_actor = None
         #: The cloud opened from a file (File > Open cloud), drawn beside the scan's; its name and points, or None.
@@ -1179,3 +1286,4 @@ class SceneView(_View):
         self._colour()
         update_ring_polydata(self.poly, self._ring, self.stride())
         self.scalar_bar.SetTitle(SCENE_UNITS[self.session.display.scene_colour])
+        self.place_legend()
