@@ -643,15 +643,46 @@ def test_the_grid_marks_and_colour_bars_read_on_every_background(app: LivoxVizAp
     assert app.pattern_view.guide_labels == ["10°", "20°", "30°"]
     # The colour bars' words too: light grey, "points/cell" vanished on white; and each on its patch, whatever is
     # drawn under it (bare, the return/tag legend's words were faint over the grey buildings and the cloud).
+    app.scene_view.show_axes(True)
     for view in (app.pattern_view, app.scene_view):
         view.set_background(background)
         bar = view.scalar_bar
-        for words in (bar.GetTitleTextProperty(), bar.GetLabelTextProperty(), bar.GetAnnotationTextProperty()):
+        words_shown = [bar.GetTitleTextProperty(), bar.GetLabelTextProperty(), bar.GetAnnotationTextProperty()]
+        if view is app.scene_view:
+            words_shown += [name.GetTextProperty() for name in view.trihedron.names]
+        for words in words_shown:
             assert _contrast(words.GetColor(), patch) >= 4.5, (background, words.GetColor())
             opacity, backing = words.GetBackgroundOpacity(), words.GetBackgroundColor()
             for under in ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)):
                 behind = [opacity * b + (1 - opacity) * u for b, u in zip(backing, under, strict=True)]
                 assert _contrast(words.GetColor(), behind) >= 4.5, (background, under, opacity)
+
+
+def test_the_scene_s_axes_are_named_in_the_corner_apart_from_every_camera(app: LivoxVizApp) -> None:
+    """From the side camera the world axes' X, Y and Z merged into one blob (a first-use trial): VTK named the 5 m
+    axes at their tips, a few pixels apart when seen from far off or end on. The axes at the origin are now
+    unnamed, and the corner's axes, a fixed size, name theirs at least TRIHEDRON_NAMES_APART_PX apart, inside the
+    view, whichever way each camera looks; their tips turn with the camera."""
+    from itertools import combinations
+
+    from livox_viz.widgets.views import CAMERA_PRESETS, TRIHEDRON_NAMES_APART_PX
+
+    view = app.scene_view
+    view.show_axes(True)
+    assert view.axes_actor.GetAxisLabels() == 0
+    width, height = view.renderer.GetSize()
+    seen = set()
+    for camera in CAMERA_PRESETS:
+        app.set_scene_camera(camera)
+        app.render(every=True)
+        names = view.trihedron.name_positions()
+        for first, second in combinations(range(3), 2):
+            assert np.hypot(*(names[first] - names[second])) >= TRIHEDRON_NAMES_APART_PX - 1, (camera, names)
+        assert np.all(names > 8) and np.all(names < (width - 8, height - 8)), (camera, names)
+        seen.add(tuple(np.round(names.ravel())))
+    assert len(seen) == len(CAMERA_PRESETS)  # they turn with the camera
+    view.show_axes(False)
+    assert view.trihedron is None and view.axes_actor is None
 
 
 def test_charts_follow_the_parameters_and_the_reference(app: LivoxVizApp) -> None:

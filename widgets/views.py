@@ -13,7 +13,9 @@ import math
 
 import numpy as np
 import pyvista as pv
-from vtkmodules.vtkRenderingCore import vtkTextRenderer
+from vtkmodules.vtkCommonCore import vtkPoints, vtkUnsignedCharArray
+from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+from vtkmodules.vtkRenderingCore import vtkActor2D, vtkPolyDataMapper2D, vtkTextActor, vtkTextRenderer
 
 from livox_viz.core.rotations import FRD_TO_FLU
 
@@ -925,6 +927,128 @@ SIDE_MARGIN = 0.85
 SIDE_NEAREST_M = 8.0
 
 
+#: The display frame's axes (x north, y west, z up): their names and colours (x red, y green, z blue, as VTK and
+#: RViz draw them), in the scene and in the corner.
+AXES_NAMES = ("N", "W", "up")
+AXES_COLOURS = ("#e8574f", "#4fc46b", "#4f9bf0")
+#: The corner axes: each axis's length and the corner's margin, pixels; how far apart their names stay.
+TRIHEDRON_LENGTH_PX = 34
+TRIHEDRON_MARGIN_PX = 16
+TRIHEDRON_NAMES_APART_PX = 18
+
+
+class Trihedron:
+    """The display frame's axes in the lower left corner of a 3-D view, a fixed size in pixels, turned as the
+    camera turns and each named at its tip, as ParaView's orientation axes and CloudCompare's trihedron are.
+
+    The axes drawn at the world's origin, 5 m long, named by VTK at their tips, were one blob of letters from the
+    side camera, far off (a first-use trial): there the axes have no names, and these have them, kept
+    :data:`TRIHEDRON_NAMES_APART_PX` apart however the camera looks. Two-dimensional actors of the view's own
+    renderer, brought up to date before each render: the same in the window and off-screen.
+
+    Parameters
+    ----------
+    renderer : vtkRenderer
+    text_colour : str
+        The names' colour (the colour bar's words' on the view's background).
+    backing : str
+        The colour of the patch behind each name.
+    """
+
+    def __init__(self, renderer, text_colour: str, backing: str) -> None:
+        self.renderer = renderer
+        self._points = vtkPoints()
+        self._points.SetNumberOfPoints(4)
+        lines = vtkCellArray()
+        for k in range(3):
+            lines.InsertNextCell(2)
+            lines.InsertCellPoint(0)
+            lines.InsertCellPoint(k + 1)
+        colours = vtkUnsignedCharArray()
+        colours.SetNumberOfComponents(3)
+        for colour in AXES_COLOURS:
+            colours.InsertNextTuple3(*pv.Color(colour).int_rgb)
+        self._poly = vtkPolyData()
+        self._poly.SetPoints(self._points)
+        self._poly.SetLines(lines)
+        self._poly.GetCellData().SetScalars(colours)
+        mapper = vtkPolyDataMapper2D()
+        mapper.SetInputData(self._poly)
+        mapper.SetColorModeToDirectScalars()
+        mapper.SetScalarModeToUseCellData()
+        self.lines = vtkActor2D()
+        self.lines.SetMapper(mapper)
+        self.lines.GetProperty().SetLineWidth(3)
+        self.names = []
+        for name in AXES_NAMES:
+            actor = vtkTextActor()
+            actor.SetInput(name)
+            words = actor.GetTextProperty()
+            words.SetFontSize(13)
+            words.BoldOn()
+            words.SetJustificationToCentered()
+            words.SetVerticalJustificationToCentered()
+            self.names.append(actor)
+        self.set_colours(text_colour, backing)
+        for actor in (self.lines, *self.names):
+            renderer.AddViewProp(actor)
+        self._observer = renderer.AddObserver("StartEvent", lambda *_: self.update())
+        self.update()
+
+    def set_colours(self, text_colour: str, backing: str) -> None:
+        """The names' colour and their patches' (for the view's background)."""
+        for actor in self.names:
+            words = actor.GetTextProperty()
+            words.SetColor(pv.Color(text_colour).float_rgb)
+            words.SetBackgroundColor(pv.Color(backing).float_rgb)
+            words.SetBackgroundOpacity(BAR_TEXT_BACKING_OPACITY)
+
+    def name_positions(self) -> np.ndarray:
+        """Where each axis's name is drawn (its middle), VTK's display pixels of the view: (3, 2)."""
+        x0, y0 = self.renderer.GetOrigin()
+        return np.array([actor.GetPosition() for actor in self.names]) + np.array([x0, y0])
+
+    def update(self) -> None:
+        """Turn the axes as the camera looks now; each name beyond its axis's tip, apart from the others."""
+        view = pv.array_from_vtkmatrix(self.renderer.GetActiveCamera().GetViewTransformMatrix())
+        screen = view[:2, :3].T  # each axis's direction on the screen: (right, up) per axis, length <= 1
+        origin = np.full(2, TRIHEDRON_MARGIN_PX + TRIHEDRON_LENGTH_PX + 8.0)
+        tips = origin + TRIHEDRON_LENGTH_PX * screen
+        self._points.SetPoint(0, *origin, 0.0)
+        for k in range(3):
+            self._points.SetPoint(k + 1, *tips[k], 0.0)
+        self._points.Modified()
+        self._poly.Modified()
+        reach = np.linalg.norm(screen, axis=1)
+        away = np.where(reach[:, None] > 0.2, screen / np.maximum(reach, 1e-9)[:, None], (-0.7, -0.7))
+        names = origin + (TRIHEDRON_LENGTH_PX * reach + 10.0)[:, None] * away
+        # An axis seen end on lies over the middle, and two seen along one line of sight over each other: pushed
+        # apart until every two names stand clear.
+        for _ in range(20):
+            moved = False
+            for i in range(3):
+                for j in range(i + 1, 3):
+                    gap = names[j] - names[i]
+                    apart = float(np.hypot(*gap))
+                    if apart >= TRIHEDRON_NAMES_APART_PX:
+                        continue
+                    step = gap / apart if apart > 1e-6 else np.array([1.0, 0.0])
+                    push = (TRIHEDRON_NAMES_APART_PX - apart) / 2 + 0.5
+                    names[i] -= push * step
+                    names[j] += push * step
+                    moved = True
+            if not moved:
+                break
+        for actor, (x, y) in zip(self.names, names, strict=True):
+            actor.SetPosition(float(x), float(y))
+
+    def remove(self) -> None:
+        """Take the axes out of the view."""
+        self.renderer.RemoveObserver(self._observer)
+        for actor in (self.lines, *self.names):
+            self.renderer.RemoveViewProp(actor)
+
+
 class SceneView(_View):
     """The 3D scene (z up on screen), the vehicle, the sensor with its FOV wire, and the decoded cloud.
 
@@ -960,6 +1084,7 @@ class SceneView(_View):
         self.place_legend()
         self.grid_actor = None
         self.axes_actor = None
+        self.trihedron: Trihedron | None = None
         #: The cloud opened from a file (File > Open cloud), drawn beside the scan's; its name and points, or None.
         self.opened_actor = None
         self.opened: tuple[str, int] | None = None
@@ -1009,14 +1134,32 @@ class SceneView(_View):
         self.grid_actor.user_matrix = NED_TO_DISPLAY
 
     def show_axes(self, shown: bool) -> None:
-        """The world's axes at its origin, 5 m long, in the display's frame (x north, y west, z up)."""
+        """The world's axes at its origin, 5 m long, in the display's frame (x north, y west, z up), unnamed, and
+        named in the corner (:class:`Trihedron`)."""
         self.plotter.subplot(*self.subplot)
         if self.axes_actor is not None:
             self.plotter.remove_actor(self.axes_actor, render=False)
             self.axes_actor = None
+        if self.trihedron is not None:
+            self.trihedron.remove()
+            self.trihedron = None
         if shown:
-            self.axes_actor = self.plotter.add_axes_at_origin(labels_off=False, line_width=3)
+            x_colour, y_colour, z_colour = AXES_COLOURS
+            self.axes_actor = self.plotter.add_axes_at_origin(labels_off=True, line_width=3, x_color=x_colour,
+                                                              y_color=y_colour, z_color=z_colour)
             self.axes_actor.SetTotalLength(5.0, 5.0, 5.0)
+            self.trihedron = Trihedron(self.renderer, *self._words_colours())
+
+    def _words_colours(self) -> tuple[str, str]:
+        """The colour of words drawn over the view (the colour bar's) and of the patch behind them."""
+        name = self.background_name
+        return BAR_TEXT_COLOURS["white" if name == "white" else "dark"], BACKGROUNDS[name][0]
+
+    def set_background(self, name: str) -> None:
+        """One of :data:`BACKGROUNDS`; the corner axes' names follow it."""
+        super().set_background(name)
+        if self.trihedron is not None:
+            self.trihedron.set_colours(*self._words_colours())
 
     def show_opened_cloud(self, points_ned: np.ndarray | None, name: str = "") -> None:
         """Draw a cloud opened from a file beside the scan's, static, in :data:`OPENED_CLOUD_COLOUR`; None removes
