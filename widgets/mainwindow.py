@@ -1168,8 +1168,10 @@ class MainWindow(QtWidgets.QMainWindow):
         text = f" scan time {value / 1000 * self._played:8.3f} s "
         self.scrub_label.setText(text)
         handle = self.scrubber.handle_rect()
-        QtWidgets.QToolTip.showText(self.scrubber.mapToGlobal(QtCore.QPoint(handle.center().x(), handle.top())),
-                                    f"t = {value / 1000 * self._played:.3f} s", self.scrubber)
+        # Above the handle (Qt puts a tip below the point it is given): below, it covered the status bar's clock.
+        above = QtCore.QPoint(handle.center().x(), handle.top() - 2 * handle.height() - 8)
+        QtWidgets.QToolTip.showText(self.scrubber.mapToGlobal(above), f"t = {value / 1000 * self._played:.3f} s",
+                                    self.scrubber)
 
     def _scrubbed(self) -> None:
         QtWidgets.QToolTip.hideText()
