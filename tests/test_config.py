@@ -232,3 +232,19 @@ def test_a_refusal_names_the_parameter_as_the_panel_does() -> None:
             continue
         shown = re.sub(r"^\[\d+\] ", "", param_doc(name).title)
         assert spec.label.split(",")[0] == shown, (name, spec.label, shown)
+
+
+def test_a_tooltip_names_the_parameter_its_title_names() -> None:
+    """The panel's "[1] petal height h" had the tooltip "Half-width of a petal at its middle": a first-use trial
+    (issue 45) could not tell whether they were one parameter. A tooltip of RflySim's fields names the symbol its
+    title ends in, and the petal height's says what the height is and how it relates to the width."""
+    import re
+
+    from livox_viz.config.param_docs import describe, param_doc
+
+    for name, spec in PARAM_RANGES.items():
+        symbol = param_doc(name).title.split()[-1]
+        if spec.name.startswith(("otherParams", "Data")) and len(symbol) <= 2:
+            assert re.search(rf"(?<!\w){re.escape(symbol)}(?!\w)", param_doc(name).help), (name, symbol)
+    first = describe("petal_height").split(". ")[0]
+    assert first.startswith("Petal height h") and "half the petal's width" in first

@@ -694,12 +694,48 @@ def test_the_grid_marks_and_colour_bars_read_on_every_background(app: LivoxVizAp
     text = placer.GetInputAlgorithm().GetTextProperty().GetColor()
     assert _contrast(text, patch) >= 4.5, (background, text, patch)
     assert app.pattern_view.guide_labels == ["10°", "20°", "30°"]
-    # The colour bars' words too: light grey, "points/cell" vanished on white.
+    # The colour bars' words too: light grey, "points/cell" vanished on white; and each on its patch, whatever is
+    # drawn under it (bare, the return/tag legend's words were faint over the grey buildings and the cloud).
+    app.scene_view.show_axes(True)
     for view in (app.pattern_view, app.scene_view):
         view.set_background(background)
         bar = view.scalar_bar
-        for words in (bar.GetTitleTextProperty(), bar.GetLabelTextProperty(), bar.GetAnnotationTextProperty()):
+        words_shown = [bar.GetTitleTextProperty(), bar.GetLabelTextProperty(), bar.GetAnnotationTextProperty()]
+        if view is app.scene_view:
+            words_shown += [name.GetTextProperty() for name in view.trihedron.names]
+        for words in words_shown:
             assert _contrast(words.GetColor(), patch) >= 4.5, (background, words.GetColor())
+            opacity, backing = words.GetBackgroundOpacity(), words.GetBackgroundColor()
+            for under in ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)):
+                behind = [opacity * b + (1 - opacity) * u for b, u in zip(backing, under, strict=True)]
+                assert _contrast(words.GetColor(), behind) >= 4.5, (background, under, opacity)
+
+
+def test_the_scene_s_axes_are_named_in_the_corner_apart_from_every_camera(app: LivoxVizApp) -> None:
+    """From the side camera the world axes' X, Y and Z merged into one blob (a first-use trial): VTK named the 5 m
+    axes at their tips, a few pixels apart when seen from far off or end on. The axes at the origin are now
+    unnamed, and the corner's axes, a fixed size, name theirs at least TRIHEDRON_NAMES_APART_PX apart, inside the
+    view, whichever way each camera looks; their tips turn with the camera."""
+    from itertools import combinations
+
+    from livox_viz.widgets.views import CAMERA_PRESETS, TRIHEDRON_NAMES_APART_PX
+
+    view = app.scene_view
+    view.show_axes(True)
+    assert view.axes_actor.GetAxisLabels() == 0
+    width, height = view.renderer.GetSize()
+    seen = set()
+    for camera in CAMERA_PRESETS:
+        app.set_scene_camera(camera)
+        app.render(every=True)
+        names = view.trihedron.name_positions()
+        for first, second in combinations(range(3), 2):
+            assert np.hypot(*(names[first] - names[second])) >= TRIHEDRON_NAMES_APART_PX - 1, (camera, names)
+        assert np.all(names > 8) and np.all(names < (width - 8, height - 8)), (camera, names)
+        seen.add(tuple(np.round(names.ravel())))
+    assert len(seen) == len(CAMERA_PRESETS)  # they turn with the camera
+    view.show_axes(False)
+    assert view.trihedron is None and view.axes_actor is None
 
 
 def test_charts_follow_the_parameters_and_the_reference(app: LivoxVizApp) -> None:
@@ -892,6 +928,62 @@ def test_a_scene_pick_returns_the_values_stored_for_the_point_and_two_picks_thei
     session.restart()
     app.refresh()
     assert app.pick_scene(x, y) is None and "no point" in app.pick_text
+
+
+def test_a_click_picks_a_point_drawn_within_a_few_pixels_or_says_none_is_there(app: LivoxVizApp) -> None:
+    """A first-use trial's click on empty sky picked a point 230 px away (VTK's point picker took its tolerance as
+    a length at the focal plane), and a click outside the pattern named its nearest sample however far. Over a
+    grid of clicks on each view (the scene from behind and from the top), and 3 px beside drawn points: a point
+    drawn within the tolerance is picked, as near as the nearest drawn; farther, none is, and the status says so."""
+    from livox_viz.widgets.app import PICK_TOLERANCE_PX
+    from livox_viz.widgets.views import display_points
+
+    session = app.session
+    session.advance_to(0.3)
+    app.refresh()
+    rng = np.random.default_rng(3)
+
+    def clicks(renderer, drawn: np.ndarray, pick) -> list[bool]:
+        width, height = renderer.GetSize()
+        grid = [(x, y) for x in range(4, width, 23) for y in range(4, height, 23)]
+        beside = [tuple(drawn[k] + (3.0, 0.0)) for k in rng.choice(len(drawn), 10, replace=False)]
+        picked = []
+        for x, y in grid + beside:
+            nearest = np.hypot(*(drawn - (x, y)).T).min()
+            found = pick(x, y)
+            if nearest > PICK_TOLERANCE_PX + 0.5:
+                assert found is None and app.pick_text.startswith("no point under the cursor"), (x, y, nearest)
+            elif nearest < PICK_TOLERANCE_PX - 0.5:
+                assert found is not None, (x, y, nearest)
+            picked.append(found is not None)
+        return picked
+
+    for camera in ("behind", "top"):
+        app.set_scene_camera(camera)
+        app.render(every=True)
+        view = app.scene_view
+        slots = pv.convert_array(view.poly.GetVerts().GetConnectivityArray())
+        points = session.scene_ring.positions[slots].astype(float) * [1, -1, -1]  # NED to the display's z up
+        drawn, shown = display_points(view.renderer, points)
+        sample = rng.choice(len(points), 50, replace=False)  # where VTK itself draws them
+        np.testing.assert_allclose(drawn[sample], [on_screen(view.renderer, points[k])[:2] for k in sample],
+                                   atol=1e-6)
+        drawn = drawn[shown]
+
+        def pick(x, y, drawn=drawn):
+            found = app.pick_scene(x, y)
+            if found is not None:  # as near as the nearest drawn point
+                here = on_screen(app.scene_view.renderer, np.asarray(found["xyz_world"]) * [1, -1, -1])[:2]
+                assert math.hypot(here[0] - x, here[1] - y) <= np.hypot(*(drawn - (x, y)).T).min() + 1.0
+            return found
+
+        picked = clicks(view.renderer, drawn, pick)
+        assert any(picked) and not all(picked), camera
+    ring = session.pattern_ring
+    live = ring.positions[ring.live_slots()].astype(float)
+    drawn, _ = display_points(app.pattern_view.renderer, np.column_stack([live[:, :2], np.zeros(len(live))]))
+    picked = clicks(app.pattern_view.renderer, drawn, app.pick_pattern)
+    assert any(picked) and not all(picked)
 
 
 def test_a_pattern_pick_gives_the_angles_and_time_of_the_nearest_sample(app: LivoxVizApp) -> None:

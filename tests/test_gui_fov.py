@@ -141,30 +141,78 @@ def drawn_rect(renderer, bounds: tuple[float, ...]) -> tuple[float, float, float
     return min(xs), max(xs), min(ys), max(ys)
 
 
-def label_rects(app: LivoxVizApp) -> dict[str, tuple[int, int, int, int]]:
-    """The axes' names as drawn: the pattern view rendered with nothing but one name at a time, the box ``(left,
-    right, top, bottom)`` of its lit pixels, by the actor's name."""
-    plotter = app.pattern_view.plotter
-    renderer = app.pattern_view.renderer
+def lit_rect(view, actor) -> tuple[int, int, int, int]:
+    """``(left, right, top, bottom)`` pixels (rows down from the top) of what ``actor`` draws in ``view``: the view
+    rendered with nothing else shown, on its plain background."""
+    renderer = view.renderer
     props = renderer.GetViewProps()
     everything = [props.GetItemAsObject(k) for k in range(props.GetNumberOfItems())]
     shown = [prop for prop in everything if prop.GetVisibility()]
-    names = {name: actor for name, actor in plotter.actors.items() if name.startswith("axis-label")}
-    assert len(names) == 2
-    rects = {}
     try:
-        for name, actor in names.items():
-            for prop in everything:
-                prop.SetVisibility(prop is actor)
-            plotter.render()
-            image = np.asarray(plotter.screenshot(return_img=True)).astype(int)
-            rows, cols = np.nonzero(np.abs(image - image[0, 0]).sum(axis=2) > 60)
-            assert rows.size, f"{name} is not drawn"
-            rects[name] = (cols.min(), cols.max(), rows.min(), rows.max())
+        for prop in everything:
+            prop.SetVisibility(prop is actor)
+        view.plotter.render()
+        image = np.asarray(view.plotter.screenshot(return_img=True)).astype(int)
     finally:
         for prop in shown:
             prop.SetVisibility(True)
-    return rects
+    rows, cols = np.nonzero(np.abs(image - image[0, 0]).sum(axis=2) > 60)
+    assert rows.size, "nothing is drawn"
+    return cols.min(), cols.max(), rows.min(), rows.max()
+
+
+def label_rects(app: LivoxVizApp) -> dict[str, tuple[int, int, int, int]]:
+    """The axes' names as drawn: the pattern view rendered with nothing but one name at a time, the box ``(left,
+    right, top, bottom)`` of its lit pixels, by the actor's name."""
+    names = {name: actor for name, actor in app.pattern_view.plotter.actors.items() if name.startswith("axis-label")}
+    assert len(names) == 2
+    return {name: lit_rect(app.pattern_view, actor) for name, actor in names.items()}
+
+
+@pytest.mark.parametrize("size", [(240, 560), (352, 656)])
+def test_each_colour_bar_is_whole_in_its_view_and_clear_of_the_pattern(urban, tmp_path: Path, size) -> None:
+    """A first-use trial saw the figure-8 legend over the pattern, and the return/tag legend's title cut at the
+    view's edge: the bar sat at a share of the width, its words reaching past it. Drawn, each legend (title, strip,
+    marks) lies inside its view, and the pattern view's clear of the field of view, for every colouring of the
+    rosette and of a panorama, at the pattern view's width in an 1100 and a 1280 window; the scene view's whole
+    for every scene colouring at the scene view's narrowest."""
+    from livox_viz.widgets.app import offscreen_plotter
+    from livox_viz.widgets.session import SCENE_COLOURS, pattern_colours
+
+    for preset in ("livox_mid70", "livox_mid360"):
+        session = Session(load_preset(preset), urban, seed=0, preset_name=preset)
+        app = LivoxVizApp(session, views="pattern", plotters={"pattern": offscreen_plotter(size)},
+                          screenshot_dir=tmp_path / "shots")
+        try:
+            view = app.pattern_view
+            session.advance_to(0.3)
+            for mode in (*pattern_colours(session.config), "density"):
+                if mode == "density":
+                    session.display.drawing = "density"
+                else:
+                    app.set_pattern_colour(mode)
+                app.refresh()
+                view.reset_camera()
+                left, right, top, bottom = drawn_rect(view.renderer, view.plotter.actors["fov-outline"].GetBounds())
+                x0, x1, y0, y1 = lit_rect(view, view.scalar_bar)
+                assert 0 < x0 and x1 < size[0] - 1 and 0 < y0 and y1 < size[1] - 1, (preset, mode, (x0, x1, y0, y1))
+                assert x0 > right or y1 < top or y0 > bottom, (preset, mode, (x0, x1, y0, y1), (left, right))
+        finally:
+            app.close()
+    session = Session(load_preset("livox_mid70").with_returns_model("datasheet"), urban, seed=0)
+    scene_size = (240, size[1])
+    app = LivoxVizApp(session, views="scene", plotters={"scene": offscreen_plotter(scene_size)},
+                      screenshot_dir=tmp_path / "shots")
+    try:
+        session.advance_to(0.3)
+        app.scene_view.set_background("black")  # plain, for the lit pixels
+        for mode in SCENE_COLOURS:
+            app.set_scene_colour(mode)
+            app.refresh()
+            x0, x1, y0, y1 = lit_rect(app.scene_view, app.scene_view.scalar_bar)
+            assert 0 < x0 and x1 < scene_size[0] - 1 and 0 < y0 and y1 < scene_size[1] - 1, (mode, (x0, x1))
+    finally:
+        app.close()
 
 
 @pytest.mark.parametrize("size", [(352, 656), (496, 836), (900, 480)])

@@ -297,6 +297,8 @@ def test_every_menu_action_runs(window, qtbot, user_presets: Path, monkeypatch: 
     monkeypatch.setenv("LIVOX_VIZ_VIEWPOINTS", str(user_presets.parent / "viewpoints"))
     skipped = {"Quit", "Fit the rosette to the reference"}
     ran = []
+    session = window.controller.session
+    typed = []
 
     def walk(menu) -> None:
         menu.aboutToShow.emit()
@@ -307,12 +309,13 @@ def test_every_menu_action_runs(window, qtbot, user_presets: Path, monkeypatch: 
                 action.trigger()
                 window.tick()
                 ran.append(action.text())
+                if action.text() == "Type a window...":
+                    typed.append(session.window)
 
     for top in window.menuBar().actions():
         walk(top.menu())
     assert len(ran) >= 60
-    session = window.controller.session
-    assert session.window == 0.25  # the typed window, from Playback > Integration window > Type
+    assert typed == [0.25]  # the typed window, from Playback > Integration window > Type
     assert window.isVisible()
 
 
@@ -520,9 +523,11 @@ def test_the_filters_dialog_applies_refuses_in_one_line_and_clears(window, qtbot
 
 def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot) -> None:
     """The menus named no key (a first-use trial): an entry whose action has a key in the key table shows it at
-    its right as Qt does, and the key, pressed in a view, still runs its action once (Up doubles the speed once,
-    h opens the help and leaves it open)."""
+    its right as Qt does, every key of the table is shown at some entry (c, k, g, m, u and i were at none), and
+    the key, pressed in a view, still runs its action once (Up doubles the speed once, h opens the help and leaves
+    it open). A submenu filled as it opens leaves no entries behind it in the window when it opens again."""
     from livox_viz.widgets.keys import KEYS
+    from qtpy import QtCore, QtGui
 
     def actions(menu):
         for action in menu.actions():
@@ -542,13 +547,24 @@ def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot
                 "Fit the rosette to the reference": "F", "Cloud in the world / sensor frame": "W",
                 "Screenshot (views and sidecar)": "S", "Save as user preset": "P",
                 "Reset cameras (fit everything drawn)": "R", "Keys and mouse": "H", "Quit": "Q",
-                "Next built-in scene": "M", "Switch perspective / orthographic": "5"}
+                "Next built-in scene": "M", "Switch perspective / orthographic": "5",
+                "Next pattern colouring": "C", "Next cloud colouring": "K",
+                "Next drawing": "G", "Next step unit": "U", "Next window": "I"}
     assert {text: shown.get(text) for text in expected} == expected
     # A trial found m in no menu and q only as Ctrl+Q; Ctrl+Q still quits too.
     quit_action = next(a for top in window.menuBar().actions() for a in actions(top.menu()) if a.text() == "Quit")
     assert [k.toString() for k in quit_action.shortcuts()] == ["Q", "Ctrl+Q"]
     table_keys = {key.upper() if len(key) == 1 else key.capitalize() for row in KEYS for key, _ in row.bindings}
-    assert {key for key in shown.values() if key and "+" not in key} <= table_keys
+    assert {key for key in shown.values() if key and "+" not in key} == table_keys
+
+    def opened_everywhere() -> tuple[int, int]:
+        for top in window.menuBar().actions():
+            for menu in [top.menu(), *top.menu().findChildren(type(top.menu()))]:
+                menu.aboutToShow.emit()
+        QtCore.QCoreApplication.sendPostedEvents(None, QtCore.QEvent.Type.DeferredDelete.value)
+        return len(window.findChildren(QtGui.QAction)), len(window.findChildren(QtGui.QActionGroup))
+
+    assert opened_everywhere() == opened_everywhere()
     session = window.controller.session
     press(qtbot, window, "Up")
     assert session.playback.speed == 2.0
@@ -1007,25 +1023,56 @@ def test_the_scrubber_seeks_when_paused_and_forgets_the_picks(window) -> None:
     assert window.status_message.text() != "range 12.000 m"
 
 
-def test_the_scrubber_shows_the_scan_s_end_while_playing_and_a_click_goes_there(window, qtbot) -> None:
-    """A first-use trial saw the handle at 0 while the scan played on (until the first pause), and a click in the
-    middle of the bar moved back only a page step, 1.8 s of a long scan."""
-    from qtpy import QtCore
+def test_the_scrubber_shows_the_scan_s_end_while_playing_its_time_while_dragged_and_a_click_goes_there(
+        window, qtbot) -> None:
+    """A first-use trial saw the handle at 0 while the scan played on (until the first pause), nothing change
+    while it dragged the handle, and a click in the bar move only a page step, 1.8 s of a long scan. Dragged, the
+    time shows beside the bar and in a tip over the handle, a tick keeping it; let go, the window is cast there.
+    A click on the bar puts the handle's middle under the cursor, and the scan goes to that time."""
+    from qtpy import QtCore, QtGui, QtWidgets
 
     session, controller = window.controller.session, window.controller
     session.advance_to(2.0)
     window.tick()
-    assert not session.playback.paused and window.scrubber.value() == 1000
+    slider = window.scrubber
+    assert not session.playback.paused and slider.value() == 1000
     window.run(controller.toggle_pause)
     played = window._played
-    groove = window.scrubber.rect()
-    qtbot.mouseClick(window.scrubber, QtCore.Qt.MouseButton.LeftButton,
-                     pos=QtCore.QPoint(groove.center().x(), groove.center().y()))
-    for _ in range(200):
-        if session.filling is None:
-            break
-        window.tick()
-    assert session.scan_time == pytest.approx(0.5 * played, abs=0.05 * played)
+
+    def settled() -> None:
+        for _ in range(200):
+            if session.filling is None:
+                break
+            window.tick()
+
+    def handle() -> QtCore.QRect:
+        option = QtWidgets.QStyleOptionSlider()
+        slider.initStyleOption(option)
+        return slider.style().subControlRect(QtWidgets.QStyle.ComplexControl.CC_Slider, option,
+                                             QtWidgets.QStyle.SubControl.SC_SliderHandle, slider)
+
+    left = QtCore.Qt.MouseButton.LeftButton
+    qtbot.mousePress(slider, left, pos=handle().center())
+    to = QtCore.QPoint(round(slider.width() * 0.3), slider.height() // 2)
+    move = QtGui.QMouseEvent(QtCore.QEvent.Type.MouseMove, QtCore.QPointF(to), QtCore.QPointF(slider.mapToGlobal(to)),
+                             QtCore.Qt.MouseButton.NoButton, left, QtCore.Qt.KeyboardModifier.NoModifier)
+    QtWidgets.QApplication.sendEvent(slider, move)
+    window.tick()  # a tick while the handle is held keeps its time shown
+    dragged = slider.value() / 1000 * played
+    assert 0.2 * played < dragged < 0.4 * played and session.shown_time == pytest.approx(played)
+    assert f"{dragged:8.3f} s" in window.scrub_label.text()
+    qtbot.waitUntil(QtWidgets.QToolTip.isVisible, timeout=5000)
+    assert QtWidgets.QToolTip.text() == f"t = {dragged:.3f} s"
+    qtbot.mouseRelease(slider, left, pos=to)
+    settled()
+    assert session.scan_time == pytest.approx(dragged, abs=1e-6) and not QtWidgets.QToolTip.isVisible()
+
+    x = round(slider.width() * 0.7)
+    qtbot.mouseClick(slider, left, pos=QtCore.QPoint(x, slider.height() // 2))
+    settled()
+    assert abs(handle().center().x() - x) <= 1
+    assert session.scan_time == pytest.approx(slider.value() / 1000 * played, abs=1e-6)
+    assert session.scan_time == pytest.approx(0.7 * played, abs=0.02 * played)
 
 
 @pytest.mark.parametrize("switch", ["n key", "preset menu", "x key"])
@@ -1235,8 +1282,7 @@ def test_a_click_picks_only_a_point_the_view_draws(window, qtbot) -> None:
     ring.positions[dead] = np.array([x / w, -y / w, -z / w])
     window.tick()
     found = window.controller.pick_scene(*place)
-    # (VTK's tolerance is a length at the focal plane: a drawn point near the camera may still answer.)
-    assert found is None or found["t_s"] >= cut, found
+    assert found is None and window.controller.pick_text.startswith("no point under the cursor"), found
 
 
 def test_a_slider_dragged_with_shift_moves_the_value_ten_times_slower(window, qtbot,
@@ -1312,10 +1358,12 @@ def test_a_status_message_longer_than_the_bar_is_elided_with_the_whole_in_its_to
             assert label.fontMetrics().horizontalAdvance(shown) <= room, (shown, room)
             whole = label.text()
             if shown != whole:
-                assert shown.endswith("\u2026") and whole.startswith(shown[:-1]) and label.toolTip() == whole
+                assert shown.endswith("\u2026") and whole.startswith(shown[:-1])
+                assert label.toolTip().split("\n\n")[0] == whole
             assert bar.rect().contains(widget_rect(label, bar)), label.text()
         assert window.status_message.text() == message and QtWidgets.QLabel.text(window.status_message) != message
-        assert window.status_message.toolTip() == message
+        assert window.status_message.toolTip().startswith(message + "\n\n")
+        assert "View > Messages" in window.status_message.toolTip()
         assert window.status_message.width() >= 300  # what is being prepared leaves the message room
         rects = [widget_rect(label, bar) for label in labels if label.isVisible()]
         for k, first in enumerate(rects):
@@ -1327,6 +1375,46 @@ def test_a_status_message_longer_than_the_bar_is_elided_with_the_whole_in_its_to
     finally:
         window._jobs.clear()
         window.close()
+
+
+def test_a_long_message_is_read_whole_and_copied_from_the_messages_log(window, qtbot) -> None:
+    """A long error was cut with an ellipsis, its whole only in a tooltip that could not be copied or read again
+    once the next message came (a first-use trial, issue 45). A click on the status bar's message opens the
+    messages' log (as does View > Messages): every message whole, oldest first, errors marked, in a read-only
+    box a user selects and copies from; a message said while it is open is added at the bottom."""
+    from qtpy import QtCore, QtWidgets
+
+    message = ("integration window 25 s refused; allowed: 0.01 to 10 s, or unlimited (1 M points): a window the "
+               "point budget of DataWidth x DataHeight x DataCheckFreq can hold, and this sentence goes on and on "
+               "past the end of any status bar, naming /a/deep/folder/with/a/rather/long/name/config.json")
+    window.say("scene urban")
+    window.say(message, error=True)
+    window._update_status()
+    QtWidgets.QApplication.processEvents()
+    label = window.status_message
+    assert QtWidgets.QLabel.text(label) != message  # cut in the bar
+    qtbot.mouseClick(label, QtCore.Qt.MouseButton.LeftButton, pos=label.rect().center())
+    dialog = window.messages_dialog
+    assert dialog is not None
+    qtbot.waitUntil(dialog.isVisible, timeout=5000)
+    lines = dialog.view.toPlainText().splitlines()
+    assert lines[-2].endswith("  scene urban") and lines[-1].endswith(f"  error: {message}")
+    assert dialog.view.isReadOnly()
+    assert dialog.view.textInteractionFlags() & QtCore.Qt.TextInteractionFlag.TextSelectableByMouse
+    screen = dialog.screen().availableGeometry()
+    assert screen.contains(dialog.frameGeometry()) or screen.contains(dialog.geometry())
+    dialog.view.selectAll()
+    dialog.view.copy()
+    assert message in QtWidgets.QApplication.clipboard().text()
+    qtbot.mouseClick(dialog.copy_button, QtCore.Qt.MouseButton.LeftButton)
+    assert QtWidgets.QApplication.clipboard().text() == window.messages.text()
+    window.controller.session.message = "saved /tmp/shot.png"  # as the screenshot's writer thread says it
+    window._update_status()
+    assert dialog.view.toPlainText().splitlines()[-1].endswith("  saved /tmp/shot.png")
+    dialog.hide()
+    view = next(a.menu() for a in window.menuBar().actions() if a.text() == "&View")
+    next(a for a in view.actions() if a.text().startswith("Messages")).trigger()
+    assert dialog.isVisible() and message in dialog.view.toPlainText()
 
 
 def test_a_short_status_text_is_shown_whole_when_the_bar_has_room(window) -> None:
@@ -1716,7 +1804,9 @@ def test_the_window_gives_none_back_what_a_leaky_binding_took(window, monkeypatc
         window.tick()
         lowest = min(lowest, sys.getrefcount(None))
     window.tick()
-    assert window.none_reserve.given >= 400 * 50
+    # All the binding took, less the few references to None the process itself keeps from now on (one, when a test
+    # before had opened the keys' dialog: given was 19,999 in a full run, on main as on this branch).
+    assert window.none_reserve.given >= 400 * 50 - 10
     assert lowest >= window.none_reserve.floor - 200, (lowest, window.none_reserve.floor)
 
 

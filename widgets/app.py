@@ -37,11 +37,16 @@ from .hud import HeadsUp
 from .overlay import WINDOWS, PresetSource, TableSource
 from .playback import next_choice
 from .session import CLOUD_FRAMES, DRAWINGS, SCENE_COLOURS, Session, pattern_colours, step_units
-from .views import BACKGROUNDS, CAMERA_PRESETS, PatternView, SceneView
+from .views import BACKGROUNDS, CAMERA_PRESETS, PatternView, SceneView, display_points
 
 #: The parts of a window, left to right, and their share of its width in an off-screen picture of all of them.
 VIEW_NAMES: tuple[str, ...] = ("pattern", "scene", "charts")
 VIEW_WEIGHTS: dict[str, int] = {"pattern": 5, "scene": 4, "charts": 3}
+#: Pixels a click may be from a drawn point and still pick it, measured on the screen (as CloudCompare's point
+#: picking does): VTK's point picker measured at the focal plane, and a click on empty sky picked a point 230 px off.
+PICK_TOLERANCE_PX = 5.0
+#: What a click that picks nothing says.
+NOTHING_PICKED = f"no point under the cursor (a click picks a point drawn within {PICK_TOLERANCE_PX:g} px of it)"
 #: The pages of the parameter panel: the pattern model's parameters or the return model's.
 PANEL_PAGES: tuple[str, ...] = ("pattern", "returns")
 
@@ -583,19 +588,11 @@ class LivoxVizApp:
         bottom left), or None; a second pick also gives the distance between the two (:attr:`pick_text`)."""
         if self.scene_view is None:
             return None
-        from vtkmodules.vtkRenderingCore import vtkPointPicker
-
-        picker = vtkPointPicker()
-        picker.SetTolerance(0.008)
-        # Only points the vertex cells draw: the view's point list is the whole ring, dropped slots (the time
-        # window) and those the level of detail leaves out included, and those must not answer a click.
-        picker.UseCellsOn()
-        picker.PickFromListOn()
-        picker.AddPickList(self.scene_view.actor)
-        if not picker.Pick(x_px, y_px, 0.0, self.scene_view.renderer) or picker.GetPointId() < 0:
-            self.pick_text = "no point of the cloud there"
+        slot = self.scene_view.drawn_point_at(x_px, y_px, PICK_TOLERANCE_PX)
+        if slot is None:
+            self.pick_text = NOTHING_PICKED
             return None
-        found = self.session.scene_point(int(picker.GetPointId()))
+        found = self.session.scene_point(slot)
         self._picks_scan = self.session.scan_number
         self.picks = [*self.picks[-1:], found]
         text = (f"range {found['range_m']:.3f} m, azimuth {found['azimuth_deg']:.2f} deg, elevation "
@@ -610,17 +607,24 @@ class LivoxVizApp:
         return found
 
     def pick_pattern(self, x_px: float, y_px: float) -> dict[str, float] | None:
-        """The pattern's sample nearest to the display position ``(x_px, y_px)`` of the pattern view, or None."""
+        """The pattern's sample nearest to the display position ``(x_px, y_px)`` of the pattern view, or None when
+        none is drawn within :data:`PICK_TOLERANCE_PX` of it (a click outside the pattern named its nearest sample,
+        however far)."""
         if self.pattern_view is None:
             return None
-        renderer = self.pattern_view.renderer
+        view = self.pattern_view
+        renderer = view.renderer
         renderer.SetDisplayPoint(x_px, y_px, 0.0)
         renderer.DisplayToWorld()
         world = renderer.GetWorldPoint()
-        x_deg, y_deg = self.pattern_view.plane_point((world[0] / world[3], world[1] / world[3], 0.0))
-        found = self.session.nearest_pattern_point(x_deg, y_deg)
+        x_deg, y_deg = view.plane_point((world[0] / world[3], world[1] / world[3], 0.0))
+        found = self.session.nearest_pattern_point(x_deg, y_deg, y_scale=view.stretch)
+        if found is not None:
+            xy, _ = display_points(renderer, np.array([[found["x_deg"], found["y_deg"] * view.stretch, 0.0]]))
+            if math.hypot(xy[0, 0] - x_px, xy[0, 1] - y_px) > PICK_TOLERANCE_PX:
+                found = None
         if found is None:
-            self.pick_text = "no pattern point in the window"
+            self.pick_text = NOTHING_PICKED
             return None
         self.pick_text = (f"pattern point x {found['x_deg']:.3f} deg, y {found['y_deg']:.3f} deg, t "
                           f"{found['t_s']:.5f} s, sample {found['index']:,}")

@@ -81,7 +81,7 @@ MOUSE: tuple[tuple[str, str], ...] = (
     ("wheel / right drag", "zoom"),
     ("click a point (scene)", "its range, azimuth and elevation, reflectivity, tag, return number, time and frame "
                               "in the status bar; a second click also gives the distance between the two"),
-    ("click (pattern)", "the angles and the time of the nearest sample"),
+    ("click (pattern)", "the angles and the time of the sample under the cursor (within 5 px)"),
 )
 
 

@@ -49,6 +49,7 @@ from .filter_dialog import FilterDialog
 from .guide import GUIDE_SIZE, UserGuide, guide_dir
 from .history import describe_change
 from .keys import KEYS, help_html
+from .messages import LOG_SIZE, MessageLog, MessagesDialog
 from .nonerefs import NoneReserve, binding_drops_none
 from .overlay import WINDOWS, PresetSource, TableSource, window_label
 from .panel import ParameterPanel, signals_blocked
@@ -98,16 +99,32 @@ def application() -> QtWidgets.QApplication:
 
 class ElidedLabel(QtWidgets.QLabel):
     """A one-line label for the status bar: when its text is wider than the room it gets, it shows what fits and
-    an ellipsis, and the whole text is its tooltip (a long message was cut at the bar's edge without a sign).
+    an ellipsis, and the whole text is its tooltip (a long message was cut at the bar's edge without a sign),
+    followed by ``more`` when given.
 
     :meth:`text` is the whole text; the label asks for its width, at most ``widest`` pixels, but takes less (down
-    to an ellipsis).
+    to an ellipsis). A click (a press and release in one place that selects nothing) emits :attr:`clicked`.
     """
 
-    def __init__(self, widest: int = 1 << 20, parent: QtWidgets.QWidget | None = None) -> None:
+    clicked = QtCore.Signal()
+
+    def __init__(self, widest: int = 1 << 20, parent: QtWidgets.QWidget | None = None, more: str = "") -> None:
         super().__init__(parent)
         self._whole = ""
         self._widest = widest
+        self._more = more
+        self._pressed_at: QtCore.QPointF | None = None
+
+    def mousePressEvent(self, event: QtGui.QMouseEvent) -> None:
+        self._pressed_at = event.position() if event.button() == QtCore.Qt.MouseButton.LeftButton else None
+        super().mousePressEvent(event)
+
+    def mouseReleaseEvent(self, event: QtGui.QMouseEvent) -> None:
+        super().mouseReleaseEvent(event)
+        pressed, self._pressed_at = self._pressed_at, None
+        if pressed is not None and event.button() == QtCore.Qt.MouseButton.LeftButton \
+                and (event.position() - pressed).manhattanLength() <= CLICK_SLOP and not self.hasSelectedText():
+            self.clicked.emit()
 
     def setText(self, text: str) -> None:
         if text == self._whole:
@@ -151,7 +168,7 @@ class ElidedLabel(QtWidgets.QLabel):
         shown = self.fontMetrics().elidedText(self._whole, QtCore.Qt.TextElideMode.ElideRight, room)
         if shown != super().text():
             super().setText(shown)
-        tip = self._whole if shown != self._whole else ""
+        tip = (self._whole + (f"\n\n{self._more}" if self._more else "")) if shown != self._whole else ""
         if tip != self.toolTip():
             self.setToolTip(tip)
 
@@ -184,24 +201,55 @@ def short_description(text: str, most: int = 60) -> str:
 
 
 class _ScrubSlider(QtWidgets.QSlider):
-    """A slider whose bar, clicked outside the handle, moves the handle there, as a media player's does (Qt's
-    default: a page step, 1.8 s of a long scan, which a first-use trial took for a broken bar). A subclass, not a
-    proxy style: a widget does not own its style, and one that died before the slider left it a dangling one."""
+    """A slider whose bar, clicked outside the handle, moves the handle's middle under the cursor and lets it be
+    dragged on from there, as a media player's does (Qt's default: a page step, 1.8 s of a long scan, which a
+    first-use trial took for a broken bar). A subclass, not a proxy style: a widget does not own its style, and
+    one that died before the slider left it a dangling one.
+
+    :attr:`held` is true while the handle is held (dragged, or jumping to a click): its moves are shown, not yet
+    sought (the seek comes with ``sliderReleased``).
+    """
+
+    def __init__(self, orientation: QtCore.Qt.Orientation, parent: QtWidgets.QWidget | None = None) -> None:
+        super().__init__(orientation, parent)
+        self._jumping = False
+
+    @property
+    def held(self) -> bool:
+        return self._jumping or self.isSliderDown()
+
+    def _rect(self, part: QtWidgets.QStyle.SubControl) -> QtCore.QRect:
+        option = QtWidgets.QStyleOptionSlider()
+        self.initStyleOption(option)
+        return self.style().subControlRect(QtWidgets.QStyle.ComplexControl.CC_Slider, option, part, self)
+
+    def handle_rect(self) -> QtCore.QRect:
+        """The handle's rectangle, in the slider's pixels."""
+        return self._rect(QtWidgets.QStyle.SubControl.SC_SliderHandle)
+
+    def value_under(self, x: float) -> int:
+        """The value that puts the handle's middle at ``x`` (the slider's pixels), as Qt maps a handle's place to a
+        value: along the groove less the handle's length."""
+        groove, handle = self._rect(QtWidgets.QStyle.SubControl.SC_SliderGroove), self.handle_rect()
+        span = max(groove.width() - handle.width(), 1)
+        place = round(x - handle.width() / 2) - groove.x()
+        return QtWidgets.QStyle.sliderValueFromPosition(self.minimum(), self.maximum(), place, span,
+                                                        self.invertedAppearance())
 
     def mousePressEvent(self, event: QtGui.QMouseEvent) -> None:
-        if event.button() == QtCore.Qt.MouseButton.LeftButton and self.isEnabled():
-            option = QtWidgets.QStyleOptionSlider()
-            self.initStyleOption(option)
-            style = self.style()
-            handle = style.subControlRect(QtWidgets.QStyle.ComplexControl.CC_Slider, option,
-                                          QtWidgets.QStyle.SubControl.SC_SliderHandle, self)
-            x = round(event.position().x())
-            if not handle.contains(event.position().toPoint()):
-                span = max(self.width() - handle.width(), 1)
-                self.setValue(QtWidgets.QStyle.sliderValueFromPosition(
-                    self.minimum(), self.maximum(), x - handle.width() // 2, span, option.upsideDown))
-                event.accept()
-                return
+        point = event.position().toPoint()
+        if event.button() == QtCore.Qt.MouseButton.LeftButton and self.isEnabled() \
+                and not self.handle_rect().contains(point):
+            self._jumping = True
+            try:
+                self.setValue(self.value_under(event.position().x()))
+            finally:
+                self._jumping = False
+            # The handle is under the cursor now: Qt's own press grabs it, so a drag goes on from the click.
+            super().mousePressEvent(event)
+            if not self.isSliderDown():  # not grabbed after all: the jump was the whole move
+                self.sliderReleased.emit()
+            return
         super().mousePressEvent(event)
 
 
@@ -245,6 +293,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._pending: dict[str, tuple[set[str], Callable[[], None], str]] = {}
         #: The refusal or failure the status bar shows in red while it is the message (a later message is not red).
         self._error_text: str | None = None
+        #: Every message the status bar said, whole (View > Messages).
+        self.messages = MessageLog()
         self._press: tuple[str, int, int] | None = None
         self._closing = False
         self._sized = False
@@ -304,6 +354,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self._make_shortcuts()
         self.help_dialog: QtWidgets.QDialog | None = None
         self.guide: UserGuide | None = None
+        self.messages_dialog: MessagesDialog | None = None
 
         # The compiled loops: what the first frame needs now, the rest in the background.
         moving = session.trajectory is not None
@@ -388,9 +439,12 @@ class MainWindow(QtWidgets.QMainWindow):
         # is being prepared takes the room it needs, but leaves the message (feedback to what was just done) its
         # share (_share_status_room): capped at 320 px, its note on the first compile was cut with 600 px to spare.
         self.status_busy = ElidedLabel()
-        self.status_message = ElidedLabel()
+        # A click on the message shows every message whole (View > Messages): the tooltip of a message cut short
+        # could not be copied, nor read again once the next one came.
+        self.status_message = ElidedLabel(more="Click: every message whole, to read and copy (View > Messages)")
         self.status_message.setObjectName("message")
         self.status_message.setTextInteractionFlags(QtCore.Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.status_message.clicked.connect(self.show_messages)
         for widget in (self.status_time, self.status_points, self.status_fps, self.status_returns):
             bar.addPermanentWidget(widget)
         bar.addWidget(self.busy)
@@ -451,13 +505,20 @@ class MainWindow(QtWidgets.QMainWindow):
         return action
 
     def _choices(self, menu: QtWidgets.QMenu, title: str, choices: Iterable[Any], choose: Callable[[Any], Any],
-                 label: Callable[[Any], str] = str) -> dict[Any, QtGui.QAction]:
+                 label: Callable[[Any], str] = str,
+                 following: tuple[str, Callable[[], Any]] | None = None) -> dict[Any, QtGui.QAction]:
         """A submenu ``title`` of ``menu`` holding one checkable action per choice, one checked at a time; its
-        actions by choice. Choosing calls ``choose(choice)``."""
+        actions by choice. Choosing calls ``choose(choice)``. ``following``: (text, slot) of an entry after them
+        that steps to the next choice (it shows the slot's key)."""
         submenu = menu.addMenu(title)
         group = QtGui.QActionGroup(self)
-        return {choice: self._action(submenu, label(choice), lambda x=choice: choose(x), checkable=True, group=group)
-                for choice in choices}
+        actions = {choice: self._action(submenu, label(choice), lambda x=choice: choose(x), checkable=True,
+                                        group=group)
+                   for choice in choices}
+        if following is not None:
+            submenu.addSeparator()
+            self._action(submenu, *following)
+        return actions
 
     def _make_menus(self) -> None:
         c = self.controller
@@ -496,15 +557,22 @@ class MainWindow(QtWidgets.QMainWindow):
         edit.aboutToShow.connect(self._sync_history)
 
         view = bar.addMenu("&View")
+        # c, k, g, u and i step through a submenu's choices: each submenu ends in a "Next" entry showing its key, as
+        # d's and v's entries do (a first-use trial found these keys in no menu).
         self.pattern_colour_menu = view.addMenu("Colour the pattern by")
+        self._next_pattern_colour = self._action(self.pattern_colour_menu, "Next pattern colouring",
+                                                 c.cycle_pattern_colour)
         self.pattern_colour_menu.aboutToShow.connect(self._fill_pattern_colours)
-        self.scene_colour_actions = self._choices(view, "Colour the cloud by", SCENE_COLOURS, c.set_scene_colour)
+        self._fill_pattern_colours()
+        self.scene_colour_actions = self._choices(view, "Colour the cloud by", SCENE_COLOURS, c.set_scene_colour,
+                                                  following=("Next cloud colouring", c.cycle_scene_colour))
         self.colour_map_actions = self._choices(view, "Colour map (time, range, height)", COLOUR_MAPS,
                                                 self.set_colour_map)
         self.point_size_actions = self._choices(view, "Point size", (1, 2, 3, 4, 6, 8), self.set_point_size,
                                                 label="{} px".format)
         self.background_actions = self._choices(view, "Background", BACKGROUNDS, self.set_background)
-        self.drawing_actions = self._choices(view, "Pattern drawing", DRAWINGS, self.set_drawing)
+        self.drawing_actions = self._choices(view, "Pattern drawing", DRAWINGS, self.set_drawing,
+                                             following=("Next drawing", c.cycle_drawing))
         view.addSeparator()
         self.grid_action = self._action(view, "Ground grid in the scene", self.toggle_grid, checkable=True)
         self.axes_action = self._action(view, "World axes in the scene", self.toggle_axes, checkable=True)
@@ -519,6 +587,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.dock_action = self.dock.toggleViewAction()
         self.dock_action.setText("Parameter panel")
         view.addAction(self.dock_action)
+        self._action(view, "Messages (every status bar message, whole)...", self.show_messages)
         # The charts can go, giving their room to the views; double-clicking a view gives it the whole row (again:
         # the row back), as ParaView and CloudCompare do: the scene view had about 300 of 1,600 px (issue 45).
         self.charts_action = self._action(view, "Charts", self.toggle_charts, checkable=True)
@@ -529,8 +598,10 @@ class MainWindow(QtWidgets.QMainWindow):
         play = bar.addMenu("&Playback")
         self._action(play, "Play / pause", c.toggle_pause)
         self._action(play, "Step one unit", c.step)
-        units = play.addMenu("Step unit")
-        units.aboutToShow.connect(lambda: self._fill_step_units(units))
+        self.step_unit_menu = play.addMenu("Step unit")
+        self._next_step_unit = self._action(self.step_unit_menu, "Next step unit", c.cycle_step_unit)
+        self.step_unit_menu.aboutToShow.connect(self._fill_step_units)
+        self._fill_step_units()
         self._action(play, "Faster (x2)", c.faster)
         self._action(play, "Slower (/2)", c.slower)
         windows = play.addMenu("Integration window")
@@ -540,6 +611,8 @@ class MainWindow(QtWidgets.QMainWindow):
             self.window_actions[window] = self._action(windows, window_label(window), lambda i=index: c.on_window(i),
                                                        checkable=True, group=group)
         self._action(windows, "Type a window...", self.type_window)
+        windows.addSeparator()
+        self._action(windows, "Next window", c.cycle_window)
         self._action(play, "Reset the scan to t = 0", c.reset)
 
         returns = bar.addMenu("&Returns")
@@ -623,6 +696,24 @@ class MainWindow(QtWidgets.QMainWindow):
         self.controller.session.message = text
         if error:
             self._error_text = text
+        self._log(text, error)
+
+    def _log(self, text: str, error: bool) -> None:
+        """Keep ``text`` in the messages' log (and show it there if the log is open)."""
+        message = self.messages.add(text, error)
+        if message is not None and self.messages_dialog is not None and self.messages_dialog.isVisible():
+            self.messages_dialog.append(message)
+
+    def show_messages(self) -> None:
+        """The messages' log beside the window, not modal, inside the screen (View > Messages, or a click on the
+        status bar's message)."""
+        if self.messages_dialog is None:
+            self.messages_dialog = MessagesDialog(self.messages, self)
+            self.messages_dialog.resize(*fit_to_screen(LOG_SIZE, self._available_area()))
+        self.messages_dialog.refill()
+        self.messages_dialog.show()
+        self.messages_dialog.raise_()
+        self.messages_dialog.activateWindow()
 
     @property
     def _error(self) -> bool:
@@ -858,15 +949,18 @@ class MainWindow(QtWidgets.QMainWindow):
         if session.live is not None and not message:  # where it listens, who sends, how fast, or that it stopped
             message = session.live_line()
         self.status_message.setText(message)
+        # Messages the controller and its threads set (a screenshot saved, a pick) are kept as they are shown.
+        self._log(message, self._error and message == session.message)
         self.status_message.setStyleSheet("color: #d9534f;" if self._error and message else "")
         self._share_status_room()
         paused = session.playback.paused
         self.scrubber.setEnabled(paused and self._played > 0)
         # Playing, it shows where the scan is too (at its end): it sat at 0 until the first pause.
-        if self._played > 0 and not self.scrubber.isSliderDown():
-            with signals_blocked(self.scrubber):
-                self.scrubber.setValue(round(1000 * session.shown_time / self._played))
-        self.scrub_label.setText(f" scan time {session.shown_time:8.3f} s ")
+        if not self.scrubber.held:  # held, the bar shows the time of the handle
+            if self._played > 0:
+                with signals_blocked(self.scrubber):
+                    self.scrubber.setValue(round(1000 * session.shown_time / self._played))
+            self.scrub_label.setText(f" scan time {session.shown_time:8.3f} s ")
 
     def _share_status_room(self) -> None:
         """What is being prepared gets the room the permanent figures leave, but for the message's share: the
@@ -918,31 +1012,45 @@ class MainWindow(QtWidgets.QMainWindow):
                 action.setText(f"{word} {short_description(change)}")
             action.setEnabled(target is not None)
 
-    def _fill_pattern_colours(self) -> None:
-        menu = self.pattern_colour_menu
+    @staticmethod
+    def _cleared(menu: QtWidgets.QMenu) -> QtGui.QActionGroup:
+        """``menu`` emptied and the group of its last entries deleted (one more group each time the menu opened);
+        a new group for its entries."""
         menu.clear()
-        group = QtGui.QActionGroup(menu)
+        for group in menu.findChildren(QtGui.QActionGroup, options=QtCore.Qt.FindChildOption.FindDirectChildrenOnly):
+            group.setParent(None)
+            group.deleteLater()
+        return QtGui.QActionGroup(menu)
+
+    def _fill_pattern_colours(self) -> None:
+        """The pattern colourings the configuration has (they differ by model), then the c key's entry."""
+        menu = self.pattern_colour_menu
+        group = self._cleared(menu)
         current = self.controller.session.display.pattern_colour
         for mode in pattern_colours(self.controller.session.config):
             action = self._action(menu, mode, lambda m=mode: self.controller.set_pattern_colour(m), checkable=True,
                                   group=group)
             action.setChecked(mode == current)
+        menu.addSeparator()
+        menu.addAction(self._next_pattern_colour)
 
-    def _fill_step_units(self, menu: QtWidgets.QMenu) -> None:
-        menu.clear()
-        group = QtGui.QActionGroup(menu)
+    def _fill_step_units(self) -> None:
+        """The step units the configuration has, then the u key's entry."""
+        menu = self.step_unit_menu
+        group = self._cleared(menu)
         display = self.controller.session.display
         for unit in step_units(self.controller.session.config):
             action = self._action(menu, unit, lambda u=unit: setattr(display, "step_unit", u), checkable=True,
                                   group=group)
             action.setChecked(unit == display.step_unit)
+        menu.addSeparator()
+        menu.addAction(self._next_step_unit)
 
     def _fill_presets(self, menu: QtWidgets.QMenu) -> None:
         """The presets by name and the start of their description, the whole of it in the entry's tooltip: whole,
         the entries ran past a 1600-pixel screen. The one shown is checked."""
-        menu.clear()
+        group = self._cleared(menu)
         menu.setToolTipsVisible(True)
-        group = QtGui.QActionGroup(menu)
         current = self.controller.session.preset_name
         for info in list_presets():
             action = self._described_action(menu, info.name, info.description,
@@ -964,7 +1072,7 @@ class MainWindow(QtWidgets.QMainWindow):
         from livox_viz import load_preset
         from livox_viz.fitting.reference import shipped_tables
 
-        menu.clear()
+        self._cleared(menu)
         menu.setToolTipsVisible(True)
         plane = self.controller.session.config.pattern_plane
         for name, entry in shipped_tables().items():
@@ -981,8 +1089,7 @@ class MainWindow(QtWidgets.QMainWindow):
     def _fill_scenes(self, menu: QtWidgets.QMenu) -> None:
         from livox_viz.scene.scenes import scene_choices
 
-        menu.clear()
-        group = QtGui.QActionGroup(menu)
+        group = self._cleared(menu)
         session = self.controller.session
         current = session.sources.get("scene") or session.scene.name
         for choice in scene_choices():
@@ -1173,15 +1280,27 @@ class MainWindow(QtWidgets.QMainWindow):
         self._update_status()
 
     def _scrub_moved(self, value: int) -> None:
-        if self.scrubber.isSliderDown():
-            self.scrub_label.setText(f" scan time {value / 1000 * self._played:8.3f} s ")
-        else:
+        if not self.scrubber.held:  # a key or setValue: sought at once
             self._scrubbed()
+            return
+        # Held, the handle shows the time it is at, beside the bar and in a tip that follows it (a first-use trial
+        # saw nothing change while dragging); the window is cast again when it is let go.
+        text = f" scan time {value / 1000 * self._played:8.3f} s "
+        self.scrub_label.setText(text)
+        handle = self.scrubber.handle_rect()
+        # Above the handle (Qt puts a tip below the point it is given): below, it covered the status bar's clock.
+        above = QtCore.QPoint(handle.center().x(), handle.top() - 2 * handle.height() - 8)
+        QtWidgets.QToolTip.showText(self.scrubber.mapToGlobal(above), f"t = {value / 1000 * self._played:.3f} s",
+                                    self.scrubber)
 
     def _scrubbed(self) -> None:
+        QtWidgets.QToolTip.hideText()
+        session = self.controller.session
         target = self.scrubber.value() / 1000 * self._played
+        if session.shown_time == target:  # the handle let go where it was: nothing to cast again
+            return
         # The picks belonged to the time left behind (a trial found them floating over another time's cloud).
-        self.run(lambda: (self.controller.session.seek(target), self.controller.forget_picks()))
+        self.run(lambda: (session.seek(target), self.controller.forget_picks()))
 
     # Files ---------------------------------------------------------------------------------------
     def _ask_open(self, title: str, filters: str) -> str | None:
@@ -1390,6 +1509,8 @@ class MainWindow(QtWidgets.QMainWindow):
             self.filter_dialog.close()
         if self.guide is not None:
             self.guide.close()
+        if self.messages_dialog is not None:
+            self.messages_dialog.close()
         self.controller.close()
         release_gl_wrappers(self.interactors.values())  # each view's GL is finalized by now
         self.collector.stop()

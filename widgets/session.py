@@ -700,8 +700,11 @@ class Session:
         start = 0.0 if self.window is None else max(0.0, self.scan_time - self.window)
         return points_before(self.scan_time, rate) - points_before(start, rate)
 
-    def nearest_pattern_point(self, x_deg: float, y_deg: float) -> dict[str, float] | None:
+    def nearest_pattern_point(self, x_deg: float, y_deg: float, y_scale: float = 1.0) -> dict[str, float] | None:
         """The live pattern sample nearest to ``(x_deg, y_deg)`` in the pattern's plane, or None when empty.
+
+        ``y_scale``: how much longer a degree of y is drawn than a degree of x (the panorama's stretch), so that
+        the nearest is the nearest as drawn.
 
         Returns
         -------
@@ -715,15 +718,15 @@ class Session:
         best: tuple[float, int] | None = None
         for piece in ring.live_pieces():
             xy = ring.positions[piece, :2].astype(np.float64)
-            d2 = np.square(xy[:, 0] - x_deg) + np.square(xy[:, 1] - y_deg)
+            d2 = np.square(xy[:, 0] - x_deg) + np.square((xy[:, 1] - y_deg) * y_scale)
             k = int(np.argmin(d2))
             if best is None or d2[k] < best[0]:
                 best = (float(d2[k]), piece.start + k)
         assert best is not None
         slot = best[1]
-        return {"x_deg": float(ring.positions[slot, 0]), "y_deg": float(ring.positions[slot, 1]),
-                "t_s": float(ring.times[slot]), "index": int(ring.stream_index[slot]),
-                "distance_deg": math.sqrt(best[0])}
+        x, y = float(ring.positions[slot, 0]), float(ring.positions[slot, 1])
+        return {"x_deg": x, "y_deg": y, "t_s": float(ring.times[slot]), "index": int(ring.stream_index[slot]),
+                "distance_deg": math.hypot(x - x_deg, y - y_deg)}
 
     def scene_point(self, slot: int) -> dict[str, float | int]:
         """What the scene's cloud holds for the point in ``slot`` of its ring (a click on it).

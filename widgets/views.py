@@ -13,6 +13,9 @@ import math
 
 import numpy as np
 import pyvista as pv
+from vtkmodules.vtkCommonCore import vtkPoints, vtkUnsignedCharArray
+from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+from vtkmodules.vtkRenderingCore import vtkActor2D, vtkPolyDataMapper2D, vtkTextActor, vtkTextRenderer
 
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.core.rotations import FRD_TO_FLU
@@ -20,7 +23,7 @@ from livox_viz.core.rotations import FRD_TO_FLU
 from .cameras import PROJECTIONS, distance_for, fit_parallel, parallel_scale_for, screen_axes
 from .filters import CloudFilter, filtered_slots
 from .ring import PointRing
-from .session import PATTERN_COLOURS, TAG_CLASSES, Session
+from .session import PATTERN_COLOURS, TAG_CLASSES, Session, pattern_colours
 
 #: NED (z down) to the display's z-up frame (north-west-up), as a 4x4 actor matrix.
 NED_TO_DISPLAY = np.eye(4)
@@ -55,8 +58,8 @@ GRID_MARK_COLOUR, GRID_MARK_COLOUR_ON_WHITE = "#9aa6b8", "#4a5568"
 ELEVATION_MARK_PX = 16.0
 #: Pixels at the top of the pattern view that its text's lines take (kept free of the drawing).
 TEXT_BAND_PX = 84
-#: The share of the pattern view's width left of the colour bar's strip.
-PATTERN_USABLE_WIDTH = 0.78
+#: The least share of the pattern view's width the pattern keeps beside the colour bar's legend.
+PATTERN_LEAST_WIDTH = 0.3
 #: Pixels between the field of view's edge and an axis's name, and the rows the names take below it and above it
 #: (the gap, a 12-point line, a little air).
 NAME_GAP_PX = 6
@@ -212,24 +215,137 @@ def pattern_categories(session: Session) -> list[str]:
     return [str(k + 1) for k in range(count)]
 
 
+def display_points(renderer, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where ``renderer`` draws ``points`` (n, 3) of its world, as VTK's display pixels (origin bottom left), and
+    which are in front of the camera (within its clipping range).
+
+    Parameters
+    ----------
+    renderer : vtkRenderer
+    points : (n, 3) float
+
+    Returns
+    -------
+    xy : (n, 2) float64
+        Pixels.
+    shown : (n,) bool
+    """
+    camera = renderer.GetActiveCamera()
+    projection = pv.array_from_vtkmatrix(camera.GetCompositeProjectionTransformMatrix(
+        renderer.GetTiledAspectRatio(), -1.0, 1.0))
+    clip = np.asarray(points, dtype=np.float64) @ projection[:, :3].T + projection[:, 3]
+    w = clip[:, 3]
+    shown = w > 1e-12
+    safe = np.where(shown, w, 1.0)
+    ndc = clip[:, :3] / safe[:, None]
+    shown &= np.abs(ndc[:, 2]) <= 1.0
+    width, height = renderer.GetSize()
+    x0, y0 = renderer.GetOrigin()
+    xy = np.column_stack([x0 + (ndc[:, 0] + 1.0) * (width / 2.0), y0 + (ndc[:, 1] + 1.0) * (height / 2.0)])
+    return xy, shown
+
+
+def nearest_drawn(xy: np.ndarray, shown: np.ndarray, depth: np.ndarray, at: tuple[float, float],
+                  tolerance_px: float) -> int | None:
+    """The row of ``xy`` (n, 2) pixels drawn nearest to ``at`` and at most ``tolerance_px`` from it, among those
+    ``shown``; of rows within a pixel of the nearest, the one nearest the camera (least ``depth``). None: none
+    that near."""
+    distance = np.hypot(xy[:, 0] - at[0], xy[:, 1] - at[1])
+    distance[~shown] = np.inf
+    if distance.size == 0 or not distance.min() <= tolerance_px:
+        return None
+    close = np.flatnonzero(distance <= distance.min() + 1.0)
+    return int(close[np.argmin(depth[close])])
+
+
 def _address(array: np.ndarray) -> int:
     return int(array.__array_interface__["data"][0])
 
 
-#: Where the colour bar's strip begins, a share of the view's width from its left (its title, centred on the bar,
-#: reaches a little to the left of the bar).
+#: The share of the scene view's width the side camera frames the sensor and the cloud in: about where the colour
+#: bar's strip begins (:func:`place_colour_bar` puts it 50-55 px in from the right edge).
 SCALAR_BAR_LEFT = 0.82
 #: Pixels at the top of the scene view its text's three lines take.
 SCENE_TEXT_BAND_PX = 52
 
 
+#: Pixels of a colour bar's frame, whatever the view's width: VTK draws the strip over the left 3/8 of it (9 px)
+#: and centres the title over it.
+BAR_FRAME_PX = 24
+#: Pixels between a colour bar's words and the view's right edge, and between its legend and the pattern.
+LEGEND_EDGE_PX = 6
+LEGEND_GAP_PX = 8
+#: Pixels VTK leaves between the strip and its annotations' words (their leader lines, to the left) and its
+#: labels' words (to the right).
+ANNOTATION_LEAD_PX = 11
+LABEL_LEAD_PX = 4
+#: The bar's frame: from this share of the view's height, this share tall.
+BAR_BOTTOM, BAR_HEIGHT = 0.2, 0.6
+
+
 def add_scalar_bar(plotter: pv.Plotter, title: str, mapper) -> object:
-    """The vertical colour bar both views show at their right edge (far enough in that a title such as
-    "range, m", centred on the bar, stays whole in a 280-pixel view)."""
+    """The vertical colour bar both views show at their right edge (:func:`place_colour_bar` puts it there)."""
     return plotter.add_scalar_bar(
-        title, mapper=mapper, vertical=True, position_x=0.86, position_y=0.2, width=0.05, height=0.6,
+        title, mapper=mapper, vertical=True, position_x=0.86, position_y=BAR_BOTTOM, width=0.05, height=BAR_HEIGHT,
         title_font_size=12, label_font_size=11, color=BAR_TEXT_COLOURS["dark"], n_labels=5, fmt="%.3g",
     )
+
+
+def text_width_px(words, text: str, dpi: int) -> int:
+    """Pixels ``text`` takes across, drawn with the text property ``words`` at ``dpi``."""
+    box = [0, 0, 0, 0]
+    if not text or not vtkTextRenderer.GetInstance().GetBoundingBox(words, text, box, dpi):
+        return 0
+    return box[1] - box[0] + 1
+
+
+def bar_marks(bar) -> tuple[list[str], list[str]]:
+    """The words a colour bar shows beside its strip now: its annotations' (left of it) and its labels' (right)."""
+    table = bar.GetLookupTable()
+    annotations = ([table.GetAnnotation(k) for k in range(table.GetNumberOfAnnotatedValues())]
+                   if bar.GetDrawAnnotations() and table is not None else [])
+    count = bar.GetNumberOfLabels()
+    labels = ([bar.GetLabelFormat() % value for value in np.linspace(*table.GetRange(), count)]
+              if count > 0 and table is not None else [])
+    return annotations, labels
+
+
+def place_colour_bar(bar, renderer, titles: tuple[str, ...] = (), left_marks: tuple[str, ...] = (),
+                     right_marks: tuple[str, ...] = ()) -> float:
+    """Put ``bar`` at the right edge of ``renderer``'s view, every word of it inside the view, and say where its
+    legend begins.
+
+    The words are measured as VTK draws them: the title (centred over the frame), the annotations with their
+    leader lines left of the strip, the labels right of it. Room is kept for any of ``titles`` and of the
+    ``left_marks`` and ``right_marks`` as well as for the words shown now, so that the bar stays put when the
+    colouring or its marks change. Placed as a share of the width, the bar's title ran past a narrow view's edge
+    ("return / ta") and its marks into the pattern (a first-use trial).
+
+    Returns
+    -------
+    float
+        The legend's left edge, pixels from the view's left.
+    """
+    width = max(renderer.GetSize()[0], 1)
+    window = renderer.GetRenderWindow()
+    dpi = window.GetDPI() if window is not None else 72
+    annotations, labels = bar_marks(bar)
+    title = max(text_width_px(bar.GetTitleTextProperty(), text, dpi) for text in (bar.GetTitle(), *titles))
+    left_words = max((text_width_px(bar.GetAnnotationTextProperty(), text, dpi)
+                      for text in (*annotations, *left_marks)), default=0)
+    right_words = max((text_width_px(bar.GetLabelTextProperty(), text, dpi) for text in (*labels, *right_marks)),
+                      default=0)
+    strip = math.ceil(bar.GetBarRatio() * BAR_FRAME_PX)
+    # Each side's reach from the frame's left edge, pixels.
+    reach_right = max(BAR_FRAME_PX / 2 + title / 2, 1 + strip + (LABEL_LEAD_PX + right_words if right_words else 0))
+    reach_left = min(BAR_FRAME_PX / 2 - title / 2, -(ANNOTATION_LEAD_PX + left_words) if left_words else 0)
+    frame_left = width - LEGEND_EDGE_PX - reach_right
+    place = (frame_left / width, BAR_BOTTOM)
+    if tuple(bar.GetPosition()) != place or bar.GetWidth() != BAR_FRAME_PX / width:
+        bar.SetPosition(*place)
+        bar.SetWidth(BAR_FRAME_PX / width)
+        bar.SetHeight(BAR_HEIGHT)
+    return frame_left + reach_left
 
 
 #: The colour bars' words and marks by background: light on the dark ones; on white, where they vanished, dark.
@@ -294,6 +410,16 @@ class _View:
         self.point_size = float(min(max(pixels, 1.0), 10.0))
         self.actor.GetProperty().SetPointSize(self.point_size)
 
+    #: The titles and marks a view's colour bar may show, room kept for all of them (see :func:`place_colour_bar`).
+    LEGEND_TITLES: tuple[str, ...] = ()
+    LEGEND_LEFT_MARKS: tuple[str, ...] = ()
+    LEGEND_RIGHT_MARKS: tuple[str, ...] = ()
+
+    def place_legend(self) -> float:
+        """The colour bar at the view's right edge, whole (:func:`place_colour_bar`); its legend's left edge, px."""
+        return place_colour_bar(self.scalar_bar, self.renderer, self.LEGEND_TITLES, self.LEGEND_LEFT_MARKS,
+                                self.LEGEND_RIGHT_MARKS)
+
 
 def panorama_stretch(fov) -> float:
     """How much the pattern view stretches elevation against azimuth: 1 for a boresight pattern (true angles,
@@ -312,6 +438,18 @@ class PatternView(_View):
     A 360-degree band is drawn with its elevation stretched (:func:`panorama_stretch`) so that it fills the view's
     width at a readable height; its marks still read true degrees, and :meth:`plane_point` undoes the stretch.
     """
+
+    #: Marks room is kept for beside the strip besides the categories': a time window's ends and round times
+    #: between, and the density's counts (wider ones move the bar, and the pattern is fitted again).
+    LEGEND_LEFT_MARKS = ("999.99", "10,000")
+
+    def place_legend(self) -> float:
+        """The colour bar at the view's right edge, room kept for the titles and marks of the colourings the
+        configuration has (the rosette's arcs' names are the widest; a Risley's lasers are numbers)."""
+        colourings = pattern_colours(self.session.config)
+        titles = (*(PATTERN_UNITS[mode] for mode in colourings), "points/cell")
+        marks = (*self.LEGEND_LEFT_MARKS, *(ARC_NAMES if "arc" in colourings else ()))
+        return place_colour_bar(self.scalar_bar, self.renderer, titles, marks)
 
     def set_background(self, name: str) -> None:
         """One of :data:`BACKGROUNDS`; the reference's grey darkens on white."""
@@ -340,6 +478,7 @@ class PatternView(_View):
         )
         self.scalar_bar = add_scalar_bar(plotter, PATTERN_UNITS[session.display.pattern_colour], self.actor.mapper)
         colour_bar_text(self.scalar_bar, self.background_name)
+        self._legend_left = self.place_legend()
         self._density_grid = None
         self.density_actor = None
         self._guides_fov = None
@@ -552,14 +691,21 @@ class PatternView(_View):
         aspect = max(pixels_w, 1) / max(pixels_h, 1)
         top = min(0.3, TEXT_BAND_PX / max(pixels_h, 1))
         rows = 1.02 * (NAME_BELOW_PX + NAME_ABOVE_PX) / max(pixels_h, 1)
-        visible = max(height / max(1.0 - top - rows, 0.05), 1.05 * width / (aspect * PATTERN_USABLE_WIDTH))
+        visible = max(height / max(1.0 - top - rows, 0.05), 1.05 * width / (aspect * self._usable_width()))
         per_pixel = 1.02 * visible / max(pixels_h, 1)  # degrees
         return (x0 - 0.02 * width, x1 + 0.03 * width, y0 - NAME_BELOW_PX * per_pixel,
                 y1 + NAME_ABOVE_PX * per_pixel)
 
+    def _usable_width(self) -> float:
+        """The share of the view's width left of the colour bar's legend, less a gap (at least
+        :data:`PATTERN_LEAST_WIDTH`)."""
+        width = max(self.renderer.GetSize()[0], 1)
+        return min(max((self._legend_left - LEGEND_GAP_PX) / width, PATTERN_LEAST_WIDTH), 1.0)
+
     def reset_camera(self) -> None:
         """Look straight at the pattern plane, orthographic, everything drawn (the reference too) in the view, with
-        the colour bar's strip on the right and the text's lines at the top kept free."""
+        the colour bar's legend on the right and the text's lines at the top kept free."""
+        self._legend_left = self.place_legend()
         x0, x1, y0, y1 = self.drawn_bounds()
         width, height = self.renderer.GetSize()
         aspect = max(width, 1) / max(height, 1)
@@ -576,12 +722,12 @@ class PatternView(_View):
 
     def _fitted_height(self) -> tuple[float, float, float]:
         """``(visible, usable, top)``: the height of the plane :meth:`reset_camera` shows (degrees, before its 2 %
-        margin), and the shares of the view's width and height left for it by the colour bar's strip (the right
-        22 %) and the text's lines at the top (about 80 px)."""
+        margin), and the shares of the view's width and height left for it by the colour bar's legend (measured:
+        :meth:`place_legend`) and the text's lines at the top (about 80 px)."""
         x0, x1, y0, y1 = self.drawn_bounds()
         width, height = self.renderer.GetSize()
         aspect = max(width, 1) / max(height, 1)
-        usable = PATTERN_USABLE_WIDTH
+        usable = self._usable_width()
         top = min(0.3, TEXT_BAND_PX / max(height, 1))
         return max((y1 - y0) / (1 - top), (x1 - x0) / (aspect * usable)), usable, top
 
@@ -651,6 +797,8 @@ class PatternView(_View):
         update_ring_polydata(self.reference_poly, self._reference_ring)
         self.reference_actor.SetVisibility(overlay.source is not None and overlay.visible)
         self.scalar_bar.SetTitle("points/cell" if density else PATTERN_UNITS[self.session.display.pattern_colour])
+        if self.place_legend() != self._legend_left:  # marks wider than the room kept: fit the pattern again
+            self.reset_camera()
 
 
 def count_marks(top: float) -> dict[float, str]:
@@ -796,6 +944,128 @@ SIDE_NEAREST_M = 8.0
 ORTHO_FIT_SAMPLE = 100_000
 
 
+#: The display frame's axes (x north, y west, z up): their names and colours (x red, y green, z blue, as VTK and
+#: RViz draw them), in the scene and in the corner.
+AXES_NAMES = ("N", "W", "up")
+AXES_COLOURS = ("#e8574f", "#4fc46b", "#4f9bf0")
+#: The corner axes: each axis's length and the corner's margin, pixels; how far apart their names stay.
+TRIHEDRON_LENGTH_PX = 34
+TRIHEDRON_MARGIN_PX = 16
+TRIHEDRON_NAMES_APART_PX = 18
+
+
+class Trihedron:
+    """The display frame's axes in the lower left corner of a 3-D view, a fixed size in pixels, turned as the
+    camera turns and each named at its tip, as ParaView's orientation axes and CloudCompare's trihedron are.
+
+    The axes drawn at the world's origin, 5 m long, named by VTK at their tips, were one blob of letters from the
+    side camera, far off (a first-use trial): there the axes have no names, and these have them, kept
+    :data:`TRIHEDRON_NAMES_APART_PX` apart however the camera looks. Two-dimensional actors of the view's own
+    renderer, brought up to date before each render: the same in the window and off-screen.
+
+    Parameters
+    ----------
+    renderer : vtkRenderer
+    text_colour : str
+        The names' colour (the colour bar's words' on the view's background).
+    backing : str
+        The colour of the patch behind each name.
+    """
+
+    def __init__(self, renderer, text_colour: str, backing: str) -> None:
+        self.renderer = renderer
+        self._points = vtkPoints()
+        self._points.SetNumberOfPoints(4)
+        lines = vtkCellArray()
+        for k in range(3):
+            lines.InsertNextCell(2)
+            lines.InsertCellPoint(0)
+            lines.InsertCellPoint(k + 1)
+        colours = vtkUnsignedCharArray()
+        colours.SetNumberOfComponents(3)
+        for colour in AXES_COLOURS:
+            colours.InsertNextTuple3(*pv.Color(colour).int_rgb)
+        self._poly = vtkPolyData()
+        self._poly.SetPoints(self._points)
+        self._poly.SetLines(lines)
+        self._poly.GetCellData().SetScalars(colours)
+        mapper = vtkPolyDataMapper2D()
+        mapper.SetInputData(self._poly)
+        mapper.SetColorModeToDirectScalars()
+        mapper.SetScalarModeToUseCellData()
+        self.lines = vtkActor2D()
+        self.lines.SetMapper(mapper)
+        self.lines.GetProperty().SetLineWidth(3)
+        self.names = []
+        for name in AXES_NAMES:
+            actor = vtkTextActor()
+            actor.SetInput(name)
+            words = actor.GetTextProperty()
+            words.SetFontSize(13)
+            words.BoldOn()
+            words.SetJustificationToCentered()
+            words.SetVerticalJustificationToCentered()
+            self.names.append(actor)
+        self.set_colours(text_colour, backing)
+        for actor in (self.lines, *self.names):
+            renderer.AddViewProp(actor)
+        self._observer = renderer.AddObserver("StartEvent", lambda *_: self.update())
+        self.update()
+
+    def set_colours(self, text_colour: str, backing: str) -> None:
+        """The names' colour and their patches' (for the view's background)."""
+        for actor in self.names:
+            words = actor.GetTextProperty()
+            words.SetColor(pv.Color(text_colour).float_rgb)
+            words.SetBackgroundColor(pv.Color(backing).float_rgb)
+            words.SetBackgroundOpacity(BAR_TEXT_BACKING_OPACITY)
+
+    def name_positions(self) -> np.ndarray:
+        """Where each axis's name is drawn (its middle), VTK's display pixels of the view: (3, 2)."""
+        x0, y0 = self.renderer.GetOrigin()
+        return np.array([actor.GetPosition() for actor in self.names]) + np.array([x0, y0])
+
+    def update(self) -> None:
+        """Turn the axes as the camera looks now; each name beyond its axis's tip, apart from the others."""
+        view = pv.array_from_vtkmatrix(self.renderer.GetActiveCamera().GetViewTransformMatrix())
+        screen = view[:2, :3].T  # each axis's direction on the screen: (right, up) per axis, length <= 1
+        origin = np.full(2, TRIHEDRON_MARGIN_PX + TRIHEDRON_LENGTH_PX + 8.0)
+        tips = origin + TRIHEDRON_LENGTH_PX * screen
+        self._points.SetPoint(0, *origin, 0.0)
+        for k in range(3):
+            self._points.SetPoint(k + 1, *tips[k], 0.0)
+        self._points.Modified()
+        self._poly.Modified()
+        reach = np.linalg.norm(screen, axis=1)
+        away = np.where(reach[:, None] > 0.2, screen / np.maximum(reach, 1e-9)[:, None], (-0.7, -0.7))
+        names = origin + (TRIHEDRON_LENGTH_PX * reach + 10.0)[:, None] * away
+        # An axis seen end on lies over the middle, and two seen along one line of sight over each other: pushed
+        # apart until every two names stand clear.
+        for _ in range(20):
+            moved = False
+            for i in range(3):
+                for j in range(i + 1, 3):
+                    gap = names[j] - names[i]
+                    apart = float(np.hypot(*gap))
+                    if apart >= TRIHEDRON_NAMES_APART_PX:
+                        continue
+                    step = gap / apart if apart > 1e-6 else np.array([1.0, 0.0])
+                    push = (TRIHEDRON_NAMES_APART_PX - apart) / 2 + 0.5
+                    names[i] -= push * step
+                    names[j] += push * step
+                    moved = True
+            if not moved:
+                break
+        for actor, (x, y) in zip(self.names, names, strict=True):
+            actor.SetPosition(float(x), float(y))
+
+    def remove(self) -> None:
+        """Take the axes out of the view."""
+        self.renderer.RemoveObserver(self._observer)
+        for actor in (self.lines, *self.names):
+            self.renderer.RemoveViewProp(actor)
+
+
 class SceneView(_View):
     """The 3D scene (z up on screen), the vehicle, the sensor with its FOV wire, and the decoded cloud.
 
@@ -806,6 +1076,9 @@ class SceneView(_View):
     """
 
     background_name = "gradient"
+    LEGEND_TITLES = tuple(SCENE_UNITS.values())
+    LEGEND_LEFT_MARKS = (*REFLECTIVITY_MARKS.values(), *TAG_CLASSES, "9999.99")
+    LEGEND_RIGHT_MARKS = ("-888.8",)
 
     def __init__(self, plotter: pv.Plotter, session: Session, subplot: tuple[int, int] = (0, 0)) -> None:
         super().__init__(plotter, session, subplot)
@@ -825,8 +1098,10 @@ class SceneView(_View):
         self.actor.user_matrix = NED_TO_DISPLAY
         self.scalar_bar = add_scalar_bar(plotter, SCENE_UNITS[session.display.scene_colour], self.actor.mapper)
         colour_bar_text(self.scalar_bar, self.background_name)
+        self.place_legend()
         self.grid_actor = None
         self.axes_actor = None
+        self.trihedron: Trihedron | None = None
         #: The cloud opened from a file (File > Open cloud), drawn beside the scan's; its name and points, or None.
         self.opened_actor = None
         self.opened: tuple[str, int] | None = None
@@ -880,14 +1155,32 @@ class SceneView(_View):
         self.grid_actor.user_matrix = NED_TO_DISPLAY
 
     def show_axes(self, shown: bool) -> None:
-        """The world's axes at its origin, 5 m long, in the display's frame (x north, y west, z up)."""
+        """The world's axes at its origin, 5 m long, in the display's frame (x north, y west, z up), unnamed, and
+        named in the corner (:class:`Trihedron`)."""
         self.plotter.subplot(*self.subplot)
         if self.axes_actor is not None:
             self.plotter.remove_actor(self.axes_actor, render=False)
             self.axes_actor = None
+        if self.trihedron is not None:
+            self.trihedron.remove()
+            self.trihedron = None
         if shown:
-            self.axes_actor = self.plotter.add_axes_at_origin(labels_off=False, line_width=3)
+            x_colour, y_colour, z_colour = AXES_COLOURS
+            self.axes_actor = self.plotter.add_axes_at_origin(labels_off=True, line_width=3, x_color=x_colour,
+                                                              y_color=y_colour, z_color=z_colour)
             self.axes_actor.SetTotalLength(5.0, 5.0, 5.0)
+            self.trihedron = Trihedron(self.renderer, *self._words_colours())
+
+    def _words_colours(self) -> tuple[str, str]:
+        """The colour of words drawn over the view (the colour bar's) and of the patch behind them."""
+        name = self.background_name
+        return BAR_TEXT_COLOURS["white" if name == "white" else "dark"], BACKGROUNDS[name][0]
+
+    def set_background(self, name: str) -> None:
+        """One of :data:`BACKGROUNDS`; the corner axes' names follow it."""
+        super().set_background(name)
+        if self.trihedron is not None:
+            self.trihedron.set_colours(*self._words_colours())
 
     def show_opened_cloud(self, points_ned: np.ndarray | None, name: str = "") -> None:
         """Draw a cloud opened from a file beside the scan's, static, in :data:`OPENED_CLOUD_COLOUR`; None removes
@@ -1125,6 +1418,24 @@ class SceneView(_View):
         shift = right * (1.0 - free_x) * tan_h * distance + screen_up * (1.0 - free_y) * tan_v * distance
         return centre + back * distance + shift, centre + shift
 
+    def drawn_point_at(self, x_px: float, y_px: float, tolerance_px: float) -> int | None:
+        """The ring's slot of the cloud's point drawn nearest to the display position ``(x_px, y_px)`` (VTK's
+        pixels, origin bottom left), at most ``tolerance_px`` from it; None when no drawn point is that near.
+
+        Only the points the vertex cells draw (what the time window and the level of detail left), measured on
+        the screen: VTK's point picker took its tolerance as a length at the focal plane, and a click on empty sky
+        picked a point near the camera 230 pixels away (a first-use trial).
+        """
+        slots = pv.convert_array(self.poly.GetVerts().GetConnectivityArray())
+        if slots is None or slots.size == 0:
+            return None
+        matrix = np.asarray(self.actor.user_matrix)
+        placed = self.poly.points[slots].astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+        xy, shown = display_points(self.renderer, placed)
+        depth = np.linalg.norm(placed - self.renderer.GetActiveCamera().GetPosition(), axis=1)
+        row = nearest_drawn(xy, shown, depth, (x_px, y_px), tolerance_px)
+        return None if row is None else int(slots[row])
+
     def mark_picks(self, points_ned: list) -> None:
         """Mark the points picked (NED, metres): a ring round each, and the line between two."""
         self.plotter.subplot(*self.subplot)
@@ -1203,6 +1514,7 @@ class SceneView(_View):
         update_ring_polydata(self.poly, self._ring, stride,
                              self._filtered_cells(stride) if self.cloud_filter.active else None)
         self.scalar_bar.SetTitle(SCENE_UNITS[self.session.display.scene_colour])
+        self.place_legend()
 
     def _filtered_cells(self, stride: int) -> tuple[tuple, np.ndarray]:
         """``(key, slots)``: the drawn slots the filter lets through, made again only when the ring, the drawing or

@@ -133,8 +133,8 @@ def cmd_info(args: argparse.Namespace) -> int:
         print(f"  petals per flower  {2 * cfg.figure8_per_flower}, {cfg.petal_spacing_deg:g} deg apart")
         print(f"  flower step        {cfg.flower_step_deg:g} deg, "
               f"+ U(0,1) x {cfg.jitter_max_deg:g} deg after each {cfg.jitter_scope}")
-        print(f"  petal              length {cfg.half_fov_deg:g} deg, half-width {cfg.petal_height:g} deg, "
-              f"p = {cfg.spacing_exponent:g}, q = {cfg.tip_exponent:g}")
+        print(f"  petal              length {cfg.half_fov_deg:g} deg, height h {cfg.petal_height:g} deg "
+              f"(half its width), p = {cfg.spacing_exponent:g}, q = {cfg.tip_exponent:g}")
     elif cfg.pattern_model == "risley":
         risley = cfg.risley
         print(f"  prisms             {risley.prism_rpm[0]:+.1f} / {risley.prism_rpm[1]:+.1f} rpm, deflections "

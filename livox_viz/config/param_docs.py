@@ -66,8 +66,9 @@ _DOCS: dict[str, ParamDoc] = {
         "[0] max range", "m", "Maximum range, and the int16 scale of the published points: a client decodes "
         "x = x_int / 32767 x range, so a smaller range gives finer steps (range / 65534).", 10, 2, log=True),
     "petal_height": ParamDoc(
-        "[1] petal height h", "deg", "Half-width of a petal at its middle. Wider petals cover the gaps between "
-        "neighbouring petals sooner; too wide and petals overlap.", 0.1, 3),
+        "[1] petal height h", "deg", "Petal height h: how far each of a petal's two arcs rises from the petal's "
+        "axis at its middle, half the petal's width (a petal is 2h across). Higher petals cover the gaps between "
+        "neighbouring petals sooner; too high and petals overlap.", 0.1, 3),
     "spacing_exponent": ParamDoc(
         "[2] spacing exponent p", "", "How points are spaced along an arc (sample i at -(i/W)^p): 1 spaces them "
         "evenly; above 1 packs them at the pattern's centre and at the petal's tip and thins the middle of the "

@@ -530,7 +530,8 @@ class SensorConfig:
 
     @property
     def petal_height(self) -> float:
-        """Petal half-width h at its middle, degrees (``otherParams[1]``)."""
+        """Petal height h, degrees (``otherParams[1]``): how far each arc rises from the petal's axis at its middle,
+        half the petal's width."""
         return self.other_params[1]
 
     @property

@@ -63,7 +63,8 @@ def arc_xy(
     camera_fov : float
         Full field of view, degrees; the tip lies at (-FOV/2, 0).
     petal_height : float
-        h, the half-width of the petal at its middle, degrees.
+        h, the petal's height: how far the arc rises from the petal's axis at its middle (half the petal's
+        width), degrees.
     spacing_exponent : float
         p: X = -(i/W)**p.
     tip_exponent : float
