@@ -858,6 +858,53 @@ def test_a_pattern_pick_gives_the_angles_and_time_of_the_nearest_sample(app: Liv
     assert found["t_s"] == pytest.approx(found["index"] / session.config.point_rate)
 
 
+def test_a_fixed_colour_range_spans_the_scene_s_bar_per_colouring_until_automatic(app: LivoxVizApp) -> None:
+    """View > Colour range (ParaView's custom range): the scene's colours and bar span the typed range, for the
+    colouring it was typed for, the heads-up text says it is fixed; Automatic gives the data's range back; a
+    screenshot's sidecar keeps it."""
+    session = app.session
+    session.advance_to(0.3)
+    bar = app.scene_view.scalar_bar
+    mapper = app.scene_view.actor.mapper
+    app.refresh()
+    assert tuple(mapper.scalar_range) == (0.0, 150.0)  # the data's: the range colouring to 150 m
+    assert app.set_colour_range("5", "40") == (5.0, 40.0)
+    app.refresh()
+    assert tuple(mapper.scalar_range) == (5.0, 40.0) and tuple(bar.GetLookupTable().GetRange()) == (5.0, 40.0)
+    table = mapper.lookup_table
+    assert table.map_value(60.0) == table.map_value(40.0) != table.map_value(39.0)  # clamped above max
+    assert "colour: range, fixed 5 to 40 m" in app.hud.scene_state.GetText(2)
+    for low, high in (("40", "5"), ("nan", "40"), ("x", "40")):
+        with pytest.raises(LivoxVizError, match="allowed"):
+            app.set_colour_range(low, high)
+    assert session.display.scene_colour_ranges == {"range": (5.0, 40.0)}
+    app.set_scene_colour("height")  # its own range: the data's
+    app.refresh()
+    assert tuple(mapper.scalar_range) == (0.0, 30.0) and "fixed" not in app.hud.scene_state.GetText(2)
+    app.set_scene_colour("reflectivity")
+    app.set_colour_range("10", "100")
+    app.refresh()
+    assert tuple(mapper.scalar_range) == (10.0, 100.0)
+    table = app.scene_view.actor.mapper.lookup_table
+    marks = {table.GetAnnotatedValue(k).ToDouble(): table.GetAnnotation(k)
+             for k in range(table.GetNumberOfAnnotatedValues())}
+    # The ends, and the bytes that mean something inside (not 1, 150 or 255, which are off the bar).
+    assert marks == {10.0: "10", 15.0: "15  10 %", 75.0: "75  50 %", 100.0: "100"}
+    state = app.drawing_state()
+    json.dumps(state)
+    app.set_scene_colour("range")
+    app.refresh()
+    assert tuple(mapper.scalar_range) == (5.0, 40.0)
+    app.automatic_colour_range()
+    app.refresh()
+    assert tuple(mapper.scalar_range) == (0.0, 150.0) and "fixed" not in app.hud.scene_state.GetText(2)
+    session.display.scene_colour_ranges.clear()
+    app.apply_drawing_state(json.loads(json.dumps(state)))
+    assert session.display.scene_colour_ranges == {"range": (5.0, 40.0), "reflectivity": (10.0, 100.0)}
+    with pytest.raises(LivoxVizError, match="min 9 is not below max 1"):
+        app.apply_drawing_state({"scene": {"colour_ranges": {"range": [9, 1]}}})
+
+
 def test_the_windows_cloud_exports_as_scan_writes_it(app: LivoxVizApp, tmp_path: Path) -> None:
     """File > Export: the window's points again, by scan's writers, read back with plyfile."""
     from livox_viz.widgets.files import window_export

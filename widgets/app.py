@@ -31,6 +31,7 @@ from livox_viz.core.blas import blas_threads
 
 from . import files
 from .charts import CurveCharts
+from .colour_range import parse_colour_range, range_words
 from .hud import HeadsUp
 from .overlay import WINDOWS, PresetSource, TableSource
 from .playback import next_choice
@@ -250,6 +251,22 @@ class LivoxVizApp:
             raise LivoxVizError(f"scene colour {mode!r}; allowed: {', '.join(SCENE_COLOURS)}")
         self.session.display.scene_colour = mode
         self.session.recolour()
+
+    def set_colour_range(self, low: str, high: str) -> tuple[float, float]:
+        """Fix the scene colouring's range to ``low`` to ``high`` as typed (its unit; View > Colour range), checked
+        by :func:`~livox_viz.widgets.colour_range.parse_colour_range`; the range taken."""
+        mode = self.session.display.scene_colour
+        bounds = parse_colour_range(mode, low, high)
+        self.session.display.scene_colour_ranges[mode] = bounds
+        self.session.message = f"the {mode} colouring's range: {range_words(mode, bounds)} (Automatic: the data's)"
+        return bounds
+
+    def automatic_colour_range(self) -> None:
+        """The scene colouring spans the data's range again (View > Colour range > Automatic)."""
+        mode = self.session.display.scene_colour
+        self.session.display.scene_colour_ranges.pop(mode, None)
+        low, high = self.session.scene_scalar_range()
+        self.session.message = f"the {mode} colouring's range is automatic: {low:g} to {high:g} now"
 
     def set_returns_model(self, model: str) -> None:
         """Cast with the "ideal" or the "datasheet" return model; the panel shows the return model's sheet with the
@@ -643,7 +660,9 @@ class LivoxVizApp:
             state["scene"] = {"colour_map": self.scene_view.colour_map, "point_size": self.scene_view.point_size,
                               "background": self.scene_view.background_name,
                               "follow": self.scene_view.follow, "grid": self.scene_view.grid_actor is not None,
-                              "axes": self.scene_view.axes_actor is not None}
+                              "axes": self.scene_view.axes_actor is not None,
+                              "colour_ranges": {mode: list(bounds) for mode, bounds
+                                                in self.session.display.scene_colour_ranges.items()}}
         return state
 
     def apply_drawing_state(self, state: Mapping[str, Any]) -> None:
@@ -668,6 +687,14 @@ class LivoxVizApp:
             self.scene_view.follow = bool(scene.get("follow", self.scene_view.follow))
             self.scene_view.show_grid(bool(scene.get("grid")))
             self.scene_view.show_axes(bool(scene.get("axes")))
+            ranges = scene.get("colour_ranges") or {}
+            if not isinstance(ranges, Mapping):
+                raise LivoxVizError(f"the scene's colour_ranges {ranges!r}; allowed: {{colouring: [min, max]}}")
+            for mode, bounds in ranges.items():
+                if not (isinstance(bounds, (list, tuple)) and len(bounds) == 2):
+                    raise LivoxVizError(f"the scene's colour range of {mode!r}: {bounds!r}; allowed: [min, max]")
+                self.session.display.scene_colour_ranges[str(mode)] = parse_colour_range(
+                    str(mode), str(bounds[0]), str(bounds[1]))
 
     def cameras(self) -> dict[str, Any]:
         """Each view's camera, for the sidecar."""

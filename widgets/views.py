@@ -66,6 +66,18 @@ SCENE_UNITS = {"range": "range, m", "height": "height, m", "time": "time, s",
 #: Marks of the reflectivity bar: the byte of a 10 %, 50 % and white Lambertian target (0-150 is 0-100 %) and the
 #: top of the retroreflective bytes (151-255), not a log scale's ticks (1, 4, 16, 63.8, 255), which mean nothing.
 REFLECTIVITY_MARKS = {1.0: "1", 15.0: "15  10 %", 75.0: "75  50 %", 150.0: "150  white", 255.0: "255  retro"}
+
+
+def reflectivity_marks(low: float, high: float) -> dict[float, str]:
+    """Marks of the reflectivity bar from ``low`` to ``high`` (bytes, a log scale): its ends, and those of
+    :data:`REFLECTIVITY_MARKS` inside it 8 % of the bar or more from both (nearer, their words overlap)."""
+    span = math.log(high / low)
+    marks = {end: REFLECTIVITY_MARKS.get(end, f"{end:g}") for end in (low, high)}
+    marks.update({value: text for value, text in REFLECTIVITY_MARKS.items()
+                  if min(math.log(value / low), math.log(high / value)) >= 0.08 * span})
+    return dict(sorted(marks.items()))
+
+
 #: Colours of the return/tag classes (return 0, 1, 2, 3, mixed, noise).
 TAG_COLOURS = ("#9aa5b1", "#4fc3f7", "#ffb74d", "#ba68c8", "#ff5252", "#fff176")
 
@@ -795,6 +807,8 @@ class SceneView(_View):
         self._scene_shown = None
         self.colour_map = "viridis"
         self._colouring: tuple | None = None
+        #: The reflectivity bar's span its marks were made for.
+        self._marked_span: tuple[float, float] | None = None
         #: Whether the camera moves with the vehicle (keeping the user's angle and zoom).
         self.follow = session.trajectory is not None
         self.point_size = 2.5
@@ -1075,6 +1089,7 @@ class SceneView(_View):
         key = (mode, self.colour_map)
         if key != self._colouring:
             self._colouring = key
+            self._marked_span = None
             if mode == "return/tag":
                 table = pv.LookupTable(cmap=list(TAG_COLOURS), n_values=len(TAG_COLOURS))
                 table.annotations = dict(enumerate(TAG_CLASSES))
@@ -1083,7 +1098,6 @@ class SceneView(_View):
                 if mode == "reflectivity":
                     # 1-255 logarithmically: dark asphalt at grazing incidence, paint and walls, signs.
                     table.log_scale = True
-                    table.annotations = REFLECTIVITY_MARKS
             annotated = mode in ("return/tag", "reflectivity", "time")
             self.actor.mapper.lookup_table = table
             self.scalar_bar.SetLookupTable(table)
@@ -1094,6 +1108,10 @@ class SceneView(_View):
         table.scalar_range = (low, high if high > low else low + 1e-6)
         if mode == "time":
             table.annotations = time_marks(low, high)
+        elif mode == "reflectivity" and self._marked_span != (low, high):
+            # A range the user fixed: its ends marked, and only the bytes that mean something inside it.
+            self._marked_span = (low, high)
+            table.annotations = reflectivity_marks(low, high)
         self.actor.mapper.scalar_range = table.scalar_range
 
     def stride(self) -> int:
