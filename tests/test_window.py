@@ -997,27 +997,60 @@ def test_slider_steps_and_reset(window, qtbot) -> None:
     assert row.box.textFromValue(10950.0) == "10950"  # never 1.095e+04
 
 
+def held_still(window, qtbot) -> None:
+    """Pause and tick until the cloud takes in nothing more (casts made before the pause still arrive)."""
+    session = window.controller.session
+    session.playback.paused = True
+    ring = session.scene_ring
+    before = None
+    for _ in range(100):
+        window.tick()
+        qtbot.wait(20)
+        now = (session.filling, ring.count, float(ring.times[ring.live_slots()].min()) if ring.count else None)
+        if now == before and now[0] is None:
+            return
+        before = now
+
+
+def click_points(window, qtbot, count: int) -> list[int]:
+    """Click ``count`` points of the scene's cloud through Qt's mouse events, 30 px or more apart; the ring's slots
+    of the points picked (found by their firing times: a nearer point beside the one aimed at may answer)."""
+    from qtpy import QtCore
+
+    session = window.controller.session
+    ring = session.scene_ring
+    view = window.interactors["scene"]
+    renderer = window.controller.scene_view.renderer
+    slots, places = [], []
+    for slot in ring.live_slots()[:: max(1, ring.count // 400)]:
+        renderer.SetWorldPoint(*(ring.positions[slot].astype(float) * [1, -1, -1]), 1.0)
+        renderer.WorldToDisplay()
+        x, y, _ = renderer.GetDisplayPoint()
+        if not (10 < x < view.width() - 10 and 10 < y < view.height() - 10) \
+                or any(np.hypot(x - a, y - b) < 30 for a, b in places):
+            continue
+        picks = len(window.controller.picks)
+        where = QtCore.QPoint(round(x), round(view.height() - 1 - y))  # VTK counts pixels from the bottom
+        qtbot.mouseClick(view, QtCore.Qt.MouseButton.LeftButton, pos=where)
+        window.tick()
+        if len(window.controller.picks) > picks:
+            live = ring.live_slots()
+            slots.append(int(live[np.flatnonzero(ring.times[live] == window.controller.picks[-1]["t_s"])[0]]))
+            places.append((x, y))
+        if len(slots) == count:
+            return slots
+    raise AssertionError(f"only {len(slots)} points could be clicked")
+
+
 def test_a_click_on_a_point_of_the_cloud_says_what_it_is_in_the_status_bar(window, qtbot) -> None:
     """Through Qt's mouse events, as a user clicks: the point's values in the status bar; a drag is no click."""
     from qtpy import QtCore
 
     session = window.controller.session
-    session.playback.paused = True
     ring = session.scene_ring
-
-    def held() -> tuple:
-        return session.filling, ring.count, float(ring.times[ring.live_slots()].min()) if ring.count else None
-
     # Paused, the cloud may still take in what was cast before the pause (a CI run clicked a point the next tick
     # then pushed out of the window): clicked once it holds still.
-    before = None
-    for _ in range(100):
-        window.tick()
-        qtbot.wait(20)
-        now = held()
-        if now == before and now[0] is None:
-            break
-        before = now
+    held_still(window, qtbot)
     view = window.interactors["scene"]
     renderer = window.controller.scene_view.renderer
     for slot in ring.live_slots()[:: max(1, ring.count // 50)]:
@@ -1029,7 +1062,7 @@ def test_a_click_on_a_point_of_the_cloud_says_what_it_is_in_the_status_bar(windo
     where = QtCore.QPoint(round(x), round(view.height() - 1 - y))  # VTK counts pixels from the bottom
     qtbot.mouseClick(view, QtCore.Qt.MouseButton.LeftButton, pos=where)
     window.tick()
-    assert window.status_message.text().startswith("range ") and "azimuth" in window.status_message.text()
+    assert window.status_message.text().startswith("pick 1: range ") and "azimuth" in window.status_message.text()
     assert window.controller.picks and window.controller.picks[-1]["t_s"] in ring.times[ring.live_slots()]
 
 
