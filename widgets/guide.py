@@ -9,6 +9,7 @@ checkout only) is said under the page instead of opening an empty one.
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 from typing import Any
@@ -114,10 +115,17 @@ class UserGuide(QtWidgets.QDialog):
         fragment = url.fragment()
         if not fragment:
             return
-        block = self.browser.document().begin()
+        document = self.browser.document()
+        block = document.begin()
         while block.isValid():
             if block.blockFormat().headingLevel() and heading_anchor(block.text()) == fragment:
-                top = self.browser.document().documentLayout().blockBoundingRect(block).top()
-                self.browser.verticalScrollBar().setValue(int(top))
+                top = document.documentLayout().blockBoundingRect(block).top()
+                # Qt lays a long page out in steps and widens the scroll bar's range a moment later: a heading
+                # past the part laid out when the page opened (window.md's Keys) was scrolled to short of it.
+                # The page's whole height (laying it all out now) gives the range Qt comes to.
+                bar = self.browser.verticalScrollBar()
+                bar.setMaximum(max(bar.maximum(), math.ceil(document.size().height())
+                                   - self.browser.viewport().height()))
+                bar.setValue(int(top))
                 return
             block = block.next()
