@@ -1112,6 +1112,9 @@ def test_the_picks_panel_lists_every_click_copies_it_and_the_camera_turns_about_
     np.testing.assert_allclose(np.array([[float(v) for v in row[1:4]] for row in rows[1:]]), ring.positions[slots],
                                atol=5e-4)
     assert "copied 3 picks" in window.status_message.text()
+    speed = session.playback.speed
+    qtbot.keyClick(table, QtCore.Qt.Key.Key_Up)  # moves in the list, not the playback speed
+    assert session.playback.speed == speed
 
     window.resize(1280, 720)
     for _ in range(3):

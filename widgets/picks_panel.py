@@ -49,6 +49,18 @@ class _KeepListKeys(QtCore.QObject):
         return False
 
 
+#: One filter for every list, owned by no widget, as the parameter panel's (panel.keep_keys): nothing of it goes
+#: with a window's widget tree when that is destroyed.
+_LIST_KEYS_FILTER: _KeepListKeys | None = None
+
+
+def _keep_list_keys(widget: QtWidgets.QWidget) -> None:
+    global _LIST_KEYS_FILTER
+    if _LIST_KEYS_FILTER is None:
+        _LIST_KEYS_FILTER = _KeepListKeys()
+    widget.installEventFilter(_LIST_KEYS_FILTER)
+
+
 class PicksPanel(QtWidgets.QDockWidget):
     """The dock (View > Picks); it opens at the first pick of a list.
 
@@ -123,8 +135,7 @@ class PicksPanel(QtWidgets.QDockWidget):
             self.table.setHorizontalHeaderItem(column, item)
         self.table.setMinimumHeight(self.table.horizontalHeader().sizeHint().height() + 2 * (
             self.table.verticalHeader().defaultSectionSize()) + 6)
-        self._keys = _KeepListKeys(self.table)
-        self.table.installEventFilter(self._keys)
+        _keep_list_keys(self.table)
         layout.addWidget(self.table, 1)
 
         self.footer = QtWidgets.QLabel(FOOTER_HINT)
