@@ -1003,6 +1003,152 @@ def test_a_pattern_pick_gives_the_angles_and_time_of_the_nearest_sample(app: Liv
     assert found["t_s"] == pytest.approx(found["index"] / session.config.point_rate)
 
 
+def pick_points(app: LivoxVizApp, count: int) -> list[dict]:
+    """Click ``count`` points of the cloud, each at least 20 px from the ones before (VTK's pixels)."""
+    renderer = app.scene_view.renderer
+    ring = app.session.scene_ring
+    width, height = renderer.GetSize()
+    picked, places = [], []
+    for slot in ring.live_slots()[:: max(1, ring.count // 400)]:
+        x, y, _ = on_screen(renderer, ring.positions[slot].astype(float) * [1, -1, -1])
+        if not (5 < x < width - 5 and 5 < y < height - 5) or any(math.hypot(x - a, y - b) < 20 for a, b in places):
+            continue
+        found = app.pick_scene(x, y)
+        if found is not None:
+            picked.append(found)
+            places.append((x, y))
+        if len(picked) == count:
+            return picked
+    raise AssertionError(f"only {len(picked)} points could be picked")
+
+
+def haversine_deg(a: dict, b: dict) -> float:
+    """The angle between two picks' rays from their azimuths and elevations (the haversine formula)."""
+    az_a, el_a, az_b, el_b = (math.radians(p[k]) for p in (a, b) for k in ("azimuth_deg", "elevation_deg"))
+    h = math.sin((el_b - el_a) / 2) ** 2 + math.cos(el_a) * math.cos(el_b) * math.sin((az_b - az_a) / 2) ** 2
+    return math.degrees(2 * math.asin(math.sqrt(h)))
+
+
+def test_the_picks_are_any_number_each_marked_with_its_number_and_the_last_ones_measured(app: LivoxVizApp) -> None:
+    """Issue 45 item 6: the list held two picks; now every click joins it, each dot numbered in the view, the
+    distance and the rays' angle of the last two and the angle at the middle one of the last three said; Remove
+    last and Clear take picks and marks away."""
+    session = app.session
+    session.advance_to(0.3)
+    app.refresh()
+    app.render(every=True)
+    picked = pick_points(app, 4)
+    assert app.picks == picked
+    actors = app.plotters["scene"].actors
+    marks = actors["picks"].mapper.GetInput()
+    np.testing.assert_allclose(marks.points, [p["xyz_world"] for p in picked])
+    lines = marks.lines
+    assert list(lines) == [3, 1, 2, 3]  # the measured segments: 2-3 and 3-4
+    numbers = actors["picks-numbers"].GetMapper().GetInputAlgorithm().GetInput()
+    labels = numbers.GetPointData().GetAbstractArray("numbers")
+    assert [labels.GetValue(k) for k in range(labels.GetNumberOfValues())] == ["1", "2", "3", "4"]
+    # Drawn in the display's frame (z up): NED's y and z turned over.
+    np.testing.assert_allclose(pv.wrap(numbers).points, np.array([p["xyz_world"] for p in picked]) * [1, -1, -1],
+                               atol=1e-5)
+    a, b, c = (np.asarray(p["xyz_world"]) for p in picked[1:])
+    distance = float(np.linalg.norm(c - b))
+    rays = haversine_deg(picked[2], picked[3])
+    sides = np.linalg.norm(a - b), np.linalg.norm(c - b), np.linalg.norm(c - a)
+    at_b = math.degrees(math.acos((sides[0] ** 2 + sides[1] ** 2 - sides[2] ** 2) / (2 * sides[0] * sides[1])))
+    assert picked[3]["distance_m"] == pytest.approx(distance)
+    assert app.pick_text.startswith(f"pick 4: range {picked[3]['range_m']:.3f} m")
+    assert f"{distance:.3f} m from pick 3, rays {rays:.3f} deg apart" in app.pick_text
+    assert f"angle 2-3-4 at pick 3: {at_b:.2f} deg" in app.pick_text
+
+    app.remove_last_pick()
+    assert app.picks == picked[:3] and app.plotters["scene"].actors["picks"].mapper.GetInput().n_points == 3
+    assert app.pick_text.startswith("pick 3: ") and session.message == "pick 4 removed"
+    app.clear_picks()
+    assert app.picks == [] and app.pick_text == "" and session.message == "3 picks cleared"
+    actors = app.plotters["scene"].actors
+    assert "picks" not in actors and "picks-numbers" not in actors
+    with pytest.raises(LivoxVizError, match="no pick to remove"):
+        app.remove_last_pick()
+
+
+def test_the_scene_camera_turns_about_the_last_pick_and_r_gives_the_default_back(app: LivoxVizApp) -> None:
+    """CloudCompare's Pick rotation center: the focal point goes to the pick, the camera only moved sideways (its
+    direction, up and the pick's depth kept), the pick in the middle of the view; r resets."""
+    session = app.session
+    with pytest.raises(LivoxVizError, match="no pick to turn about"):
+        app.turn_about_last_pick()
+    session.advance_to(0.3)
+    app.refresh()
+    app.render(every=True)
+    camera = app.scene_view.renderer.camera
+    default = np.array(camera.focal_point)
+    pick_points(app, 2)
+    before = np.array(camera.position), np.array(camera.focal_point), np.array(camera.up)
+    direction = (before[1] - before[0]) / np.linalg.norm(before[1] - before[0])
+    target = np.asarray(app.picks[-1]["xyz_world"]) * [1, -1, -1]
+    app.scene_view.follow = True
+    app.turn_about_last_pick()
+    assert not app.scene_view.follow and "turns about pick 2" in session.message
+    position, focal = np.array(camera.position), np.array(camera.focal_point)
+    np.testing.assert_allclose(focal, target, atol=1e-9)
+    np.testing.assert_allclose((focal - position) / np.linalg.norm(focal - position), direction, atol=1e-9)
+    np.testing.assert_allclose(camera.up, before[2], atol=1e-12)
+    assert float(np.dot(position - before[0], direction)) == pytest.approx(0.0, abs=1e-9)  # sideways only
+    assert np.linalg.norm(focal - position) == pytest.approx(float(np.dot(target - before[0], direction)))
+    width, height = app.scene_view.renderer.GetSize()
+    x, y, _ = on_screen(app.scene_view.renderer, target)
+    assert (x, y) == (pytest.approx(width / 2, abs=1), pytest.approx(height / 2, abs=1))
+    app.reset_cameras()
+    np.testing.assert_allclose(camera.focal_point, default, atol=1e-9)
+
+
+def test_a_fixed_colour_range_spans_the_scene_s_bar_per_colouring_until_automatic(app: LivoxVizApp) -> None:
+    """View > Colour range (ParaView's custom range): the scene's colours and bar span the typed range, for the
+    colouring it was typed for, the heads-up text says it is fixed; Automatic gives the data's range back; a
+    screenshot's sidecar keeps it."""
+    session = app.session
+    session.advance_to(0.3)
+    bar = app.scene_view.scalar_bar
+    mapper = app.scene_view.actor.mapper
+    app.refresh()
+    assert tuple(mapper.scalar_range) == (0.0, 150.0)  # the data's: the range colouring to 150 m
+    assert app.set_colour_range("5", "40") == (5.0, 40.0)
+    app.refresh()
+    assert tuple(mapper.scalar_range) == (5.0, 40.0) and tuple(bar.GetLookupTable().GetRange()) == (5.0, 40.0)
+    table = mapper.lookup_table
+    assert table.map_value(60.0) == table.map_value(40.0) != table.map_value(39.0)  # clamped above max
+    assert "colour: range, fixed 5 to 40 m" in app.hud.scene_state.GetText(2)
+    for low, high in (("40", "5"), ("nan", "40"), ("x", "40")):
+        with pytest.raises(LivoxVizError, match="allowed"):
+            app.set_colour_range(low, high)
+    assert session.display.scene_colour_ranges == {"range": (5.0, 40.0)}
+    app.set_scene_colour("height")  # its own range: the data's
+    app.refresh()
+    assert tuple(mapper.scalar_range) == (0.0, 30.0) and "fixed" not in app.hud.scene_state.GetText(2)
+    app.set_scene_colour("reflectivity")
+    app.set_colour_range("10", "100")
+    app.refresh()
+    assert tuple(mapper.scalar_range) == (10.0, 100.0)
+    table = app.scene_view.actor.mapper.lookup_table
+    marks = {table.GetAnnotatedValue(k).ToDouble(): table.GetAnnotation(k)
+             for k in range(table.GetNumberOfAnnotatedValues())}
+    # The ends, and the bytes that mean something inside (not 1, 150 or 255, which are off the bar).
+    assert marks == {10.0: "10", 15.0: "15  10 %", 75.0: "75  50 %", 100.0: "100"}
+    state = app.drawing_state()
+    json.dumps(state)
+    app.set_scene_colour("range")
+    app.refresh()
+    assert tuple(mapper.scalar_range) == (5.0, 40.0)
+    app.automatic_colour_range()
+    app.refresh()
+    assert tuple(mapper.scalar_range) == (0.0, 150.0) and "fixed" not in app.hud.scene_state.GetText(2)
+    session.display.scene_colour_ranges.clear()
+    app.apply_drawing_state(json.loads(json.dumps(state)))
+    assert session.display.scene_colour_ranges == {"range": (5.0, 40.0), "reflectivity": (10.0, 100.0)}
+    with pytest.raises(LivoxVizError, match="min 9 is not below max 1"):
+        app.apply_drawing_state({"scene": {"colour_ranges": {"range": [9, 1]}}})
+
+
 def test_the_windows_cloud_exports_as_scan_writes_it(app: LivoxVizApp, tmp_path: Path) -> None:
     """File > Export: the window's points again, by scan's writers, read back with plyfile."""
     from livox_viz.widgets.files import window_export

@@ -295,6 +295,9 @@ def test_every_menu_action_runs(window, qtbot, user_presets: Path, monkeypatch: 
     monkeypatch.setattr(QtWidgets.QInputDialog, "getText", staticmethod(lambda *a, **k: ("walked", True)))
     monkeypatch.setattr(QtWidgets.QMessageBox, "about", staticmethod(lambda *a, **k: None))
     monkeypatch.setenv("LIVOX_VIZ_VIEWPOINTS", str(user_presets.parent / "viewpoints"))
+    from livox_viz.widgets.range_dialog import ColourRangeDialog
+
+    monkeypatch.setattr(ColourRangeDialog, "ask", staticmethod(lambda *a, **k: ("2", "20")))
     skipped = {"Quit", "Fit the rosette to the reference"}
     ran = []
     session = window.controller.session
@@ -549,7 +552,8 @@ def test_menu_entries_show_their_keys_and_each_key_still_runs_once(window, qtbot
                 "Reset cameras (fit everything drawn)": "R", "Keys and mouse": "H", "Quit": "Q",
                 "Next built-in scene": "M", "Switch perspective / orthographic": "5",
                 "Next pattern colouring": "C", "Next cloud colouring": "K",
-                "Next drawing": "G", "Next step unit": "U", "Next window": "I"}
+                "Next drawing": "G", "Next step unit": "U", "Next window": "I",
+                "Turn the scene camera about the last pick": "A"}
     assert {text: shown.get(text) for text in expected} == expected
     # A trial found m in no menu and q only as Ctrl+Q; Ctrl+Q still quits too.
     quit_action = next(a for top in window.menuBar().actions() for a in actions(top.menu()) if a.text() == "Quit")
@@ -1205,27 +1209,60 @@ def test_slider_steps_and_reset(window, qtbot) -> None:
     assert row.box.textFromValue(10950.0) == "10950"  # never 1.095e+04
 
 
+def held_still(window, qtbot) -> None:
+    """Pause and tick until the cloud takes in nothing more (casts made before the pause still arrive)."""
+    session = window.controller.session
+    session.playback.paused = True
+    ring = session.scene_ring
+    before = None
+    for _ in range(100):
+        window.tick()
+        qtbot.wait(20)
+        now = (session.filling, ring.count, float(ring.times[ring.live_slots()].min()) if ring.count else None)
+        if now == before and now[0] is None:
+            return
+        before = now
+
+
+def click_points(window, qtbot, count: int) -> list[int]:
+    """Click ``count`` points of the scene's cloud through Qt's mouse events, 30 px or more apart; the ring's slots
+    of the points picked (found by their firing times: a nearer point beside the one aimed at may answer)."""
+    from qtpy import QtCore
+
+    session = window.controller.session
+    ring = session.scene_ring
+    view = window.interactors["scene"]
+    renderer = window.controller.scene_view.renderer
+    slots, places = [], []
+    for slot in ring.live_slots()[:: max(1, ring.count // 400)]:
+        renderer.SetWorldPoint(*(ring.positions[slot].astype(float) * [1, -1, -1]), 1.0)
+        renderer.WorldToDisplay()
+        x, y, _ = renderer.GetDisplayPoint()
+        if not (10 < x < view.width() - 10 and 10 < y < view.height() - 10) \
+                or any(np.hypot(x - a, y - b) < 30 for a, b in places):
+            continue
+        picks = len(window.controller.picks)
+        where = QtCore.QPoint(round(x), round(view.height() - 1 - y))  # VTK counts pixels from the bottom
+        qtbot.mouseClick(view, QtCore.Qt.MouseButton.LeftButton, pos=where)
+        window.tick()
+        if len(window.controller.picks) > picks:
+            live = ring.live_slots()
+            slots.append(int(live[np.flatnonzero(ring.times[live] == window.controller.picks[-1]["t_s"])[0]]))
+            places.append((x, y))
+        if len(slots) == count:
+            return slots
+    raise AssertionError(f"only {len(slots)} points could be clicked")
+
+
 def test_a_click_on_a_point_of_the_cloud_says_what_it_is_in_the_status_bar(window, qtbot) -> None:
     """Through Qt's mouse events, as a user clicks: the point's values in the status bar; a drag is no click."""
     from qtpy import QtCore
 
     session = window.controller.session
-    session.playback.paused = True
     ring = session.scene_ring
-
-    def held() -> tuple:
-        return session.filling, ring.count, float(ring.times[ring.live_slots()].min()) if ring.count else None
-
     # Paused, the cloud may still take in what was cast before the pause (a CI run clicked a point the next tick
     # then pushed out of the window): clicked once it holds still.
-    before = None
-    for _ in range(100):
-        window.tick()
-        qtbot.wait(20)
-        now = held()
-        if now == before and now[0] is None:
-            break
-        before = now
+    held_still(window, qtbot)
     view = window.interactors["scene"]
     renderer = window.controller.scene_view.renderer
     for slot in ring.live_slots()[:: max(1, ring.count // 50)]:
@@ -1237,8 +1274,136 @@ def test_a_click_on_a_point_of_the_cloud_says_what_it_is_in_the_status_bar(windo
     where = QtCore.QPoint(round(x), round(view.height() - 1 - y))  # VTK counts pixels from the bottom
     qtbot.mouseClick(view, QtCore.Qt.MouseButton.LeftButton, pos=where)
     window.tick()
-    assert window.status_message.text().startswith("range ") and "azimuth" in window.status_message.text()
+    assert window.status_message.text().startswith("pick 1: range ") and "azimuth" in window.status_message.text()
     assert window.controller.picks and window.controller.picks[-1]["t_s"] in ring.times[ring.live_slots()]
+
+
+def test_the_picks_panel_lists_every_click_copies_it_and_the_camera_turns_about_the_last(window, qtbot) -> None:
+    """Issue 45 item 6, as a user does it: the Picks dock opens at the first click, one row per pick with its
+    world x, y, z (those the cloud holds) and values, the last ones' distance and angles in its footer; Ctrl+C in
+    the list copies it for a spreadsheet; at 1280 x 720 the views keep their room; a turns the scene camera about
+    the last pick and r gives the default back; Remove last and Clear take rows and marks away."""
+    import csv
+    import io
+
+    from qtpy import QtCore, QtWidgets
+
+    panel = window.picks_panel
+    controller = window.controller
+    session = controller.session
+    assert panel.isHidden() and not window.picks_action.isChecked()
+    assert "Picks" in window.picks_action.text()
+    held_still(window, qtbot)
+    ring = session.scene_ring
+    slots = click_points(window, qtbot, 3)
+    assert panel.isVisible() and window.picks_action.isChecked()
+    table = panel.table
+    assert table.rowCount() == 3
+    headers = [table.horizontalHeaderItem(c).text() for c in range(table.columnCount())]
+    assert headers[:4] == ["#", "x north, m", "y east, m", "z down, m"]
+    shown = np.array([[float(table.item(r, c).text()) for c in range(1, 5)] for r in range(3)])
+    # x, y, z as the cloud holds the point clicked (world NED), and its range as the sensor measured it.
+    np.testing.assert_allclose(shown[:, :3], ring.positions[slots], atol=5e-4)
+    np.testing.assert_allclose(shown[:, 3], ring.range_m[slots], atol=5e-4)
+    assert [table.item(r, 0).text() for r in range(3)] == ["1", "2", "3"]
+    a, b, c = (ring.positions[s].astype(np.float64) for s in slots)
+    ab, bc, ac = np.linalg.norm(a - b), np.linalg.norm(c - b), np.linalg.norm(c - a)
+    at_b = np.degrees(np.arccos((ab**2 + bc**2 - ac**2) / (2 * ab * bc)))
+    footer = panel.footer.text()
+    assert footer.startswith(f"pick 3: {bc:.3f} m from pick 2, rays ")
+    assert f"angle 1-2-3 at pick 2: {at_b:.2f} deg" in footer
+    assert window.status_message.text().startswith("pick 3: range ")
+
+    table.setFocus()
+    qtbot.keyClick(table, QtCore.Qt.Key.Key_C, QtCore.Qt.KeyboardModifier.ControlModifier)
+    rows = list(csv.reader(io.StringIO(QtWidgets.QApplication.clipboard().text()), delimiter="\t"))
+    assert rows[0][:4] == ["pick", "x_north_m", "y_east_m", "z_down_m"] and len(rows) == 4
+    np.testing.assert_allclose(np.array([[float(v) for v in row[1:4]] for row in rows[1:]]), ring.positions[slots],
+                               atol=5e-4)
+    assert "copied 3 picks" in window.status_message.text()
+    speed = session.playback.speed
+    qtbot.keyClick(table, QtCore.Qt.Key.Key_Up)  # moves in the list, not the playback speed
+    assert session.playback.speed == speed
+
+    window.resize(1280, 720)
+    for _ in range(3):
+        window.tick()
+        qtbot.wait(20)
+    dock = widget_rect(panel, window)
+    assert window.rect().contains(dock)
+    for name, view in window.interactors.items():
+        rect = widget_rect(view, window)
+        assert window.rect().contains(rect) and rect.height() >= 240 and not rect.intersects(dock), (name, rect)
+    assert table.rowCount() * table.rowHeight(0) + table.horizontalHeader().height() <= table.height()
+
+    camera = controller.scene_view.renderer.camera
+    press(qtbot, window, "r")
+    default = np.array(camera.focal_point)
+    press(qtbot, window, "a")
+    np.testing.assert_allclose(camera.focal_point, ring.positions[slots[-1]].astype(float) * [1, -1, -1], atol=1e-4)
+    assert "turns about pick 3" in window.status_message.text()
+    press(qtbot, window, "r")
+    np.testing.assert_allclose(camera.focal_point, default, atol=1e-9)
+
+    qtbot.mouseClick(panel.buttons["Remove last"], QtCore.Qt.MouseButton.LeftButton)
+    assert table.rowCount() == 2 and controller.scene_view.plotter.actors["picks"].mapper.GetInput().n_points == 2
+    assert panel.footer.text().startswith(f"pick 2: {ab:.3f} m from pick 1")
+    qtbot.mouseClick(panel.buttons["Clear"], QtCore.Qt.MouseButton.LeftButton)
+    assert table.rowCount() == 0 and "picks" not in controller.scene_view.plotter.actors
+    assert window.status_message.text() == "2 picks cleared" and not window._error
+    assert not panel.buttons["Clear"].isEnabled()
+    window.picks_action.trigger()  # View > Picks hides it
+    assert panel.isHidden()
+
+
+def test_the_colour_range_is_typed_refused_in_one_red_line_and_made_automatic_again(window, qtbot,
+                                                                                    monkeypatch) -> None:
+    """View > Colour range (ParaView's "Rescale to custom range"): a bad pair is said in one red line and asked
+    for again with the reason; a good one fixes the scene's bar; Automatic undoes it; the return/tag colouring,
+    classes, is refused without a dialog."""
+    from livox_viz.widgets import range_dialog
+
+    asked: list[tuple] = []
+    answers: list = []
+
+    def ask(parent, mode, unit, values, data_range, note=""):
+        asked.append((mode, unit, values, data_range, note))
+        return answers.pop(0)
+
+    monkeypatch.setattr(range_dialog.ColourRangeDialog, "ask", staticmethod(ask))
+    view_menu = next(a.menu() for a in window.menuBar().actions() if a.text().replace("&", "") == "View")
+    entry = next(a for a in view_menu.actions() if a.text().startswith("Colour range"))
+    mapper = window.controller.scene_view.actor.mapper
+
+    answers[:] = [("40", "5"), ("5", "40")]
+    entry.trigger()
+    window.tick()
+    assert [a[0] for a in asked] == ["range", "range"] and asked[0][1] == "m"
+    assert asked[0][2] == ("0", "150") and asked[0][3] == (0.0, 150.0) and asked[0][4] == ""
+    assert "min 40 is not below max 5" in asked[1][4] and asked[1][2] == ("40", "5")  # asked again, with why
+    assert tuple(mapper.scalar_range) == (5.0, 40.0) and not window._error
+    assert "fixed 5 to 40 m" in window.status_message.text()
+
+    asked.clear()
+    answers[:] = [("abc", "3"), None]  # refused, then cancelled: the refusal stays, red, one line
+    entry.trigger()
+    window.tick()
+    message = window.status_message.text()
+    assert "'abc' is not a number" in message and "allowed" in message and "\n" not in message and window._error
+    assert tuple(mapper.scalar_range) == (5.0, 40.0)
+
+    answers[:] = [range_dialog.AUTOMATIC]
+    entry.trigger()
+    window.tick()
+    assert tuple(mapper.scalar_range) == (0.0, 150.0) and not window._error
+    assert "fixed" not in window.controller.hud.scene_state.GetText(2)
+
+    asked.clear()
+    window.run(lambda: window.controller.set_scene_colour("return/tag"))
+    entry.trigger()
+    window.tick()
+    assert asked == [] and window._error and "classes, not a scale" in window.status_message.text()
+    assert window.isVisible()
 
 
 def test_a_click_picks_only_a_point_the_view_draws(window, qtbot) -> None:

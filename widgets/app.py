@@ -32,9 +32,11 @@ from livox_viz.core.blas import blas_threads
 from . import files
 from .cameras import PROJECTIONS, CameraState
 from .charts import CurveCharts
+from .colour_range import parse_colour_range, range_words
 from .filters import CloudFilter
 from .hud import HeadsUp
 from .overlay import WINDOWS, PresetSource, TableSource
+from .picks import pick_measures, status_line
 from .playback import next_choice
 from .session import CLOUD_FRAMES, DRAWINGS, SCENE_COLOURS, Session, pattern_colours, step_units
 from .views import BACKGROUNDS, CAMERA_PRESETS, PatternView, SceneView, display_points
@@ -119,9 +121,12 @@ class LivoxVizApp:
         self.hud = HeadsUp(plotters.get("pattern"), plotters.get("scene"))
         #: The parameter panel's page: the pattern model's parameters or the return model's.
         self.page = "pattern"
-        #: The last picks in the scene view (at most two: a distance), and the last answer of any pick, in words.
+        #: The picks in the scene view, in the order made (any number: the Picks panel lists them), and the last
+        #: answer of any pick, in words.
         self.picks: list[dict[str, Any]] = []
         self.pick_text = ""
+        #: Called after the picks changed (a pick, a removal, forgotten at a restart): the Picks panel follows.
+        self.on_picks_change: Callable[[], None] | None = None
         self._picks_scan = session.scan_number
         #: ``defer(stages, action, what, kind) -> bool``: True when the compiled loops of ``stages`` are loaded (the
         #: action runs now); otherwise the window keeps ``action`` for when they are, says so, and returns False.
@@ -276,6 +281,22 @@ class LivoxVizApp:
             raise LivoxVizError(f"scene colour {mode!r}; allowed: {', '.join(SCENE_COLOURS)}")
         self.session.display.scene_colour = mode
         self.session.recolour()
+
+    def set_colour_range(self, low: str, high: str) -> tuple[float, float]:
+        """Fix the scene colouring's range to ``low`` to ``high`` as typed (its unit; View > Colour range), checked
+        by :func:`~livox_viz.widgets.colour_range.parse_colour_range`; the range taken."""
+        mode = self.session.display.scene_colour
+        bounds = parse_colour_range(mode, low, high)
+        self.session.display.scene_colour_ranges[mode] = bounds
+        self.session.message = f"the {mode} colouring's range: {range_words(mode, bounds)} (Automatic: the data's)"
+        return bounds
+
+    def automatic_colour_range(self) -> None:
+        """The scene colouring spans the data's range again (View > Colour range > Automatic)."""
+        mode = self.session.display.scene_colour
+        self.session.display.scene_colour_ranges.pop(mode, None)
+        low, high = self.session.scene_scalar_range()
+        self.session.message = f"the {mode} colouring's range is automatic: {low:g} to {high:g} now"
 
     def set_returns_model(self, model: str) -> None:
         """Cast with the "ideal" or the "datasheet" return model; the panel shows the return model's sheet with the
@@ -576,16 +597,51 @@ class LivoxVizApp:
         self.set_cloud_filter(None)
 
     # Picking -------------------------------------------------------------------------------
+    def _picks_changed(self) -> None:
+        if self.scene_view is not None:
+            self.scene_view.mark_picks([p["xyz_world"] for p in self.picks])
+        if self.on_picks_change is not None:
+            self.on_picks_change()
+
     def forget_picks(self) -> None:
         """Drop the picks and their marks (the scan moved to another time: the points picked may not be there)."""
         self.picks = []
         self.pick_text = ""
-        if self.scene_view is not None:
-            self.scene_view.mark_picks([])
+        self._picks_changed()
+
+    def clear_picks(self) -> None:
+        """The Picks panel's Clear: every pick and its mark goes."""
+        count = len(self.picks)
+        self.forget_picks()
+        self.session.message = f"{count} pick{'s' if count != 1 else ''} cleared" if count else "no picks to clear"
+
+    def remove_last_pick(self) -> None:
+        """The Picks panel's Remove last: the last pick and its mark go; the measures are those of the picks left."""
+        if not self.picks:
+            raise LivoxVizError("no pick to remove; allowed: once a point of the cloud is clicked")
+        self.picks = self.picks[:-1]
+        self.pick_text = status_line(self.picks) if self.picks else ""
+        self._picks_changed()
+        self.session.message = f"pick {len(self.picks) + 1} removed"
+
+    def turn_about_last_pick(self) -> None:
+        """The scene camera turns about the last pick from now on (ParaView's Pick Center); r gives the default
+        back. Following the vehicle stops: it would carry the centre off the point."""
+        if self.scene_view is None or not self.picks:
+            raise LivoxVizError("no pick to turn about; allowed: once a point of the cloud is clicked in the scene "
+                                "view")
+        self.scene_view.turn_about(np.asarray(self.picks[-1]["xyz_world"], dtype=np.float64))
+        stopped = ""
+        if self.scene_view.follow:
+            self.scene_view.follow = False
+            stopped = "; it no longer follows the vehicle"
+        self.session.message = (f"the scene camera turns about pick {len(self.picks)}{stopped} (r resets the "
+                                "cameras)")
 
     def pick_scene(self, x_px: float, y_px: float) -> dict[str, Any] | None:
         """The cloud's point under the display position ``(x_px, y_px)`` of the scene view (VTK's pixels, origin
-        bottom left), or None; a second pick also gives the distance between the two (:attr:`pick_text`)."""
+        bottom left), or None; it joins :attr:`picks`, and :attr:`pick_text` says its values and what it measures
+        with the picks before (:func:`~livox_viz.widgets.picks.status_line`)."""
         if self.scene_view is None:
             return None
         slot = self.scene_view.drawn_point_at(x_px, y_px, PICK_TOLERANCE_PX)
@@ -594,16 +650,12 @@ class LivoxVizApp:
             return None
         found = self.session.scene_point(slot)
         self._picks_scan = self.session.scan_number
-        self.picks = [*self.picks[-1:], found]
-        text = (f"range {found['range_m']:.3f} m, azimuth {found['azimuth_deg']:.2f} deg, elevation "
-                f"{found['elevation_deg']:.2f} deg, reflectivity {found['reflectivity']}, tag 0x{found['tag']:02x}, "
-                f"return {found['return_number']}, t {found['t_s']:.4f} s, frame {found['frame']}")
-        if len(self.picks) == 2:
-            distance = float(np.linalg.norm(np.subtract(self.picks[1]["xyz_world"], self.picks[0]["xyz_world"])))
-            found["distance_m"] = distance
-            text += f"; {distance:.3f} m from the point picked before"
-        self.pick_text = text
-        self.scene_view.mark_picks([p["xyz_world"] for p in self.picks])
+        self.picks = [*self.picks, found]
+        measures = pick_measures(self.picks)
+        if measures.distance_m is not None:
+            found["distance_m"] = measures.distance_m
+        self.pick_text = status_line(self.picks)
+        self._picks_changed()
         return found
 
     def pick_pattern(self, x_px: float, y_px: float) -> dict[str, float] | None:
@@ -711,7 +763,9 @@ class LivoxVizApp:
                               "follow": self.scene_view.follow, "grid": self.scene_view.grid_actor is not None,
                               "axes": self.scene_view.axes_actor is not None,
                               "filter": (self.scene_view.cloud_filter.to_json()
-                                         if self.scene_view.cloud_filter.active else None)}
+                                         if self.scene_view.cloud_filter.active else None),
+                              "colour_ranges": {mode: list(bounds) for mode, bounds
+                                                in self.session.display.scene_colour_ranges.items()}}
         return state
 
     def apply_drawing_state(self, state: Mapping[str, Any]) -> None:
@@ -737,6 +791,14 @@ class LivoxVizApp:
             self.scene_view.show_grid(bool(scene.get("grid")))
             self.scene_view.show_axes(bool(scene.get("axes")))
             self.scene_view.cloud_filter = CloudFilter.from_json(scene.get("filter"))
+            ranges = scene.get("colour_ranges") or {}
+            if not isinstance(ranges, Mapping):
+                raise LivoxVizError(f"the scene's colour_ranges {ranges!r}; allowed: {{colouring: [min, max]}}")
+            for mode, bounds in ranges.items():
+                if not (isinstance(bounds, (list, tuple)) and len(bounds) == 2):
+                    raise LivoxVizError(f"the scene's colour range of {mode!r}: {bounds!r}; allowed: [min, max]")
+                self.session.display.scene_colour_ranges[str(mode)] = parse_colour_range(
+                    str(mode), str(bounds[0]), str(bounds[1]))
 
     def cameras(self) -> dict[str, Any]:
         """Each view's camera, for the sidecar (:meth:`CameraState.to_json`, as a saved viewpoint holds it)."""

@@ -115,7 +115,8 @@ class UserGuide(QtWidgets.QDialog):
         fragment = url.fragment()
         if not fragment:
             return
-        block = self.browser.document().begin()
+        document = self.browser.document()
+        block = document.begin()
         while block.isValid():
             if block.blockFormat().headingLevel() and heading_anchor(block.text()) == fragment:
                 layout = self.browser.document().documentLayout()

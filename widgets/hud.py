@@ -15,6 +15,7 @@ import time
 
 import pyvista as pv
 
+from .colour_range import range_words
 from .overlay import window_label
 from .panel import number_text
 from .session import Session
@@ -134,10 +135,13 @@ class HeadsUp:
         cfg = session.config
         count = session.scene_ring.count
         thinned = f" (drawing {drawn:,}: 1 in {round(count / max(drawn, 1))})" if drawn < count else ""
+        mode = session.display.scene_colour
+        bounds = session.display.scene_colour_ranges.get(mode)
+        fixed = f", {range_words(mode, bounds)}" if bounds is not None else ""
         lines = [f"scene {session.scene.name}: {len(session.scene.mesh.faces):,} triangles",
                  f"decoded cloud: {count:,} returns in the window{thinned}",
                  *([filtered] if filtered else []),
-                 f"returns: {cfg.returns_model}   colour: {session.display.scene_colour}"]
+                 f"returns: {cfg.returns_model}   colour: {session.display.scene_colour}{fixed}"]
         if session.display.scene_colour == "reflectivity" and cfg.returns_model == "ideal":
             lines.append("ideal returns carry no intensity (reflectivity 0): turn on the datasheet returns (d)")
         if session.trajectory is not None:

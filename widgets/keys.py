@@ -62,6 +62,8 @@ KEYS: tuple[KeyRow, ...] = (
            "thinned to 250 000 points) / every point / density", (("g", "cycle_drawing"),)),
     KeyRow("m", "next scene: the built-in ones, then mesh files in your scenes folder (a file that fails to load "
            "leaves a message, not a crash)", (("m", "cycle_scene"),)),
+    KeyRow("a", "the scene camera turns about the last pick (its focal point there, the view moved sideways only); "
+           "r gives the default back", (("a", "turn_about_last_pick"),)),
     KeyRow("o / l", "reference overlay on/off / its own integration window (its coverage shows beside ours)",
            (("o", "toggle_reference"), ("l", "cycle_reference_window"))),
     KeyRow("e", "reference: the next preset with a track in the pattern's plane (or the table of `--reference`)",
@@ -79,8 +81,11 @@ KEYS: tuple[KeyRow, ...] = (
 MOUSE: tuple[tuple[str, str], ...] = (
     ("left drag", "turn the scene's camera (pan the pattern view with the middle button or Shift)"),
     ("wheel / right drag", "zoom"),
-    ("click a point (scene)", "its range, azimuth and elevation, reflectivity, tag, return number, time and frame "
-                              "in the status bar; a second click also gives the distance between the two"),
+    ("click a point (scene)", "picks a point drawn within 5 px of the click: its range, azimuth and elevation, "
+                              "reflectivity, tag, return number, time and frame in the status bar, a row with its x, "
+                              "y, z in the Picks panel and its number beside it in the view; a second click also "
+                              "gives the distance between the two and the angle between their rays, a third the angle "
+                              "at the middle one"),
     ("click (pattern)", "the angles and the time of the sample under the cursor (within 5 px)"),
 )
 

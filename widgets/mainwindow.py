@@ -45,6 +45,7 @@ from . import files
 from .app import VIEW_NAMES, LivoxVizApp, quiet_vtk
 from .cameras import PROJECTIONS
 from .collector import MainThreadCollector, destroy_widget_tree, give_back_free_memory, release_gl_wrappers
+from .colour_range import RANGE_UNITS
 from .filter_dialog import FilterDialog
 from .guide import GUIDE_SIZE, UserGuide, guide_dir
 from .history import describe_change
@@ -53,6 +54,8 @@ from .messages import LOG_SIZE, MessageLog, MessagesDialog
 from .nonerefs import NoneReserve, binding_drops_none
 from .overlay import WINDOWS, PresetSource, TableSource, window_label
 from .panel import ParameterPanel, signals_blocked
+from .picks_panel import PicksPanel
+from .range_dialog import AUTOMATIC, ColourRangeDialog
 from .session import DRAWINGS, SCENE_COLOURS, Session, pattern_colours, step_units
 from .viewpoints import NAME_CHARS, delete_viewpoint, read_viewpoints, save_viewpoint
 from .views import BACKGROUNDS, CAMERA_PRESETS, COLOUR_MAPS
@@ -81,6 +84,8 @@ CANCEL_WAIT_S = 10.0
 STATUS_MESSAGE_SHARE = 300
 #: Pixels a click may move between press and release and still be a click (not a drag of the camera).
 CLICK_SLOP = 4
+#: Pixels the Picks panel takes under the views when it opens (at most a quarter of the window's height).
+PICKS_PANEL_HEIGHT = 190
 
 
 def key_sequence(key: str) -> QtGui.QKeySequence:
@@ -296,6 +301,8 @@ class MainWindow(QtWidgets.QMainWindow):
         #: Every message the status bar said, whole (View > Messages).
         self.messages = MessageLog()
         self._press: tuple[str, int, int] | None = None
+        #: How many picks the Picks panel showed last (it opens when a list starts).
+        self._picks_shown = 0
         self._closing = False
         self._sized = False
         self._pattern_size: tuple[int, int] | None = None
@@ -339,6 +346,13 @@ class MainWindow(QtWidgets.QMainWindow):
                               | QtWidgets.QDockWidget.DockWidgetFeature.DockWidgetClosable)
         self.dock.setMinimumWidth(330)
         self.addDockWidget(QtCore.Qt.DockWidgetArea.LeftDockWidgetArea, self.dock)
+        # The picks' list, under the views (the parameter panel keeps the window's height: the left dock holds the
+        # bottom-left corner); hidden until the first pick.
+        self.setCorner(QtCore.Qt.Corner.BottomLeftCorner, QtCore.Qt.DockWidgetArea.LeftDockWidgetArea)
+        self.picks_panel = PicksPanel(self.controller, self.run, self)
+        self.addDockWidget(QtCore.Qt.DockWidgetArea.BottomDockWidgetArea, self.picks_panel)
+        self.picks_panel.hide()
+        self.controller.on_picks_change = self._picks_follow
 
         self._make_status_bar()
         self._make_scrubber()
@@ -583,11 +597,16 @@ class MainWindow(QtWidgets.QMainWindow):
                                           checkable=True)
         self._make_scene_view_menus(view)
         self._action(view, "Reset cameras (fit everything drawn)", c.reset_cameras)
+        self._action(view, "Turn the scene camera about the last pick", c.turn_about_last_pick)
+        self._action(view, "Colour range of the cloud (min, max or automatic)...", self.type_colour_range)
         view.addSeparator()
         self.dock_action = self.dock.toggleViewAction()
         self.dock_action.setText("Parameter panel")
         view.addAction(self.dock_action)
         self._action(view, "Messages (every status bar message, whole)...", self.show_messages)
+        self.picks_action = self.picks_panel.toggleViewAction()
+        self.picks_action.setText("Picks (the points clicked, their XYZ, distance and angles)")
+        view.addAction(self.picks_action)
         # The charts can go, giving their room to the views; double-clicking a view gives it the whole row (again:
         # the row back), as ParaView and CloudCompare do: the scene view had about 300 of 1,600 px (issue 45).
         self.charts_action = self._action(view, "Charts", self.toggle_charts, checkable=True)
@@ -1269,6 +1288,49 @@ class MainWindow(QtWidgets.QMainWindow):
                                  3)
         if value is not None:
             self.controller.set_window_seconds(value)
+
+    def _picks_follow(self) -> None:
+        """The Picks panel shows the controller's picks; it opens at the first pick of a list (after a Clear or a
+        restart too), as a user closed it stays closed while the list goes on."""
+        panel = self.picks_panel
+        picks = self.controller.picks
+        opening = len(picks) == 1 and self._picks_shown == 0 and panel.isHidden()
+        self._picks_shown = len(picks)
+        panel.follow()
+        if opening:
+            panel.show()
+            # A share of the height the views can spare: at 1280 x 720 they keep 240 px and more.
+            self.resizeDocks([panel], [min(PICKS_PANEL_HEIGHT, max(self.height() // 4, 120))],
+                             QtCore.Qt.Orientation.Vertical)
+
+    def type_colour_range(self) -> None:
+        """View > Colour range: the scene colour bar's min and max as typed (a refused pair is said and asked
+        again), or Automatic, the data's range."""
+        session = self.controller.session
+        mode = session.display.scene_colour
+        if mode not in RANGE_UNITS:
+            raise LivoxVizError(f"the {mode} colouring is classes, not a scale: it has no colour range; allowed: "
+                                f"{', '.join(RANGE_UNITS)} (View > Colour the cloud by)")
+        values = tuple(f"{v:g}" for v in session.scene_scalar_range())
+        refusal = ""
+        while True:
+            answer = ColourRangeDialog.ask(self, mode, RANGE_UNITS[mode], values,
+                                           session.scene_scalar_range(automatic=True), refusal)
+            if answer is None:
+                if refusal:
+                    raise LivoxVizError(refusal)  # the last word on it stays, red
+                return
+            if answer == AUTOMATIC:
+                self.controller.automatic_colour_range()
+                return
+            values = answer
+            try:
+                self.controller.set_colour_range(*answer)
+            except LivoxVizError as exc:
+                refusal = str(exc)
+                self.say(refusal, error=True)
+                continue
+            return
 
     def pick(self, view: str, x: int, y: int) -> None:
         """A click on a view: the point picked, in the status bar."""

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -104,6 +104,9 @@ class DisplayOptions:
         How a moving sensor's cloud accumulates: each point placed with the pose of its own
         time (a static wall stays sharp), or as the sensor sees it, placed with the pose at the
         end of its chunk (the smear of the motion shows).
+    scene_colour_ranges : dict
+        The colour ranges the user fixed (View > Colour range), by scene colouring: ``(low, high)`` in its unit;
+        a colouring not in it spans the data's range.
     """
 
     pattern_colour: str = "time"
@@ -111,6 +114,7 @@ class DisplayOptions:
     drawing: str = "auto"
     step_unit: str = "flower"
     cloud_frame: str = "world"
+    scene_colour_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
 
 
 def tag_classes(tag: np.ndarray) -> np.ndarray:
@@ -643,9 +647,13 @@ class Session:
             return tag_classes(np.full(len(world), 0x10, np.uint8) if tag is None else tag)
         return t.astype(np.float32)
 
-    def scene_scalar_range(self) -> tuple[float, float]:
-        """Colour range of the scene view for the current mode."""
+    def scene_scalar_range(self, automatic: bool = False) -> tuple[float, float]:
+        """Colour range of the scene view for the current mode: the one the user fixed, else (or with
+        ``automatic``) the data's."""
         mode = self.display.scene_colour
+        fixed = None if automatic else self.display.scene_colour_ranges.get(mode)
+        if fixed is not None:
+            return fixed
         if mode == "range":
             return 0.0, min(self.config.range_max, 150.0)
         if mode == "height":

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 import pyvista as pv
-from vtkmodules.vtkCommonCore import vtkPoints, vtkUnsignedCharArray
+from vtkmodules.vtkCommonCore import vtkPoints, vtkStringArray, vtkUnsignedCharArray
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
 from vtkmodules.vtkRenderingCore import vtkActor2D, vtkPolyDataMapper2D, vtkTextActor, vtkTextRenderer
 
@@ -72,6 +72,18 @@ SCENE_UNITS = {"range": "range, m", "height": "height, m", "time": "time, s",
 #: Marks of the reflectivity bar: the byte of a 10 %, 50 % and white Lambertian target (0-150 is 0-100 %) and the
 #: top of the retroreflective bytes (151-255), not a log scale's ticks (1, 4, 16, 63.8, 255), which mean nothing.
 REFLECTIVITY_MARKS = {1.0: "1", 15.0: "15  10 %", 75.0: "75  50 %", 150.0: "150  white", 255.0: "255  retro"}
+
+
+def reflectivity_marks(low: float, high: float) -> dict[float, str]:
+    """Marks of the reflectivity bar from ``low`` to ``high`` (bytes, a log scale): its ends, and those of
+    :data:`REFLECTIVITY_MARKS` inside it 8 % of the bar or more from both (nearer, their words overlap)."""
+    span = math.log(high / low)
+    marks = {end: REFLECTIVITY_MARKS.get(end, f"{end:g}") for end in (low, high)}
+    marks.update({value: text for value, text in REFLECTIVITY_MARKS.items()
+                  if min(math.log(value / low), math.log(high / value)) >= 0.08 * span})
+    return dict(sorted(marks.items()))
+
+
 #: Colours of the return/tag classes (return 0, 1, 2, 3, mixed, noise).
 TAG_COLOURS = ("#9aa5b1", "#4fc3f7", "#ffb74d", "#ba68c8", "#ff5252", "#fff176")
 
@@ -865,6 +877,43 @@ def _panorama_grid(fov, stretch: float = 1.0, marked_every: int = 45, elevation_
     return lines, labels, positions
 
 
+#: The picks' dots, lines and numbers: a pink no colour map has.
+PICK_COLOUR = "#ff4fd8"
+
+
+def pick_numbers_actor(numbers: pv.PolyData) -> object:
+    """The picks' numbers beside their dots: ``numbers`` holds the picks' points in the display's frame and their
+    labels ("numbers"). Every number in front of the camera is drawn, however close two picks are (the placement
+    mapper would drop one that overlaps another; the plain labelled mapper drew those behind the camera too,
+    mirrored into the view)."""
+    # Loaded at the first pick, not with the window (54 ms of its start).
+    from vtkmodules.vtkRenderingCore import vtkActor2D
+    from vtkmodules.vtkRenderingLabel import vtkLabelPlacementMapper, vtkPointSetToLabelHierarchy
+
+    hierarchy = vtkPointSetToLabelHierarchy()
+    hierarchy.SetInputData(numbers)
+    hierarchy.SetLabelArrayName("numbers")
+    words = hierarchy.GetTextProperty()
+    words.SetFontSize(16)
+    words.SetBold(True)
+    words.SetColor(pv.Color(PICK_COLOUR).float_rgb)
+    # Above and right of the point: the dot (12 px) shows three quarters of itself at the box's corner.
+    words.SetJustificationToLeft()
+    words.SetVerticalJustificationToBottom()
+    mapper = vtkLabelPlacementMapper()
+    mapper.SetInputConnection(hierarchy.GetOutputPort())
+    mapper.PlaceAllLabelsOn()
+    # Read over the cloud and the buildings alike, as the colour bars' words are.
+    mapper.SetShapeToRect()
+    mapper.SetStyleToFilled()
+    mapper.SetBackgroundColor(pv.Color(BACKGROUNDS["dark"][0]).float_rgb)
+    mapper.SetBackgroundOpacity(BAR_TEXT_BACKING_OPACITY)
+    mapper.SetMargin(2)
+    actor = vtkActor2D()
+    actor.SetMapper(mapper)
+    return actor
+
+
 def _heading(rotation: np.ndarray) -> float:
     """The vehicle's heading, radians: its x axis turned about the NED vertical (0 north, positive to the east)."""
     forward = np.asarray(rotation)[:, 0]
@@ -1085,6 +1134,8 @@ class SceneView(_View):
         self._scene_shown = None
         self.colour_map = "viridis"
         self._colouring: tuple | None = None
+        #: The reflectivity bar's span its marks were made for.
+        self._marked_span: tuple[float, float] | None = None
         #: Whether the camera moves with the vehicle (keeping the user's angle and zoom).
         self.follow = session.trajectory is not None
         self.point_size = 2.5
@@ -1437,24 +1488,55 @@ class SceneView(_View):
         return None if row is None else int(slots[row])
 
     def mark_picks(self, points_ned: list) -> None:
-        """Mark the points picked (NED, metres): a ring round each, and the line between two."""
+        """Mark the points picked (NED, metres): a dot on each with its number beside it (as CloudCompare labels
+        its picks), and the lines the measures are taken along: between the last two, and between the last three
+        (their angle at the middle one)."""
         self.plotter.subplot(*self.subplot)
         points = np.asarray(points_ned, dtype=np.float64).reshape(-1, 3)
         if points.shape[0] == 0:
             # pyvista refuses an empty mesh: forgetting the picks before any was made (a seek of the scrubber)
-            # said "Empty meshes cannot be plotted" in red.
+            # said "Empty meshes cannot be plotted" in red. Removing "picks" removes "picks-numbers" too.
             self.plotter.remove_actor("picks", render=False)
             return
         marks = pv.PolyData(points)
-        if points.shape[0] == 2:
-            marks.lines = np.array([2, 0, 1])
+        count = points.shape[0]
+        measured = min(count, 3)
+        if measured >= 2:
+            marks.lines = np.array([measured, *range(count - measured, count)])
+        numbers = pv.PolyData(points @ NED_TO_DISPLAY[:3, :3].T)
+        labels = vtkStringArray()
+        labels.SetName("numbers")
+        for number in range(1, count + 1):
+            labels.InsertNextValue(str(number))
+        numbers.GetPointData().AddArray(labels)
         if "picks" in self.plotter.actors:
             self.plotter.actors["picks"].mapper.SetInputData(marks)
-        else:
-            actor = self.plotter.add_mesh(marks, color="#ff4fd8", point_size=12, line_width=3, name="picks",
-                                          render_points_as_spheres=True, reset_camera=False, lighting=False,
-                                          pickable=False)
-            actor.user_matrix = NED_TO_DISPLAY
+            self.plotter.actors["picks-numbers"].GetMapper().GetInputAlgorithm().SetInputData(numbers)
+            return
+        actor = self.plotter.add_mesh(marks, color=PICK_COLOUR, point_size=12, line_width=3, name="picks",
+                                      render_points_as_spheres=True, reset_camera=False, lighting=False,
+                                      pickable=False)
+        actor.user_matrix = NED_TO_DISPLAY
+        self.plotter.add_actor(pick_numbers_actor(numbers), name="picks-numbers", reset_camera=False,
+                               pickable=False, render=False)
+
+    def turn_about(self, point_ned: np.ndarray) -> None:
+        """Make the camera turn about ``point_ned`` (NED, metres) from now on: its focal point goes there, the
+        camera moving sideways only (its direction, up and zoom stay), so the point slides to the middle of the
+        view and nothing else changes (ParaView's Pick Center, CloudCompare's Pick rotation center).
+        :meth:`reset_camera` gives the default centre back."""
+        camera = self.renderer.camera
+        target = NED_TO_DISPLAY[:3, :3] @ np.asarray(point_ned, dtype=np.float64)
+        position = np.asarray(camera.position, dtype=np.float64)
+        direction = np.asarray(camera.focal_point, dtype=np.float64) - position
+        direction /= np.linalg.norm(direction)
+        depth = float(np.dot(target - position, direction))
+        if depth <= 1e-3:
+            # The point is behind the camera (it turned away since the pick): keep the camera as far from it.
+            depth = max(float(np.linalg.norm(target - position)), 1.0)
+        camera.position = tuple(target - direction * depth)
+        camera.focal_point = tuple(target)
+        self.renderer.ResetCameraClippingRange()
 
     def set_colour_map(self, name: str) -> None:
         """The continuous colourings' map (range, height, time), one of :data:`COLOUR_MAPS`."""
@@ -1469,6 +1551,7 @@ class SceneView(_View):
         key = (mode, self.colour_map)
         if key != self._colouring:
             self._colouring = key
+            self._marked_span = None
             if mode == "return/tag":
                 table = pv.LookupTable(cmap=list(TAG_COLOURS), n_values=len(TAG_COLOURS))
                 table.annotations = dict(enumerate(TAG_CLASSES))
@@ -1477,7 +1560,6 @@ class SceneView(_View):
                 if mode == "reflectivity":
                     # 1-255 logarithmically: dark asphalt at grazing incidence, paint and walls, signs.
                     table.log_scale = True
-                    table.annotations = REFLECTIVITY_MARKS
             annotated = mode in ("return/tag", "reflectivity", "time")
             self.actor.mapper.lookup_table = table
             self.scalar_bar.SetLookupTable(table)
@@ -1488,6 +1570,10 @@ class SceneView(_View):
         table.scalar_range = (low, high if high > low else low + 1e-6)
         if mode == "time":
             table.annotations = time_marks(low, high)
+        elif mode == "reflectivity" and self._marked_span != (low, high):
+            # A range the user fixed: its ends marked, and only the bytes that mean something inside it.
+            self._marked_span = (low, high)
+            table.annotations = reflectivity_marks(low, high)
         self.actor.mapper.scalar_range = table.scalar_range
 
     def stride(self) -> int:
