@@ -24,9 +24,9 @@ pytest.importorskip("pyvistaqt")
 
 from .xserver import private_display
 
-#: The tests that start X servers run on one worker of pytest-xdist, one server at a time: a server of one worker
-#: stopping while another worker's started on the same display number took that one's socket away ("could not
-#: connect to display :0" in CI's run on two workers).
+#: The tests of each X-server group run on one worker of pytest-xdist (every other test of this file is in a second
+#: group: the end of the file). A number made from the process id once had two workers' servers on one display
+#: ("could not connect to display :0" in CI's run on two workers); each server now picks a free one itself.
 pytestmark = pytest.mark.xdist_group("x-server")
 
 SCREEN = "1920x1200x24"
@@ -2410,3 +2410,12 @@ def test_a_widget_tree_is_destroyed_with_nothing_collected_midway(qapp) -> None:
     destroy_widget_tree(top)
     assert seen == [False, False, False] and gc.isenabled()
     destroy_widget_tree(top)  # already gone: nothing to do
+
+
+# The window tests in two X-server groups, every other test in the file in the second: each group runs on one
+# worker with its own Xvfb (``-displayfd`` picks a free display number, so two servers no longer race for one), and
+# the suite's longest part is shared by both workers instead of setting the run's length on one.
+for _number, _test in enumerate(sorted((value for name, value in list(globals().items()) if name.startswith("test_")),
+                                       key=lambda function: function.__code__.co_firstlineno)):
+    if _number % 2:
+        pytest.mark.xdist_group("x-server-2")(_test)
