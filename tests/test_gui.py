@@ -489,6 +489,8 @@ def test_the_live_view_says_its_rate_sender_and_a_stop_and_a_pause_sets_frames_a
     session.source.queue = sent[:2]
     assert session.tick() == 0 and session.scene_ring.count == 0 and session.source.queue == []
     assert session.live.paused_frames == 2
+    with pytest.raises(LivoxVizError, match="the live view draws the frames as the sender made them"):
+        app.set_returns_model("datasheet")  # a trial's d reset the live view's clock and changed nothing it drew
     session.playback.paused = False
     session.source.queue = sent[2:]
     assert session.tick() == sum(f.xyz_int16.shape[0] for f in sent[2:]) == session.scene_ring.count
@@ -510,6 +512,15 @@ def test_the_live_view_says_its_rate_sender_and_a_stop_and_a_pause_sets_frames_a
     assert live.line(103.5, 10.0).endswith(", 7.5 frames/s, 7,500 pts/s")
     assert live.line(106.9, 10.0) == "live: udp 0.0.0.0:9999 <- 10.0.0.2:4000: no frame for 4 s (30 frames received)"
     assert live.stopped_for(102.2, 1.0) is None  # at 1 Hz, 3 s of quiet are the stream's own pace
+
+
+def test_the_background_compiles_the_datasheet_loops_before_the_risley_loops() -> None:
+    """A first-use trial pressed d at once, with an empty cache, and waited while the Risley loops (which the
+    default rosette does not use) compiled first: the datasheet's come first, the likeliest next need."""
+    from livox_viz.widgets.warmup import LoopWarmer
+
+    assert LoopWarmer(now=("ideal",)).later == ["datasheet", "risley", "motion"]
+    assert LoopWarmer(now=("risley", "ideal")).later == ["datasheet", "motion"]
 
 
 @pytest.mark.parametrize("background", ["white", "dark"])

@@ -303,6 +303,9 @@ class LivoxVizApp:
         latter. The first datasheet use waits for its compiled loops (the window keeps playing meanwhile)."""
         if model == self.session.config.returns_model:
             return
+        if self.session.source is not None:
+            raise LivoxVizError("the live view draws the frames as the sender made them: its returns are the "
+                                "sender's (a return model applies to the scan of the model, without --listen)")
         from livox_viz.casting.warm import stages_for
 
         config = self.session.config.with_returns_model(model)

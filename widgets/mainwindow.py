@@ -359,6 +359,7 @@ class MainWindow(QtWidgets.QMainWindow):
         #: The keys of the key table a menu entry's action holds (:meth:`_action`).
         self._menu_keys: set[str] = set()
         self._history_shown = -1
+        self._live_shown = ""
         self._make_menus()
         # The choices' menus show the current one from the start, and whatever changed it since (the panel, a
         # preset's own return model, a change that waited for its loops): none was checked before the first key.
@@ -827,6 +828,15 @@ class MainWindow(QtWidgets.QMainWindow):
         self._trim_after_restarts()
         if self._history_shown != self.controller.session.history.version:  # a change from the panel, say
             self._sync_history()
+        session = self.controller.session
+        if session.source is not None and session.playback.paused:
+            # A paused live view still reads the stream (a resting window ticks no further): the status bar's rates
+            # stay true, and play resumes with the stream as it is. A trial saw "no frame for 2 s" while frames
+            # came, then double the rate on play (a burst of the frames that had waited).
+            session.set_aside_arrivals()
+            if session.live_line() != self._live_shown:
+                self._live_shown = session.live_line()
+                self._update_status()
         if self._resting():
             return
         try:

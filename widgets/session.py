@@ -498,16 +498,27 @@ class Session:
             self.playback.restart()
             return added
         if self.source is not None:
+            if self.playback.paused:
+                self.set_aside_arrivals()
+                return 0
             arrived = self.source.poll()
             if self.live is not None:
-                self.live.heard(arrived, time.monotonic(), drawn=not self.playback.paused)
-            if self.playback.paused:  # read and set aside: play resumes with the stream as it is now
-                return 0
+                self.live.heard(arrived, time.monotonic())
             received = [ReceivedFrame(f, self.config.range_max, self.config.data_check_freq,
                                       plane=self.config.pattern_plane)
                         for f in arrived]
             return sum(self.add_received(frame) for frame in received)
         return self.advance_to(self.scan_time + self.playback.elapsed(now))
+
+    def set_aside_arrivals(self) -> int:
+        """Paused live view: read the frames that arrived and set them aside, counted (play then resumes with the
+        stream as it is now, not a burst of old frames, and the rates stay true while paused); how many."""
+        if self.source is None:
+            return 0
+        arrived = self.source.poll()
+        if self.live is not None:
+            self.live.heard(arrived, time.monotonic(), drawn=False)
+        return len(arrived)
 
     def live_line(self) -> str:
         """The live view's line (:meth:`LiveStats.line`), or "" when the window plays the model."""

@@ -29,7 +29,12 @@ from livox_viz.casting.warm import STAGES, warm
 
 #: What the status bar adds while the datasheet loops compile: short, so that it stays whole beside a message in a
 #: 1280 px window (the first time only: numba's cache has them after).
-FIRST_COMPILE_NOTE = " (first time only: 1-2 min)"
+FIRST_COMPILE_NOTE = " (first time only)"
+
+#: The order the child compiles the later stages in: the datasheet's first, one key (d) away and the slowest to
+#: compile; a first-use trial pressed d at once and waited while the Risley loops, which a rosette does not use,
+#: were compiled before it. A minute or two on 2 cores said "1-2 min" until a loaded machine made it 3.
+LATER_ORDER: tuple[str, ...] = ("datasheet", "risley", "motion", "ideal")
 
 #: The child compiles at a lower priority than the window (on 2 cores the window's frames come first): Windows sets
 #: it as it starts the child, elsewhere the child lowers its own (``--background``).
@@ -51,7 +56,7 @@ class LoopWarmer:
 
     def __init__(self, now: Iterable[str], later: Iterable[str] = STAGES) -> None:
         self.now = [s for s in STAGES if s in set(now)]
-        self.later = [s for s in STAGES if s in set(later) and s not in self.now]
+        self.later = [s for s in LATER_ORDER if s in set(later) and s not in self.now]
         #: Stages whose loops this process has loaded.
         self.ready: set[str] = set()
         #: Stages being loaded or compiled now, and since when (monotonic seconds).
