@@ -834,8 +834,9 @@ class MainWindow(QtWidgets.QMainWindow):
             # stay true, and play resumes with the stream as it is. A trial saw "no frame for 2 s" while frames
             # came, then double the rate on play (a burst of the frames that had waited).
             session.set_aside_arrivals()
-            if session.live_line() != self._live_shown:
-                self._live_shown = session.live_line()
+            line = session.live_line()
+            if line != self._live_shown:
+                self._live_shown = line
                 self._update_status()
         if self._resting():
             return

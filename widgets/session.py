@@ -309,13 +309,10 @@ class Session:
             return False
         current = self.state
         what = describe_change(target, current) if word == "undo" else describe_change(current, target)
-        # Checked before the stacks move: a window too full for the target's rate leaves both as they were.
-        check_points(window_capacity(self.window, target.config.point_rate),
-                     f"a {target.config.point_rate:,} pts/s pattern in the integration window", WINDOW_BUDGET)
+        # Shown first: a window too full for the target's rate is refused there, the stacks left as they were.
+        self.set_config(target.config, target.preset_name, record=False)
+        self.preset_config = target.preset_config  # the preset's own values, not the tuned ones shown
         take(current)
-        self.preset_name = target.preset_name
-        self.preset_config = target.preset_config
-        self.set_config(target.config, record=False)
         self.message = f"{word}: {what}"
         return True
 
