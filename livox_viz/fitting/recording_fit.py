@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from livox_viz.config.sensor import SERIES_MODELS, SensorConfig
+from livox_viz.core.blas import one_blas_thread
 from livox_viz.core.errors import LivoxVizError
 from livox_viz.fitting.table import PLANE_IMAGES
 from livox_viz.patterns.planes import angle_between_deg, xy_from_directions
@@ -334,6 +335,11 @@ def head_likeness(config: SensorConfig, frame: RecordedFrame) -> float:
     """How well a head's track explains a frame at its best coarse phase, against its typical phase: the ratio
     of the two capped mean distances (small: this head; near 1: not this head). Seconds, not minutes: only
     the frame's first :data:`COARSE_SECONDS` are looked at."""
+    with one_blas_thread():  # many small products: OpenBLAS's spinning threads made them 10-25 x slower
+        return _head_likeness(config, frame)
+
+
+def _head_likeness(config: SensorConfig, frame: RecordedFrame) -> float:
     series = _series_of(config)
     lasers = series.coefficients.shape[0]
     t, row_laser = _times_and_lasers(frame, float(config.point_rate), lasers)
@@ -388,6 +394,14 @@ def fit_recording(config: SensorConfig, frame: RecordedFrame, images: Sequence[s
     LivoxVizError
         A configuration with no series track, too few returns, or a fit no better than random phases.
     """
+    # The grid search is thousands of small complex products: with OpenBLAS's two threads spinning on the
+    # 2-core machine a refused frame took 8-19 s, with one 0.7 s.
+    with one_blas_thread():
+        return _fit_recording(config, frame, images, orders, seed, refit_orders)
+
+
+def _fit_recording(config: SensorConfig, frame: RecordedFrame, images: Sequence[str], orders: Sequence[str],
+                   seed: int, refit_orders: tuple[int, int] | None) -> RecordingFit:
     started = time.perf_counter()
     series = _series_of(config)
     plane = config.pattern_plane
