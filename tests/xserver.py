@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import select
 import shutil
+import signal
 import subprocess
 import time
 from collections.abc import Iterator
@@ -23,6 +24,16 @@ def x_tools() -> tuple[str, str]:
     return xvfb, xdotool
 
 
+def _ends_with_its_parent() -> None:
+    """In the server's child, before exec: the kernel sends it SIGTERM when the process that started it ends,
+    however it ends. A test worker killed by a signal (SIGTERM, SIGKILL) never reaches the ``finally`` below,
+    and its Xvfb was left running for good."""
+    import ctypes
+
+    pr_set_pdeathsig = 1
+    ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, signal.SIGTERM)
+
+
 @contextmanager
 def private_display(screen: str = "1280x800x24", timeout: float = 30.0) -> Iterator[str]:
     """Run an Xvfb on a display number it picks itself; yield its ``DISPLAY``.
@@ -34,7 +45,8 @@ def private_display(screen: str = "1280x800x24", timeout: float = 30.0) -> Itera
     xvfb, _ = x_tools()
     read_end, write_end = os.pipe()
     server = subprocess.Popen([xvfb, "-displayfd", str(write_end), "-screen", "0", screen, "-nolisten", "tcp"],
-                              pass_fds=(write_end,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                              pass_fds=(write_end,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              preexec_fn=_ends_with_its_parent)
     os.close(write_end)
     try:
         number = b""
