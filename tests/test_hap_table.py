@@ -33,13 +33,13 @@ def track_error_deg(fitted, source, together: bool, start_s: float, stop_s: floa
     lasers = source.lasers
     group = np.arange(int(start_s * RATE) // lasers, int(stop_s * RATE) // lasers)
     at = group * lasers / RATE
+    ours = [directions_from_xy(track_xy(fitted, at, np.full(at.size, j))) for j in range(lasers)]
     worst = 0.0
     for k in range(lasers):
         truth = directions_from_xy(track_xy(source, at if together else at + k / RATE, np.full(at.size, k)))
         rms = []
-        for j in range(lasers):
-            ours = directions_from_xy(track_xy(fitted, at, np.full(at.size, j)))
-            angle = np.degrees(np.arccos(np.clip(np.sum(ours * truth, axis=1), -1.0, 1.0)))
+        for fitted_laser in ours:
+            angle = np.degrees(np.arccos(np.clip(np.sum(fitted_laser * truth, axis=1), -1.0, 1.0)))
             rms.append(float(np.sqrt(np.mean(angle**2))))
         worst = max(worst, min(rms))
     return worst
