@@ -1661,6 +1661,53 @@ def test_what_is_being_prepared_uses_the_room_the_bar_has(urban, qtbot, size) ->
         window.close()
 
 
+class _LoopsArriving:
+    """A stand-in for the window's loop warmer whose loops the test hands in one by one."""
+
+    now: tuple[str, ...] = ()
+    started = True
+    working = False
+
+    def __init__(self) -> None:
+        self.ready: set[str] = set()
+        self.failed: dict[str, str] = {}
+
+    def is_ready(self, stages) -> bool:
+        return set(stages) <= self.ready
+
+    def describe(self) -> str:
+        return ""
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_waiting_change_names_only_the_loops_it_still_waits_for(window) -> None:
+    """A trial saw "waiting for the datasheet, ideal loops" long after the ideal loops had loaded: the message now
+    follows the loops as they come in, and leaves a newer message alone."""
+    warmer = _LoopsArriving()
+    window.warmer = warmer
+    ran: list[str] = []
+    what = "returns datasheet"
+    assert not window._defer({"ideal", "datasheet"}, lambda: ran.append("applied"), what, kind="returns")
+    assert window.controller.session.message == (f"{what}: waiting for the datasheet, ideal loops; the current "
+                                                 "state plays meanwhile")
+    window.tick()
+    assert "datasheet, ideal" in window.controller.session.message
+    warmer.ready.add("ideal")
+    window.tick()
+    assert window.controller.session.message == (f"{what}: waiting for the datasheet loops; the current state "
+                                                 "plays meanwhile")
+    assert not ran
+    window.say("saved the configuration")  # a newer message is not taken back by the waiting one
+    warmer.ready.add("motion")
+    window.tick()
+    assert window.controller.session.message == "saved the configuration"
+    warmer.ready.add("datasheet")
+    window.tick()
+    assert ran == ["applied"] and window.controller.session.message == f"{what}: ready"
+
+
 def test_the_help_dialog_lists_every_key_inside_the_screen(window, qtbot) -> None:
     from livox_viz.widgets.keys import KEYS
 

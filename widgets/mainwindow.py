@@ -751,10 +751,15 @@ class MainWindow(QtWidgets.QMainWindow):
             self._pending.pop(kind, None)
             return True
         self._pending[kind] = (set(stages), action, what)
-        missing = sorted(set(stages) - self.warmer.ready)
-        self.say(f"{what or 'the change'}: waiting for the {', '.join(missing)} loops; the current state plays "
-                 "meanwhile")
+        self.say(self._waiting_text(stages, what))
         return False
+
+    def _waiting_text(self, stages: set[str], what: str) -> str:
+        """What a waiting change says: the loops it still waits for (fewer as the warm-up loads them)."""
+        assert self.warmer is not None
+        missing = sorted(set(stages) - self.warmer.ready)
+        return (f"{what or 'the change'}: waiting for the {', '.join(missing)} loops; the current state plays "
+                "meanwhile")
 
     def _run_deferred(self) -> None:
         if not self._pending or self.warmer is None:
@@ -773,6 +778,12 @@ class MainWindow(QtWidgets.QMainWindow):
                 self.run(action)
                 if not self._error:
                     self.say(f"{what}: ready" if what else "ready")
+            else:
+                # Some of its loops came in: the status bar, if it still says what this waits for, says it anew.
+                text = self._waiting_text(stages, what)
+                shown = self.controller.session.message
+                if shown != text and shown.startswith(f"{what or 'the change'}: waiting for the "):
+                    self.say(text)
 
     def _background(self, what: str, work: Callable[[], Any], done: Callable[[Any], None],
                     fraction: Callable[[], float] | None = None, cancel: Callable[[], None] | None = None) -> None:
