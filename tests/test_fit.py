@@ -137,7 +137,7 @@ def test_fit_cli_on_mid40(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
     assert main(["fit", "mid40", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     rms = float(text.split("rms ")[1].split()[0])
-    assert rms <= 0.25
+    assert rms <= 0.25 and "warning" not in text  # a rosette head's own table: no rough-fit warning
     fitted = load_preset(str(out))
     # The shipped preset is the fit with the Mid-40's return model (LivoxVizReturns), which a bare fit of the Mid-40's
     # table takes from the table's own sensor (it took the default's, the Mid-70's, before).
@@ -166,3 +166,24 @@ def test_petals_need_two_samples_each_side_of_a_tip_near_the_top(alpha: list[flo
 
     found = find_petals(np.column_stack([np.asarray(alpha, dtype=float), np.zeros(len(alpha))]))
     assert list(zip(found.start.tolist(), found.tip.tolist(), found.end.tolist(), strict=True)) == petals
+
+
+@pytest.mark.parametrize(("rms_deg", "half_fov_deg", "rough"), [
+    (0.219, 19.1, False),  # the Mid-40's table (1.1 % of its half-angle)
+    (0.129, 35.1, False),  # the Mid-70's
+    (0.5, 20.0, False),    # 2.5 % exactly: still a fit
+    (0.501, 20.0, True),
+    (1.724, 34.4, True),   # the Avia's table (5.0 %)
+    (3.054, 53.8, True),   # the HAP's (5.7 %), fitted without a word before
+])
+def test_a_rosette_fit_far_off_its_petals_says_so(rms_deg: float, half_fov_deg: float, rough: bool) -> None:
+    from livox_viz.fitting.rosette_fit import ShapeFit
+
+    shape = ShapeFit(camera_fov=2 * half_fov_deg, petal_height=5.0, spacing_exponent=1.3, tip_exponent=1.1,
+                     rms_deg=rms_deg, p95_deg=2 * rms_deg, points_per_arc=10.0, petals=40)
+    warning = shape.rough_warning()
+    assert (warning is not None) == rough
+    if rough:
+        share = f"{100 * rms_deg / half_fov_deg:.1f} % of the {half_fov_deg:.3g} deg half-angle"
+        assert f"{rms_deg:.3g} deg rms off its petals, {share}" in warning
+        assert "a rosette cannot draw this scan" in warning

@@ -831,9 +831,31 @@ def test_fit_key_moves_the_parameters_to_the_reference(app: LivoxVizApp) -> None
     assert "fitting to truth already" in session.message
     app.tick()
     assert app.finish_fit()
-    assert "fitted to truth" in session.message
+    assert "fitted to truth" in session.message and "warning" not in session.message
     assert session.config.petal_height == pytest.approx(4.0, abs=1e-3)
     assert session.config.spacing_exponent == pytest.approx(1.7, abs=1e-3)
+
+
+def test_a_fit_far_off_the_reference_s_petals_is_applied_with_a_warning(app: LivoxVizApp) -> None:
+    """A trial's f fitted the rosette to the HAP's band, 3.05 deg rms off, and said only "fitted": now the message
+    says how rough it is and that a rosette cannot draw that scan (the fit is applied all the same: Ctrl+Z)."""
+    import time
+    from concurrent.futures import Future
+    from types import SimpleNamespace
+
+    from livox_viz.fitting.rosette_fit import ShapeFit
+
+    session = app.session
+    rough = session.config.with_param("petal_height", 6.0)
+    done: Future = Future()
+    done.set_result(SimpleNamespace(config=rough, shape=ShapeFit(
+        camera_fov=107.6, petal_height=6.0, spacing_exponent=1.3, tip_exponent=1.1, rms_deg=3.054, p95_deg=6.0,
+        points_per_arc=10.0, petals=40)))
+    app._fit = (done, "livox_hap", time.perf_counter())
+    assert app.finish_fit()
+    assert session.config.petal_height == pytest.approx(6.0)
+    assert "fitted to livox_hap" in session.message
+    assert "warning: the rosette follows the reference only roughly: 3.05 deg rms off its petals" in session.message
 
 
 def test_a_moving_vehicle_is_followed_and_its_cloud_frame_switches(urban) -> None:

@@ -536,6 +536,9 @@ class LivoxVizApp:
             return False
         self.apply_config(result.config, f"fitted-to-{name}")
         self.session.message = f"fitted to {name} in {seconds:.1f} s: shape rms {result.shape.rms_deg:.3f} deg"
+        rough = result.shape.rough_warning()
+        if rough:  # applied all the same (Ctrl+Z undoes it): the user asked for the fit, and sees how far it is
+            self.session.message += f"; warning: {rough}"
         return True
 
     def reset_cameras(self) -> None:

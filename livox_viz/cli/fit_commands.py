@@ -106,6 +106,9 @@ def cmd_fit(args: argparse.Namespace) -> int:
     print(f"  DataWidth/Height/CheckFreq {cfg.data_width}/{cfg.data_height}/{cfg.data_check_freq} "
           f"(measured {shape.points_per_arc:.2f} points per arc)")
     print(f"  shape residual   rms {shape.rms_deg:.4f} deg, p95 {shape.p95_deg:.4f} deg (perpendicular distance)")
+    rough = shape.rough_warning()
+    if rough:
+        print(f"  warning: {rough}")
     print("  coverage         integration s   reference %   fit %")
     rows = []
     for t, ref, fit in zip(result.seconds, result.coverage_reference, result.coverage_fit, strict=True):

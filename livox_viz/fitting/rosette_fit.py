@@ -33,6 +33,10 @@ from livox_viz.patterns.stream import points_before
 
 #: A petal residual over this fraction of the half-angle means the points are no rosette (noise, say).
 NO_ROSETTE_FRACTION = 0.2
+#: A petal residual over this fraction of the half-angle is a rough fit, said as a warning: the rosette heads' own
+#: tables leave 0.4-1.2 % (Mid-70 0.13 deg of 35, Mid-40 0.22 of 19), the heads a rosette cannot draw 5-8 % (the
+#: Avia 1.7 deg of 34, the HAP 3.1 of 54, the Horizon 2.9 of 37, the Tele-15 0.53 of 7.1).
+ROUGH_ROSETTE_FRACTION = 0.025
 #: Integration times the structure fit matches, seconds.
 FIT_TIMES = (0.1, 0.2, 0.5, 1.0)
 
@@ -136,6 +140,17 @@ class ShapeFit:
     p95_deg: float
     points_per_arc: float
     petals: int
+
+    def rough_warning(self) -> str | None:
+        """A warning when the petal is only roughly the points' (:data:`ROUGH_ROSETTE_FRACTION` of the
+        half-angle or more): a head whose scan no rosette draws. None for a good fit."""
+        half_fov = self.camera_fov / 2.0
+        if self.rms_deg <= ROUGH_ROSETTE_FRACTION * half_fov:
+            return None
+        return (f"the rosette follows the reference only roughly: {self.rms_deg:.3g} deg rms off its petals, "
+                f"{100 * self.rms_deg / half_fov:.1f} % of the {half_fov:.3g} deg half-angle (a rosette head's own "
+                f"table leaves under {100 * ROUGH_ROSETTE_FRACTION:g} %); a rosette cannot draw this scan: its "
+                "series-track or Risley preset can")
 
 
 def fit_shape(xy_deg: np.ndarray, max_petals: int = 40) -> ShapeFit:
