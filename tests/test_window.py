@@ -1362,6 +1362,43 @@ def test_the_picks_panel_lists_every_click_copies_it_and_the_camera_turns_about_
     assert panel.isHidden()
 
 
+def test_a_row_clicked_in_the_picks_panel_rings_its_pick_in_the_scene_view(window, qtbot) -> None:
+    """A trial clicked a row of the Picks panel and nothing showed which dot it was: the row's pick is ringed
+    (a larger white dot behind its own, drawn where the point is), the arrows move the ring with the selection,
+    and a pick removed or cleared takes its ring with it."""
+    from qtpy import QtCore
+
+    controller = window.controller
+    view = controller.scene_view
+    held_still(window, qtbot)
+    ring = controller.session.scene_ring
+    slots = click_points(window, qtbot, 3)
+    table = window.picks_panel.table
+
+    def ringed() -> np.ndarray:
+        qtbot.wait(20)  # the selection is applied after the event that made it
+        actor = view.plotter.actors.get("picks-selected")
+        return np.zeros((0, 3)) if actor is None else np.asarray(actor.mapper.GetInput().points)
+
+    assert ringed().shape == (0, 3)
+    middle = table.visualItemRect(table.item(1, 2)).center()
+    qtbot.mouseClick(table.viewport(), QtCore.Qt.MouseButton.LeftButton, pos=middle)
+    np.testing.assert_allclose(ringed(), ring.positions[slots[1:2]], atol=1e-4)
+    assert controller.selected_picks == [1]
+    # Drawn where the point is: its display position is the pick's own.
+    actor = view.plotter.actors["picks-selected"]
+    np.testing.assert_allclose(np.asarray(actor.user_matrix), np.asarray(view.plotter.actors["picks"].user_matrix))
+    qtbot.keyClick(table, QtCore.Qt.Key.Key_Down)
+    np.testing.assert_allclose(ringed(), ring.positions[slots[2:3]], atol=1e-4)
+    qtbot.mouseClick(window.picks_panel.buttons["Remove last"], QtCore.Qt.MouseButton.LeftButton)
+    assert ringed().shape == (0, 3) and controller.selected_picks == []
+    qtbot.mouseClick(table.viewport(), QtCore.Qt.MouseButton.LeftButton,
+                     pos=table.visualItemRect(table.item(0, 2)).center())
+    np.testing.assert_allclose(ringed(), ring.positions[slots[:1]], atol=1e-4)
+    qtbot.mouseClick(window.picks_panel.buttons["Clear"], QtCore.Qt.MouseButton.LeftButton)
+    assert ringed().shape == (0, 3) and not window._error
+
+
 def test_the_colour_range_is_typed_refused_in_one_red_line_and_made_automatic_again(window, qtbot,
                                                                                     monkeypatch) -> None:
     """View > Colour range (ParaView's "Rescale to custom range"): a bad pair is said in one red line and asked

@@ -124,6 +124,8 @@ class LivoxVizApp:
         #: The picks in the scene view, in the order made (any number: the Picks panel lists them), and the last
         #: answer of any pick, in words.
         self.picks: list[dict[str, Any]] = []
+        #: Rows of :attr:`picks` selected in the Picks panel (their dots ringed in the scene view).
+        self.selected_picks: list[int] = []
         self.pick_text = ""
         #: Called after the picks changed (a pick, a removal, forgotten at a restart): the Picks panel follows.
         self.on_picks_change: Callable[[], None] | None = None
@@ -604,10 +606,20 @@ class LivoxVizApp:
 
     # Picking -------------------------------------------------------------------------------
     def _picks_changed(self) -> None:
+        self.selected_picks = [row for row in self.selected_picks if row < len(self.picks)]
         if self.scene_view is not None:
             self.scene_view.mark_picks([p["xyz_world"] for p in self.picks])
+            self.scene_view.mark_selected_picks([self.picks[row]["xyz_world"] for row in self.selected_picks])
         if self.on_picks_change is not None:
             self.on_picks_change()
+
+    def select_picks(self, rows: list[int]) -> None:
+        """The picks selected in the Picks panel (0-based rows): the scene view rings their dots."""
+        if any(not 0 <= row < len(self.picks) for row in rows):
+            raise LivoxVizError(f"no pick {max(rows) + 1}; allowed: 1 to {len(self.picks)}")
+        self.selected_picks = sorted(set(rows))
+        if self.scene_view is not None:
+            self.scene_view.mark_selected_picks([self.picks[row]["xyz_world"] for row in self.selected_picks])
 
     def forget_picks(self) -> None:
         """Drop the picks and their marks (the scan moved to another time: the points picked may not be there)."""

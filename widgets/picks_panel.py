@@ -136,6 +136,10 @@ class PicksPanel(QtWidgets.QDockWidget):
         self.table.setMinimumHeight(self.table.horizontalHeader().sizeHint().height() + 2 * (
             self.table.verticalHeader().defaultSectionSize()) + 6)
         _keep_list_keys(self.table)
+        # A row clicked (or moved to with the arrows) rings its pick's dot in the scene view. After the event in
+        # hand: the selection also changes inside another action (a pick, Clear), which must not run one nested.
+        self.table.itemSelectionChanged.connect(
+            lambda: QtCore.QTimer.singleShot(0, self, lambda: self._run(self._select)))
         layout.addWidget(self.table, 1)
 
         self.footer = QtWidgets.QLabel(FOOTER_HINT)
@@ -169,6 +173,10 @@ class PicksPanel(QtWidgets.QDockWidget):
         for name in ("Remove last", "Clear", "Turn about last"):
             self.buttons[name].setEnabled(bool(picks))
         self.copy_action.setEnabled(bool(picks))
+
+    def _select(self) -> None:
+        rows = sorted({index.row() for index in self.table.selectionModel().selectedRows()})
+        self.controller.select_picks([row for row in rows if row < len(self.controller.picks)])
 
     def copy(self) -> None:
         """Put the selected picks (all when none is) on the clipboard as tab-separated text with a header."""

@@ -879,6 +879,8 @@ def _panorama_grid(fov, stretch: float = 1.0, marked_every: int = 45, elevation_
 
 #: The picks' dots, lines and numbers: a pink no colour map has.
 PICK_COLOUR = "#ff4fd8"
+#: The picks selected in the Picks panel: a larger dot around their own, white as no colouring's points are.
+PICK_SELECTED_COLOUR = "#ffffff"
 
 
 def pick_numbers_actor(numbers: pv.PolyData) -> object:
@@ -1519,6 +1521,22 @@ class SceneView(_View):
         actor.user_matrix = NED_TO_DISPLAY
         self.plotter.add_actor(pick_numbers_actor(numbers), name="picks-numbers", reset_camera=False,
                                pickable=False, render=False)
+
+    def mark_selected_picks(self, points_ned: list) -> None:
+        """Ring the picks selected in the Picks panel (NED, metres): a larger white dot behind each one's own
+        pink dot, so the row clicked shows where its point is (none: the rings go)."""
+        self.plotter.subplot(*self.subplot)
+        points = np.asarray(points_ned, dtype=np.float64).reshape(-1, 3)
+        if points.shape[0] == 0:
+            self.plotter.remove_actor("picks-selected", render=False)
+            return
+        if "picks-selected" in self.plotter.actors:
+            self.plotter.actors["picks-selected"].mapper.SetInputData(pv.PolyData(points))
+            return
+        actor = self.plotter.add_mesh(pv.PolyData(points), color=PICK_SELECTED_COLOUR, point_size=22,
+                                      name="picks-selected", render_points_as_spheres=True, reset_camera=False,
+                                      lighting=False, pickable=False)
+        actor.user_matrix = NED_TO_DISPLAY
 
     def turn_about(self, point_ned: np.ndarray) -> None:
         """Make the camera turn about ``point_ned`` (NED, metres) from now on: its focal point goes there, the
