@@ -459,6 +459,56 @@ def test_received_frames_feed_the_views(app: LivoxVizApp) -> None:
     assert session.frame_index == 2 and session.scan_time == pytest.approx(0.3)
 
 
+def test_the_live_view_s_charts_show_the_stream_s_own_curves(app: LivoxVizApp, monkeypatch) -> None:
+    """A trial saw the live view's charts draw the preset's model curves, not the stream's: a stream of another
+    pattern (the CameraFOV halved) now gives the charts its own coverage, computed from the points received, and
+    the model's curves go at the first tick of the live view; with nothing new the curves stand."""
+    from livox_viz.widgets import charts as charts_module
+
+    from livox_viz.casting.scan import LidarScanner
+    from livox_viz.patterns.metrics import received_curves
+    from livox_viz.wire.rflysim import LivoxFrame
+
+    monkeypatch.setattr(charts_module, "STREAM_CURVES_EVERY_S", 0.0)
+    session = app.session
+    model = app.charts.ours
+    assert model is not None and app.charts.ours_coverage.visible
+    narrow = session.config.with_param("camera_fov", 35.0)
+    scanner = LidarScanner(narrow, session.caster, session.vehicle_pose, seed=0)
+    sent = [LivoxFrame(f.timestamp, f.sensor_pose.as_array(), f.xyz_int16) for f in
+            (scanner.next_frame() for _ in range(4))]
+
+    class Source:
+        def __init__(self) -> None:
+            self.queue: list = []
+
+        def poll(self) -> list:
+            frames, self.queue = self.queue, []
+            return frames
+
+    session.restart()
+    session.source = Source()
+    app.charts.update()
+    assert app.charts.ours is None and not app.charts.ours_coverage.visible  # the model's curves went
+    session.source.queue = sent
+    session.tick()
+    app.charts.update()
+    app.charts.finish()
+    stream = app.charts.ours
+    assert stream is not None and app.charts.ours_coverage.visible
+    assert app.charts.ours_coverage.label.startswith("stream")
+    ring = session.pattern_ring
+    expected = received_curves(ring.ordered(ring.positions)[:, :2].astype(float), ring.ordered(ring.times),
+                               session.config.point_rate, session.config.field_of_view)
+    np.testing.assert_allclose(stream.coverage, expected.coverage)
+    np.testing.assert_array_equal(stream.seconds, [0.05, 0.1, 0.2, 0.3])
+    # The stream's scan covers only the middle of the preset's field of view: far less than the model at 0.3 s.
+    at = list(model.seconds).index(0.3)
+    assert stream.coverage[3] < 0.5 * model.coverage[at], (stream.coverage, model.coverage)
+    app.charts.update()
+    assert app.charts._ours_pending is None  # nothing new arrived: nothing asked again
+
+
 def test_the_live_view_says_its_rate_sender_and_a_stop_and_a_pause_sets_frames_aside(app: LivoxVizApp) -> None:
     """gui --listen (issue 45): the text says where it listens and who sends, how fast frames and points come (the
     figures of the frames that came), when the stream stopped; frames that come while paused are read and set

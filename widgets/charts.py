@@ -12,12 +12,20 @@ are pyvista's own charts (VTK context 2D), drawn in the same window as the views
 
 from __future__ import annotations
 
+import time
 from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 import pyvista as pv
 
-from livox_viz.patterns.metrics import CURVE_POINTS, CURVE_SECONDS, PatternCurves, config_curves, stream_curves
+from livox_viz.patterns.metrics import (
+    CURVE_POINTS,
+    CURVE_SECONDS,
+    PatternCurves,
+    config_curves,
+    received_curves,
+    stream_curves,
+)
 from livox_viz.patterns.stream import points_before
 
 from .overlay import PresetSource, TableSource
@@ -26,6 +34,10 @@ from .session import Session
 OURS_COLOUR = "#e0a526"
 REFERENCE_COLOUR = "#8c8c8c"  # grey, as the pattern view draws the reference
 _NOT_SHOWN = object()
+#: What a pending computation of "ours" is for when it is the live stream's, not a configuration's.
+_STREAM = object()
+#: Seconds between two computations of a live stream's curves (from the points the pattern view holds).
+STREAM_CURVES_EVERY_S = 1.0
 
 
 def reference_curves(source: TableSource | PresetSource) -> PatternCurves:
@@ -94,12 +106,15 @@ class CurveCharts:
         self._worker: ThreadPoolExecutor | None = None
         self._pending: tuple[object, Future[PatternCurves]] | None = None
         self._ours_pending: tuple[object, Future[PatternCurves]] | None = None
+        #: The live view's stream: when its curves were last asked for (monotonic s), and of which points.
+        self._stream_asked = -float("inf")
+        self._stream_points: tuple[int, float] | None = None
         session.subscribe(self._on_change)
         self.refresh_ours()
         self.finish()  # the first picture has them
 
     def _on_change(self, what: str) -> None:
-        if what == "config":
+        if what == "config" and self.session.source is None:
             self.refresh_ours()
 
     def _submit(self, work, *args) -> Future:
@@ -114,22 +129,60 @@ class CurveCharts:
         self.density.x_label = config.field_of_view.profile_label
         self._ours_pending = (config, self._submit(config_curves, config, self.session.seed))
 
-    def _show_ours(self, curves: PatternCurves) -> None:
-        self.ours = curves
-        self.ours_coverage.update(curves.seconds, 100.0 * curves.coverage)
-        self.ours_density.update(curves.density_alpha_deg, curves.density / 1e6)
-        self.ours_coverage.label = curve_label("ours", curves)
+    def _show_ours(self, curves: PatternCurves, name: str = "ours", span: float | None = None) -> None:
+        shown = curves.seconds.size > 0
+        self.ours = curves if shown else None
+        self.ours_coverage.visible = shown
+        self.ours_density.visible = shown
+        if shown:
+            self.ours_coverage.update(curves.seconds, 100.0 * curves.coverage)
+            self.ours_density.update(curves.density_alpha_deg, curves.density / 1e6)
+            self.ours_coverage.label = curve_label(name, curves, span)
         self._fit_density_axes()
         self.dirty = True
 
+    def _follow_stream(self) -> None:
+        """The live view: "ours" is the stream's own curves, from the points the pattern view holds (what
+        arrived in the integration window), asked for each :data:`STREAM_CURVES_EVERY_S` while new points come;
+        the model's curves would show a scan that is not the one arriving. None until the first points."""
+        if self._stream_points is None:  # the model's curves, drawn before the window listened, go
+            self._stream_points = (0, 0.0)
+            self._ours_pending = None
+            self._show_ours(PatternCurves(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0)))
+        ring = self.session.pattern_ring
+        now = time.monotonic()
+        if self._ours_pending is not None or now - self._stream_asked < STREAM_CURVES_EVERY_S or ring.count < 2:
+            return
+        pieces = ring.live_pieces()
+        newest = float(ring.times[pieces[-1].stop - 1])
+        if self._stream_points == (ring.count, newest):
+            return  # nothing new arrived (paused, or the sender stopped): the curves stand
+        self._stream_points = (ring.count, newest)
+        self._stream_asked = now
+        xy = np.concatenate([ring.positions[piece, :2] for piece in pieces]).astype(np.float64)
+        times = np.concatenate([ring.times[piece] for piece in pieces]).astype(np.float64)
+        config = self.session.config
+        self._ours_pending = (_STREAM, self._submit(received_curves, xy, times, float(config.point_rate),
+                                                    config.field_of_view))
+
     def update(self) -> None:
         """Follow the overlay: the reference's curves when its source changed (computed on the worker and drawn
-        once ready), hidden without one."""
+        once ready), hidden without one; in the live view, the stream's curves as they come."""
+        if self.session.source is not None:
+            self._follow_stream()
         if self._ours_pending is not None and self._ours_pending[1].done():
             config, future = self._ours_pending
             self._ours_pending = None
-            if config is self.session.config:  # a newer change has its own on the way
-                self._show_ours(future.result())
+            if config is _STREAM and self.session.source is not None:
+                curves = future.result()
+                span = float(curves.seconds[-1]) if curves.seconds.size else None
+                ring = self.session.pattern_ring
+                if ring.count:
+                    pieces = ring.live_pieces()
+                    span = float(ring.times[pieces[-1].stop - 1] - ring.times[pieces[0].start])
+                self._show_ours(curves, "stream", span)
+            elif config is self.session.config and self.session.source is None:
+                self._show_ours(future.result())  # a newer change has its own on the way
         source = self.session.overlay.source
         if source is not self._reference_source:
             self._reference_source = source
@@ -172,7 +225,9 @@ class CurveCharts:
         self.dirty = True
 
     def _fit_density_axes(self) -> None:
-        curves = [c for c in (self.ours, self.reference) if c is not None]
+        curves = [c for c in (self.ours, self.reference) if c is not None and c.density.size]
+        if not curves:
+            return
         top = max(float(np.max(c.density)) for c in curves) / 1e6
         positive = [float(np.min(c.density[c.density > 0])) for c in curves if np.any(c.density > 0)]
         bottom = min(positive) / 1e6 if positive else 1e-3

@@ -398,6 +398,33 @@ def stream_curves(xy_deg: np.ndarray, rate: float, fov: FovLike,
     return PatternCurves(usable, fraction, 0.5 * (edges[1:] + edges[:-1]), density / max(duration, 1e-12))
 
 
+def received_curves(xy_deg: np.ndarray, t_s: np.ndarray, rate: float, fov: FovLike,
+                    seconds: Sequence[float] = CURVE_SECONDS, bins: int = 30) -> PatternCurves:
+    """:class:`PatternCurves` of points received with their times (a live stream's: in any order, with gaps where
+    nothing returned), from the first point's time.
+
+    Parameters
+    ----------
+    xy_deg : (n, 2) float64
+        The points in the pattern's plane, degrees.
+    t_s : (n,) float64
+        Each point's time, seconds.
+    rate : float
+        Firings per second the times are counted in (the sensor's point rate): a point's firing is its time
+        after the first times ``rate``.
+    fov : FieldOfView or float
+    seconds : (k,) float
+        Integration times; those past the points' span are left out.
+    bins : int
+    """
+    if xy_deg.shape[0] == 0:
+        return PatternCurves(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0))
+    order = np.argsort(t_s, kind="stable")
+    times = np.asarray(t_s, dtype=np.float64)[order]
+    slots = np.rint((times - times[0]) * rate).astype(np.int64)
+    return stream_curves(np.asarray(xy_deg, dtype=np.float64)[order], rate, fov, seconds, bins, slots=slots)
+
+
 def config_curves(config: SensorConfig, seed: int = 0, seconds: Sequence[float] = CURVE_SECONDS) -> PatternCurves:
     """:class:`PatternCurves` of a configuration's pattern over ``max(seconds)`` (at most :data:`CURVE_POINTS`)."""
     count = min(points_before(max(seconds), config.point_rate), CURVE_POINTS)
