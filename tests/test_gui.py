@@ -427,6 +427,17 @@ def test_reference_overlay_plays_in_step(app: LivoxVizApp) -> None:
     assert not app.pattern_view.reference_actor.GetVisibility()
 
 
+class QueuedFrames:
+    """A live view's source whose frames the test queues: each poll hands over what is queued."""
+
+    def __init__(self, frames: list | None = None) -> None:
+        self.queue: list = list(frames or [])
+
+    def poll(self) -> list:
+        frames, self.queue = self.queue, []
+        return frames
+
+
 def test_received_frames_feed_the_views(app: LivoxVizApp) -> None:
     from livox_viz.casting.scan import LidarScanner
     from livox_viz.wire.rflysim import LivoxFrame
@@ -435,16 +446,8 @@ def test_received_frames_feed_the_views(app: LivoxVizApp) -> None:
     scanner = LidarScanner(session.config, session.caster, session.vehicle_pose, seed=0)
     sent = [scanner.next_frame() for _ in range(3)]
 
-    class Source:
-        def __init__(self) -> None:
-            self.queue = [LivoxFrame(f.timestamp, f.sensor_pose.as_array(), f.xyz_int16) for f in sent]
-
-        def poll(self) -> list:
-            frames, self.queue = self.queue, []
-            return frames
-
     session.restart()
-    session.source = Source()
+    session.source = QueuedFrames([LivoxFrame(f.timestamp, f.sensor_pose.as_array(), f.xyz_int16) for f in sent])
     added = session.tick()
     app.refresh()
     assert added == sum(len(f) for f in sent) == session.scene_ring.count
@@ -478,16 +481,8 @@ def test_the_live_view_s_charts_show_the_stream_s_own_curves(app: LivoxVizApp, m
     sent = [LivoxFrame(f.timestamp, f.sensor_pose.as_array(), f.xyz_int16) for f in
             (scanner.next_frame() for _ in range(4))]
 
-    class Source:
-        def __init__(self) -> None:
-            self.queue: list = []
-
-        def poll(self) -> list:
-            frames, self.queue = self.queue, []
-            return frames
-
     session.restart()
-    session.source = Source()
+    session.source = QueuedFrames()
     app.charts.update()
     assert app.charts.ours is None and not app.charts.ours_coverage.visible  # the model's curves went
     session.source.queue = sent
@@ -523,16 +518,8 @@ def test_the_live_view_says_its_rate_sender_and_a_stop_and_a_pause_sets_frames_a
     sent = [LivoxFrame(f.timestamp, f.sensor_pose.as_array(), f.xyz_int16, source="127.0.0.1:5000")
             for f in (scanner.next_frame() for _ in range(4))]
 
-    class Source:
-        def __init__(self) -> None:
-            self.queue: list = []
-
-        def poll(self) -> list:
-            frames, self.queue = self.queue, []
-            return frames
-
     session.restart()
-    session.source = Source()
+    session.source = QueuedFrames()
     session.live = LiveStats("udp 0.0.0.0:9999")
     assert session.live_line() == "live: udp 0.0.0.0:9999: waiting for the first frame"
     session.playback.paused = True
