@@ -405,6 +405,46 @@ def test_a_cloud_opens_beside_the_scan_from_the_file_menu_and_closes(window, qtb
     assert "closed cloud mine.ply" in window.status_message.text()
 
 
+def test_a_point_of_an_opened_cloud_is_picked_with_what_its_file_holds(window, qtbot) -> None:
+    """A trial clicked a point of a cloud opened beside the scan and nothing was picked (CloudCompare picks any
+    cloud's points): the opened cloud's point under the cursor is picked, its x, y, z listed with the scan's
+    columns it has no value for left empty; with a scan point picked next, the distance between them is measured
+    (no angle between rays: the opened point was not fired by this sensor); closing the cloud takes the picks."""
+    from qtpy import QtCore
+
+    controller = window.controller
+    view = controller.scene_view
+    held_still(window, qtbot)
+    interactor = window.interactors["scene"]
+    renderer = view.renderer
+    x_px, y_px = interactor.width() * 0.5, interactor.height() * 0.75  # VTK's pixels, from the bottom
+    renderer.SetDisplayPoint(x_px, y_px, 0.3)
+    renderer.DisplayToWorld()
+    world = np.array(renderer.GetWorldPoint()[:3]) / renderer.GetWorldPoint()[3]
+    sky = np.array([world * [1, -1, -1], world * [1, -1, -1] + [0.0, 40.0, 0.0]], dtype=np.float32)  # NED
+    view.show_opened_cloud(sky, "sky.npz")
+    window.tick()
+    qtbot.mouseClick(interactor, QtCore.Qt.MouseButton.LeftButton,
+                     pos=QtCore.QPoint(round(x_px), round(interactor.height() - 1 - y_px)))
+    window.tick()
+    assert len(controller.picks) == 1, window.status_message.text()
+    pick = controller.picks[0]
+    assert pick["cloud"] == "sky.npz" and pick["index"] == 0
+    np.testing.assert_allclose(pick["xyz_world"], sky[0], atol=1e-4)
+    table = window.picks_panel.table
+    cells = [table.item(0, c).text() for c in range(table.columnCount())]
+    assert cells[0] == "1" and [float(v) for v in cells[1:4]] == pytest.approx(sky[0].tolist(), abs=1e-3)
+    assert cells[4:] == [""] * (len(cells) - 4)
+    assert window.status_message.text().startswith("pick 1: point 1 of the opened cloud sky.npz, x ")
+    slots = click_points(window, qtbot, 1)
+    ring = controller.session.scene_ring
+    distance = float(np.linalg.norm(ring.positions[slots[0]].astype(np.float64) - sky[0]))
+    assert window.picks_panel.footer.text() == f"pick 2: {distance:.3f} m from pick 1"
+    assert "rays" not in window.status_message.text() and not window._error
+    window.close_cloud()
+    assert controller.picks == [] and table.rowCount() == 0
+
+
 def view_submenu(window, title: str):
     view_menu = next(a.menu() for a in window.menuBar().actions() if a.text().replace("&", "") == "View")
     menu = next(a.menu() for a in view_menu.actions() if a.text() == title)

@@ -613,6 +613,12 @@ class LivoxVizApp:
         if self.on_picks_change is not None:
             self.on_picks_change()
 
+    def forget_opened_cloud_picks(self) -> None:
+        """The opened cloud closed or replaced: if a pick was one of its points, the picks go (their numbers and
+        measures run through it)."""
+        if any("cloud" in pick for pick in self.picks):
+            self.forget_picks()
+
     def select_picks(self, rows: list[int]) -> None:
         """The picks selected in the Picks panel (0-based rows): the scene view rings their dots."""
         if any(not 0 <= row < len(self.picks) for row in rows):
@@ -660,13 +666,21 @@ class LivoxVizApp:
         """The cloud's point under the display position ``(x_px, y_px)`` of the scene view (VTK's pixels, origin
         bottom left), or None; it joins :attr:`picks`, and :attr:`pick_text` says its values and what it measures
         with the picks before (:func:`~livox_viz.widgets.picks.status_line`)."""
-        if self.scene_view is None:
+        view = self.scene_view
+        if view is None:
             return None
-        slot = self.scene_view.drawn_point_at(x_px, y_px, PICK_TOLERANCE_PX)
-        if slot is None:
+        slot = view.drawn_point_at(x_px, y_px, PICK_TOLERANCE_PX)
+        opened = view.opened_point_at(x_px, y_px, PICK_TOLERANCE_PX)
+        if opened is not None and (slot is None or opened[1] < view.screen_distance_px(slot, x_px, y_px)):
+            # The opened cloud's point is the nearer on the screen: it is picked, with what its file holds.
+            assert view.opened is not None
+            found = {"xyz_world": view.opened_point(opened[0]).tolist(), "xyz_sensor": None,
+                     "cloud": view.opened[0], "index": opened[0]}
+        elif slot is None:
             self.pick_text = NOTHING_PICKED
             return None
-        found = self.session.scene_point(slot)
+        else:
+            found = self.session.scene_point(slot)
         self._picks_scan = self.session.scan_number
         self.picks = [*self.picks, found]
         measures = pick_measures(self.picks)

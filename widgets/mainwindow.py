@@ -1503,6 +1503,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
         def done(result) -> None:
             cloud, points = result
+            self.controller.forget_opened_cloud_picks()
             self.controller.scene_view.show_opened_cloud(points, cloud.name)
             where = ("drawn as written, in the world frame" if cloud.frame == "world" else
                      "in the sensor's frame, placed at the sensor's pose now")
@@ -1517,6 +1518,7 @@ class MainWindow(QtWidgets.QMainWindow):
             self.say("no cloud is open (File > Open cloud)")
             return
         name = view.opened[0]
+        self.controller.forget_opened_cloud_picks()
         view.show_opened_cloud(None)
         self.say(f"closed cloud {name}")
 

@@ -96,7 +96,9 @@ def pick_measures(picks: Sequence[Mapping[str, Any]]) -> PickMeasures:
         return PickMeasures(count)
     a, b = picks[-2], picks[-1]
     distance = float(np.linalg.norm(np.subtract(b["xyz_world"], a["xyz_world"])))
-    rays = ray_angle_deg(a["xyz_sensor"], b["xyz_sensor"])
+    # A point of an opened cloud has no ray of the sensor's (xyz_sensor None): no angle between rays.
+    fired = a.get("xyz_sensor") is not None and b.get("xyz_sensor") is not None
+    rays = ray_angle_deg(a["xyz_sensor"], b["xyz_sensor"]) if fired else None
     vertex = vertex_angle_deg(picks[-3]["xyz_world"], a["xyz_world"], b["xyz_world"]) if count >= 3 else None
     return PickMeasures(count, distance, rays, vertex)
 
@@ -109,10 +111,11 @@ def measures_text(measures: PickMeasures) -> str:
     """The measures in words ("" with fewer than two picks): the ray angle to three decimals (neighbouring beams
     are hundredths of a degree apart), the angle ABC to two."""
     n = measures.count
-    if measures.distance_m is None or measures.ray_angle_deg is None:
+    if measures.distance_m is None:
         return ""
-    text = (f"{measures.distance_m:.3f} m from pick {n - 1}, rays {_degrees(measures.ray_angle_deg, 3)} apart seen "
-            "from the sensor")
+    text = f"{measures.distance_m:.3f} m from pick {n - 1}"
+    if measures.ray_angle_deg is not None:
+        text += f", rays {_degrees(measures.ray_angle_deg, 3)} apart seen from the sensor"
     if measures.vertex_angle_deg is not None:
         text += f"; angle {n - 2}-{n - 1}-{n} at pick {n - 1}: {_degrees(measures.vertex_angle_deg, 2)}"
     return text
@@ -121,6 +124,12 @@ def measures_text(measures: PickMeasures) -> str:
 def status_line(picks: Sequence[Mapping[str, Any]]) -> str:
     """The status bar's line for the last pick: its number and values, then what it measures with those before."""
     found = picks[-1]
+    if "cloud" in found:  # a point of an opened cloud: what its file holds
+        x, y, z = (float(v) for v in found["xyz_world"])
+        text = (f"pick {len(picks)}: point {found['index'] + 1:,} of the opened cloud {found['cloud']}, x {x:.3f} m, "
+                f"y {y:.3f} m, z {z:.3f} m (world NED)")
+        measured = measures_text(pick_measures(picks))
+        return f"{text}; {measured}" if measured else text
     text = (f"pick {len(picks)}: range {found['range_m']:.3f} m, azimuth {found['azimuth_deg']:.2f} deg, elevation "
             f"{found['elevation_deg']:.2f} deg, reflectivity {found['reflectivity']}, tag 0x{found['tag']:02x}, "
             f"return {found['return_number']}, t {found['t_s']:.4f} s, frame {found['frame']}")
@@ -132,7 +141,9 @@ def pick_cells(number: int, pick: Mapping[str, Any]) -> list[str]:
     """One pick's row as text, :data:`COLUMNS` in order (what the table shows and the clipboard gets)."""
     x, y, z = (float(v) for v in pick["xyz_world"])
     values = {"number": number, "x": x, "y": y, "z": z}
-    return [format(values[key] if key in values else pick[key], spec) for key, _, _, spec in COLUMNS]
+    # An opened cloud's point has no range, angles, reflectivity or time of the scan's: those cells are empty.
+    return [format(values[key], spec) if key in values else format(pick[key], spec) if key in pick else ""
+            for key, _, _, spec in COLUMNS]
 
 
 def picks_tsv(picks: Sequence[Mapping[str, Any]], rows: Sequence[int] | None = None) -> str:

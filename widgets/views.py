@@ -1489,6 +1489,33 @@ class SceneView(_View):
         row = nearest_drawn(xy, shown, depth, (x_px, y_px), tolerance_px)
         return None if row is None else int(slots[row])
 
+    def opened_point_at(self, x_px: float, y_px: float, tolerance_px: float) -> tuple[int, float] | None:
+        """The opened cloud's point (File > Open cloud) drawn nearest to the display position ``(x_px, y_px)``, at
+        most ``tolerance_px`` from it, as :meth:`drawn_point_at` finds the scan's: its row in the file's points
+        and its distance from the position on the screen, pixels; None with no opened cloud or none that near."""
+        if self.opened_actor is None:
+            return None
+        points = np.asarray(self.opened_actor.mapper.GetInput().points, dtype=np.float64)
+        placed = points @ NED_TO_DISPLAY[:3, :3].T + NED_TO_DISPLAY[:3, 3]
+        xy, shown = display_points(self.renderer, placed)
+        depth = np.linalg.norm(placed - self.renderer.GetActiveCamera().GetPosition(), axis=1)
+        row = nearest_drawn(xy, shown, depth, (x_px, y_px), tolerance_px)
+        if row is None:
+            return None
+        return row, float(np.hypot(xy[row, 0] - x_px, xy[row, 1] - y_px))
+
+    def screen_distance_px(self, slot: int, x_px: float, y_px: float) -> float:
+        """How far the scan's point in ``slot`` of the ring is drawn from the display position, pixels."""
+        matrix = np.asarray(self.actor.user_matrix)
+        placed = self.poly.points[slot].astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+        xy, _ = display_points(self.renderer, placed[None, :])
+        return float(np.hypot(xy[0, 0] - x_px, xy[0, 1] - y_px))
+
+    def opened_point(self, row: int) -> np.ndarray:
+        """``(3,)`` float64: the opened cloud's point ``row``, world NED, metres."""
+        assert self.opened_actor is not None
+        return np.asarray(self.opened_actor.mapper.GetInput().points[row], dtype=np.float64)
+
     def mark_picks(self, points_ned: list) -> None:
         """Mark the points picked (NED, metres): a dot on each with its number beside it (as CloudCompare labels
         its picks), and the lines the measures are taken along: between the last two, and between the last three
