@@ -109,6 +109,7 @@ class CurveCharts:
         #: The live view's stream: when its curves were last asked for (monotonic s), and of which points.
         self._stream_asked = -float("inf")
         self._stream_points: tuple[int, float] | None = None
+        self._stream_span = 0.0  # seconds between the first and the last of the points asked for
         session.subscribe(self._on_change)
         self.refresh_ours()
         self.finish()  # the first picture has them
@@ -161,6 +162,7 @@ class CurveCharts:
         self._stream_asked = now
         xy = np.concatenate([ring.positions[piece, :2] for piece in pieces]).astype(np.float64)
         times = np.concatenate([ring.times[piece] for piece in pieces]).astype(np.float64)
+        self._stream_span = float(times.max() - times.min())
         config = self.session.config
         self._ours_pending = (_STREAM, self._submit(received_curves, xy, times, float(config.point_rate),
                                                     config.field_of_view))
@@ -174,13 +176,7 @@ class CurveCharts:
             config, future = self._ours_pending
             self._ours_pending = None
             if config is _STREAM and self.session.source is not None:
-                curves = future.result()
-                span = float(curves.seconds[-1]) if curves.seconds.size else None
-                ring = self.session.pattern_ring
-                if ring.count:
-                    pieces = ring.live_pieces()
-                    span = float(ring.times[pieces[-1].stop - 1] - ring.times[pieces[0].start])
-                self._show_ours(curves, "stream", span)
+                self._show_ours(future.result(), "stream", self._stream_span)
             elif config is self.session.config and self.session.source is None:
                 self._show_ours(future.result())  # a newer change has its own on the way
         source = self.session.overlay.source
