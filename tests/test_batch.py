@@ -914,3 +914,48 @@ def test_a_rerun_after_the_outputs_went_counts_them_as_jobs_to_run(local_run: tu
     assert [int(k) for k, _ in progress] == [1, 2, 3, 4, 5, 6]
     assert int(progress[-1][1].replace(",", "")) == points
     assert f"6 of 6 jobs done, 0 failed, {points:,} points" in captured.out
+
+
+def test_a_killed_batch_s_job_in_flight_that_finished_counts_in_the_first_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A batch killed after a job's files were written but before its row, the job still listed in flight in its
+    lock: the rerun takes the row from the lock's list before it counts, so its first line says the job is
+    finished (not "1 to run", for a job it then only skips)."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.replace('"none", "line", "circle"', '"none"').replace('"npz", "las+rosbag"', '"npz"')
+                    .replace("seeds = [3]", "seeds = [3, 4]"))
+    out = tmp_path / "out"
+    assert main(["batch", str(spec), "--out", str(out), "--jobs", "1"]) == 0
+    first, second = _manifest(out)
+    with open(out / "manifest.csv", newline="") as handle:
+        header = handle.readline()
+        kept = handle.readline()
+    (out / "manifest.csv").write_text(header + kept)  # the second job's row never written
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True,
+                          check=True)
+    (out / ".batch.lock").write_text(json.dumps({"pid": int(gone.stdout), "host": socket.gethostname(),
+                                                 "started": "2026-01-02 03:04:05", "running": [second["job"]]}))
+    capsys.readouterr()
+    assert main(["batch", str(spec), "--out", str(out), "--jobs", "1"]) == 0
+    err = capsys.readouterr().err
+    assert "batch: 2 jobs from" in err and "2 already finished; 0 to run" in err, err
+    assert [row["job"] for row in _manifest(out)] == [first["job"], second["job"]]
+
+
+@pytest.mark.parametrize(("seconds", "said"), [(59.4, "0:59"), (3599.4, "59:59"), (3600.0, "1:00:00"),
+                                               (3661.0, "1:01:01")])
+def test_the_progress_clock_turns_to_hours_at_one_hour(seconds: float, said: str) -> None:
+    assert batch_commands._clock(seconds) == said
+
+
+def test_each_job_s_place_in_the_grid_is_where_the_grid_makes_it(tmp_path: Path) -> None:
+    """``place_of`` (how a tidied manifest orders its rows) gives each job's own index in the grid, and None for a
+    name the grid does not make with those parameters."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.replace("seeds = [3]", "seeds = [3, 4]"))
+    grid = read_spec(spec)
+    assert grid.total == 12
+    for index in range(grid.total):
+        job = grid[index]
+        assert grid.place_of(job.name, job.parameters()) == index
+    assert grid.place_of(grid[1].name, grid[0].parameters()) is None

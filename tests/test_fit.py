@@ -187,3 +187,23 @@ def test_a_rosette_fit_far_off_its_petals_says_so(rms_deg: float, half_fov_deg: 
         share = f"{100 * rms_deg / half_fov_deg:.1f} % of the {half_fov_deg:.3g} deg half-angle"
         assert f"{rms_deg:.3g} deg rms off its petals, {share}" in warning
         assert "a rosette cannot draw this scan" in warning
+
+
+@pytest.mark.parametrize(("rate", "lasers", "layout"), [
+    (100_000.0, 4, (250, 40, 10)),   # the base makes the table's rate in whole groups: its own layout kept
+    (200_000.0, 4, None),            # another rate: laid out anew at the table's
+    (100_000.0, 32, None),           # the base's rate, but its 10,000-point frames hold no whole groups of 32
+])
+def test_a_fitted_track_plays_at_its_table_s_rate_in_whole_firing_groups(rate: float, lasers: int,
+                                                                        layout: tuple[int, int, int] | None) -> None:
+    from livox_viz.cli.fit_commands import _at_table_rate
+
+    base = load_preset("livox_mid70")
+    xy = np.zeros((int(rate), 2))
+    table = ReferencePattern("table", xy, np.arange(xy.shape[0]) / rate, rate)
+    config = _at_table_rate(base, table, lasers, lasers)
+    assert config.point_rate == rate and config.points_per_frame % lasers == 0
+    if layout is not None:
+        assert (config.data_width, config.data_height, config.data_check_freq) == layout
+    else:
+        assert config != base
