@@ -207,3 +207,15 @@ def test_a_fitted_track_plays_at_its_table_s_rate_in_whole_firing_groups(rate: f
         assert (config.data_width, config.data_height, config.data_check_freq) == layout
     else:
         assert config != base
+
+
+def test_compare_replays_a_preset_reference_for_4_s_unless_told(capsys: pytest.CaptureFixture[str]) -> None:
+    """The documented default of ``compare --seconds`` (how much of a preset reference is replayed)."""
+    assert main(["compare", "livox_mid70_risley"]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first == "livox_mid70 against livox_mid70_risley (4 s)"
+    assert main(["compare", "livox_mid70_risley", "--seconds", "1.5"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "livox_mid70 against livox_mid70_risley (1.5 s)"
+    assert out[1].split() == ["integration", "s", "reference", "%", "ours", "%", "difference", "pp"]
+    assert max(float(line.split()[0]) for line in out[2:] if line.split()[0].replace(".", "").isdigit()) == 1.5
