@@ -102,3 +102,17 @@ def test_every_preset_s_outline_is_its_field_of_view_closed(preset: str) -> None
     drawn = fov.boundary()
     np.testing.assert_allclose(drawn[0], drawn[-1], atol=1e-9)
     assert closed_length(drawn) == pytest.approx(perimeter(fov), rel=2e-4)
+
+
+def test_fields_of_view_are_equal_by_their_shape_and_numbers_not_by_their_arrays() -> None:
+    """Two outlines made apart from the same vertices are one field of view (equal, one hash: a preset read twice
+    is the same configuration); another vertex makes another."""
+    square = [[-10.0, -5.0], [10.0, -5.0], [10.0, 5.0], [-10.0, 5.0]]
+    first = FieldOfView("outline", outline_deg=np.array(square))
+    again = FieldOfView("outline", outline_deg=np.array(square))
+    assert first.outline_deg is not again.outline_deg
+    assert first == again and hash(first) == hash(again)
+    other = FieldOfView("outline", outline_deg=np.array([*square[:3], [-10.0, 6.0]]))
+    assert first != other
+    assert FieldOfView("cone", half_angle_deg=35.0) == FieldOfView("cone", half_angle_deg=35.0)
+    assert FieldOfView("cone", half_angle_deg=35.0) != FieldOfView("cone", half_angle_deg=35.5)
