@@ -116,3 +116,13 @@ def test_fields_of_view_are_equal_by_their_shape_and_numbers_not_by_their_arrays
     assert first != other
     assert FieldOfView("cone", half_angle_deg=35.0) == FieldOfView("cone", half_angle_deg=35.0)
     assert FieldOfView("cone", half_angle_deg=35.0) != FieldOfView("cone", half_angle_deg=35.5)
+
+
+def test_an_outline_is_three_vertices_or_more() -> None:
+    """The fewest vertices a polygon has: a triangle is a field of view, two points are refused in one line."""
+    from livox_viz.core.errors import ConfigError
+
+    triangle = FieldOfView("outline", outline_deg=np.array([[-10.0, -5.0], [10.0, -5.0], [0.0, 8.0]]))
+    assert triangle.contains(np.array([[0.0, 0.0], [0.0, 9.0]])).tolist() == [True, False]
+    with pytest.raises(ConfigError, match=r"has shape \(2, 2\); allowed: 3 to \d+ \[x, y\] vertices"):
+        FieldOfView("outline", outline_deg=np.array([[-10.0, -5.0], [10.0, -5.0]]))
