@@ -183,6 +183,14 @@ def test_world_ply_pcd_csv_keep_far_coordinates_exact(tmp_path: Path, far_frames
     np.testing.assert_allclose(xyz, expected, rtol=0, atol={".ply": 1e-9, ".pcd": 1e-5, ".csv": 1e-6}[suffix])
 
 
+def test_an_empty_cloud_s_las_offset_is_zero_and_its_scale_the_finest() -> None:
+    """No points (the bounds still infinite): a zero offset and the usual scale, three of each for the header."""
+    from livox_viz.files.export import LAS_SCALE, las_offset_and_scale
+
+    offset, scale = las_offset_and_scale(np.full(3, np.inf), np.full(3, -np.inf))
+    assert offset.tolist() == [0.0, 0.0, 0.0] and scale.tolist() == [LAS_SCALE] * 3
+
+
 def test_las_offset_and_scale_hold_any_extent() -> None:
     from livox_viz.files.export import las_offset_and_scale
 

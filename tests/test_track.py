@@ -448,6 +448,13 @@ def test_track_params_are_validated() -> None:
             TrackParams(**{**good, **change})
 
 
+def test_a_track_s_base_speeds_in_rpm_are_its_own_in_order_and_sign() -> None:
+    """What the window's base speed sliders show: A then B, 60 x the hertz, signed (a mirrored head turns back)."""
+    track = TrackParams(form="plane", base_hz=(77.75, -10.5), phase_rad=(0.0, 0.0), terms=((1, 0), (0, 1)),
+                        coefficients=np.array([[5.0, 5.0]]))
+    assert track.base_rpm == (4665.0, -630.0)
+
+
 @pytest.mark.parametrize("form", ["plane", "spin"])
 def test_a_track_is_its_series_written_out_term_by_term(form: str) -> None:
     """x + i y = sum_j c_kj exp(i (2 pi (m_j f_A + l_j f_B) t + m_j a0 + l_j b0)) for laser k, plus the spin's
