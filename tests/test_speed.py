@@ -37,6 +37,17 @@ def test_one_blas_thread_pins_nests_and_gives_the_users_count_back() -> None:
         assert set(blas_threads()) == {2}
 
 
+def test_a_blas_controller_without_threadpoolctl_s_shared_state_is_never_set_directly() -> None:
+    """threadpoolctl's private ``_SHARED_STATE`` may go (another version, another library's controller): then the
+    pin goes through threadpoolctl's public calls, never OpenBLAS's C functions directly."""
+    from livox_viz.core.blas import _may_set_directly
+
+    class Controller:  # no _SHARED_STATE
+        pass
+
+    assert _may_set_directly(Controller()) is False
+
+
 def test_scipys_own_blas_is_pinned_once_it_is_loaded() -> None:
     """scipy.linalg brings its own OpenBLAS, loaded after numpy's: a pin taken after its import holds it too (the
     fits' small Cholesky factors ran on two spinning threads, 10 x slower on the loaded machine). In a fresh
