@@ -496,6 +496,37 @@ def test_npz_columns_cut_back_to_the_rows_appended_whole(tmp_path: Path) -> None
         np.testing.assert_array_equal(data[name], np.concatenate([chunks[0][name], chunks[1][name]]))
 
 
+def test_each_npz_member_s_local_header_agrees_with_the_central_directory(tmp_path: Path) -> None:
+    """numpy (Python's zipfile) reads only the central directory's method and flags; 7-Zip, unzip and streaming
+    readers take the local header's. Each member's local header says what its central record says: stored, no
+    flags, version 4.5 (ZIP64), the same CRC-32, name and ZIP64 sizes."""
+    import struct
+    import zipfile
+
+    from livox_viz.files.npzstream import NpzColumns
+
+    work = tmp_path / "work"
+    work.mkdir()
+    columns = NpzColumns(work, {"xyz": ("<f4", (3,)), "t": ("<f8", ())})
+    columns.append({"xyz": np.ones((50, 3), np.float32), "t": np.arange(50.0)})
+    columns.finish(tmp_path / "c.npz")
+    blob = (tmp_path / "c.npz").read_bytes()
+    with zipfile.ZipFile(tmp_path / "c.npz") as archive:
+        members = archive.infolist()
+        assert archive.testzip() is None
+    assert [m.filename for m in members] == ["xyz.npy", "t.npy"]
+    for member in members:
+        at = member.header_offset
+        (signature, version, flags, method, _time, _date, crc, packed, unpacked, name_length,
+         extra_length) = struct.unpack("<IHHHHHIIIHH", blob[at:at + 30])
+        assert (signature, version, flags, method) == (0x04034B50, 45, member.flag_bits, member.compress_type)
+        assert (flags, method) == (0, zipfile.ZIP_STORED)
+        assert crc == member.CRC and blob[at + 30:at + 30 + name_length] == member.filename.encode()
+        extra = blob[at + 30 + name_length:at + 30 + name_length + extra_length]
+        assert (packed, unpacked) == (0xFFFFFFFF, 0xFFFFFFFF)  # the sizes are in the ZIP64 extra field
+        assert struct.unpack("<HHQQ", extra) == (1, 16, member.file_size, member.compress_size)
+
+
 # 6. Inputs are read no further than their limit ----------------------------------------------------
 ENDLESS_SCRIPT = """
 import resource, sys
