@@ -10,6 +10,7 @@ firing order, no-returns as (0, 0, 0)).
 from __future__ import annotations
 
 import dataclasses
+import time
 from pathlib import Path
 
 import numpy as np
@@ -63,7 +64,9 @@ def as_frame(points: np.ndarray, name: str = "made") -> RecordedFrame:
 def test_a_made_tele15_frame_gives_back_its_image_laser_order_phases_and_motors(image: str, reverse: bool) -> None:
     sensor = truth("livox_tele15", image, reverse, (800.0, -1200.0), (0.7, -2.1))
     points, rays = made_frame(sensor, first_sample=3)
+    started = time.perf_counter()
     fit = fit_recording(load_preset("livox_tele15"), as_frame(points))
+    assert 0.0 < fit.seconds <= time.perf_counter() - started  # the time fit's report gives, the fit's own
     # A turned image with the lasers reversed is the same pattern as the other way round to within the laser
     # spacing, so the image and the order are judged together, by what the fitted track does.
     assert (fit.image, fit.laser_order == "reversed") in {(image, reverse), ("as printed", not reverse),
