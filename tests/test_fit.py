@@ -219,3 +219,24 @@ def test_compare_replays_a_preset_reference_for_4_s_unless_told(capsys: pytest.C
     assert out[0] == "livox_mid70 against livox_mid70_risley (1.5 s)"
     assert out[1].split() == ["integration", "s", "reference", "%", "ours", "%", "difference", "pp"]
     assert max(float(line.split()[0]) for line in out[2:] if line.split()[0].replace(".", "").isdigit()) == 1.5
+
+
+@pytest.mark.parametrize(("figure8s", "flowers", "jitter_deg", "scope"), [
+    (10, 5, 1.0, "flower"), (7, 3, 0.0, "flower"), (4, 9, 2.0, "figure")])
+def test_the_structure_is_read_off_the_figure_8_pairs_tips(figure8s: int, flowers: int, jitter_deg: float,
+                                                          scope: str) -> None:
+    """N8, Nf, the jitter's scope and (within its draws) its size, from our own rosette's tip angles: the fit's
+    first way, before the coverage search it falls back on."""
+    from dataclasses import replace
+
+    from livox_viz.fitting.rosette_fit import find_petals, fit_structure_from_pairs
+
+    config = replace(load_preset("livox_mid70").with_param("figure8_per_flower", figure8s)
+                     .with_param("flowers_per_figure", flowers).with_param("jitter_max_deg", jitter_deg),
+                     jitter_scope=scope)
+    xy = ScanPattern(config, seed=0).take(400_000).xy_deg
+    found = fit_structure_from_pairs(xy, find_petals(xy))
+    assert found is not None and found.method == "figure-8 pairs"
+    assert (found.figure8_per_flower, found.flowers_per_figure, found.jitter_scope) == (figure8s, flowers, scope)
+    assert (found.jitter_max_deg == 0.0) if jitter_deg == 0.0 else (0.5 * jitter_deg < found.jitter_max_deg
+                                                                     <= jitter_deg)
