@@ -240,3 +240,15 @@ def test_the_structure_is_read_off_the_figure_8_pairs_tips(figure8s: int, flower
     assert (found.figure8_per_flower, found.flowers_per_figure, found.jitter_scope) == (figure8s, flowers, scope)
     assert (found.jitter_max_deg == 0.0) if jitter_deg == 0.0 else (0.5 * jitter_deg < found.jitter_max_deg
                                                                      <= jitter_deg)
+
+
+@pytest.mark.parametrize(("slots", "consecutive"), [
+    ([], True), ([0], True), ([0, 1, 2, 3], True),
+    ([0, 1, 3, 4], False),   # a firing missing (a no-return dropped)
+    ([1, 2, 3], False),      # not from the first firing
+    ([0, 1, 1, 2], False),   # two rows in one firing (a group printed with one time)
+])
+def test_a_table_is_consecutive_only_with_every_firing_from_the_first(slots: list[int], consecutive: bool) -> None:
+    rate = 1000.0
+    table = ReferencePattern("t", np.zeros((len(slots), 2)), np.array(slots, dtype=np.float64) / rate, rate)
+    assert table.consecutive is consecutive
