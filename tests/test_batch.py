@@ -170,15 +170,21 @@ def test_ctrl_c_leaves_no_temporary_of_the_job_in_flight(tmp_path: Path) -> None
     assert not [p for p in out.rglob("*") if ".livox-viz-" in p.name]
 
 
-def test_a_finished_job_without_its_row_counts_in_the_progress_lines(tmp_path: Path,
-                                                                     capsys: pytest.CaptureFixture[str]) -> None:
-    """A batch killed after a job's files were written but before its row: the next run writes the row, and its
-    points are in the progress lines as in the summary (the lines said fewer)."""
+def _two_jobs_run(tmp_path: Path) -> tuple[Path, Path]:
+    """A spec of two one-file jobs (seeds 3 and 4), run whole on one process: the spec and its out folder."""
     spec = tmp_path / "spec.toml"
     spec.write_text(SPEC.replace('"none", "line", "circle"', '"none"').replace('"npz", "las+rosbag"', '"npz"')
                     .replace("seeds = [3]", "seeds = [3, 4]"))
     out = tmp_path / "out"
     assert main(["batch", str(spec), "--out", str(out), "--jobs", "1"]) == 0
+    return spec, out
+
+
+def test_a_finished_job_without_its_row_counts_in_the_progress_lines(tmp_path: Path,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """A batch killed after a job's files were written but before its row: the next run writes the row, and its
+    points are in the progress lines as in the summary (the lines said fewer)."""
+    spec, out = _two_jobs_run(tmp_path)
     first, second = _manifest(out)
     with open(out / "manifest.csv", newline="") as handle:
         header = handle.readline()
@@ -921,11 +927,7 @@ def test_a_killed_batch_s_job_in_flight_that_finished_counts_in_the_first_line(
     """A batch killed after a job's files were written but before its row, the job still listed in flight in its
     lock: the rerun takes the row from the lock's list before it counts, so its first line says the job is
     finished (not "1 to run", for a job it then only skips)."""
-    spec = tmp_path / "spec.toml"
-    spec.write_text(SPEC.replace('"none", "line", "circle"', '"none"').replace('"npz", "las+rosbag"', '"npz"')
-                    .replace("seeds = [3]", "seeds = [3, 4]"))
-    out = tmp_path / "out"
-    assert main(["batch", str(spec), "--out", str(out), "--jobs", "1"]) == 0
+    spec, out = _two_jobs_run(tmp_path)
     first, second = _manifest(out)
     with open(out / "manifest.csv", newline="") as handle:
         header = handle.readline()
