@@ -100,3 +100,28 @@ def test_radial_density_of_uniform_disk_is_flat() -> None:
     assert edges[-1] == radius
     expected = alpha.size / (2 * math.pi * (1 - math.cos(math.radians(radius))))
     np.testing.assert_allclose(density, expected, rtol=0.05)
+
+
+def test_received_points_give_the_stream_s_own_curves_in_any_order_at_their_times_resolution() -> None:
+    """A live stream's curves (the window's charts in the live view): points in any order give the curves of the
+    stream in firing order; stamped a frame at a time (RflySim's wire), no integration time shorter than a frame
+    is drawn, and the rest count each frame's points at its stamp."""
+    from livox_viz import ScanPattern, load_preset
+    from livox_viz.patterns.metrics import received_curves, stream_curves
+
+    config = load_preset("livox_mid70")
+    count = 100_000
+    xy = ScanPattern(config, seed=0).take(count).xy_deg
+    t = np.arange(count) / config.point_rate
+    firing_order = stream_curves(xy, config.point_rate, config.field_of_view)
+    shuffled = np.random.default_rng(4).permutation(count)
+    received = received_curves(xy[shuffled], t[shuffled] + 7.0, config.point_rate, config.field_of_view)
+    np.testing.assert_array_equal(received.seconds, firing_order.seconds)
+    np.testing.assert_allclose(received.coverage, firing_order.coverage)
+    np.testing.assert_allclose(received.density, firing_order.density)
+    stamped = np.floor(t * 10.0) / 10.0  # each 0.1 s frame at its start
+    framed = received_curves(xy, stamped, config.point_rate, config.field_of_view)
+    assert framed.seconds.tolist() == [0.1, 0.2, 0.3, 0.5, 0.75]
+    np.testing.assert_allclose(framed.coverage[[0, 1, 2]], firing_order.coverage[[1, 2, 3]], atol=0.002)
+    empty = received_curves(np.zeros((0, 2)), np.zeros(0), config.point_rate, config.field_of_view)
+    assert empty.seconds.size == empty.coverage.size == empty.density.size == 0

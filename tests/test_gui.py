@@ -493,14 +493,16 @@ def test_the_live_view_s_charts_show_the_stream_s_own_curves(app: LivoxVizApp, m
     stream = app.charts.ours
     assert stream is not None and app.charts.ours_coverage.visible
     assert re.fullmatch(r"stream \(its 0\.[34]\d* s\)", app.charts.ours_coverage.label), app.charts.ours_coverage.label
+    assert app.charts.ours_density.label == "stream"
     ring = session.pattern_ring
     expected = received_curves(ring.ordered(ring.positions)[:, :2].astype(float), ring.ordered(ring.times),
                                session.config.point_rate, session.config.field_of_view)
     np.testing.assert_allclose(stream.coverage, expected.coverage)
-    np.testing.assert_array_equal(stream.seconds, [0.05, 0.1, 0.2, 0.3])
+    # Frames of 0.1 s, each stamped with one time: no integration time shorter than a frame is drawn.
+    np.testing.assert_array_equal(stream.seconds, [0.1, 0.2, 0.3])
     # The stream's scan covers only the middle of the preset's field of view: far less than the model at 0.3 s.
     at = list(model.seconds).index(0.3)
-    assert stream.coverage[3] < 0.5 * model.coverage[at], (stream.coverage, model.coverage)
+    assert stream.coverage[-1] < 0.5 * model.coverage[at], (stream.coverage, model.coverage)
     app.charts.update()
     assert app.charts._ours_pending is None  # nothing new arrived: nothing asked again
 

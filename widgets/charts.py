@@ -139,6 +139,7 @@ class CurveCharts:
             self.ours_coverage.update(curves.seconds, 100.0 * curves.coverage)
             self.ours_density.update(curves.density_alpha_deg, curves.density / 1e6)
             self.ours_coverage.label = curve_label(name, curves, span)
+            self.ours_density.label = name
         self._fit_density_axes()
         self.dirty = True
 

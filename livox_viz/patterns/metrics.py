@@ -414,15 +414,19 @@ def received_curves(xy_deg: np.ndarray, t_s: np.ndarray, rate: float, fov: FovLi
         after the first times ``rate``.
     fov : FieldOfView or float
     seconds : (k,) float
-        Integration times; those past the points' span are left out.
+        Integration times; those past the points' span are left out, and so are those shorter than the times'
+        own step (RflySim's wire stamps a whole frame with one time: at 10 frames/s, 0.05 s of it is not known).
     bins : int
     """
     if xy_deg.shape[0] == 0:
         return PatternCurves(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0))
     order = np.argsort(t_s, kind="stable")
     times = np.asarray(t_s, dtype=np.float64)[order]
+    steps = np.diff(np.unique(times))
+    step = float(steps.min()) if steps.size else 0.0
+    known = [s for s in seconds if s >= step * (1.0 - 1e-9)]
     slots = np.rint((times - times[0]) * rate).astype(np.int64)
-    return stream_curves(np.asarray(xy_deg, dtype=np.float64)[order], rate, fov, seconds, bins, slots=slots)
+    return stream_curves(np.asarray(xy_deg, dtype=np.float64)[order], rate, fov, known, bins, slots=slots)
 
 
 def config_curves(config: SensorConfig, seed: int = 0, seconds: Sequence[float] = CURVE_SECONDS) -> PatternCurves:
