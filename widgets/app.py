@@ -609,7 +609,7 @@ class LivoxVizApp:
         self.selected_picks = [row for row in self.selected_picks if row < len(self.picks)]
         if self.scene_view is not None:
             self.scene_view.mark_picks([p["xyz_world"] for p in self.picks])
-            self.scene_view.mark_selected_picks([self.picks[row]["xyz_world"] for row in self.selected_picks])
+            self._ring_selected_picks()
         if self.on_picks_change is not None:
             self.on_picks_change()
 
@@ -625,7 +625,11 @@ class LivoxVizApp:
             raise LivoxVizError(f"no pick {max(rows) + 1}; allowed: 1 to {len(self.picks)}")
         self.selected_picks = sorted(set(rows))
         if self.scene_view is not None:
-            self.scene_view.mark_selected_picks([self.picks[row]["xyz_world"] for row in self.selected_picks])
+            self._ring_selected_picks()
+
+    def _ring_selected_picks(self) -> None:
+        assert self.scene_view is not None
+        self.scene_view.mark_selected_picks([self.picks[row]["xyz_world"] for row in self.selected_picks])
 
     def forget_picks(self) -> None:
         """Drop the picks and their marks (the scan moved to another time: the points picked may not be there)."""

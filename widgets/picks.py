@@ -128,11 +128,10 @@ def status_line(picks: Sequence[Mapping[str, Any]]) -> str:
         x, y, z = (float(v) for v in found["xyz_world"])
         text = (f"pick {len(picks)}: point {found['index'] + 1:,} of the opened cloud {found['cloud']}, x {x:.3f} m, "
                 f"y {y:.3f} m, z {z:.3f} m (world NED)")
-        measured = measures_text(pick_measures(picks))
-        return f"{text}; {measured}" if measured else text
-    text = (f"pick {len(picks)}: range {found['range_m']:.3f} m, azimuth {found['azimuth_deg']:.2f} deg, elevation "
-            f"{found['elevation_deg']:.2f} deg, reflectivity {found['reflectivity']}, tag 0x{found['tag']:02x}, "
-            f"return {found['return_number']}, t {found['t_s']:.4f} s, frame {found['frame']}")
+    else:
+        text = (f"pick {len(picks)}: range {found['range_m']:.3f} m, azimuth {found['azimuth_deg']:.2f} deg, elevation "
+                f"{found['elevation_deg']:.2f} deg, reflectivity {found['reflectivity']}, tag 0x{found['tag']:02x}, "
+                f"return {found['return_number']}, t {found['t_s']:.4f} s, frame {found['frame']}")
     measured = measures_text(pick_measures(picks))
     return f"{text}; {measured}" if measured else text
 
